@@ -1,0 +1,28 @@
+"""hftrace's public API: exact references, the algorithm registry and the C kernels.
+
+>>> import algos
+>>> algos.reference_cells((0.5, 0.5), (2, 3), (4, 4))
+[(0, 0), (0, 1), (1, 1), (1, 2), (2, 2), (2, 3)]
+
+See CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the API.
+"""
+from .lattice import quantize
+from .reference import major_axis, reference_cells, reference_runs, runs_from_cells
+from .registry import TRAVERSAL_REGISTRY, TRAVERSALS, Traversal, get_traversal
+from .traverse import (
+    DEFAULT_MAX_DENOMINATOR,
+    OUTPUTS,
+    WORKLOADS,
+    CellPaths,
+    PathCounts,
+    RunPaths,
+    traverse,
+    walk_timed,
+)
+
+__all__ = [
+    "TRAVERSALS", "TRAVERSAL_REGISTRY", "Traversal", "get_traversal",
+    "reference_cells", "reference_runs", "runs_from_cells", "major_axis", "quantize",
+    "traverse", "walk_timed", "CellPaths", "RunPaths", "PathCounts",
+    "DEFAULT_MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
+]

@@ -1,0 +1,310 @@
+"""``algos.traverse``: the public entry to the C traversal kernels.
+
+This module validates and converts every input; the C layer trusts what it is given.
+"""
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _kernels
+from .lattice import MAX_DIRECTION, MAX_GRID_SIDE, MAX_ORIGIN, quantize
+from .registry import Traversal, get_traversal
+
+__all__ = [
+    "CellPaths", "RunPaths", "PathCounts", "traverse", "walk_timed",
+    "DEFAULT_MAX_DENOMINATOR", "MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
+]
+
+#: Default Q of runs_periodic: slopes p/q with q <= 2**16 are replayed exactly.
+DEFAULT_MAX_DENOMINATOR = _kernels.DEFAULT_MAX_DENOMINATOR
+#: Largest Q accepted (the pattern workspace holds Q + 1 int32).
+MAX_DENOMINATOR = _kernels.MAX_DENOMINATOR
+
+_MODE = {"count": 0, "cells": 1, "runs": 2, "visit": 3, "runfold": 4}
+#: Output modes of :func:`traverse`.
+OUTPUTS = ("cells", "runs", "count")
+#: Timed workloads of :func:`walk_timed` (CONVENTIONS.md, "Workloads").
+WORKLOADS = {"visit": "visit", "runs": "runfold"}
+
+
+@dataclass(frozen=True)
+class CellPaths:
+    """Visited cells of N rays, concatenated.
+
+    ``cells[offsets[k]:offsets[k+1]]`` (also ``paths[k]``) is ray k's ``(n_k, 2)`` array
+    of ``(i, j)`` in visiting order.
+    """
+
+    offsets: np.ndarray  # (N + 1,) int64
+    cells: np.ndarray  # (M, 2) int32
+    algorithm: str
+
+    def __len__(self) -> int:
+        return len(self.offsets) - 1
+
+    def __getitem__(self, k: int) -> np.ndarray:
+        k = range(len(self))[k]
+        return self.cells[self.offsets[k]:self.offsets[k + 1]]
+
+    def __iter__(self):
+        return (self[k] for k in range(len(self)))
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Cells per ray."""
+        return np.diff(self.offsets)
+
+
+@dataclass(frozen=True)
+class RunPaths:
+    """Runs of N rays, concatenated: ``runs[offsets[k]:offsets[k+1]]`` (``paths[k]``)
+    holds ray k's runs ``(minor, first, last)``; ``first`` and ``last`` are major-axis
+    indices in travel order, and ``major[k]`` is 0 when x is ray k's major axis."""
+
+    offsets: np.ndarray  # (N + 1,) int64
+    runs: np.ndarray  # (M, 3) int32
+    major: np.ndarray  # (N,) int8
+    algorithm: str
+
+    def __len__(self) -> int:
+        return len(self.offsets) - 1
+
+    def __getitem__(self, k: int) -> np.ndarray:
+        k = range(len(self))[k]
+        return self.runs[self.offsets[k]:self.offsets[k + 1]]
+
+    def __iter__(self):
+        return (self[k] for k in range(len(self)))
+
+
+@dataclass(frozen=True)
+class PathCounts:
+    """Number of cells and of runs per ray."""
+
+    cells: np.ndarray  # (N,) int64
+    runs: np.ndarray  # (N,) int64
+    algorithm: str
+
+
+# ---- validation ----------------------------------------------------------------------
+def _as_float_array(value, name: str) -> np.ndarray:
+    try:
+        array = np.asarray(value)
+    except Exception as exc:  # e.g. ragged nested lists
+        raise TypeError(f"{name}: cannot be read as an array ({exc})") from None
+    if array.dtype.kind not in "fiu":
+        raise TypeError(f"{name}: expected real numbers, got dtype {array.dtype}")
+    return array
+
+
+def _first_bad(mask: np.ndarray):
+    index = np.argwhere(mask)[0]
+    return tuple(int(v) for v in index)
+
+
+def _check_rays(origins, directions, width: int):
+    """Validated, C-contiguous native float64 copies of (N, width) ray arrays."""
+    arrays = []
+    for name, value in (("origins", origins), ("directions", directions)):
+        array = _as_float_array(value, name)
+        if array.ndim != 2 or array.shape[1] != width:
+            raise ValueError(f"{name}: expected shape (N, {width}), got {array.shape}")
+        array = np.ascontiguousarray(array, dtype=np.float64)
+        bad = ~np.isfinite(array)
+        if bad.any():
+            k, c = _first_bad(bad)
+            raise ValueError(
+                f"{name}: ray {k} has a non-finite component {name}[{k}, {c}] = {array[k, c]}"
+            )
+        arrays.append(array)
+    o, d = arrays
+    if len(o) != len(d):
+        raise ValueError(f"origins and directions: {len(o)} origins but {len(d)} directions")
+    huge = np.abs(d) > MAX_DIRECTION
+    if huge.any():
+        k, c = _first_bad(huge)
+        raise ValueError(
+            f"directions: ray {k} has |directions[{k}, {c}]| = {abs(d[k, c])} > 2**1000, "
+            "the documented limit (scale the direction and t together)"
+        )
+    far = np.abs(o[:, :2]) > MAX_ORIGIN
+    if far.any():
+        k, c = _first_bad(far)
+        raise ValueError(
+            f"origins: ray {k} has |origins[{k}, {c}]| = {abs(o[k, c])} > 2**30, the "
+            "documented limit (move the origin along the ray toward the grid)"
+        )
+    return o, d
+
+
+def _check_t(value, name: str, n: int):
+    if value is None:
+        return None
+    array = _as_float_array(value, name)
+    if array.ndim == 0:
+        array = np.full(n, float(array))
+    if array.shape != (n,):
+        raise ValueError(f"{name}: expected a scalar or shape ({n},), got {array.shape}")
+    array = np.ascontiguousarray(array, dtype=np.float64)
+    bad = np.isnan(array)
+    if bad.any():
+        k = _first_bad(bad)[0]
+        raise ValueError(f"{name}: ray {k} has {name}[{k}] = nan")
+    return array
+
+
+def _check_shape(shape) -> tuple[int, int]:
+    try:
+        nx, ny = shape
+    except (TypeError, ValueError):
+        raise ValueError(f"shape: expected (nx, ny), got {shape!r}") from None
+    sides = []
+    for axis, side in (("nx", nx), ("ny", ny)):
+        if isinstance(side, bool) or not isinstance(side, numbers.Integral):
+            raise TypeError(f"shape: {axis} must be an integer, got {side!r}")
+        side = int(side)
+        if side < 1:
+            raise ValueError(f"shape: {axis} = {side}; a grid needs at least one cell")
+        if side > MAX_GRID_SIDE:
+            raise ValueError(f"shape: {axis} = {side} exceeds the limit 2**24 = {MAX_GRID_SIDE}")
+        sides.append(side)
+    return sides[0], sides[1]
+
+
+def _check_max_denominator(value, algorithm: Traversal) -> int:
+    if value is None:
+        return DEFAULT_MAX_DENOMINATOR if algorithm.shared_direction else 0
+    if not algorithm.shared_direction:
+        raise ValueError(f"max_denominator: only runs_periodic takes it, not {algorithm.name}")
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"max_denominator: expected an integer, got {value!r}")
+    if not 1 <= int(value) <= MAX_DENOMINATOR:
+        raise ValueError(f"max_denominator: {value} outside [1, 2**24]")
+    return int(value)
+
+
+class _Batch:
+    """Validated inputs of one call, ready for the C kernels."""
+
+    def __init__(self, name, origins, directions, shape, tmin, tmax, max_denominator):
+        self.algorithm = get_traversal(name)
+        self.origins, self.directions = _check_rays(origins, directions, 2)
+        self.n = len(self.origins)
+        self.nx, self.ny = _check_shape(shape)
+        self.tmin = _check_t(tmin, "tmin", self.n)
+        self.tmax = _check_t(tmax, "tmax", self.n)
+        self.max_denominator = _check_max_denominator(max_denominator, self.algorithm)
+        self.pattern = (
+            np.zeros(self.max_denominator + 1, dtype=np.int32)
+            if self.algorithm.shared_direction else None
+        )
+
+    def run(self, mode: str, n_cells=None, n_runs=None, offsets=None, out=None, checksums=None):
+        return _kernels.walk(
+            self.algorithm.kernel_id, _MODE[mode], self.origins, self.directions,
+            self.tmin, self.tmax, self.nx, self.ny, self.max_denominator, self.pattern,
+            n_cells, n_runs, offsets, out, checksums,
+        )
+
+    def counts(self):
+        n_cells = np.zeros(self.n, dtype=np.int64)
+        n_runs = np.zeros(self.n, dtype=np.int64)
+        self.run("count", n_cells=n_cells, n_runs=n_runs)
+        return n_cells, n_runs
+
+    def major(self) -> np.ndarray:
+        """Each ray's major axis by the rule its kernel applies."""
+        d = self.directions
+        if self.algorithm.exact:
+            d = quantize(self.origins, d)[1]
+        elif self.algorithm.precision == "float32":
+            d = d.astype(np.float32)
+        return (np.abs(d[:, 1]) > np.abs(d[:, 0])).astype(np.int8)
+
+
+def _offsets(counts: np.ndarray) -> np.ndarray:
+    offsets = np.zeros(len(counts) + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return offsets
+
+
+def traverse(name, origins, directions, shape, tmin=None, tmax=None, *, output="cells",
+             max_denominator=None):
+    """Walk N rays across a 2D grid with one registered kernel.
+
+    Parameters
+    ----------
+    name : str
+        A name in ``algos.TRAVERSALS``.
+    origins, directions : array_like, shape (N, 2)
+        Rays ``o + t d`` in (x, y); any real dtype, byte order or layout (converted to
+        float64). Components must be finite, ``|origins| <= 2**30`` and
+        ``|directions| <= 2**1000``. A zero direction
+        is a vertical ray and visits at most the cell under the origin.
+    shape : (nx, ny)
+        Grid size in cells, (x, y) order; each side in ``[1, 2**24]``.
+    tmin, tmax : None, float or array_like of shape (N,)
+        Parameter range ``[tmin, tmax)``; default ``[0, inf)``; ``+-inf`` allowed.
+    output : {"cells", "runs", "count"}
+        What to return, so that a caller pays only for what it needs.
+    max_denominator : int, optional
+        ``runs_periodic`` only: Q, the largest slope denominator (default ``2**16``). The
+        reduced slope ``|minor/major|`` of the lattice-rounded ray is replaced by its best
+        rational approximation p/q with q <= Q (ties to the smaller q, as
+        ``Fraction.limit_denominator``); the walk is the exact one of the ray with that
+        slope through the same origin, moving along the major axis at the same speed.
+        So the result equals the exact kernels' whenever the slope already is p/q with
+        q <= Q, and is approximate otherwise.
+
+    Returns
+    -------
+    CellPaths, RunPaths or PathCounts
+        Exact kernels (``registry.TRAVERSAL_REGISTRY[name].exact``) return exactly
+        ``reference_cells`` of the ray rounded by :func:`algos.lattice.quantize`, for any
+        ``tmin``/``tmax``; float kernels are measured against it (the accuracy study).
+
+    Raises
+    ------
+    ValueError, TypeError
+        Bad input, with a message naming the argument and the offending ray.
+    """
+    batch = _Batch(name, origins, directions, shape, tmin, tmax, max_denominator)
+    if output not in OUTPUTS:
+        raise ValueError(f"output: expected one of {OUTPUTS}, got {output!r}")
+    n_cells, n_runs = batch.counts()
+    if output == "count":
+        return PathCounts(n_cells, n_runs, batch.algorithm.name)
+    if output == "cells":
+        offsets = _offsets(n_cells)
+        cells = np.empty((int(offsets[-1]), 2), dtype=np.int32)
+        batch.run("cells", offsets=offsets, out=cells)
+        return CellPaths(offsets, cells, batch.algorithm.name)
+    offsets = _offsets(n_runs)
+    runs = np.empty((int(offsets[-1]), 3), dtype=np.int32)
+    batch.run("runs", offsets=offsets, out=runs)
+    return RunPaths(offsets, runs, batch.major(), batch.algorithm.name)
+
+
+def walk_timed(name, origins, directions, shape, workload="visit", tmin=None, tmax=None,
+               *, max_denominator=None):
+    """Time one workload of one kernel over a batch, in C.
+
+    ``visit`` folds every visited cell into a per-ray checksum; ``runs`` folds every
+    run. The clock (CLOCK_MONOTONIC) wraps the whole C loop and nothing else.
+
+    Returns
+    -------
+    elapsed_ns : int
+    checksums : ndarray of uint64, shape (N,)
+        Identical across kernels that visit identical cells (or runs) in the same order.
+    """
+    if workload not in WORKLOADS:
+        raise ValueError(f"workload: expected one of {tuple(WORKLOADS)}, got {workload!r}")
+    batch = _Batch(name, origins, directions, shape, tmin, tmax, max_denominator)
+    checksums = np.zeros(batch.n, dtype=np.uint64)
+    elapsed = batch.run(WORKLOADS[workload], checksums=checksums)
+    return elapsed, checksums
+

@@ -1,0 +1,233 @@
+/* Run-based traversal (Henning & Stephenson 2004): one step per run instead of per cell.
+ *
+ * Reduced frame: travel along +major, slope B/A with 0 <= B <= A. The line crosses the
+ * minor grid line `row` at major position
+ *     X(row) = o_major + (row 2^16 - o_minor) A / B            (lattice units)
+ * and crossing column c(row) = floor(X(row) / 2^16). Row `row` is visited from the column
+ * where the line enters it to the column where it leaves it:
+ *     run(row) = (row, c(row), c(row + 1) - [X(row + 1) is a vertex]).
+ * Consecutive runs share the crossing column except at an exact vertex crossing.
+ *
+ * The 8-connected run length c(row + 1) - c(row) is floor(A/B) (short) or that plus one
+ * (long). With X(row) B = c W + R, W = B 2^16, 0 <= R < W, the step adds A 2^16 =
+ * floor(A/B) W + rem, so the run is long exactly when R + rem >= W, i.e. when the
+ * fractional crossing position R/W is at least 1 - frac(A/B). In the seeds' notation
+ * (beta = alpha * (1 - R/W), v = 1 - alpha floor(1/alpha)) this is "beta <= v -> long":
+ * the slides print the inequality the other way round; tests/test_runs_math.py checks the
+ * derivation on the slides' own example y = 17/41 x.
+ *
+ * Start clipping: the first run starts at the clipped start cell and ends at the first
+ * crossing, which is computed directly with one 128-bit division; the recurrence then
+ * carries (c, R) from run to run in int64 (R < 2^47). */
+#include "internal.h"
+
+/* ---- runs: the exact recurrence ------------------------------------------------------ */
+HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
+    hf_line L;
+    hf_frame f;
+    int32_t row, first, last;
+    int64_t W, rem, short_length, column, R;
+    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
+                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, 0,
+                                       &L);
+    const int status = hf_ray_begin(b, ray, s, mode, !L.swap);
+    (void)ctx;
+    if (status != HF_OK || !nonempty) return status;
+    f = hf_frame_of(&L);
+    if (L.slope_minor == 0) {
+        hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1);
+        return HF_OK;
+    }
+
+    W = L.slope_minor * HF_ONE;
+    short_length = L.slope_major / L.slope_minor;
+    rem = (L.slope_major % L.slope_minor) * HF_ONE;
+    {
+        /* start clipping: the crossing into row b0 + 1, exactly */
+        const hf_i128 N = (hf_i128)L.o_major * L.slope_minor +
+                          ((hf_i128)(L.b0 + 1) * HF_ONE - L.o_minor) * L.slope_major;
+        const hf_i128 c = hf_floor_div(N, W);
+        column = (int64_t)c;
+        R = (int64_t)(N - c * W);
+    }
+    first = L.a0;
+    for (row = L.b0; row < L.b1; ++row) {
+        last = (int32_t)(R == 0 ? column - 1 : column);
+        HF_ASSERT(last >= first && last <= L.a1, "row=%d first=%d last=%d a1=%d", row,
+                  first, last, L.a1);
+        hf_emit_reduced_run(s, mode, &f, row, first, last);
+        first = (int32_t)column;
+        column += short_length;
+        R += rem;
+        if (R >= W) { R -= W; column += 1; }
+    }
+    if (first > L.a1) return HF_ERR_INTERNAL;
+    hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1);
+    return HF_OK;
+}
+
+HF_DEFINE_BATCH(hf_batch_runs, walk_runs)
+
+/* ---- runs_periodic: replay the run pattern of a rational slope --------------------------
+ * For a slope p/q in lowest terms the fractional crossing position advances by
+ * (q mod p)/p per run, so its residue a = floor(R / 2^16) in [0, p) walks the cycle
+ * a -> (a + q mod p) mod p and the run lengths repeat every p runs (q cells). The pattern
+ * holds the lengths from residue 0; a ray's phase is the position of its first residue,
+ * position = a (q mod p)^-1 mod p. The sub-lattice offset delta = R mod 2^16 is constant
+ * along the ray; a vertex crossing is residue 0 with delta 0. */
+static int64_t inverse_mod(int64_t value, int64_t modulus) {
+    /* extended Euclid; value and modulus are coprime */
+    int64_t r0 = modulus, r1 = value % modulus, s0 = 0, s1 = 1;
+    if (modulus == 1) return 0;
+    while (r1 != 0) {
+        const int64_t k = r0 / r1, r2 = r0 - k * r1, s2 = s0 - k * s1;
+        r0 = r1; r1 = r2; s0 = s1; s1 = s2;
+    }
+    return s0 < 0 ? s0 + modulus : s0;
+}
+
+static void build_pattern(hf_pattern *pattern, int64_t p, int64_t q) {
+    const int64_t q_mod_p = q % p, short_length = q / p;
+    int64_t k, residue = 0;
+    for (k = 0; k < p; ++k) {
+        pattern->lengths[k] = (int32_t)(short_length + (residue + q_mod_p >= p ? 1 : 0));
+        residue += q_mod_p;
+        if (residue >= p) residue -= p;
+    }
+    pattern->p = p;
+    pattern->q = q;
+    pattern->position_step = inverse_mod(q_mod_p, p);
+}
+
+HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
+                                 void *ctx) {
+    hf_pattern *pattern = (hf_pattern *)ctx;
+    hf_line L;
+    hf_frame f;
+    int32_t row, first, last;
+    int64_t p, column, delta, position;
+    const int32_t *lengths;
+    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
+                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny,
+                                       b->max_denominator, &L);
+    const int status = hf_ray_begin(b, ray, s, mode, !L.swap);
+    if (status != HF_OK || !nonempty) return status;
+    f = hf_frame_of(&L);
+    if (L.slope_minor == 0) {
+        hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1);
+        return HF_OK;
+    }
+    p = L.slope_minor;
+    if (p > b->max_denominator) return HF_ERR_CAPACITY;
+    /* parallel rays share one pattern; a new slope builds a new one */
+    if (pattern->p != p || pattern->q != L.slope_major) build_pattern(pattern, p, L.slope_major);
+    lengths = pattern->lengths;
+    {
+        /* start clipping gives the phase: the first crossing, exactly */
+        const hf_i128 W = (hf_i128)p * HF_ONE;
+        const hf_i128 N = (hf_i128)L.o_major * p +
+                          ((hf_i128)(L.b0 + 1) * HF_ONE - L.o_minor) * L.slope_major;
+        const hf_i128 c = hf_floor_div(N, W);
+        const int64_t R = (int64_t)(N - c * W);
+        column = (int64_t)c;
+        delta = R % HF_ONE;
+        position = (int64_t)(((hf_i128)(R / HF_ONE) * pattern->position_step) % p);
+    }
+    first = L.a0;
+    for (row = L.b0; row < L.b1; ++row) {
+        last = (int32_t)((position == 0 && delta == 0) ? column - 1 : column);
+        hf_emit_reduced_run(s, mode, &f, row, first, last);
+        first = (int32_t)column;
+        column += lengths[position];
+        if (++position == p) position = 0;
+    }
+    if (first > L.a1) return HF_ERR_INTERNAL;
+    hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1);
+    return HF_OK;
+}
+
+HF_DEFINE_BATCH(hf_batch_runs_periodic, walk_runs_periodic)
+
+/* ---- runs_f64: the same recurrence in float64 -----------------------------------------
+ * The paper's float formulation: clip in float64, then carry the crossing column and its
+ * fractional part `frac` in doubles. Not exact: rounding can move a run boundary, and the
+ * accuracy study reports how often. Loops are bounded by the clipped cell range, so a
+ * rounding error can shorten or lengthen a run but never run away or write out of bounds. */
+HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
+                            void *ctx) {
+    const double *o = b->origins + 2 * ray, *d = b->directions + 2 * ray;
+    const int swap = fabs(d[1]) > fabs(d[0]);
+    const int32_t n_major = swap ? b->ny : b->nx, n_minor = swap ? b->nx : b->ny;
+    const int mirror_major = d[swap] < 0, mirror_minor = d[1 - swap] < 0;
+    const double A = fabs(d[swap]), B = fabs(d[1 - swap]);
+    const double o_major = mirror_major ? n_major - o[swap] : o[swap];
+    const double o_minor = mirror_minor ? n_minor - o[1 - swap] : o[1 - swap];
+    double t0 = hf_tmin(b, ray), t1 = hf_tmax(b, ray);
+    double a_start, b_start, a_end, b_end, slope_inverse, frac, crossing, step_frac;
+    int32_t row, first, last, row0, row1, col0, col1;
+    int64_t column, step_whole;
+    hf_frame f;
+    int status = hf_ray_begin(b, ray, s, mode, !swap);
+    (void)ctx;
+    if (status != HF_OK) return status;
+    if (A == 0.0) {
+        /* vertical: the cell under the origin */
+        if (!(t0 < t1) || !(o[0] >= 0 && o[0] < b->nx && o[1] >= 0 && o[1] < b->ny))
+            return HF_OK;
+        hf_emit_run(s, mode, (int32_t)floor(o[1]), (int32_t)floor(o[0]),
+                    (int32_t)floor(o[0]));
+        return HF_OK;
+    }
+    /* slab clipping in float64 */
+    t0 = fmax(t0, (0.0 - o_major) / A);
+    t1 = fmin(t1, (n_major - o_major) / A);
+    if (B > 0.0) {
+        t0 = fmax(t0, (0.0 - o_minor) / B);
+        t1 = fmin(t1, (n_minor - o_minor) / B);
+    } else if (!(o_minor >= 0.0 && o_minor < n_minor)) {
+        return HF_OK;
+    }
+    if (!(t0 < t1)) return HF_OK;
+    a_start = floor(o_major + t0 * A);
+    b_start = floor(o_minor + t0 * B);
+    a_end = ceil(o_major + t1 * A) - 1.0;
+    b_end = B > 0.0 ? ceil(o_minor + t1 * B) - 1.0 : b_start;
+    col0 = (int32_t)fmin(fmax(a_start, 0.0), n_major - 1.0);
+    row0 = (int32_t)fmin(fmax(b_start, 0.0), n_minor - 1.0);
+    col1 = (int32_t)fmin(fmax(a_end, (double)col0), n_major - 1.0);
+    row1 = (int32_t)fmin(fmax(b_end, (double)row0), n_minor - 1.0);
+    f.base_major = mirror_major ? n_major - 1 : 0;
+    f.sign_major = mirror_major ? -1 : 1;
+    f.base_minor = mirror_minor ? n_minor - 1 : 0;
+    f.sign_minor = mirror_minor ? -1 : 1;
+    f.swap = swap;
+    if (B == 0.0 || row0 == row1) {
+        hf_emit_reduced_run(s, mode, &f, row0, col0, col1);
+        return HF_OK;
+    }
+    /* a nearly flat slope: clamp before converting to integers (no overflow UB); any
+     * value past 2^40 cells lies beyond every grid */
+    slope_inverse = fmin(A / B, 1099511627776.0);
+    step_whole = (int64_t)floor(slope_inverse);
+    step_frac = slope_inverse - (double)step_whole;
+    crossing = o_major + (row0 + 1.0 - o_minor) * slope_inverse;
+    crossing = fmin(fmax(crossing, -1099511627776.0), 1099511627776.0);
+    column = (int64_t)floor(crossing);
+    frac = crossing - (double)column;
+    first = col0;
+    for (row = row0; row < row1; ++row) {
+        last = (int32_t)(frac == 0.0 ? column - 1 : column);
+        if (last > col1) last = col1;
+        if (last < first) last = first;
+        hf_emit_reduced_run(s, mode, &f, row, first, last);
+        first = column > col1 ? col1 : (int32_t)column;
+        if (first < last) first = last;
+        column += step_whole;
+        frac += step_frac;
+        if (frac >= 1.0) { frac -= 1.0; column += 1; }
+    }
+    hf_emit_reduced_run(s, mode, &f, row1, first, col1 < first ? first : col1);
+    return HF_OK;
+}
+
+HF_DEFINE_BATCH(hf_batch_runs_f64, walk_runs_f64)

@@ -1,0 +1,46 @@
+"""Build of the C kernels (cext/) as the extension module algos._kernels.
+
+Environment switches:
+  HFTRACE_DEBUG=1     -O0 -g and the kernels' invariant checks (HF_DEBUG)
+  HFTRACE_SANITIZE=1  HFTRACE_DEBUG plus AddressSanitizer and UndefinedBehaviorSanitizer
+                      (run Python with LD_PRELOAD of libasan; see `make sanitize`)
+Otherwise: -O3, C99, no fast-math (the float kernels must round as IEEE 754 says).
+"""
+import os
+import sys
+
+import numpy
+from setuptools import Extension, setup
+
+SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c"]
+
+compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
+link_args = []
+macros = [("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")]
+if os.environ.get("HFTRACE_DEBUG") == "1" or os.environ.get("HFTRACE_SANITIZE") == "1":
+    compile_args += ["-O0", "-g", "-UNDEBUG"]
+    macros.append(("HF_DEBUG", "1"))
+else:
+    compile_args += ["-O3"]
+if os.environ.get("HFTRACE_SANITIZE") == "1":
+    sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
+                "-fno-omit-frame-pointer"]
+    compile_args += sanitize
+    link_args += sanitize
+if sys.platform.startswith("linux"):
+    # clock_gettime lives in librt on old glibc
+    link_args.append("-lrt")
+
+setup(
+    ext_modules=[
+        Extension(
+            "algos._kernels",
+            sources=[os.path.join("cext", name) for name in SOURCES],
+            include_dirs=["cext", numpy.get_include()],
+            define_macros=macros,
+            extra_compile_args=compile_args,
+            extra_link_args=link_args,
+            depends=[os.path.join("cext", name) for name in ("hftrace.h", "internal.h")],
+        )
+    ]
+)

@@ -1,0 +1,12 @@
+"""Shared test settings: every random choice is seeded."""
+import os
+
+from hypothesis import HealthCheck, settings
+
+# derandomize: Hypothesis draws the same examples on every run and machine
+settings.register_profile(
+    "hftrace", derandomize=True, deadline=None, print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+    max_examples=int(os.environ.get("HFTRACE_HYPOTHESIS_EXAMPLES", "200")),
+)
+settings.load_profile("hftrace")

@@ -1,0 +1,113 @@
+"""Bad input raises a clear error naming the argument and the ray; odd layouts work."""
+import math
+
+import numpy as np
+import pytest
+
+import algos
+
+ALL = list(algos.TRAVERSALS)
+O = np.array([[0.5, 0.5], [1.5, 0.25], [2.0, 3.0]])
+D = np.array([[1.0, 0.3], [-0.2, 1.0], [1.0, -1.0]])
+
+
+@pytest.mark.parametrize("name", ALL)
+@pytest.mark.parametrize("argument,bad", [("origins", np.nan), ("origins", np.inf),
+                                          ("directions", -np.inf), ("directions", np.nan)])
+def test_non_finite_rays(name, argument, bad):
+    o, d = O.copy(), D.copy()
+    (o if argument == "origins" else d)[2, 1] = bad
+    with pytest.raises(ValueError, match=rf"{argument}: ray 2 .*\[2, 1\]"):
+        algos.traverse(name, o, d, (4, 4))
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_nan_in_t_range(name):
+    with pytest.raises(ValueError, match=r"tmin: ray 1 "):
+        algos.traverse(name, O, D, (4, 4), tmin=[0.0, np.nan, 0.0])
+    with pytest.raises(ValueError, match=r"tmax: ray 0 "):
+        algos.traverse(name, O, D, (4, 4), tmax=[np.nan, 1.0, 1.0])
+    with pytest.raises(ValueError, match=r"tmax: expected a scalar or shape \(3,\)"):
+        algos.traverse(name, O, D, (4, 4), tmax=[1.0, 2.0])
+
+
+@pytest.mark.parametrize("shape", [(O[:, :1], D), (O, D[:2]), (O.ravel(), D), (O, D[:, None])])
+def test_wrong_ray_shapes(shape):
+    o, d = shape
+    with pytest.raises(ValueError, match=r"origins|directions"):
+        algos.traverse("runs", o, d, (4, 4))
+
+
+@pytest.mark.parametrize("grid,error", [((0, 4), ValueError), ((4, -1), ValueError),
+                                        ((4,), ValueError), ((4, 2.5), TypeError),
+                                        ((2**24 + 1, 4), ValueError), ("44", TypeError)])
+def test_bad_grids(grid, error):
+    with pytest.raises(error, match="shape"):
+        algos.traverse("runs", O, D, grid)
+
+
+def test_limits():
+    with pytest.raises(ValueError, match=r"origins: ray 0 .*2\*\*30"):
+        algos.traverse("runs", [[2.0**31, 0.0]], [[1.0, 0.0]], (4, 4))
+    with pytest.raises(ValueError, match=r"directions: ray 0 .*2\*\*1000"):
+        algos.traverse("runs", [[0.0, 0.0]], [[1e305, 0.0]], (4, 4))
+    # the largest documented grid is accepted
+    paths = algos.traverse("runs", [[0.5, 0.5]], [[1.0, 0.0]], (2**24, 1), tmax=3.0)
+    assert paths[0].tolist() == [[0, 0], [1, 0], [2, 0], [3, 0]]
+
+
+def test_bad_types_and_names():
+    with pytest.raises(TypeError, match="origins"):
+        algos.traverse("runs", [["a", "b"]], D[:1], (4, 4))
+    with pytest.raises(TypeError, match="directions"):
+        algos.traverse("runs", O, D.astype(complex), (4, 4))
+    with pytest.raises(ValueError, match="unknown traversal 'nope'; valid names are dda"):
+        algos.traverse("nope", O, D, (4, 4))
+    with pytest.raises(ValueError, match="output"):
+        algos.traverse("runs", O, D, (4, 4), output="everything")
+    with pytest.raises(ValueError, match="workload"):
+        algos.walk_timed("runs", O, D, (4, 4), workload="sleep")
+
+
+def test_reference_rejects_bad_input():
+    with pytest.raises(ValueError, match="origin"):
+        algos.reference_cells((math.nan, 0), (1, 0), (4, 4))
+    with pytest.raises(ValueError, match="shape"):
+        algos.reference_cells((0, 0), (1, 0), (0, 4))
+    with pytest.raises(ValueError, match="tmax"):
+        algos.reference_cells((0, 0), (1, 0), (4, 4), tmax=math.nan)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_layouts_and_dtypes(name):
+    """float32, big-endian, Fortran order, strided views and lists give the same cells,
+    and the inputs are never modified."""
+    rng = np.random.Generator(np.random.PCG64(3))
+    o = rng.uniform(0, 30, (50, 2)).astype(np.float32).astype(np.float64)
+    d = rng.normal(size=(50, 2)).astype(np.float32).astype(np.float64)
+    expected = algos.traverse(name, o, d, (30, 30))
+    wide = np.zeros((50, 5))
+    wide[:, 1], wide[:, 3] = o[:, 0], o[:, 1]
+    variants = [
+        (o.astype(np.float32), d.astype(np.float32)),
+        (o.astype(">f8"), d.astype(">f8")),
+        (np.asfortranarray(o), np.asfortranarray(d)),
+        (wide[:, 1::2], d[::-1][::-1]),
+        (o.tolist(), d.tolist()),
+    ]
+    for vo, vd in variants:
+        before = (np.array(vo, copy=True), np.array(vd, copy=True))
+        got = algos.traverse(name, vo, vd, (30, 30))
+        assert np.array_equal(got.cells, expected.cells) and np.array_equal(got.offsets, expected.offsets)
+        assert np.array_equal(np.asarray(vo), before[0]) and np.array_equal(np.asarray(vd), before[1])
+
+
+def test_empty_batch():
+    for name in ALL:
+        paths = algos.traverse(name, np.zeros((0, 2)), np.zeros((0, 2)), (4, 4))
+        assert len(paths) == 0 and paths.cells.shape == (0, 2)
+
+
+def test_zero_direction_is_vertical():
+    paths = algos.traverse("runs", [[1.5, 2.5], [9.0, 9.0]], [[0.0, 0.0], [0.0, 0.0]], (4, 4))
+    assert paths[0].tolist() == [[1, 2]] and paths[1].tolist() == []
