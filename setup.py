@@ -23,7 +23,7 @@ if os.environ.get("HFTRACE_DEBUG") == "1" or os.environ.get("HFTRACE_SANITIZE") 
 else:
     compile_args += ["-O3"]
 if os.environ.get("HFTRACE_SANITIZE") == "1":
-    sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
+    sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined", "-fno-wrapv",
                 "-fno-omit-frame-pointer"]
     compile_args += sanitize
     link_args += sanitize

@@ -16,6 +16,7 @@ from .traverse import (
     CellPaths,
     PathCounts,
     RunPaths,
+    prepare_timed,
     traverse,
     walk_timed,
 )
@@ -23,6 +24,6 @@ from .traverse import (
 __all__ = [
     "TRAVERSALS", "TRAVERSAL_REGISTRY", "Traversal", "get_traversal",
     "reference_cells", "reference_runs", "runs_from_cells", "major_axis", "quantize",
-    "traverse", "walk_timed", "CellPaths", "RunPaths", "PathCounts",
+    "traverse", "walk_timed", "prepare_timed", "CellPaths", "RunPaths", "PathCounts",
     "DEFAULT_MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
 ]

@@ -14,7 +14,7 @@ from .lattice import MAX_DIRECTION, MAX_GRID_SIDE, MAX_ORIGIN, quantize
 from .registry import Traversal, get_traversal
 
 __all__ = [
-    "CellPaths", "RunPaths", "PathCounts", "traverse", "walk_timed",
+    "CellPaths", "RunPaths", "PathCounts", "traverse", "walk_timed", "prepare_timed",
     "DEFAULT_MAX_DENOMINATOR", "MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
 ]
 
@@ -288,23 +288,36 @@ def traverse(name, origins, directions, shape, tmin=None, tmax=None, *, output="
     return RunPaths(offsets, runs, batch.major(), batch.algorithm.name)
 
 
-def walk_timed(name, origins, directions, shape, workload="visit", tmin=None, tmax=None,
-               *, max_denominator=None):
-    """Time one workload of one kernel over a batch, in C.
+def prepare_timed(name, origins, directions, shape, workload="visit", tmin=None,
+                  tmax=None, *, max_denominator=None):
+    """Validate once and return ``(run, checksums)``: each ``run()`` call walks the whole
+    batch again in C and returns its elapsed nanoseconds, filling ``checksums``.
 
     ``visit`` folds every visited cell into a per-ray checksum; ``runs`` folds every
-    run. The clock (CLOCK_MONOTONIC) wraps the whole C loop and nothing else.
-
-    Returns
-    -------
-    elapsed_ns : int
-    checksums : ndarray of uint64, shape (N,)
-        Identical across kernels that visit identical cells (or runs) in the same order.
+    run. The clock (CLOCK_MONOTONIC) wraps the C loop and nothing else. Checksums are
+    identical across kernels that visit the same cells (or runs) in the same order.
     """
     if workload not in WORKLOADS:
         raise ValueError(f"workload: expected one of {tuple(WORKLOADS)}, got {workload!r}")
     batch = _Batch(name, origins, directions, shape, tmin, tmax, max_denominator)
     checksums = np.zeros(batch.n, dtype=np.uint64)
-    elapsed = batch.run(WORKLOADS[workload], checksums=checksums)
-    return elapsed, checksums
+    mode = WORKLOADS[workload]
 
+    def run() -> int:
+        return batch.run(mode, checksums=checksums)
+
+    return run, checksums
+
+
+def walk_timed(name, origins, directions, shape, workload="visit", tmin=None, tmax=None,
+               *, max_denominator=None):
+    """Time one workload of one kernel over a batch once (see :func:`prepare_timed`).
+
+    Returns
+    -------
+    elapsed_ns : int
+    checksums : ndarray of uint64, shape (N,)
+    """
+    run, checksums = prepare_timed(name, origins, directions, shape, workload, tmin, tmax,
+                                   max_denominator=max_denominator)
+    return run(), checksums

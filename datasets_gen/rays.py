@@ -37,17 +37,20 @@ def _rng(seed) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(seed))
 
 
-def octant_directions(theta: np.ndarray, octant: np.ndarray) -> np.ndarray:
-    """Unit directions at angle ``theta`` (radians, in [0, pi/4]) from the major axis,
+def octant_directions(alpha: np.ndarray, octant: np.ndarray) -> np.ndarray:
+    """Directions ``(1, alpha)`` (slope ``alpha`` in [0, 1] to the major axis, so
+    ``|minor/major|`` is exactly ``alpha`` and ``alpha = 1`` is an exact diagonal),
     mirrored into ``octant`` in 0..7 (bit 0: swap x/y, bit 1: negate x, bit 2: negate y).
     """
-    major, minor = np.cos(theta), np.sin(theta)
+    alpha = np.asarray(alpha, dtype=np.float64)
+    octant = np.asarray(octant)
+    major, minor = np.ones_like(alpha), alpha
     swap = (octant & 1).astype(bool)
     dx = np.where(swap, minor, major)
     dy = np.where(swap, major, minor)
     dx = np.where(octant & 2, -dx, dx)
     dy = np.where(octant & 4, -dy, dy)
-    return np.stack([dx, dy], axis=1)
+    return np.stack([dx, dy], axis=1) + 0.0
 
 
 def _origins(rng, n, shape, where: str) -> np.ndarray:
@@ -101,7 +104,7 @@ def by_run_length(r, n, shape, seed, *, jitter=0.0, origins="inside", elevation=
         alpha = np.full(n, 1.0 / r)
         if jitter:
             alpha = np.clip(alpha * (1 + rng.uniform(-jitter, jitter, n)), 0, 1)
-        d = octant_directions(np.arctan(alpha), np.arange(n) % 8)
+        d = octant_directions(alpha, np.arange(n) % 8)
     o = _origins(rng, n, shape, origins)
     params = dict(kind="by_run_length", r=r, n=n, shape=tuple(shape), seed=seed,
                   jitter=jitter, origins=origins, elevation=elevation, height=height)

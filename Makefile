@@ -1,0 +1,48 @@
+# hftrace: every target sets itself up in a local virtual environment.
+#   make test       install into .venv and run the test suite
+#   make reproduce  install into .venv and run the main study (`hftrace reproduce`)
+#   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+SOURCES := pyproject.toml setup.py $(wildcard cext/*.c cext/*.h)
+STAMP := $(VENV)/.hftrace-installed
+
+ASAN_TREE := build/asan
+ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
+
+.PHONY: all test reproduce bench-traverse sanitize clean
+
+all: test
+
+$(STAMP): $(SOURCES)
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+reproduce: $(STAMP)
+	$(BIN)/hftrace reproduce
+
+bench-traverse: $(STAMP)
+	$(BIN)/hftrace bench-traverse
+
+# The sanitized build lives in its own copy of the tree (an editable install puts the
+# extension next to the sources, so it must not share them with .venv). Python itself is
+# not built with ASan: preload the runtime and ignore CPython's own leaks.
+sanitize:
+	rm -rf $(ASAN_TREE) && mkdir -p $(ASAN_TREE)
+	git ls-files -co --exclude-standard | grep -v '^build/' | tar cf - -T - | tar xf - -C $(ASAN_TREE)
+	cd $(ASAN_TREE) && $(PYTHON) -m venv .venv && .venv/bin/python -m pip install --quiet --upgrade pip
+	cd $(ASAN_TREE) && HFTRACE_SANITIZE=1 .venv/bin/python -m pip install --quiet -e ".[test]"
+	cd $(ASAN_TREE) && ldd algos/_kernels*.so | grep -q libasan \
+		|| (echo "sanitize: the extension is not linked with ASan" >&2; exit 1)
+	cd $(ASAN_TREE) && LD_PRELOAD=$(ASAN_LIB) ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
+		UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 HFTRACE_HYPOTHESIS_EXAMPLES=50 \
+		.venv/bin/python -m pytest -q -p no:cacheprovider
+
+clean:
+	rm -rf $(VENV) build *.egg-info algos/*.so

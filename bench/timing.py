@@ -1,0 +1,123 @@
+"""Side-by-side timing: interleaved repeats, medians, bootstrap intervals, environment.
+
+Method (reports/METHOD.md): every algorithm in a comparison is timed on the same rays,
+in the same process, on one thread, interleaved A B C A B C ... with the starting
+algorithm rotated each repeat, after one untimed warm-up round. The clock
+(CLOCK_MONOTONIC) runs in C around the whole batch. A speedup is the ratio of two
+medians from the same run.
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import sysconfig
+from typing import Callable, Sequence
+
+import numpy as np
+
+__all__ = ["interleaved", "median_ci", "ratio_ci", "environment"]
+
+
+def interleaved(jobs: dict[str, Callable[[], int]], repeats: int) -> dict[str, np.ndarray]:
+    """Run each job ``repeats`` times, interleaved and rotated; each job returns its own
+    elapsed nanoseconds (measured in C). One untimed warm-up round comes first."""
+    names = list(jobs)
+    for name in names:  # warm-up: caches, branch predictors, page faults
+        jobs[name]()
+    times = {name: [] for name in names}
+    for rep in range(repeats):
+        shift = rep % len(names)
+        for name in names[shift:] + names[:shift]:
+            times[name].append(jobs[name]())
+    return {name: np.asarray(v, dtype=np.float64) for name, v in times.items()}
+
+
+def _bootstrap(stat: Callable[[np.ndarray], float], samples: Sequence[np.ndarray],
+               n_boot: int, seed: int) -> tuple[float, float]:
+    rng = np.random.Generator(np.random.PCG64(seed))
+    values = np.empty(n_boot)
+    for b in range(n_boot):
+        values[b] = stat(*[s[rng.integers(0, len(s), len(s))] for s in samples])
+    return float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))
+
+
+def median_ci(x: np.ndarray, n_boot: int = 2000, seed: int = 0):
+    """Median and its bootstrap 95 % interval."""
+    low, high = _bootstrap(np.median, [x], n_boot, seed)
+    return float(np.median(x)), low, high
+
+
+def ratio_ci(numerator: np.ndarray, denominator: np.ndarray, n_boot: int = 2000,
+             seed: int = 0):
+    """median(numerator) / median(denominator) and its bootstrap 95 % interval,
+    resampling the paired repeats (they were measured side by side)."""
+    paired = len(numerator) == len(denominator)
+
+    def stat(a, b):
+        return float(np.median(a) / np.median(b))
+
+    if paired:
+        rng = np.random.Generator(np.random.PCG64(seed))
+        values = np.empty(n_boot)
+        for k in range(n_boot):
+            idx = rng.integers(0, len(numerator), len(numerator))
+            values[k] = stat(numerator[idx], denominator[idx])
+        low, high = float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))
+    else:
+        low, high = _bootstrap(stat, [numerator, denominator], n_boot, seed)
+    return stat(numerator, denominator), low, high
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _git_commit() -> str:
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
+                             text=True, timeout=5)
+        commit = out.stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=here, capture_output=True, text=True, timeout=5).stdout
+        return commit + ("+dirty" if dirty.strip() else "") if commit else "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def environment() -> dict:
+    """What a reader needs to judge the numbers: CPU, compiler, flags, versions, commit."""
+    import numpy
+
+    return {
+        "cpu": _cpu_model(),
+        "cores": os.cpu_count(),
+        "machine": platform.machine(),
+        "os": platform.platform(),
+        "python": sys.version.split()[0],
+        "numpy": numpy.__version__,
+        "compiler": sysconfig.get_config_var("CC") or "unknown",
+        "cflags": "-O3 -std=c99 (setup.py); HFTRACE_DEBUG/HFTRACE_SANITIZE builds differ",
+        "debug_build": os.environ.get("HFTRACE_DEBUG") == "1"
+        or os.environ.get("HFTRACE_SANITIZE") == "1",
+        "git_commit": _git_commit(),
+        "threads": 1,
+    }
+
+
+def write_json(path, data) -> None:
+    tmp = f"{path}.tmp"
+    with open(tmp, "w") as f:
+        json.dump(data, f, indent=2, sort_keys=True)
+        f.write("\n")
+    os.replace(tmp, path)
