@@ -56,6 +56,47 @@ def _list(args):
     return 0
 
 
+def _param(text):
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    name, value = text.split("=", 1)
+    for cast in (int, float):
+        try:
+            return name, cast(value)
+        except ValueError:
+            pass
+    return name, value
+
+
+def _datasets_list(args):
+    import datasets_gen
+
+    for row in datasets_gen.catalogue():
+        params = ", ".join(f"{k}={v}" for k, v in row["params"].items())
+        print(f"{row['name']:15s} {row['kind']:9s} {row['summary']}")
+        print(f"{'':25s} params: {params}")
+    return 0
+
+
+def _datasets_show(args):
+    import datasets_gen
+    from datasets_gen.preview import write_png
+
+    params = dict(args.param or [])
+    field = datasets_gen.load(args.name, size=args.size, seed=args.seed,
+                              use_cache=not args.no_cache, cache_dir=args.cache_dir, **params)
+    h = field.heights
+    print(f"name      {field.name}")
+    print(f"shape     {h.shape[0]} rows x {h.shape[1]} cols ({h.shape[1] - 1} x {h.shape[0] - 1} cells)")
+    print(f"heights   [{float(h.min()):.4f}, {float(h.max()):.4f}] cells, mean {float(h.mean()):.4f}")
+    print(f"spacing   1 cell = {field.spacing:g} {field.unit}")
+    print(f"sha256    {field.checksum}")
+    if args.png:
+        write_png(args.png, h)
+        print(f"preview   {args.png}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hftrace",
@@ -64,6 +105,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="list the registered algorithms")
     p.set_defaults(func=_list)
+
+    p = sub.add_parser("datasets", help="the catalogue of height fields")
+    dsub = p.add_subparsers(dest="datasets_command", required=True)
+    q = dsub.add_parser("list", help="every generator and embedded field with its parameters")
+    q.set_defaults(func=_datasets_list)
+    q = dsub.add_parser("show", help="shape, range, spacing and checksum of one field")
+    q.add_argument("name")
+    q.add_argument("--size", type=_positive_int, default=None,
+                   help="side in samples (generators: default 256; jacksboro: longer side)")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE",
+                   help="a generator parameter (repeatable)")
+    q.add_argument("--png", default=None, help="write a hillshaded preview here")
+    q.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    q.add_argument("--cache-dir", default=None, help="cache location (default: $HFTRACE_CACHE "
+                   "or ~/.cache/hftrace)")
+    q.set_defaults(func=_datasets_show)
 
     p = sub.add_parser("bench-traverse",
                        help="time the visit and runs workloads of every kernel relative to dda")
@@ -86,6 +144,9 @@ def main(argv=None) -> int:
     except (ValueError, TypeError) as exc:
         print(f"hftrace: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. `hftrace datasets list | head`
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":

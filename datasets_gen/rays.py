@@ -151,3 +151,127 @@ def mean_run_length(run_starts_per_ray) -> float:
             total_cells += abs(int(starts[-1]) - int(starts[1]))
             total_runs += len(starts) - 2
     return total_cells / total_runs if total_runs else float("nan")
+
+
+def pinhole(position, look_at, fov, width, height, *, up=(0.0, 0.0, 1.0)):
+    """Primary rays of a pinhole camera, one per pixel in row-major order (row 0 at the
+    top of the image): origins all at ``position``, unit directions through the pixel
+    centres. ``fov`` is the horizontal field of view in degrees."""
+    position = np.asarray(position, dtype=np.float64)
+    forward = np.asarray(look_at, dtype=np.float64) - position
+    if position.shape != (3,) or forward.shape != (3,) or not np.all(np.isfinite(forward)):
+        raise ValueError("position, look_at: expected finite 3-vectors")
+    if not np.linalg.norm(forward) > 0:
+        raise ValueError("look_at: must differ from position")
+    if not 0 < fov < 180:
+        raise ValueError(f"fov: expected degrees in (0, 180), got {fov}")
+    if int(width) < 1 or int(height) < 1:
+        raise ValueError(f"width, height: expected positive sizes, got {width} x {height}")
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, np.asarray(up, dtype=np.float64))
+    if not np.linalg.norm(right) > 1e-12:
+        raise ValueError("up: must not be parallel to the viewing direction")
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, forward)
+    half_w = math.tan(math.radians(fov) / 2)
+    half_h = half_w * height / width
+    u = ((np.arange(width) + 0.5) / width * 2 - 1) * half_w
+    v = (1 - (np.arange(height) + 0.5) / height * 2) * half_h
+    d = (forward[None, None, :] + u[None, :, None] * right[None, None, :]
+         + v[:, None, None] * true_up[None, None, :]).reshape(-1, 3)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.tile(position, (len(d), 1))
+    return RaySet(o, d, dict(kind="pinhole", position=position.tolist(),
+                             look_at=list(map(float, look_at)), fov=fov, width=int(width),
+                             height=int(height), up=list(map(float, up))))
+
+
+def parallel(n, shape, seed, *, direction=None, rational=None, octant=0, origins="inside",
+             height=None):
+    """``n`` parallel rays: one direction, many origins (orthographic cameras, sun and
+    shadow rays, viewsheds), the batch ``runs_periodic`` is built for.
+
+    Give either ``direction`` (a 2- or 3-vector) or ``rational=(p, q)``, ``0 <= p <= q``:
+    the exact 2D direction ``(q, p)`` of slope p/q, mirrored into ``octant`` (see
+    :func:`octant_directions`). ``height`` lifts the origins to 3D when the direction is
+    2D (the 3D direction then gets z = 0).
+    """
+    rng = _rng(seed)
+    if (direction is None) == (rational is None):
+        raise ValueError("direction, rational: give exactly one")
+    if rational is not None:
+        p, q = (int(v) for v in rational)
+        if not 0 <= p <= q or q == 0:
+            raise ValueError(f"rational: expected 0 <= p <= q, q > 0, got {rational}")
+        d = octant_directions(np.array([p / q]), np.array([octant]))[0] * q
+        d = np.round(d)  # exactly (+-q, +-p) or swapped
+    else:
+        d = np.asarray(direction, dtype=np.float64)
+        if d.shape not in ((2,), (3,)) or not np.all(np.isfinite(d)):
+            raise ValueError(f"direction: expected a finite 2- or 3-vector, got {direction}")
+    o = _origins(rng, int(n), shape, origins)
+    if height is not None:
+        o = np.concatenate([o, np.full((len(o), 1), float(height))], axis=1)
+        if d.shape == (2,):
+            d = np.append(d, 0.0)
+    elif d.shape == (3,):
+        o = np.concatenate([o, np.zeros((len(o), 1))], axis=1)
+    return RaySet(o, np.tile(d, (len(o), 1)),
+                  dict(kind="parallel", n=n, shape=tuple(shape), seed=seed,
+                       direction=None if direction is None else list(map(float, direction)),
+                       rational=rational, octant=octant, origins=origins, height=height))
+
+
+GOLDEN = (math.sqrt(5) - 1) / 2
+
+
+def adversarial(shape, seed, n=64):
+    """The 2D stress families, ``n`` rays each (where a family has that many), as a dict
+    name -> RaySet. Every family targets a numerical hazard of a traversal:
+
+    ``axis_parallel`` both signs along x and y, on cell centres and on grid lines;
+    ``diagonals`` exact diagonals; ``through_vertices`` integer directions from vertices;
+    ``origins_on_lines`` and ``origins_on_corners``; ``near_rational`` slopes p/q
+    perturbed by 2^-40 (large denominators); ``golden`` and ``sqrt2`` slopes;
+    ``vertical`` zero directions on integer points; ``first_run_clipped`` rays whose first
+    run holds 0 or 1 cells (they start just before a row boundary).
+    """
+    rng = _rng(seed)
+    nx, ny = shape
+    n = int(n)
+    octant = np.arange(n) % 8
+    fam = {}
+
+    def add(name, o, d, **extra):
+        fam[name] = RaySet(np.asarray(o, np.float64), np.asarray(d, np.float64),
+                           dict(kind="adversarial", family=name, shape=tuple(shape),
+                                seed=seed, **extra))
+
+    centres = rng.integers(0, (nx, ny), (n, 2)) + 0.5
+    lines = rng.integers(0, (nx + 1, ny + 1), (n, 2)).astype(float)
+    axis = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]], float)[np.arange(n) % 4]
+    add("axis_parallel", np.where(np.arange(n)[:, None] % 2 == 0, centres, lines), axis)
+    diag = np.array([[1, 1], [-1, 1], [1, -1], [-1, -1]], float)[np.arange(n) % 4]
+    add("diagonals", lines, diag)
+    add("through_vertices", lines, rng.integers(-5, 6, (n, 2)).astype(float) + (np.arange(n) % 2 == 0)[:, None] * [[1, 0]])
+    on_line = rng.uniform(0, (nx, ny), (n, 2))
+    on_line[np.arange(n) % 2 == 0, 0] = np.floor(on_line[np.arange(n) % 2 == 0, 0])
+    on_line[np.arange(n) % 2 == 1, 1] = np.floor(on_line[np.arange(n) % 2 == 1, 1])
+    phi = rng.uniform(0, 2 * math.pi, n)
+    add("origins_on_lines", on_line, np.stack([np.cos(phi), np.sin(phi)], 1))
+    add("origins_on_corners", lines, np.stack([np.cos(phi[::-1]), np.sin(phi[::-1])], 1))
+    p = rng.integers(1, 50, n)
+    q = p + rng.integers(1, 50, n)
+    add("near_rational", centres, octant_directions(p / q + 2.0**-40, octant))
+    add("golden", rng.uniform(0, (nx, ny), (n, 2)), octant_directions(np.full(n, GOLDEN), octant))
+    add("sqrt2", rng.uniform(0, (nx, ny), (n, 2)),
+        octant_directions(np.full(n, math.sqrt(2) - 1), octant))
+    add("vertical", lines, np.zeros((n, 2)))
+    # first run of 0 or 1 cells: slope alpha, start a hair (or one cell) below a row line
+    alpha = rng.uniform(0.05, 1.0, n)
+    start = rng.integers(0, (nx, ny), (n, 2)).astype(float)
+    cells_before = np.arange(n) % 2  # 0 or 1 whole cells before the crossing
+    start[:, 1] += 1.0 - alpha * (cells_before + 2.0**-10)  # above the 2^-16 lattice
+    start[:, 1] = np.clip(start[:, 1], 0, ny)
+    add("first_run_clipped", start, np.stack([np.ones(n), alpha], 1))
+    return fam
