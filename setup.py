@@ -12,7 +12,7 @@ import sys
 import numpy
 from setuptools import Extension, setup
 
-SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c"]
+SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c"]
 
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
 link_args = []
@@ -40,7 +40,7 @@ setup(
             define_macros=macros,
             extra_compile_args=compile_args,
             extra_link_args=link_args,
-            depends=[os.path.join("cext", name) for name in ("hftrace.h", "internal.h")],
+            depends=[os.path.join("cext", name) for name in ("hftrace.h", "internal.h", "hit.h", "hitbatch.h")],
         )
     ]
 )

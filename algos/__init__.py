@@ -8,7 +8,20 @@ See CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the 
 """
 from .lattice import quantize
 from .reference import major_axis, reference_cells, reference_runs, runs_from_cells
-from .registry import TRAVERSAL_REGISTRY, TRAVERSALS, Traversal, get_traversal
+from .brute import brute_force_hits
+from .field import Field
+from .intersect import HIT_OUTPUTS, STATS, Hits, intersect
+from .registry import (
+    INTERSECTOR_REGISTRY,
+    INTERSECTORS,
+    SURFACES,
+    TRAVERSAL_REGISTRY,
+    TRAVERSALS,
+    Intersector,
+    Traversal,
+    get_intersector,
+    get_traversal,
+)
 from .traverse import (
     DEFAULT_MAX_DENOMINATOR,
     OUTPUTS,
@@ -26,4 +39,6 @@ __all__ = [
     "reference_cells", "reference_runs", "runs_from_cells", "major_axis", "quantize",
     "traverse", "walk_timed", "prepare_timed", "CellPaths", "RunPaths", "PathCounts",
     "DEFAULT_MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
+    "INTERSECTORS", "INTERSECTOR_REGISTRY", "Intersector", "get_intersector", "SURFACES",
+    "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "brute_force_hits",
 ]

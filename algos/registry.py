@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Traversal", "TRAVERSAL_REGISTRY", "TRAVERSALS", "get_traversal"]
+__all__ = ["Traversal", "TRAVERSAL_REGISTRY", "TRAVERSALS", "get_traversal", "Intersector",
+           "INTERSECTOR_REGISTRY", "INTERSECTORS", "get_intersector", "SURFACES"]
 
 
 @dataclass(frozen=True)
@@ -95,4 +96,99 @@ def get_traversal(name: str) -> Traversal:
     except (KeyError, TypeError):
         raise ValueError(
             f"name: unknown traversal {name!r}; valid names are {', '.join(TRAVERSALS)}"
+        ) from None
+
+
+# ---- intersectors --------------------------------------------------------------------
+#: Cell surfaces (CONVENTIONS.md, "Cell surfaces"), in the C enum's order.
+SURFACES = ("flat", "plane3", "triangles", "bilinear")
+
+
+@dataclass(frozen=True)
+class Intersector:
+    """A first-hit algorithm for ``algos.intersect`` and what it promises.
+
+    Attributes
+    ----------
+    kernel_id : int or None
+        The C intersector (``cext/hitbatch.h``); None for a peer run from Python.
+    kind : str
+        ``"traversal"`` (a 2D traversal plus per-cell tests), ``"maxmip"``,
+        ``"march"`` (ray marching) or ``"peer"``.
+    accuracy : str
+        ``"exact"``: exact traversal, float64 surface tests; equals the brute force up
+        to ``|dt| <= 1e-9 (1 + |t|)``. ``"float64"``/``"float32"``: the traversal's own
+        precision. ``"approximate"``: by design (marching). ``"float32-peer"``: Embree.
+    structures : tuple of str
+        The ``algos.field.Field`` structures it reads (built only when used).
+    options : dict
+        Keyword options of ``intersect`` it takes, with defaults.
+    """
+
+    name: str
+    kernel_id: int | None
+    kind: str
+    accuracy: str
+    traversal: str | None = None
+    structures: tuple = ()
+    options: dict = None
+    surfaces: tuple = SURFACES
+    summary: str = ""
+    citation: str = ""
+
+
+_CULL = {"cull_cells": True}
+_RUN_CULL = {"cull_cells": True, "cull_runs": True}
+_MARCH = {"march_steps": 128}
+
+INTERSECTOR_REGISTRY: dict[str, Intersector] = {}
+for _t in TRAVERSAL_REGISTRY.values():
+    _runs = _t.family == "run"
+    _opts = dict(_RUN_CULL if _runs else _CULL)
+    if _t.shared_direction:
+        _opts["max_denominator"] = None
+    INTERSECTOR_REGISTRY[_t.name] = Intersector(
+        _t.name, _t.kernel_id, "traversal",
+        "exact" if _t.precision == "exact" else _t.precision, _t.name,
+        ("cellmax", "row_max", "col_max") if _runs else ("cellmax",), _opts,
+        summary=f"{_t.summary}; per-cell culling" + ("; per-run culling" if _runs else ""),
+        citation=_t.citation)
+INTERSECTOR_REGISTRY.update({
+    "dda_maxmip": Intersector(
+        "dda_maxmip", 6, "maxmip", "float64", "dda", ("cellmax", "mip"), dict(_CULL),
+        summary="maximum-mipmap tile skipping, single cells at the finest level",
+        citation="Tevs, Ihrke & Seidel 2008"),
+    "runs_maxmip": Intersector(
+        "runs_maxmip", 7, "maxmip", "exact", "runs",
+        ("cellmax", "row_max", "col_max", "mip"), dict(_RUN_CULL, fine_level=3),
+        summary="maximum-mipmap tile skipping, exact runs inside 2^fine_level tiles",
+        citation="Tevs, Ihrke & Seidel 2008; Henning & Stephenson 2004"),
+    "march_linear": Intersector(
+        "march_linear", 8, "march", "approximate", None, (), dict(_MARCH),
+        summary="fixed-step ray marching: march_steps equal steps over the clipped span"),
+    "march_growing": Intersector(
+        "march_growing", 9, "march", "approximate", None, (),
+        {"march_growth": 1.02, "march_first_fraction": 1 / 580, "march_min_step": 0.0},
+        summary="ray marching whose step grows 2 % per step from 1/580 of the span"),
+    "march_binary": Intersector(
+        "march_binary", 10, "march", "approximate", None, (),
+        dict(_MARCH, march_refinements=16),
+        summary="the linear search followed by march_refinements halvings"),
+    "embree": Intersector(
+        "embree", None, "peer", "float32-peer", None, ("embree",), {}, ("triangles",),
+        summary="Intel Embree through embreex on the same triangles, single ray at a time",
+        citation="Wald et al. 2014"),
+})
+
+#: Names accepted by ``algos.intersect``.
+INTERSECTORS: tuple[str, ...] = tuple(INTERSECTOR_REGISTRY)
+
+
+def get_intersector(name: str) -> Intersector:
+    """The registry entry for ``name``; ``ValueError`` listing the valid names otherwise."""
+    try:
+        return INTERSECTOR_REGISTRY[name]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"name: unknown intersector {name!r}; valid names are {', '.join(INTERSECTORS)}"
         ) from None

@@ -9,6 +9,7 @@
 #include <numpy/arrayobject.h>
 #include <time.h>
 #include "hftrace.h"
+#include "hitbatch.h"
 
 /* An optional array argument: None, or a C-contiguous, aligned array of `type` with
  * exactly `size` elements (size < 0: at least one). */
@@ -35,6 +36,7 @@ static int get_array(PyObject *object, const char *name, int type, npy_intp size
                      "%s",
                      name, writable ? ", writable" : "",
                      type == NPY_FLOAT64 ? "float64"
+                     : type == NPY_FLOAT32 ? "float32"
                      : type == NPY_INT64 ? "int64"
                      : type == NPY_INT32 ? "int32"
                                          : "uint64");
@@ -158,6 +160,208 @@ static PyObject *walk(PyObject *self, PyObject *args) {
                                (long long)(stop.tv_nsec - start.tv_nsec));
 }
 
+
+/* A float32 C-contiguous array of exactly this shape (ndim given by the shape length). */
+static int get_f32(PyObject *object, const char *name, int ndim, const npy_intp *shape,
+                   const float **data) {
+    PyArrayObject *a;
+    int k;
+    if (!PyArray_Check(object)) {
+        PyErr_Format(PyExc_TypeError, "%s: expected a numpy array", name);
+        return 0;
+    }
+    a = (PyArrayObject *)object;
+    if (PyArray_TYPE(a) != NPY_FLOAT32 || !PyArray_ISCARRAY_RO(a) || !PyArray_ISNOTSWAPPED(a) ||
+        PyArray_NDIM(a) != ndim) {
+        PyErr_Format(PyExc_TypeError, "%s: expected a C-contiguous native float32 array of %d dims",
+                     name, ndim);
+        return 0;
+    }
+    for (k = 0; k < ndim; ++k) {
+        if (PyArray_DIM(a, k) != shape[k]) {
+            PyErr_Format(PyExc_ValueError, "%s: dimension %d is %zd, expected %zd", name, k,
+                         (Py_ssize_t)PyArray_DIM(a, k), (Py_ssize_t)shape[k]);
+            return 0;
+        }
+    }
+    *data = (const float *)PyArray_DATA(a);
+    return 1;
+}
+
+/* (values, prefix, suffix, sparse, block_shift) for lines of `length` cells */
+static int get_rmq(PyObject *object, const char *name, npy_intp lines, npy_intp length,
+                   hf_rmq *q) {
+    PyObject *values, *prefix, *suffix, *sparse;
+    int block_shift;
+    npy_intp shape[3];
+    if (!PyArg_ParseTuple(object, "OOOOi", &values, &prefix, &suffix, &sparse, &block_shift)) {
+        PyErr_Format(PyExc_TypeError, "%s: expected (values, prefix, suffix, sparse, block_shift)",
+                     name);
+        return 0;
+    }
+    if (block_shift < 0 || block_shift > 16) {
+        PyErr_Format(PyExc_ValueError, "%s: block_shift out of range", name);
+        return 0;
+    }
+    q->n_lines = (int32_t)lines;
+    q->length = (int32_t)length;
+    q->block_shift = block_shift;
+    q->n_blocks = (int32_t)((length + (1 << block_shift) - 1) >> block_shift);
+    q->n_levels = 1;
+    while ((2 << (q->n_levels - 1)) <= q->n_blocks) q->n_levels += 1;
+    shape[0] = lines;
+    shape[1] = length;
+    if (!get_f32(values, name, 2, shape, &q->values)) return 0;
+    if (!get_f32(prefix, name, 2, shape, &q->prefix)) return 0;
+    if (!get_f32(suffix, name, 2, shape, &q->suffix)) return 0;
+    shape[1] = q->n_levels;
+    shape[2] = q->n_blocks;
+    return get_f32(sparse, name, 3, shape, &q->sparse);
+}
+
+PyDoc_STRVAR(intersect_doc,
+             "intersect(kernel, surface, heights, cellmax, hmin, hmax, row_max, col_max, mip,\n"
+             "          origins, directions, tmin, tmax, cull_cells, max_denominator, pattern,\n"
+             "          march, fine_level, t, cell, normal, stats) -> int\n\n"
+             "First hits of a batch; returns the elapsed nanoseconds of the C loop.\n"
+             "Private: use algos.intersect.");
+
+static PyObject *intersect(PyObject *self, PyObject *args) {
+    int kernel, surface, cull_cells, fine_level, status, k;
+    double hmin, hmax;
+    long long max_denominator;
+    PyObject *o_heights, *o_cellmax, *o_row, *o_col, *o_mip, *o_origins, *o_directions,
+        *o_tmin, *o_tmax, *o_pattern, *o_march, *o_t, *o_cell, *o_normal, *o_stats;
+    hf_hit_batch b;
+    PyArrayObject *ha;
+    npy_intp n3, n, shape[2], plen;
+    void *p;
+    struct timespec start, stop;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights,
+                          &o_cellmax, &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins,
+                          &o_directions, &o_tmin, &o_tmax, &cull_cells, &max_denominator,
+                          &o_pattern, &o_march, &fine_level, &o_t, &o_cell, &o_normal, &o_stats))
+        return NULL;
+    memset(&b, 0, sizeof b);
+    if (kernel < 0 || kernel >= HF_N_HIT_KERNELS || surface < 0 || surface > HF_BILINEAR) {
+        PyErr_SetString(PyExc_ValueError, "kernel or surface out of range");
+        return NULL;
+    }
+    if (!PyArray_Check(o_heights) || PyArray_NDIM((PyArrayObject *)o_heights) != 2) {
+        PyErr_SetString(PyExc_TypeError, "heights: expected a 2D numpy array");
+        return NULL;
+    }
+    ha = (PyArrayObject *)o_heights;
+    shape[0] = PyArray_DIM(ha, 0);
+    shape[1] = PyArray_DIM(ha, 1);
+    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE || shape[1] > HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
+        return NULL;
+    }
+    if (!get_f32(o_heights, "heights", 2, shape, &b.heights)) return NULL;
+    b.rows = (int32_t)shape[0];
+    b.cols = (int32_t)shape[1];
+    shape[0] -= 1;
+    shape[1] -= 1;
+    if (!get_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) return NULL;
+    b.hmin = hmin;
+    b.hmax = hmax;
+    b.surface = surface;
+    b.cull_cells = cull_cells;
+    if (o_row != Py_None || o_col != Py_None) {
+        if (o_row == Py_None || o_col == Py_None) {
+            PyErr_SetString(PyExc_ValueError, "row_max and col_max come together");
+            return NULL;
+        }
+        if (!get_rmq(o_row, "row_max", shape[0], shape[1], &b.row_max)) return NULL;
+        if (!get_rmq(o_col, "col_max", shape[1], shape[0], &b.col_max)) return NULL;
+        b.cull_runs = 1;
+    }
+    if (o_mip != Py_None) {
+        npy_intp levels;
+        if (!PyList_Check(o_mip)) {
+            PyErr_SetString(PyExc_TypeError, "mip: expected a list of float32 arrays");
+            return NULL;
+        }
+        levels = PyList_GET_SIZE(o_mip);
+        if (levels < 1 || levels > HF_MAX_MIP_LEVELS) {
+            PyErr_SetString(PyExc_ValueError, "mip: 1 to 32 levels");
+            return NULL;
+        }
+        for (k = 0; k < levels; ++k) {
+            npy_intp ms[2];
+            /* level k covers 2^k x 2^k cells: ceil division of the cell grid */
+            ms[0] = (shape[0] + ((npy_intp)1 << k) - 1) >> k;
+            ms[1] = (shape[1] + ((npy_intp)1 << k) - 1) >> k;
+            if (!get_f32(PyList_GET_ITEM(o_mip, k), "mip level", 2, ms, &b.mip[k])) return NULL;
+            b.mip_cols[k] = (int32_t)ms[1];
+        }
+        b.mip_levels = (int)levels;
+    }
+    if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &n3)) return NULL;
+    if (n3 % 3 != 0) {
+        PyErr_SetString(PyExc_ValueError, "origins: expected shape (N, 3)");
+        return NULL;
+    }
+    n = n3 / 3;
+    b.n_rays = n;
+    b.origins = (const double *)p;
+    if (!get_array(o_directions, "directions", NPY_FLOAT64, 3 * n, 0, 0, &p, NULL)) return NULL;
+    b.directions = (const double *)p;
+    if (!get_array(o_tmin, "tmin", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
+    b.tmin = (const double *)p;
+    if (!get_array(o_tmax, "tmax", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
+    b.tmax = (const double *)p;
+    b.max_denominator = max_denominator;
+    if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return NULL;
+    b.pattern = (int32_t *)p;
+    if (kernel == HF_RUNS_PERIODIC && (b.pattern == NULL || max_denominator < 1 ||
+                                       max_denominator > HF_MAX_DENOMINATOR || plen < max_denominator + 1)) {
+        PyErr_SetString(PyExc_ValueError, "runs_periodic needs a pattern of max_denominator + 1");
+        return NULL;
+    }
+    if (!PyArg_ParseTuple(o_march, "iiddd", &b.march_steps, &b.march_refinements, &b.march_growth,
+                          &b.march_first_fraction, &b.march_min_step))
+        return NULL;
+    if (b.march_steps < 1 || b.march_refinements < 0 || !(b.march_growth >= 1.0) ||
+        !(b.march_first_fraction > 0) || !(b.march_min_step >= 0)) {
+        PyErr_SetString(PyExc_ValueError, "march: invalid parameters");
+        return NULL;
+    }
+    if ((kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP) && b.mip_levels < 1) {
+        PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
+        return NULL;
+    }
+    if (fine_level < 0 || fine_level >= (b.mip_levels > 0 ? b.mip_levels : 1)) {
+        PyErr_SetString(PyExc_ValueError, "fine_level: outside the mipmap");
+        return NULL;
+    }
+    b.fine_level = fine_level;
+    if (!get_array(o_t, "t", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
+    b.t = (double *)p;
+    if (!get_array(o_cell, "cell", NPY_INT32, 2 * n, 1, 1, &p, NULL)) return NULL;
+    b.cell = (int32_t *)p;
+    if (!get_array(o_normal, "normal", NPY_FLOAT64, 3 * n, 1, 1, &p, NULL)) return NULL;
+    b.normal = (double *)p;
+    if (!get_array(o_stats, "stats", NPY_INT64, 5 * n, 1, 1, &p, NULL)) return NULL;
+    b.stats = (int64_t *)p;
+
+    Py_BEGIN_ALLOW_THREADS
+    clock_gettime(CLOCK_MONOTONIC, &start);
+    status = hf_intersect_batch(kernel, &b);
+    clock_gettime(CLOCK_MONOTONIC, &stop);
+    Py_END_ALLOW_THREADS
+
+    if (status != HF_OK) {
+        PyErr_Format(PyExc_RuntimeError, "intersector %d failed on ray %lld: %s", kernel,
+                     (long long)b.bad_ray, status_text(status));
+        return NULL;
+    }
+    return PyLong_FromLongLong((long long)(stop.tv_sec - start.tv_sec) * 1000000000LL +
+                               (long long)(stop.tv_nsec - start.tv_nsec));
+}
+
 PyDoc_STRVAR(quantize_doc,
              "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
              "The ray the exact kernels walk: the origin rounded to 2^-16 cell, the\n"
@@ -193,6 +397,7 @@ static PyObject *best_rational(PyObject *self, PyObject *args) {
 
 static PyMethodDef methods[] = {
     {"walk", walk, METH_VARARGS, walk_doc},
+    {"intersect", intersect, METH_VARARGS, intersect_doc},
     {"quantize_ray", quantize_ray, METH_VARARGS, quantize_doc},
     {"best_rational", best_rational, METH_VARARGS, best_rational_doc},
     {NULL, NULL, 0, NULL}};

@@ -52,7 +52,7 @@
         t_max_x = dx > 0 ? ((REAL)(i + 1) - ox) / dx : (dx < 0 ? ((REAL)i - ox) / dx : inf); \
         t_max_y = dy > 0 ? ((REAL)(j + 1) - oy) / dy : (dy < 0 ? ((REAL)j - oy) / dy : inf); \
         for (;;) {                                                                        \
-            hf_emit_cell(s, mode, i, j);                                                  \
+            if (hf_emit_cell(s, mode, i, j)) break;                                       \
             if (t_max_x < t_max_y) {                                                      \
                 t = t_max_x; i += step_x; t_max_x += t_delta_x;                           \
             } else if (t_max_y < t_max_x) {                                               \

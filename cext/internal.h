@@ -7,6 +7,11 @@
 #include <stdlib.h>
 #include <math.h>
 #include "hftrace.h"
+#include "hit.h"
+
+/* A private mode: first hits. The sink hands each cell or run to an hf_hit, which may
+ * end the walk. */
+#define HF_MODE_HIT 5
 
 #if defined(__GNUC__) || defined(__clang__)
 #define HF_INLINE static inline __attribute__((always_inline))
@@ -75,6 +80,7 @@ typedef struct {
     int run_open;          /* cell kernels: a run is being assembled                   */
     int32_t run_minor, run_first, run_last;
     int overflow;
+    hf_hit *hit;           /* HF_MODE_HIT only; set by the caller, kept by hf_sink_init  */
 } hf_sink;
 
 /* Checksum fold: a rotate-xor chain. It depends on every value and on their order, and
@@ -104,18 +110,21 @@ HF_INLINE void hf_sink_init(hf_sink *s, int32_t *out, int32_t *out_end, int majo
     s->overflow = 0;
 }
 
-/* A whole run (minor, first, last), first and last in travel order along the major axis. */
-HF_INLINE void hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t first,
+/* A whole run (minor, first, last), first and last in travel order along the major axis.
+ * Returns 1 when the walk must stop (a first hit was found). */
+HF_INLINE int hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t first,
                            int32_t last) {
     const int32_t step = last >= first ? 1 : -1;
     int32_t major;
     switch (mode) {
+    case HF_MODE_HIT:
+        return hf_hit_run(s->hit, s->major_is_x, minor, first, last);
     case HF_MODE_COUNT:
         s->n_runs += 1;
         s->n_cells += (int64_t)(last - first) * step + 1;
         break;
     case HF_MODE_RUNS:
-        if (s->out + 3 > s->out_end) { s->overflow = 1; return; }
+        if (s->out + 3 > s->out_end) { s->overflow = 1; return 0; }
         s->out[0] = minor; s->out[1] = first; s->out[2] = last;
         s->out += 3;
         s->n_runs += 1;
@@ -128,7 +137,7 @@ HF_INLINE void hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t fi
         /* bounds: the whole run must fit before anything is written */
         if (s->out + 2 * ((int64_t)(last - first) * step + 1) > s->out_end) {
             s->overflow = 1;
-            return;
+            return 0;
         }
         for (major = first;; major += step) {
             if (s->major_is_x) { s->out[0] = major; s->out[1] = minor; }
@@ -149,22 +158,26 @@ HF_INLINE void hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t fi
     default:
         break;
     }
+    return 0;
 }
 
-/* One cell (i, j) from a cell kernel. Run-based modes assemble runs from the cells. */
-HF_INLINE void hf_emit_cell(hf_sink *s, const int mode, int32_t i, int32_t j) {
+/* One cell (i, j) from a cell kernel. Run-based modes assemble runs from the cells.
+ * Returns 1 when the walk must stop (a first hit was found). */
+HF_INLINE int hf_emit_cell(hf_sink *s, const int mode, int32_t i, int32_t j) {
     int32_t minor, major;
     switch (mode) {
+    case HF_MODE_HIT:
+        return hf_hit_cell(s->hit, i, j);
     case HF_MODE_CELLS:
-        if (s->out + 2 > s->out_end) { s->overflow = 1; return; }
+        if (s->out + 2 > s->out_end) { s->overflow = 1; return 0; }
         s->out[0] = i; s->out[1] = j;
         s->out += 2;
         s->n_cells += 1;
-        return;
+        return 0;
     case HF_MODE_VISIT:
         s->hash = hf_fold(s->hash, hf_cell_key(i, j));
         s->n_cells += 1;
-        return;
+        return 0;
     default:
         break;
     }
@@ -173,13 +186,13 @@ HF_INLINE void hf_emit_cell(hf_sink *s, const int mode, int32_t i, int32_t j) {
     major = s->major_is_x ? i : j;
     if (s->run_open && minor == s->run_minor) {
         s->run_last = major;
-        return;
+        return 0;
     }
-    if (s->run_open) hf_emit_run(s, mode == HF_MODE_COUNT ? HF_MODE_COUNT : mode,
-                                 s->run_minor, s->run_first, s->run_last);
+    if (s->run_open) hf_emit_run(s, mode, s->run_minor, s->run_first, s->run_last);
     s->run_open = 1;
     s->run_minor = minor;
     s->run_first = s->run_last = major;
+    return 0;
 }
 
 /* Close the run a cell kernel was assembling. */
@@ -207,17 +220,16 @@ HF_INLINE hf_frame hf_frame_of(const hf_line *L) {
     return f;
 }
 
-HF_INLINE void hf_emit_reduced_cell(hf_sink *s, const int mode, const hf_frame *f,
-                                    int32_t a, int32_t b) {
+HF_INLINE int hf_emit_reduced_cell(hf_sink *s, const int mode, const hf_frame *f,
+                                   int32_t a, int32_t b) {
     const int32_t major = f->base_major + f->sign_major * a;
     const int32_t minor = f->base_minor + f->sign_minor * b;
-    if (f->swap) hf_emit_cell(s, mode, minor, major);
-    else hf_emit_cell(s, mode, major, minor);
+    return f->swap ? hf_emit_cell(s, mode, minor, major) : hf_emit_cell(s, mode, major, minor);
 }
 
-HF_INLINE void hf_emit_reduced_run(hf_sink *s, const int mode, const hf_frame *f,
-                                   int32_t b, int32_t first, int32_t last) {
-    hf_emit_run(s, mode, f->base_minor + f->sign_minor * b,
+HF_INLINE int hf_emit_reduced_run(hf_sink *s, const int mode, const hf_frame *f,
+                                  int32_t b, int32_t first, int32_t last) {
+    return hf_emit_run(s, mode, f->base_minor + f->sign_minor * b,
                 f->base_major + f->sign_major * first, f->base_major + f->sign_major * last);
 }
 
@@ -277,6 +289,9 @@ HF_INLINE int hf_ray_end(hf_batch *b, int64_t ray, hf_sink *s, const int mode) {
         }                                                                                \
         return HF_OK;                                                                    \
     }                                                                                    \
+    int NAME##_hit(hf_batch *b, hf_sink *sink, void *ctx) {                              \
+        return WALK(b, 0, sink, HF_MODE_HIT, ctx);                                       \
+    }                                                                                    \
     int NAME(hf_batch *b, int mode, void *ctx) {                                         \
         switch (mode) {                                                                  \
         case HF_MODE_COUNT: return NAME##_loop(b, HF_MODE_COUNT, ctx);                   \
@@ -294,6 +309,15 @@ int hf_batch_midpoint(hf_batch *b, int mode, void *ctx);
 int hf_batch_runs(hf_batch *b, int mode, void *ctx);
 int hf_batch_runs_f64(hf_batch *b, int mode, void *ctx);
 int hf_batch_runs_periodic(hf_batch *b, int mode, void *ctx);
+
+/* The same walks in HF_MODE_HIT: one ray (ray 0 of b), the sink's hit context decides. */
+typedef int (*hf_hit_walk)(hf_batch *b, hf_sink *sink, void *ctx);
+int hf_batch_dda_hit(hf_batch *b, hf_sink *sink, void *ctx);
+int hf_batch_dda_f32_hit(hf_batch *b, hf_sink *sink, void *ctx);
+int hf_batch_midpoint_hit(hf_batch *b, hf_sink *sink, void *ctx);
+int hf_batch_runs_hit(hf_batch *b, hf_sink *sink, void *ctx);
+int hf_batch_runs_f64_hit(hf_batch *b, hf_sink *sink, void *ctx);
+int hf_batch_runs_periodic_hit(hf_batch *b, hf_sink *sink, void *ctx);
 
 /* runs_periodic keeps its pattern between the rays of a batch (the ctx above). */
 typedef struct {

@@ -26,7 +26,8 @@ HF_INLINE int walk_midpoint(hf_batch *b, int64_t ray, hf_sink *s, const int mode
 
     /* parallel to the major axis: one straight run */
     if (L.slope_minor == 0) {
-        for (a = L.a0; a <= L.a1; ++a) hf_emit_reduced_cell(s, mode, &f, a, L.b0);
+        for (a = L.a0; a <= L.a1; ++a)
+            if (hf_emit_reduced_cell(s, mode, &f, a, L.b0)) return HF_OK;
         return HF_OK;
     }
 
@@ -41,7 +42,7 @@ HF_INLINE int walk_midpoint(hf_batch *b, int64_t ray, hf_sink *s, const int mode
     step_major = L.slope_minor * HF_ONE;
     step_minor = L.slope_major * HF_ONE;
     for (;;) {
-        hf_emit_reduced_cell(s, mode, &f, a, m);
+        if (hf_emit_reduced_cell(s, mode, &f, a, m)) return HF_OK;
         if (a == L.a1 && m == L.b1) break;
         if (E < 0) { a += 1; E += step_major; }
         else if (E > 0) { m += 1; E -= step_minor; }

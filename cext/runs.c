@@ -35,7 +35,7 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
     if (status != HF_OK || !nonempty) return status;
     f = hf_frame_of(&L);
     if (L.slope_minor == 0) {
-        hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1);
+        if (hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1)) return HF_OK;
         return HF_OK;
     }
 
@@ -55,14 +55,14 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
         last = (int32_t)(R == 0 ? column - 1 : column);
         HF_ASSERT(last >= first && last <= L.a1, "row=%d first=%d last=%d a1=%d", row,
                   first, last, L.a1);
-        hf_emit_reduced_run(s, mode, &f, row, first, last);
+        if (hf_emit_reduced_run(s, mode, &f, row, first, last)) return HF_OK;
         first = (int32_t)column;
         column += short_length;
         R += rem;
         if (R >= W) { R -= W; column += 1; }
     }
     if (first > L.a1) return HF_ERR_INTERNAL;
-    hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1);
+    if (hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1)) return HF_OK;
     return HF_OK;
 }
 
@@ -114,7 +114,7 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     if (status != HF_OK || !nonempty) return status;
     f = hf_frame_of(&L);
     if (L.slope_minor == 0) {
-        hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1);
+        if (hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1)) return HF_OK;
         return HF_OK;
     }
     p = L.slope_minor;
@@ -136,13 +136,13 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     first = L.a0;
     for (row = L.b0; row < L.b1; ++row) {
         last = (int32_t)((position == 0 && delta == 0) ? column - 1 : column);
-        hf_emit_reduced_run(s, mode, &f, row, first, last);
+        if (hf_emit_reduced_run(s, mode, &f, row, first, last)) return HF_OK;
         first = (int32_t)column;
         column += lengths[position];
         if (++position == p) position = 0;
     }
     if (first > L.a1) return HF_ERR_INTERNAL;
-    hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1);
+    if (hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1)) return HF_OK;
     return HF_OK;
 }
 
@@ -202,7 +202,7 @@ HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode
     f.sign_minor = mirror_minor ? -1 : 1;
     f.swap = swap;
     if (B == 0.0 || row0 == row1) {
-        hf_emit_reduced_run(s, mode, &f, row0, col0, col1);
+        if (hf_emit_reduced_run(s, mode, &f, row0, col0, col1)) return HF_OK;
         return HF_OK;
     }
     /* a nearly flat slope: clamp before converting to integers (no overflow UB); any
@@ -219,14 +219,14 @@ HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode
         last = (int32_t)(frac == 0.0 ? column - 1 : column);
         if (last > col1) last = col1;
         if (last < first) last = first;
-        hf_emit_reduced_run(s, mode, &f, row, first, last);
+        if (hf_emit_reduced_run(s, mode, &f, row, first, last)) return HF_OK;
         first = column > col1 ? col1 : (int32_t)column;
         if (first < last) first = last;
         column += step_whole;
         frac += step_frac;
         if (frac >= 1.0) { frac -= 1.0; column += 1; }
     }
-    hf_emit_reduced_run(s, mode, &f, row1, first, col1 < first ? first : col1);
+    if (hf_emit_reduced_run(s, mode, &f, row1, first, col1 < first ? first : col1)) return HF_OK;
     return HF_OK;
 }
 

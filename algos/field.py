@@ -1,0 +1,181 @@
+"""A height field prepared for first hits: validated heights plus acceleration
+structures, each built on first use and kept (build once per field, build only what the
+requested kernels use).
+
+Structures (all float32; ``nx = cols - 1``, ``ny = rows - 1`` cells):
+
+* ``cellmax`` (ny, nx): an upper bound of each cell's surface, so a ray whose lowest z
+  over a cell is above it cannot hit there. For ``flat``, ``triangles`` and ``bilinear``
+  it is the maximum of the four corners (each surface stays within their hull); the
+  ``plane3`` plane through three corners reaches ``h10 + h01 - h00`` at the fourth, so
+  its bound includes that value (and so do its ``hmin``/``hmax``). ``4 nx ny`` bytes per
+  bound kind.
+* ``row_max`` / ``col_max``: range maxima of ``cellmax`` along rows (runs along x) and
+  along columns (runs along y), answered in O(1) for a run spanning two blocks of
+  ``2**RMQ_BLOCK_SHIFT`` cells: per-cell prefix and suffix maxima within blocks plus a
+  sparse table over block maxima (``cext/hit.h``, ``hf_rmq_query``). About
+  ``(3 + log2(nx / 16) / 16) * 4 nx ny`` bytes per direction (the column one keeps a
+  transposed copy of ``cellmax``).
+* ``mip``: the maximum mipmap (Tevs, Ihrke & Seidel 2008): level 0 is ``cellmax``, level
+  k holds maxima over 2^k x 2^k cells, sizes rounded up so every grid size works. About
+  ``4/3 * 4 nx ny`` bytes.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .lattice import MAX_GRID_SIDE
+
+__all__ = ["Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind"]
+
+RMQ_BLOCK_SHIFT = 4
+
+
+def _validate_heights(heights) -> np.ndarray:
+    try:
+        h = np.asarray(heights)
+    except Exception as exc:
+        raise TypeError(f"heights: cannot be read as an array ({exc})") from None
+    if h.dtype.kind not in "fiu":
+        raise TypeError(f"heights: expected real numbers, got dtype {h.dtype}")
+    if h.ndim != 2:
+        raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {h.shape}")
+    if h.shape[0] < 2 or h.shape[1] < 2:
+        raise ValueError(f"heights: a height field needs at least 2 x 2 samples, got {h.shape}")
+    if max(h.shape) > MAX_GRID_SIDE:
+        raise ValueError(f"heights: shape {h.shape} exceeds the limit of 2**24 samples per side")
+    h = np.ascontiguousarray(h, dtype=np.float32)
+    bad = ~np.isfinite(h)
+    if bad.any():
+        row, col = (int(v) for v in np.argwhere(bad)[0])
+        raise ValueError(f"heights: sample (row {row}, col {col}) is {h[row, col]}; heights must "
+                         "be finite (datasets_gen.load_file has an explicit nodata policy)")
+    return h
+
+
+def _range_max(lines: np.ndarray, shift: int):
+    """(values, prefix, suffix, sparse, shift) for range maxima along axis 1."""
+    values = np.ascontiguousarray(lines, dtype=np.float32)
+    n_lines, length = values.shape
+    block = 1 << shift
+    n_blocks = -(-length // block)
+    padded = np.full((n_lines, n_blocks * block), -np.inf, dtype=np.float32)
+    padded[:, :length] = values
+    blocks = padded.reshape(n_lines, n_blocks, block)
+    prefix = np.maximum.accumulate(blocks, axis=2).reshape(n_lines, -1)[:, :length]
+    suffix = np.maximum.accumulate(blocks[:, :, ::-1], axis=2)[:, :, ::-1].reshape(n_lines, -1)[:, :length]
+    n_levels = 1
+    while (2 << (n_levels - 1)) <= n_blocks:
+        n_levels += 1
+    sparse = np.empty((n_lines, n_levels, n_blocks), dtype=np.float32)
+    sparse[:, 0] = blocks.max(axis=2)
+    for level in range(1, n_levels):
+        half = 1 << (level - 1)
+        prev = sparse[:, level - 1]
+        sparse[:, level] = prev
+        sparse[:, level, : n_blocks - half] = np.maximum(prev[:, : n_blocks - half], prev[:, half:])
+    return (values, np.ascontiguousarray(prefix), np.ascontiguousarray(suffix), sparse, shift)
+
+
+def _mipmap(cellmax: np.ndarray) -> list[np.ndarray]:
+    levels = [cellmax]
+    while max(levels[-1].shape) > 1:
+        a = levels[-1]
+        r, c = a.shape
+        padded = np.full((r + r % 2, c + c % 2), -np.inf, dtype=np.float32)
+        padded[:r, :c] = a
+        levels.append(np.ascontiguousarray(
+            padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3))))
+    return levels
+
+
+class Field:
+    """Heights (float32, validated) and their lazily built acceleration structures.
+
+    Structures are built per *bound kind* (:func:`bound_kind` of the surface) on first
+    use; ``build_stats`` maps each one built so far (``"cellmax"``,
+    ``"cellmax/plane3"``, ...) to ``{"seconds", "bytes"}``.
+    """
+
+    def __init__(self, heights):
+        self.heights = _validate_heights(heights)
+        self.rows, self.cols = self.heights.shape
+        self.hmin = float(self.heights.min())
+        self.hmax = float(self.heights.max())
+        self.build_stats: dict[str, dict] = {}
+        self._cache: dict[str, object] = {}
+
+    def _build(self, name, make):
+        if name not in self._cache:
+            start = time.perf_counter()
+            value = make()
+            seconds = time.perf_counter() - start
+            arrays = value if isinstance(value, (list, tuple)) else [value]
+            nbytes = sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
+            if name.startswith("row_max"):  # shares `values` with cellmax
+                nbytes -= value[0].nbytes
+            self._cache[name] = value
+            self.build_stats[name] = {"seconds": seconds, "bytes": int(nbytes)}
+        return self._cache[name]
+
+    @staticmethod
+    def _key(name, kind):
+        return name if kind == "corners" else f"{name}/{kind}"
+
+    def cellmax_for(self, kind="corners") -> np.ndarray:
+        h = self.heights
+
+        def make():
+            top = np.maximum(np.maximum(h[:-1, :-1], h[:-1, 1:]), np.maximum(h[1:, :-1], h[1:, 1:]))
+            if kind == "plane3":
+                # float64, rounded up to float32: the bound must not fall below the value
+                fourth = h[:-1, 1:].astype(np.float64) + h[1:, :-1] - h[:-1, :-1]
+                fourth32 = fourth.astype(np.float32)
+                fourth32 = np.where(fourth32 < fourth, np.nextafter(fourth32, np.float32(np.inf)), fourth32)
+                top = np.maximum(top, fourth32)
+            return np.ascontiguousarray(top, dtype=np.float32)
+
+        return self._build(self._key("cellmax", kind), make)
+
+    def zrange_for(self, kind="corners") -> tuple[float, float]:
+        """Lowest and highest surface height over the field, for the box clip."""
+        if kind == "corners":
+            return self.hmin, self.hmax
+        h = self.heights.astype(np.float64)
+        fourth = h[:-1, 1:] + h[1:, :-1] - h[:-1, :-1]
+        return min(self.hmin, float(fourth.min())), max(self.hmax, float(fourth.max()))
+
+    def row_max_for(self, kind="corners"):
+        return self._build(self._key("row_max", kind),
+                           lambda: _range_max(self.cellmax_for(kind), RMQ_BLOCK_SHIFT))
+
+    def col_max_for(self, kind="corners"):
+        return self._build(self._key("col_max", kind),
+                           lambda: _range_max(self.cellmax_for(kind).T, RMQ_BLOCK_SHIFT))
+
+    def mip_for(self, kind="corners") -> list[np.ndarray]:
+        return self._build(self._key("mip", kind), lambda: _mipmap(self.cellmax_for(kind)))
+
+    # the structures for the three surfaces that stay within their corners
+    cellmax = property(lambda self: self.cellmax_for())
+    row_max = property(lambda self: self.row_max_for())
+    col_max = property(lambda self: self.col_max_for())
+    mip = property(lambda self: self.mip_for())
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the heights plus every structure built so far."""
+        return self.heights.nbytes + sum(s["bytes"] for s in self.build_stats.values()
+                                         if isinstance(s.get("bytes"), int))
+
+
+def bound_kind(surface: str) -> str:
+    """Which surface bounds a surface needs: "plane3" for plane3, else "corners"."""
+    return "plane3" if surface == "plane3" else "corners"
+
+
+def as_field(heights) -> Field:
+    """A :class:`Field` for ``heights`` (returned as is when it already is one)."""
+    return heights if isinstance(heights, Field) else Field(heights)

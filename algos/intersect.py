@@ -1,0 +1,259 @@
+"""``algos.intersect``: first hits of rays on a height field, every intersector.
+
+Validation and conversion live here; the C layer (``cext/hit.c``) trusts its inputs.
+"""
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass, field as dc_field
+
+import numpy as np
+
+from . import _kernels
+from .field import Field, as_field, bound_kind
+from .registry import SURFACES, get_intersector
+from .traverse import DEFAULT_MAX_DENOMINATOR, MAX_DENOMINATOR, _check_t, _first_bad
+from .lattice import MAX_ORIGIN
+
+__all__ = ["Hits", "intersect", "HIT_OUTPUTS", "STATS"]
+
+#: Outputs ``intersect`` can compute; each only on request.
+HIT_OUTPUTS = ("t", "cell", "normal", "stats")
+#: Per-ray statistics, the columns of ``Hits.stats``.
+STATS = ("cells_visited", "cells_tested", "runs_visited", "runs_culled", "tiles_skipped")
+
+
+@dataclass
+class Hits:
+    """First hits of N rays. Fields not asked for are None.
+
+    ``t``: (N,) float64, ``inf`` on a miss. ``cell``: (N, 2) int32 ``(i, j)``,
+    ``(-1, -1)`` on a miss. ``normal``: (N, 3) unit normals (up-facing on the surface,
+    horizontal and facing the ray on a wall), NaN on a miss. ``stats``: dict of (N,)
+    int64 arrays named in :data:`STATS`. ``elapsed_ns``: the C loop's time.
+    """
+
+    algorithm: str
+    surface: str
+    t: np.ndarray | None = None
+    cell: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    stats: dict | None = None
+    elapsed_ns: int = 0
+    extra: dict = dc_field(default_factory=dict)
+
+    @property
+    def hit(self) -> np.ndarray:
+        """True where the ray hit (needs ``t``)."""
+        if self.t is None:
+            raise ValueError("hit: ask for the 't' output")
+        return np.isfinite(self.t)
+
+
+def _check_rays3(origins, directions):
+    arrays = []
+    for name, value in (("origins", origins), ("directions", directions)):
+        try:
+            array = np.asarray(value)
+        except Exception as exc:
+            raise TypeError(f"{name}: cannot be read as an array ({exc})") from None
+        if array.dtype.kind not in "fiu":
+            raise TypeError(f"{name}: expected real numbers, got dtype {array.dtype}")
+        if array.ndim != 2 or array.shape[1] != 3:
+            raise ValueError(f"{name}: expected shape (N, 3), got {array.shape}")
+        array = np.ascontiguousarray(array, dtype=np.float64)
+        bad = ~np.isfinite(array)
+        if bad.any():
+            k, c = _first_bad(bad)
+            raise ValueError(f"{name}: ray {k} has a non-finite component {name}[{k}, {c}] = {array[k, c]}")
+        arrays.append(array)
+    o, d = arrays
+    if len(o) != len(d):
+        raise ValueError(f"origins and directions: {len(o)} origins but {len(d)} directions")
+    zero = np.all(d == 0, axis=1)
+    if zero.any():
+        k = int(np.argmax(zero))
+        raise ValueError(f"directions: ray {k} is the zero vector")
+    far = np.abs(o) > MAX_ORIGIN
+    if far.any():
+        k, c = _first_bad(far)
+        raise ValueError(f"origins: ray {k} has |origins[{k}, {c}]| = {abs(o[k, c])} > 2**30")
+    return o, d
+
+
+def _options(algorithm, given: dict) -> dict:
+    known = dict(algorithm.options or {})
+    unknown = set(given) - set(known)
+    if unknown:
+        name = sorted(unknown)[0]
+        raise ValueError(f"{name}: not an option of {algorithm.name}; it takes "
+                         f"{', '.join(known) or 'no options'}")
+    known.update(given)
+    for name, value in known.items():
+        if name.startswith("cull_"):
+            if not isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"{name}: expected True or False, got {value!r}")
+        elif name == "max_denominator":
+            if value is None:
+                known[name] = DEFAULT_MAX_DENOMINATOR
+            elif isinstance(value, bool) or not isinstance(value, numbers.Integral) or \
+                    not 1 <= value <= MAX_DENOMINATOR:
+                raise ValueError(f"max_denominator: expected an integer in [1, 2**24], got {value!r}")
+        elif name in ("march_steps", "march_refinements", "fine_level"):
+            low = 1 if name == "march_steps" else 0
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+        elif name == "march_growth":
+            if not (isinstance(value, numbers.Real) and value >= 1):
+                raise ValueError(f"march_growth: expected a number >= 1, got {value!r}")
+        elif name == "march_first_fraction":
+            if not (isinstance(value, numbers.Real) and 0 < value <= 1):
+                raise ValueError(f"march_first_fraction: expected a number in (0, 1], got {value!r}")
+        elif name == "march_min_step":
+            if not (isinstance(value, numbers.Real) and value >= 0):
+                raise ValueError(f"march_min_step: expected a number >= 0, got {value!r}")
+    return known
+
+
+def intersect(name, heights, origins, directions, surface="triangles", tmin=None, tmax=None,
+              outputs=("t", "cell"), **options) -> Hits:
+    """First hits of rays ``o + t d`` on the solid ``{z <= s(x, y)}`` of a height field.
+
+    Parameters
+    ----------
+    name : str
+        A name in ``algos.INTERSECTORS``.
+    heights : array_like (rows, cols) or algos.Field
+        ``H[j, i]`` is the height at ``(x=i, y=j)``; at least 2 x 2, finite. Pass an
+        :class:`algos.Field` to build acceleration structures once and reuse them.
+    origins, directions : array_like, shape (N, 3)
+        Rays in (x, y, z); any real dtype and layout. Directions must not be zero.
+    surface : {"flat", "plane3", "triangles", "bilinear"}
+    tmin, tmax : None, float or (N,) array
+        Default ``[0, inf)``.
+    outputs : iterable of {"t", "cell", "normal", "stats"}
+        Only these are computed.
+    **options
+        Per-intersector options (see ``algos.INTERSECTOR_REGISTRY[name].options``):
+        ``cull_cells``, ``cull_runs`` (switch culling off, for checks),
+        ``max_denominator`` (runs_periodic), ``fine_level`` (runs_maxmip), and the
+        marching parameters ``march_steps``, ``march_refinements``, ``march_growth``,
+        ``march_first_fraction``, ``march_min_step``.
+
+    Returns
+    -------
+    Hits
+        The smallest ``t`` in ``[t0, t1]`` with ``z(t) <= s(x(t), y(t))``, where
+        ``[t0, t1]`` is ``[tmin, tmax]`` clipped to the box ``[0, cols-1] x
+        [0, rows-1]`` (CONVENTIONS.md, "The first hit"); a ray that starts inside the
+        solid hits at ``t0``. ``flat`` and ``plane3`` jump at cell borders, so their hits
+        can lie on vertical walls.
+    """
+    algorithm = get_intersector(name)
+    if surface not in SURFACES:
+        raise ValueError(f"surface: unknown surface {surface!r}; valid surfaces are {', '.join(SURFACES)}")
+    if surface not in algorithm.surfaces:
+        raise ValueError(f"surface: {name} supports only {', '.join(algorithm.surfaces)}, not {surface!r}")
+    if isinstance(outputs, str):
+        outputs = (outputs,)
+    outputs = tuple(outputs)
+    for out in outputs:
+        if out not in HIT_OUTPUTS:
+            raise ValueError(f"outputs: unknown output {out!r}; valid outputs are {', '.join(HIT_OUTPUTS)}")
+    opts = _options(algorithm, options)
+    fld = as_field(heights)
+    o, d = _check_rays3(origins, directions)
+    n = len(o)
+    lo = _check_t(tmin, "tmin", n)
+    hi = _check_t(tmax, "tmax", n)
+    hits = Hits(name, surface)
+
+    if algorithm.kind == "peer":
+        from .embree_peer import embree_hits
+
+        t, cell, normal, elapsed = embree_hits(fld, o, d, lo, hi)
+        hits.elapsed_ns = elapsed
+        hits.t = t if "t" in outputs else None
+        hits.cell = cell if "cell" in outputs else None
+        hits.normal = normal if "normal" in outputs else None
+        if "stats" in outputs:
+            hits.stats = {k: np.zeros(n, np.int64) for k in STATS}
+        return hits
+
+    run = prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts)
+    hits.elapsed_ns = run()
+    hits.t, hits.cell, hits.normal, stats = run.outputs
+    if stats is not None:
+        hits.stats = {k: stats[:, i].copy() for i, k in enumerate(STATS)}
+    return hits
+
+
+class _Prepared:
+    """One validated call, ready to run (and re-run, for timing) in C."""
+
+    def __init__(self, algorithm, fld: Field, surface, o, d, lo, hi, outputs, opts):
+        n = len(o)
+        self.t = np.empty(n) if "t" in outputs else None
+        self.cell = np.empty((n, 2), np.int32) if "cell" in outputs else None
+        self.normal = np.empty((n, 3)) if "normal" in outputs else None
+        self.stats = np.empty((n, 5), np.int64) if "stats" in outputs else None
+        uses = set(algorithm.structures)
+        kind = bound_kind(surface)
+        cellmax = fld.cellmax_for(kind)
+        hmin, hmax = fld.zrange_for(kind)
+        run_culling = {"row_max", "col_max"} <= uses and opts.get("cull_runs", False)
+        row_max = fld.row_max_for(kind) if run_culling else None
+        col_max = fld.col_max_for(kind) if run_culling else None
+        mip = fld.mip_for(kind) if "mip" in uses else None
+        fine_level = int(opts.get("fine_level", 0))
+        if mip is not None and fine_level >= len(mip):
+            fine_level = len(mip) - 1
+        q = int(opts.get("max_denominator") or 0)
+        pattern = np.zeros(q + 1, np.int32) if q else None
+        march = (int(opts.get("march_steps", 128)), int(opts.get("march_refinements", 16)),
+                 float(opts.get("march_growth", 1.02)),
+                 float(opts.get("march_first_fraction", 1 / 580)),
+                 float(opts.get("march_min_step", 0.0)))
+        self.args = (algorithm.kernel_id, SURFACES.index(surface), fld.heights, cellmax,
+                     hmin, hmax, row_max, col_max, mip, o, d, lo, hi,
+                     int(bool(opts.get("cull_cells", False))), q, pattern, march, fine_level,
+                     self.t, self.cell, self.normal, self.stats)
+
+    def __call__(self) -> int:
+        return _kernels.intersect(*self.args)
+
+    @property
+    def outputs(self):
+        return self.t, self.cell, self.normal, self.stats
+
+
+def prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts):
+    return _Prepared(algorithm, fld, surface, o, d, lo, hi, outputs, opts)
+
+
+def prepare_timed_intersect(name, heights, origins, directions, surface="triangles",
+                            outputs=("t",), **options):
+    """Validate once; return ``(run, hits)`` where each ``run()`` traces the batch again
+    and returns its elapsed nanoseconds (C clock, or around embreex's loop for the peer),
+    and ``hits()`` gives the latest t. Acceleration structures are built here, not in
+    ``run``."""
+    algorithm = get_intersector(name)
+    fld = as_field(heights)
+    o, d = _check_rays3(origins, directions)
+    if algorithm.kind == "peer":
+        from .embree_peer import embree_hits, embree_scene
+
+        embree_scene(fld)
+        state = {}
+
+        def run_peer():
+            t, _, _, elapsed = embree_hits(fld, o, d, None, None)
+            state["t"] = t
+            return elapsed
+
+        return run_peer, lambda: state.get("t")
+    if surface not in algorithm.surfaces:
+        raise ValueError(f"surface: {name} supports only {', '.join(algorithm.surfaces)}")
+    opts = _options(algorithm, options)
+    prepared = prepare_intersect(algorithm, fld, surface, o, d, None, None, outputs, opts)
+    return prepared, lambda: prepared.t

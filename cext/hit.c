@@ -1,0 +1,372 @@
+/* First hits on a height field for every traversal, plus the ray-marching baselines and
+ * the max-mipmap skipping variants.
+ *
+ * Every ray is first clipped to the field's box [0, cols-1] x [0, rows-1] x [hmin, hmax]
+ * (the seeds' existence condition): a ray that misses it does no traversal. Below hmin
+ * every point of the footprint is inside the solid, so the hit lies at or before the
+ * parameter where z reaches hmin, which ends the interval. */
+#include <math.h>
+#include <string.h>
+#include "hitbatch.h"
+#include "internal.h"
+
+/* ---- clipping ----------------------------------------------------------------------- */
+/* [t0, t1] of the ray inside the box; returns 0 when empty. entry_axis: the face that
+ * set t0 (0 x, 1 y, 2 z) or -1 when t0 is tmin. */
+static int clip_to_box(const double o[3], const double d[3], double tmin, double tmax,
+                       double x_max, double y_max, double hmin, double hmax, double *t0_out,
+                       double *t1_out, int *entry_axis) {
+    double t0 = tmin, t1 = tmax;
+    int axis = -1, k;
+    const double hi[2] = {x_max, y_max};
+    for (k = 0; k < 2; ++k) {
+        if (d[k] != 0) {
+            /* the same expressions as hf_cell_interval, so a face parameter computed here
+             * equals the one computed there bit for bit */
+            const double inv = 1.0 / d[k];
+            double a = (0 - o[k]) * inv, b = (hi[k] - o[k]) * inv;
+            if (a > b) { const double s = a; a = b; b = s; }
+            if (a > t0) { t0 = a; axis = k; }
+            if (b < t1) t1 = b;
+        } else if (!(o[k] >= 0 && o[k] <= hi[k])) {
+            return 0;
+        }
+    }
+    if (!(t0 <= t1)) return 0;  /* misses the footprint (or an empty [tmin, tmax]) */
+    /* Robust slab bounds: the z slab is widened by a hair, so that rounding in z(t) can
+     * never push a hit that lies exactly on hmin or hmax (a flat field has both) out of
+     * the interval; the widening only adds parameters that are tested exactly anyway. */
+    {
+        const double margin = 1e-9 * (1.0 + fabs(hmin) + fabs(hmax));
+        hmin -= margin;
+        hmax += margin;
+    }
+    if (d[2] < 0) {
+        const double above = (hmax - o[2]) / d[2], below = (hmin - o[2]) / d[2];
+        if (above > t0) { t0 = above; axis = 2; }
+        if (!(t0 <= t1)) return 0;  /* still above hmax when it leaves */
+        /* at or below hmin the ray is inside the solid: the hit is no later than that
+         * (already below at t0: the hit is t0 itself) */
+        if (below < t1) t1 = below > t0 ? below : t0;
+    } else if (d[2] > 0) {
+        const double above = (hmax - o[2]) / d[2];
+        if (above < t1) t1 = above;
+    } else if (o[2] > hmax) {
+        return 0;
+    }
+    *t0_out = t0;
+    *t1_out = t1;
+    *entry_axis = axis;
+    return t0 <= t1;
+}
+
+/* ---- ray marching (approximate by design; the Hungarian lab's three variants) ---------- */
+/* z - s(x, y) at one point, with the cell clamped into the grid; also its slopes. */
+static double field_gap(hf_hit *h, double t, int32_t *ci, int32_t *cj, double *su, double *sv) {
+    const double x = h->ox + t * h->dx, y = h->oy + t * h->dy, z = h->oz + t * h->dz;
+    int32_t i = (int32_t)floor(x), j = (int32_t)floor(y);
+    double u, v, h00, h10, h01, h11, s;
+    if (i < 0) i = 0;
+    if (i > h->cols - 2) i = h->cols - 2;
+    if (j < 0) j = 0;
+    if (j > h->rows - 2) j = h->rows - 2;
+    u = x - i;
+    v = y - j;
+    h00 = hf_height(h, i, j); h10 = hf_height(h, i + 1, j);
+    h01 = hf_height(h, i, j + 1); h11 = hf_height(h, i + 1, j + 1);
+    switch (h->surface) {
+    case HF_FLAT: s = (h00 + h10 + h01 + h11) / 4.0; *su = 0; *sv = 0; break;
+    case HF_PLANE3: *su = h10 - h00; *sv = h01 - h00; s = h00 + *su * u + *sv * v; break;
+    case HF_TRIANGLES:
+        if (u >= v) { *su = h10 - h00; *sv = h11 - h10; }
+        else { *su = h11 - h01; *sv = h01 - h00; }
+        s = h00 + *su * u + *sv * v;
+        break;
+    default: {
+        const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
+        s = h00 + a * u + b * v + c * u * v;
+        *su = a + c * v;
+        *sv = b + c * u;
+    }
+    }
+    *ci = i;
+    *cj = j;
+    return z - s;
+}
+
+static void march(hf_hit *h, const hf_hit_batch *b, int kernel) {
+    const double span = h->t1 - h->t0;
+    double t = h->t0, prev = h->t0, step, su, sv;
+    int32_t i, j, k;
+    if (field_gap(h, t, &i, &j, &su, &sv) <= 0) {
+        hf_hit_at(h, t, i, j, -1, su, sv);
+        return;
+    }
+    if (kernel == HF_HIT_MARCH_GROWING) {
+        step = span * b->march_first_fraction;
+        for (k = 0; k < 100000 && prev < h->t1; ++k) {
+            step = step > b->march_min_step ? step : b->march_min_step;
+            t = prev + step;
+            if (t > h->t1) t = h->t1;
+            h->cells_tested += 1;
+            if (field_gap(h, t, &i, &j, &su, &sv) <= 0) { hf_hit_at(h, t, i, j, -1, su, sv); return; }
+            prev = t;
+            step *= b->march_growth;
+        }
+        return;
+    }
+    /* linear search with a fixed number of equal steps over [t0, t1] */
+    step = span / b->march_steps;
+    for (k = 1; k <= b->march_steps; ++k) {
+        t = h->t0 + step * k;
+        h->cells_tested += 1;
+        if (field_gap(h, t, &i, &j, &su, &sv) <= 0) break;
+        prev = t;
+    }
+    if (k > b->march_steps) return;
+    if (kernel == HF_HIT_MARCH_BINARY) {
+        /* halve the bracket [prev (outside), t (inside)] */
+        double lo = prev, hi = t;
+        for (k = 0; k < b->march_refinements; ++k) {
+            const double mid = 0.5 * (lo + hi);
+            h->cells_tested += 1;
+            if (field_gap(h, mid, &i, &j, &su, &sv) <= 0) hi = mid; else lo = mid;
+        }
+        t = hi;
+    }
+    (void)field_gap(h, t, &i, &j, &su, &sv);
+    hf_hit_at(h, t, i, j, -1, su, sv);
+}
+
+/* ---- max-mipmap skipping (Tevs, Ihrke & Seidel 2008) ------------------------------------
+ * Level 0 holds the cell maxima; level k the maxima of 2x2 blocks of level k-1 (the last
+ * row/column of an odd size stands alone), so every size works. From the current cell
+ * the walk climbs to the coarsest tile whose maximum lies below the ray's lowest z over
+ * the ray's stretch inside the tile and leaps to that tile's exit; when even the level-1
+ * tile cannot be skipped it hands the stretch inside the current fine tile to the base
+ * kernel: one cell for dda_maxmip, a run walk for runs_maxmip. Cell indices are carried
+ * as integers and clamped into the current tile, so rounding never stalls the walk. */
+static double tile_exit(const hf_hit *h, int32_t ti, int32_t tj, int level, int *axis) {
+    const double size = (double)((int64_t)1 << level);
+    double t = h->t1;
+    *axis = -1;
+    if (h->dx != 0) {
+        const double x = h->dx > 0 ? (ti + 1) * size : ti * size;
+        const double tx = (x - h->ox) * h->inv_dx;
+        if (tx < t) { t = tx; *axis = 0; }
+    }
+    if (h->dy != 0) {
+        const double y = h->dy > 0 ? (tj + 1) * size : tj * size;
+        const double ty = (y - h->oy) * h->inv_dy;
+        if (ty < t) { t = ty; *axis = 1; }
+        else if (ty == t && *axis == 0) *axis = 2;  /* through a tile corner */
+    }
+    return t;
+}
+
+static int32_t clamp32(int64_t v, int64_t lo, int64_t hi) {
+    return (int32_t)(v < lo ? lo : (v > hi ? hi : v));
+}
+
+/* cell index along one axis at parameter t, by the forward rule, clamped */
+static int32_t cell_at(double o, double d, double t, int32_t n) {
+    const double x = o + t * d;
+    const double c = d < 0 ? ceil(x) - 1 : floor(x);
+    return clamp32((int64_t)(c < -1e9 ? -1e9 : (c > 1e9 ? 1e9 : c)), 0, n - 1);
+}
+
+static int maxmip_walk(hf_hit *h, const hf_hit_batch *b, hf_hit_walk fine_walk, int fine_level,
+                       hf_batch *b2, hf_sink *sink) {
+    const int32_t nx = h->cols - 1, ny = h->rows - 1;
+    const int top = b->mip_levels - 1;
+    double t = h->t0;
+    int32_t i = cell_at(h->ox, h->dx, t, nx), j = cell_at(h->oy, h->dy, t, ny);
+    int hint = top, guard;
+    /* every pass moves (i, j) into a new tile, so the walk ends within nx + ny passes */
+    for (guard = 0; guard <= 2 * (nx + ny) + 2; ++guard) {
+        int axis = -1, L, skipped = 0;
+        double te = t;
+        /* 1. the coarsest skippable tile, from the hint down to level 1 */
+        for (L = hint < top ? hint : top; L >= 1; --L) {
+            const int32_t ti = i >> L, tj = j >> L;
+            double za, zb;
+            te = tile_exit(h, ti, tj, L, &axis);
+            za = h->oz + t * h->dz;
+            zb = h->oz + te * h->dz;
+            if ((za < zb ? za : zb) > (double)b->mip[L][(int64_t)tj * b->mip_cols[L] + ti]) {
+                skipped = 1;
+                break;
+            }
+        }
+        if (skipped) {
+            /* 2. leap over the tile; next time try one level coarser */
+            h->tiles_skipped += 1;
+            hint = L + 1;
+        } else {
+            /* 3. the base kernel walks the fine tile: one cell (dda) or its runs */
+            L = fine_level;
+            te = tile_exit(h, i >> L, j >> L, L, &axis);
+            if (L == 0) {
+                if (hf_hit_cell(h, i, j)) return 1;
+            } else {
+                double lo = t, hi = te < h->t1 ? te : h->t1;
+                b2->tmin = &lo;
+                b2->tmax = &hi;
+                if (hi > lo) {
+                    (void)fine_walk(b2, sink, NULL);
+                    b2->tmin = b2->tmax = NULL;
+                    if (h->found) return 1;
+                } else if (hf_hit_cell(h, i, j)) {
+                    return 1;
+                }
+            }
+            hint = L + 1;
+        }
+        if (!(te < h->t1)) return 0;
+        {
+            /* into the next tile at level L: an integer step on the exit axis, the other
+             * index recomputed and clamped into the tile just left (rounding can never
+             * send the walk backwards or keep it in place) */
+            const int64_t size = (int64_t)1 << L;
+            const int64_t ti = i >> L, tj = j >> L;
+            int64_t ni = cell_at(h->ox, h->dx, te, nx), nj = cell_at(h->oy, h->dy, te, ny);
+            if (axis == 0 || axis == 2) ni = h->dx > 0 ? (ti + 1) * size : ti * size - 1;
+            else ni = clamp32(ni, ti * size, (ti + 1) * size - 1);
+            if (axis == 1 || axis == 2) nj = h->dy > 0 ? (tj + 1) * size : tj * size - 1;
+            else nj = clamp32(nj, tj * size, (tj + 1) * size - 1);
+            if (axis < 0 || ni < 0 || ni >= nx || nj < 0 || nj >= ny) return 0;
+            i = (int32_t)ni;
+            j = (int32_t)nj;
+            t = te > t ? te : t;
+        }
+    }
+    return 0;
+}
+
+/* ---- the batch ------------------------------------------------------------------------ */
+static hf_hit_walk walk_of(int kernel) {
+    switch (kernel) {
+    case HF_DDA: return hf_batch_dda_hit;
+    case HF_DDA_F32: return hf_batch_dda_f32_hit;
+    case HF_MIDPOINT: return hf_batch_midpoint_hit;
+    case HF_RUNS: return hf_batch_runs_hit;
+    case HF_RUNS_F64: return hf_batch_runs_f64_hit;
+    case HF_RUNS_PERIODIC: return hf_batch_runs_periodic_hit;
+    case HF_HIT_DDA_MAXMIP: return hf_batch_dda_hit;
+    case HF_HIT_RUNS_MAXMIP: return hf_batch_runs_hit;
+    default: return NULL;
+    }
+}
+
+int hf_intersect_batch(int kernel, hf_hit_batch *b) {
+    hf_pattern pattern;
+    const hf_hit_walk walk = walk_of(kernel);
+    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
+                         kernel == HF_HIT_MARCH_BINARY;
+    const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP;
+    int64_t ray;
+    if (walk == NULL && !marching) return HF_ERR_ARGUMENT;
+    if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
+        return HF_ERR_ARGUMENT;
+    if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
+    pattern.p = pattern.q = pattern.position_step = 0;
+    pattern.lengths = b->pattern;
+    b->bad_ray = -1;
+    for (ray = 0; ray < b->n_rays; ++ray) {
+        const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
+        const double tmin = b->tmin ? b->tmin[ray] : 0.0;
+        const double tmax = b->tmax ? b->tmax[ray] : (double)INFINITY;
+        hf_hit h;
+        double t0, t1;
+        int entry_axis;
+        memset(&h, 0, sizeof h);
+        if (clip_to_box(o, d, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
+                        &entry_axis)) {
+            hf_batch b2;
+            hf_sink sink;
+            double o2[2], d2[2], lo = t0, hi = t1;
+            h.heights = b->heights;
+            h.cellmax = b->cellmax;
+            h.rows = b->rows;
+            h.cols = b->cols;
+            h.row_max = b->cull_runs ? &b->row_max : NULL;
+            h.col_max = b->cull_runs ? &b->col_max : NULL;
+            h.surface = b->surface;
+            h.cull_cells = b->cull_cells;
+            h.ox = o[0]; h.oy = o[1]; h.oz = o[2];
+            h.dx = d[0]; h.dy = d[1]; h.dz = d[2];
+            h.inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
+            h.inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
+            h.t0 = t0;
+            h.t1 = t1;
+            h.entry_axis = entry_axis;
+            memset(&b2, 0, sizeof b2);
+            o2[0] = o[0]; o2[1] = o[1]; d2[0] = d[0]; d2[1] = d[1];
+            /* A ray lying in the far box face x = cols-1 (or y = rows-1) has no half-open
+             * cell there; walk the last column (row) instead. Moving the 2D walk's origin
+             * by 3/4 of a lattice unit keeps it in that column even after the exact
+             * kernels' rounding; the surface tests still use the caller's ray. */
+            if (d[0] == 0 && o[0] == b->cols - 1) o2[0] = o[0] - 0.75 / HF_ONE;
+            if (d[1] == 0 && o[1] == b->rows - 1) o2[1] = o[1] - 0.75 / HF_ONE;
+            b2.n_rays = 1;
+            b2.origins = o2;
+            b2.directions = d2;
+            b2.tmin = &lo;
+            b2.tmax = &hi;
+            b2.nx = b->cols - 1;
+            b2.ny = b->rows - 1;
+            b2.max_denominator = b->max_denominator;
+            b2.pattern = b->pattern;
+            sink.hit = &h;
+            if (marching) {
+                march(&h, b, kernel);
+            } else if (t0 == t1) {
+                /* a single parameter (the ray touches the box there, or is already below
+                 * hmin when it enters): test that point directly */
+                const int32_t i = cell_at(h.ox, h.dx, t0, b->cols - 1);
+                const int32_t j = cell_at(h.oy, h.dy, t0, b->rows - 1);
+                h.cells_visited += 1;
+                (void)hf_surface_test(&h, i, j, t0, t0,
+                                      (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
+            } else if (maxmip && !hf_on_grid_line(&h)) {
+                maxmip_walk(&h, b, walk, kernel == HF_HIT_RUNS_MAXMIP ? b->fine_level : 0, &b2,
+                            &sink);
+            } else {
+                /* (a maxmip kernel on a grid line, where neighbouring tiles matter, walks
+                 * every cell with its base kernel) */
+                const int status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&pattern : NULL);
+                if (status != HF_OK) { b->bad_ray = ray; return status; }
+            }
+        }
+        /* outputs, each only when asked for */
+        if (b->t) b->t[ray] = h.found ? h.t : (double)INFINITY;
+        if (b->cell) {
+            b->cell[2 * ray] = h.found ? h.i : -1;
+            b->cell[2 * ray + 1] = h.found ? h.j : -1;
+        }
+        if (b->normal) {
+            double *n = b->normal + 3 * ray;
+            if (!h.found) {
+                n[0] = n[1] = n[2] = NAN;
+            } else if (h.wall_axis == 0 || h.wall_axis == 1) {
+                /* a vertical wall facing the ray */
+                n[0] = n[1] = n[2] = 0;
+                n[h.wall_axis] = d[h.wall_axis] > 0 ? -1.0 : 1.0;
+            } else {
+                const double norm = sqrt(h.su * h.su + h.sv * h.sv + 1.0);
+                n[0] = -h.su / norm;
+                n[1] = -h.sv / norm;
+                n[2] = 1.0 / norm;
+            }
+        }
+        if (b->stats) {
+            int64_t *s = b->stats + 5 * ray;
+            s[0] = h.cells_visited;
+            s[1] = h.cells_tested;
+            s[2] = h.runs_visited;
+            s[3] = h.runs_culled;
+            s[4] = h.tiles_skipped;
+        }
+    }
+    return HF_OK;
+}

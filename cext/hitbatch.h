@@ -1,0 +1,53 @@
+/* The first-hit batch: one field, its acceleration structures, N rays, the outputs. */
+#ifndef HFTRACE_HITBATCH_H
+#define HFTRACE_HITBATCH_H
+
+#include <stdint.h>
+#include "hit.h"
+
+/* Intersector ids: the traversal kernels (enum hf_kernel) and these. */
+enum hf_hit_kernel {
+    HF_HIT_DDA_MAXMIP = 6,
+    HF_HIT_RUNS_MAXMIP = 7,
+    HF_HIT_MARCH_LINEAR = 8,
+    HF_HIT_MARCH_GROWING = 9,
+    HF_HIT_MARCH_BINARY = 10,
+    HF_N_HIT_KERNELS = 11
+};
+
+#define HF_MAX_MIP_LEVELS 32
+
+typedef struct {
+    int64_t n_rays;
+    const double *origins, *directions;  /* (n, 3) */
+    const double *tmin, *tmax;           /* (n,) or NULL for [0, inf) */
+    /* the field */
+    const float *heights, *cellmax;
+    int32_t rows, cols;
+    double hmin, hmax;
+    int surface;
+    /* culling and skipping */
+    int cull_cells, cull_runs;
+    hf_rmq row_max, col_max;
+    int mip_levels;
+    const float *mip[HF_MAX_MIP_LEVELS];
+    int32_t mip_cols[HF_MAX_MIP_LEVELS];
+    int fine_level;                      /* runs_maxmip: tile level the runs walk */
+    /* runs_periodic */
+    int64_t max_denominator;
+    int32_t *pattern;
+    /* ray marching */
+    int32_t march_steps, march_refinements;
+    double march_growth, march_first_fraction, march_min_step;
+    /* outputs, NULL when not asked for */
+    double *t;          /* (n,)    */
+    int32_t *cell;      /* (n, 2)  */
+    double *normal;     /* (n, 3)  */
+    int64_t *stats;     /* (n, 5): cells visited, cells tested, runs visited, runs culled,
+                           tiles skipped */
+    int64_t bad_ray;
+} hf_hit_batch;
+
+int hf_intersect_batch(int kernel, hf_hit_batch *batch);
+
+#endif
