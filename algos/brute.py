@@ -40,6 +40,14 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
             t0, t1 = max(t0, a), min(t1, b)
     if not t0 <= t1:
         return np.inf, (-1, -1)
+    if not np.isfinite(t1):
+        # a vertical ray: end it where z has passed every possible surface height (plane3
+        # extrapolates to 2 min - max at worst); below them the ray is inside the solid
+        lo_s = 2.0 * float(H.min()) - float(H.max()) - 1.0
+        hi_s = 2.0 * float(H.max()) - float(H.min()) + 1.0
+        t1 = min(t1, ((lo_s if d[2] < 0 else hi_s) - o[2]) / d[2])
+        if not t0 <= t1:
+            t1 = t0
     xa, xb = _interval(o[0], d[0], 0, nx)
     ya, yb = _interval(o[1], d[1], 0, ny)
     ta = np.maximum(np.maximum(xa[None, :], ya[:, None]), t0)  # (ny, nx)

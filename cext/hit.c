@@ -315,6 +315,13 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
             b2.tmax = &hi;
             b2.nx = b->cols - 1;
             b2.ny = b->rows - 1;
+            if (kernel == HF_DDA_F32) {
+                /* the float32 walk casts its range to float: round it outward, so a
+                 * hair-thin interval (a flat field) cannot collapse to nothing; the surface
+                 * tests still use the float64 interval */
+                lo = (double)nextafterf((float)t0, -INFINITY);
+                hi = (double)nextafterf((float)t1, INFINITY);
+            }
             b2.max_denominator = b->max_denominator;
             b2.pattern = b->pattern;
             sink.hit = &h;
