@@ -12,9 +12,9 @@ Structures (all float32; ``nx = cols - 1``, ``ny = rows - 1`` cells):
   bound kind.
 * ``row_max`` / ``col_max``: range maxima of ``cellmax`` along rows (runs along x) and
   along columns (runs along y), answered in O(1) for a run spanning two blocks of
-  ``2**RMQ_BLOCK_SHIFT`` cells: per-cell prefix and suffix maxima within blocks plus a
+  ``2**RMQ_BLOCK_SHIFT`` (8) cells: per-cell prefix and suffix maxima within blocks plus a
   sparse table over block maxima (``cext/hit.h``, ``hf_rmq_query``). About
-  ``(3 + log2(nx / 16) / 16) * 4 nx ny`` bytes per direction (the column one keeps a
+  ``(3 + log2(nx / 8) / 8) * 4 nx ny`` bytes per direction (the column one keeps a
   transposed copy of ``cellmax``).
 * ``mip``: the maximum mipmap (Tevs, Ihrke & Seidel 2008): level 0 is ``cellmax``, level
   k holds maxima over 2^k x 2^k cells, sizes rounded up so every grid size works. About
@@ -30,7 +30,7 @@ from .lattice import MAX_GRID_SIDE
 
 __all__ = ["Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind"]
 
-RMQ_BLOCK_SHIFT = 4
+RMQ_BLOCK_SHIFT = 3
 
 
 def _validate_heights(heights) -> np.ndarray:

@@ -49,10 +49,36 @@ def _bench_traverse(args):
     return 0
 
 
+def _bench_intersect(args):
+    from . import intersect_bench
+
+    names = None
+    if args.algorithms:
+        names = [n.strip() for n in args.algorithms.split(",")]
+        for name in names:
+            algos.get_intersector(name)
+    datasets = []
+    for item in args.datasets.split(","):
+        name, _, side = item.strip().partition(":")
+        datasets.append((name, int(side or 1024)))
+    surfaces = tuple(s.strip() for s in args.surfaces.split(","))
+    for surface in surfaces:
+        if surface not in algos.SURFACES:
+            raise ValueError(f"--surfaces: unknown surface {surface!r}; valid: {', '.join(algos.SURFACES)}")
+    intersect_bench.run(out_dir=args.out, n=args.rays, repeats=args.repeats, seed=args.seed,
+                        datasets=datasets, run_lengths=args.run_lengths, surfaces=surfaces,
+                        names=names)
+    return 0
+
+
 def _list(args):
+    print("traversals (algos.traverse):")
     for t in algos.TRAVERSAL_REGISTRY.values():
         exact = "exact" if t.exact else (f"exact when {t.exact_when}" if t.exact_when else t.precision)
-        print(f"{t.name:14s} {t.family:4s} {exact:50s} {t.summary} ({t.citation})")
+        print(f"  {t.name:14s} {t.family:4s} {exact:50s} {t.summary} ({t.citation})")
+    print("intersectors (algos.intersect):")
+    for a in algos.INTERSECTOR_REGISTRY.values():
+        print(f"  {a.name:14s} {a.kind:9s} {a.accuracy:13s} {a.summary}")
     return 0
 
 
@@ -127,6 +153,15 @@ def build_parser() -> argparse.ArgumentParser:
                        help="time the visit and runs workloads of every kernel relative to dda")
     _add_bench_arguments(p, "reports/bench_traverse")
     p.set_defaults(func=_bench_traverse)
+
+    p = sub.add_parser("bench-intersect",
+                       help="time first hits of every intersector relative to dda, and Embree")
+    _add_bench_arguments(p, "reports/bench_intersect")
+    p.set_defaults(rays=1000, repeats=7, seed=2008)
+    p.add_argument("--datasets", default="fbm:1024,fbm:2048,uniform:1024",
+                   help="comma-separated NAME:SIDE fields")
+    p.add_argument("--surfaces", default="triangles", help="comma-separated surfaces")
+    p.set_defaults(func=_bench_intersect)
 
     p = sub.add_parser(
         "reproduce",

@@ -12,7 +12,6 @@ interval; agree is the fraction of rays whose checksum equals the exact ``midpoi
 """
 from __future__ import annotations
 
-import csv
 import os
 import time
 
@@ -22,6 +21,7 @@ import algos
 from algos.registry import TRAVERSAL_REGISTRY
 from datasets_gen import rays as raysets
 
+from .report import RowWriter, speedup_table
 from .timing import environment, interleaved, median_ci, ratio_ci, write_json
 
 RUN_LENGTHS = (1, 2, 5, 25, 100)
@@ -79,25 +79,14 @@ def measure(r, workload, n, side, repeats, seed, names=None):
 
 def format_table(rows, workload) -> str:
     """A Markdown table: one row per algorithm, one column per run length."""
-    rs = sorted({row["run_length"] for row in rows if row["workload"] == workload})
-    names = list(dict.fromkeys(row["algorithm"] for row in rows if row["workload"] == workload))
-    lookup = {(row["algorithm"], row["run_length"]): row for row in rows
-              if row["workload"] == workload}
-    head = "| algorithm | " + " | ".join(f"r={r}" for r in rs) + " |"
-    lines = [head, "|---" * (len(rs) + 1) + "|"]
-    for name in names:
-        cells = []
-        for r in rs:
-            row = lookup[(name, r)]
-            flag = "" if row["agree"] == 1.0 else f" ({100 * row['agree']:.2f} % agree)"
-            cells.append(f"{row['speedup']:.2f}x [{row['speedup_ci_low']:.2f}, "
-                         f"{row['speedup_ci_high']:.2f}], {row['ns_per_ray']:.0f} ns{flag}")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    counts = " | ".join(
-        f"{lookup[(names[0], r)]['cells_per_ray']:.0f} / {lookup[(names[0], r)]['runs_per_ray']:.0f}"
-        for r in rs)
-    lines.append(f"| cells / runs per ray | {counts} |")
-    return "\n".join(lines)
+    rows = [row for row in rows if row["workload"] == workload]
+
+    def counts(columns, lookup, names):
+        return "| cells / runs per ray | " + " | ".join(
+            f"{lookup[(names[0], r)]['cells_per_ray']:.0f} / {lookup[(names[0], r)]['runs_per_ray']:.0f}"
+            for r in columns) + " |"
+
+    return speedup_table(rows, footer=counts)
 
 
 def run(out_dir="reports/bench_traverse", n=2000, side=1024, repeats=9, seed=2004,
@@ -107,18 +96,14 @@ def run(out_dir="reports/bench_traverse", n=2000, side=1024, repeats=9, seed=200
     os.makedirs(out_dir, exist_ok=True)
     env = environment()
     write_json(os.path.join(out_dir, "env.json"), env)
-    csv_path = os.path.join(out_dir, "results.csv")
     rows = []
     start = time.perf_counter()
-    with open(csv_path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
+    with RowWriter(os.path.join(out_dir, "results.csv"), COLUMNS) as writer:
         for workload in algos.WORKLOADS:
             for r in run_lengths:
                 for row in measure(r, workload, n, side, repeats, seed, names):
-                    writer.writerow(row)
+                    writer.write(row)
                     rows.append(row)
-                f.flush()
                 echo(f"  {workload:5s} r={r:<4} done ({time.perf_counter() - start:5.1f} s)")
     text = [f"# bench-traverse: speedup over `{BASELINE}` (median ratio [95 % CI], ns/ray)",
             "",

@@ -316,44 +316,78 @@ static inline int hf_hit_cell(hf_hit *h, int32_t i, int32_t j) {
 }
 
 /* One run (minor, first, last) of a run kernel: reject it whole when the ray's lowest z
- * over the run is above the maximum over the run's cells, else test its cells. */
+ * over the run is above the maximum over the run's cells, else test its cells, each with
+ * one multiply-add for its interval along the major axis. */
 static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
                              int32_t last) {
     const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
     const int32_t step = last >= first ? 1 : -1;
+    const double o_min = major_is_x ? h->oy : h->ox, inv_min = major_is_x ? h->inv_dy : h->inv_dx;
+    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
+    const double d_min = major_is_x ? h->dy : h->dx, d_maj = major_is_x ? h->dx : h->dy;
+    const int axis_maj = major_is_x ? 0 : 1, axis_min = 1 - axis_maj;
+    const int jumps = h->surface == HF_FLAT || h->surface == HF_PLANE3;
+    double ta_run = h->t0, tb_run = h->t1, t_in;
+    int run_entry_axis = -1;
     int32_t k;
     h->runs_visited += 1;
-    if (h->row_max != NULL && !hf_on_grid_line(h)) {
-        /* the run's parameter interval: its minor strip and its span of major cells */
-        double ta = h->t0, tb = h->t1;
-        const double o_min = major_is_x ? h->oy : h->ox, inv_min = major_is_x ? h->inv_dy : h->inv_dx;
-        const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
-        const double d_min = major_is_x ? h->dy : h->dx, d_maj = major_is_x ? h->dx : h->dy;
-        if (d_min != 0) {
-            double a = (minor - o_min) * inv_min, b = (minor + 1 - o_min) * inv_min;
-            if (a > b) { const double s = a; a = b; b = s; }
-            ta = a > ta ? a : ta;
-            tb = b < tb ? b : tb;
+    if (d_maj == 0 || hf_on_grid_line(h)) {
+        /* vertical rays and rays on grid lines: the general per-cell path */
+        for (k = first;; k += step) {
+            if (major_is_x ? hf_hit_cell(h, k, minor) : hf_hit_cell(h, minor, k)) return 1;
+            if (k == last) break;
         }
-        if (d_maj != 0) {
-            double a = (lo - o_maj) * inv_maj, b = (hi + 1 - o_maj) * inv_maj;
-            if (a > b) { const double s = a; a = b; b = s; }
-            ta = a > ta ? a : ta;
-            tb = b < tb ? b : tb;
-        }
-        if (ta <= tb) {
-            const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
-            const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
-            if ((za < zb ? za : zb) > (double)hf_rmq_query(q, minor, lo, hi)) {
-                h->runs_culled += 1;
-                h->cells_visited += hi - lo + 1;
-                return 0;
-            }
+        return 0;
+    }
+    /* the run's parameter interval: its minor strip and its span of major cells */
+    if (d_min != 0) {
+        double a = (minor - o_min) * inv_min, b = (minor + 1 - o_min) * inv_min;
+        if (a > b) { const double s = a; a = b; b = s; }
+        if (a > ta_run) { ta_run = a; run_entry_axis = axis_min; }
+        tb_run = b < tb_run ? b : tb_run;
+    }
+    {
+        double a = (lo - o_maj) * inv_maj, b = (hi + 1 - o_maj) * inv_maj;
+        if (a > b) { const double s = a; a = b; b = s; }
+        if (a > ta_run) { ta_run = a; run_entry_axis = axis_maj; }
+        tb_run = b < tb_run ? b : tb_run;
+    }
+    if (!(ta_run <= tb_run)) {
+        h->cells_visited += hi - lo + 1;  /* the float ray misses the rounded walk's run */
+        return 0;
+    }
+    if (h->row_max != NULL) {
+        const double za = h->oz + ta_run * h->dz, zb = h->oz + tb_run * h->dz;
+        const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
+        if ((za < zb ? za : zb) > (double)hf_rmq_query(q, minor, lo, hi)) {
+            h->runs_culled += 1;
+            h->cells_visited += hi - lo + 1;
+            return 0;
         }
     }
+    /* the cells in travel order; cell k spans major boundaries k and k + 1 */
+    t_in = ta_run;
     for (k = first;; k += step) {
-        if (major_is_x ? hf_hit_cell(h, k, minor) : hf_hit_cell(h, minor, k)) return 1;
+        const double boundary_out = d_maj > 0 ? k + 1 : k;
+        double t_out = (boundary_out - o_maj) * inv_maj, ta = t_in;
+        int wall;
+        const int32_t i = major_is_x ? k : minor, j = major_is_x ? minor : k;
+        if (t_out > tb_run) t_out = tb_run;
+        h->cells_visited += 1;
+        if (ta <= t_out) {
+            const double za = h->oz + ta * h->dz, zb = h->oz + t_out * h->dz;
+            if (!h->cull_cells ||
+                (za < zb ? za : zb) <= (double)h->cellmax[(int64_t)j * (h->cols - 1) + i]) {
+                /* walls: the box face at t0, else the grid line crossed at ta (for the
+                 * surfaces that jump there) */
+                if (ta == h->t0) wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
+                else if (!jumps) wall = -1;
+                else wall = k == first ? run_entry_axis : axis_maj;
+                if (hf_surface_test(h, i, j, ta, t_out, wall)) return 1;
+            }
+        }
         if (k == last) break;
+        t_in = t_out > t_in ? t_out : t_in;
     }
     return 0;
 }

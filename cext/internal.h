@@ -326,9 +326,36 @@ typedef struct {
     int32_t *lengths;      /* lengths[k]: 8-connected run length at pattern position k */
 } hf_pattern;
 
-/* Floor division for 128-bit integers, den > 0. */
+/* Floor division for 128-bit integers, den > 0. The common cases avoid the slow 128-bit
+ * division routine: both operands fitting in 64 bits, and power-of-two divisors (an
+ * arithmetic right shift, which is floor division for GCC and Clang). */
 HF_INLINE hf_i128 hf_floor_div(hf_i128 num, hf_i128 den) {
-    hf_i128 q = num / den;
+    hf_i128 q;
+    if ((den & (den - 1)) == 0) {
+        const uint64_t low = (uint64_t)den;
+        const int shift = low ? __builtin_ctzll(low) : 64 + __builtin_ctzll((uint64_t)(den >> 64));
+        return num >> shift;
+    }
+    if (num == (hf_i128)(int64_t)num && den == (hf_i128)(int64_t)den) {
+        const int64_t n64 = (int64_t)num, d64 = (int64_t)den;
+        int64_t q64 = n64 / d64;
+        if ((n64 % d64 != 0) && (n64 < 0)) q64 -= 1;
+        return q64;
+    }
+    {
+        /* a float estimate (relative error ~2^-52), then exact correction by
+         * multiplication: far cheaper than the 128-bit division routine */
+        const double estimate = floor((double)num / (double)den);
+        if (fabs(estimate) < 4503599627370496.0) { /* 2^52: the estimate is off by <= 2 */
+            hf_i128 rem;
+            q = (hf_i128)(int64_t)estimate;
+            rem = num - q * den;
+            while (rem < 0) { q -= 1; rem += den; }
+            while (rem >= den) { q += 1; rem -= den; }
+            return q;
+        }
+    }
+    q = num / den;
     if ((num % den != 0) && (num < 0)) q -= 1;
     return q;
 }

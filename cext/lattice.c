@@ -12,11 +12,52 @@
 #include <math.h>
 #include "internal.h"
 
+/* ---- Exact floating-point helpers ------------------------------------------------------
+ * Without SSE4.1 the libm calls nearbyint, frexp and ldexp are real function calls, and a
+ * ray's setup would make about ten of them; these do the same exactly, inline. */
+#include <string.h>
+
+/* frexp's exponent: x = m 2^e with |m| in [0.5, 1); x finite and non-zero */
+static int exponent_of(double x) {
+    uint64_t bits;
+    int biased;
+    memcpy(&bits, &x, sizeof bits);
+    biased = (int)((bits >> 52) & 0x7FF);
+    if (biased == 0) {  /* subnormal: rare, let libm handle it */
+        int e;
+        (void)frexp(x, &e);
+        return e;
+    }
+    return biased - 1022;
+}
+
+/* 2^k as a double, for -1022 <= k <= 1023 */
+static double pow2(int k) {
+    const uint64_t bits = (uint64_t)(k + 1023) << 52;
+    double x;
+    memcpy(&x, &bits, sizeof x);
+    return x;
+}
+
+/* x * 2^k, exact whenever the result is a normal number (as ldexp) */
+static double scale2(double x, int k) {
+    while (k > 1000) { x *= pow2(1000); k -= 1000; }
+    while (k < -1000) { x *= pow2(-1000); k += 1000; }
+    return x * pow2(k);
+}
+
+/* round half to even (as nearbyint in the default rounding mode) for |x| < 2^51: adding
+ * and subtracting 1.5 2^52 leaves exactly the integer the hardware rounds to */
+static double round_even(double x) {
+    const double magic = 6755399441055744.0; /* 1.5 2^52 */
+    volatile double y = x + magic;           /* volatile: keep the two roundings apart */
+    return fabs(x) < 2251799813685248.0 ? y - magic : nearbyint(x);
+}
+
 /* ---- Rounding onto the lattice -------------------------------------------------------- */
 static int direction_scale(double dx, double dy) {
-    int exponent;
-    (void)frexp(fmax(fabs(dx), fabs(dy)), &exponent); /* max in [2^(e-1), 2^e) */
-    return HF_DIR_BITS - exponent;
+    /* max in [2^(e-1), 2^e) */
+    return HF_DIR_BITS - exponent_of(fmax(fabs(dx), fabs(dy)));
 }
 
 void hf_quantize_ray(const double origin[2], const double direction[2],
@@ -25,9 +66,9 @@ void hf_quantize_ray(const double origin[2], const double direction[2],
     const int vertical = direction[0] == 0.0 && direction[1] == 0.0;
     if (!vertical) scale = direction_scale(direction[0], direction[1]);
     for (k = 0; k < 2; ++k) {
-        origin_out[k] = nearbyint(origin[k] * (double)HF_ONE) / (double)HF_ONE;
+        origin_out[k] = round_even(origin[k] * (double)HF_ONE) / (double)HF_ONE;
         direction_out[k] = vertical ? 0.0
-                                    : ldexp(nearbyint(ldexp(direction[k], scale)), -scale);
+                                    : scale2(round_even(scale2(direction[k], scale)), -scale);
         /* -0.0 is the same direction as 0.0 */
         if (direction_out[k] == 0.0) direction_out[k] = 0.0;
     }
@@ -47,11 +88,10 @@ typedef struct {
 static hf_param param_from_t(double t, int shift) {
     hf_param p = {0, 0, 0};
     int exponent;
-    double fraction;
     if (t == 0.0) return p;
     if (isinf(t)) { p.huge = t > 0 ? 1 : -1; return p; }
-    fraction = frexp(t, &exponent);               /* exact, subnormals included */
-    p.mant = (int64_t)ldexp(fraction, 53);
+    exponent = exponent_of(t);                    /* exact, subnormals included */
+    p.mant = (int64_t)scale2(t, 53 - exponent);   /* |mant| in [2^52, 2^53) */
     p.expo = exponent - 53 + shift;
     if (p.expo >= -31) p.huge = t > 0 ? 1 : -1;   /* |tau| >= 2^52 2^-31 = 2^21 */
     return p;
@@ -136,7 +176,7 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
     if (!(tmin < tmax)) return 0;
     n[0] = nx;
     n[1] = ny;
-    for (k = 0; k < 2; ++k) O[k] = (int64_t)nearbyint(origin[k] * (double)HF_ONE);
+    for (k = 0; k < 2; ++k) O[k] = (int64_t)round_even(origin[k] * (double)HF_ONE);
 
     /* vertical ray: the one cell under the origin, by the forward rule */
     if (direction[0] == 0.0 && direction[1] == 0.0) {
@@ -153,7 +193,7 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
     }
 
     scale = direction_scale(direction[0], direction[1]);
-    for (k = 0; k < 2; ++k) D[k] = (int64_t)nearbyint(ldexp(direction[k], scale));
+    for (k = 0; k < 2; ++k) D[k] = (int64_t)round_even(scale2(direction[k], scale));
 
     /* octant reduction: major = larger |D| (x on a tie); mirror negative travel */
     major = (D[1] > D[0] ? D[1] : -D[1]) > (D[0] > 0 ? D[0] : -D[0]) ? 1 : 0;

@@ -1,0 +1,59 @@
+"""Shared pieces of the benchmark reports: the speedup table and the row writer."""
+from __future__ import annotations
+
+import csv
+import os
+
+
+class RowWriter:
+    """Append result rows to a CSV, flushing each one, so an interrupted run keeps every
+    row it measured."""
+
+    def __init__(self, path, columns, append=False):
+        self.path = path
+        self.columns = list(columns)
+        exists = append and os.path.exists(path) and os.path.getsize(path) > 0
+        self._file = open(path, "a" if exists else "w", newline="")
+        self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore")
+        if not exists:
+            self._writer.writeheader()
+            self._file.flush()
+
+    def write(self, row: dict) -> None:
+        self._writer.writerow(row)
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def speedup_table(rows, column_key="run_length", column_label="r", footer=None) -> str:
+    """A Markdown table: one row per algorithm, one column per value of ``column_key``;
+    each cell ``speedup [CI], ns/ray`` plus the agreement when below 100 %."""
+    columns = list(dict.fromkeys(row[column_key] for row in rows))
+    names = list(dict.fromkeys(row["algorithm"] for row in rows))
+    lookup = {(row["algorithm"], row[column_key]): row for row in rows}
+    lines = ["| algorithm | " + " | ".join(f"{column_label}={c}" for c in columns) + " |",
+             "|---" * (len(columns) + 1) + "|"]
+    for name in names:
+        cells = []
+        for c in columns:
+            row = lookup.get((name, c))
+            if row is None:
+                cells.append("")
+                continue
+            agree = float(row["agree"])
+            flag = "" if agree == 1.0 else f" ({100 * agree:.2f} % agree)"
+            cells.append(f"{float(row['speedup']):.2f}x [{float(row['speedup_ci_low']):.2f}, "
+                         f"{float(row['speedup_ci_high']):.2f}], {float(row['ns_per_ray']):.0f} ns{flag}")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    if footer:
+        lines.append(footer(columns, lookup, names))
+    return "\n".join(lines)
