@@ -1,10 +1,18 @@
 """The ``hftrace`` command line."""
 from __future__ import annotations
 
-import argparse
-import sys
+import os
 
-import algos
+# Benchmarks pin themselves to one CPU; idle BLAS worker threads spinning on that CPU
+# would steal time from the timed loops. hftrace uses no BLAS: keep one thread. (Set
+# before NumPy is first imported.)
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+
+import algos  # noqa: E402
 
 
 def _positive_int(text):
@@ -68,6 +76,74 @@ def _bench_intersect(args):
     intersect_bench.run(out_dir=args.out, n=args.rays, repeats=args.repeats, seed=args.seed,
                         datasets=datasets, run_lengths=args.run_lengths, surfaces=surfaces,
                         names=names)
+    return 0
+
+
+def _reproduce(args):
+    from . import reproduce
+
+    reproduce.run(full=args.full, out_dir=args.out, resume=args.resume,
+                  progress=not args.no_progress)
+    return 0
+
+
+def _sweep(args):
+    import os
+
+    from . import analysis, sweep
+    from .intersect_bench import pin_to_one_cpu
+
+    cfg = sweep.load_config(args.config)  # fails before any work, naming the key
+    out_dir = args.out or os.path.join("reports", cfg.name)
+    pin_to_one_cpu()
+    rows = sweep.run_sweep(cfg, out_dir, resume=args.resume, progress=not args.no_progress)
+    paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
+                                   title=f"hftrace sweep {cfg.name}")
+    df = analysis.load(os.path.join(out_dir, "results.csv"))
+    for (workload, surface), _ in df.groupby(["workload", "surface"], sort=False):
+        label = workload if surface == "-" else f"{workload}, {surface}"
+        print(f"\n{label}: speedup over dda (geometric mean over datasets)")
+        print(analysis.pivot(df, workload, surface).round(2).to_string())
+    print(f"\n{len(rows)} rows in {out_dir}/results.csv; tables in {paths['speedup']}")
+    return 0
+
+
+def _plot(args):
+    from . import analysis
+
+    paths = analysis.write_reports(args.results, args.out)
+    for label, path in paths.items():
+        print(f"{label:8s} {path}")
+    return 0
+
+
+def _regress(args):
+    from . import regress
+
+    return regress.run(args.baseline, tolerance=args.tolerance, update=args.update)
+
+
+def _vector(text):
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected x,y,z, got {text!r}") from None
+    if len(values) != 3:
+        raise argparse.ArgumentTypeError(f"expected x,y,z, got {text!r}")
+    return values
+
+
+def _render(args):
+    from . import render
+
+    algos.get_intersector(args.algorithm)
+    if args.diff:
+        for name in args.diff:
+            algos.get_intersector(name)
+    render.render(dataset=args.dataset, size=args.size, seed=args.seed, algorithm=args.algorithm,
+                  surface=args.surface, width=args.width, height=args.height,
+                  position=args.camera, look_at=args.look_at, fov=args.fov, fog=args.fog,
+                  out=args.out, diff=args.diff, params=dict(args.param or []))
     return 0
 
 
@@ -163,11 +239,50 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--surfaces", default="triangles", help="comma-separated surfaces")
     p.set_defaults(func=_bench_intersect)
 
-    p = sub.add_parser(
-        "reproduce",
-        help="the main study; until the first-hit study lands this runs bench-traverse")
-    _add_bench_arguments(p, "reports/reproduce")
-    p.set_defaults(func=_bench_traverse)
+    p = sub.add_parser("reproduce", help="the speedup-by-run-length study (quick preset; --full)")
+    p.add_argument("--full", action="store_true", help="the paper-scale sweep")
+    p.add_argument("--out", default=None, help="output directory (default reports/reproduce)")
+    p.add_argument("--resume", action="store_true", help="keep the rows already measured")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_reproduce)
+
+    p = sub.add_parser("sweep", help="a custom sweep from a TOML config")
+    p.add_argument("config", help="the TOML config (see bench/sweep.py)")
+    p.add_argument("--out", default=None, help="output directory (default reports/<name>)")
+    p.add_argument("--resume", action="store_true", help="skip rows already in results.csv")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_sweep)
+
+    p = sub.add_parser("regress", help="CI check: re-measure speedup ratios against a baseline")
+    p.add_argument("--baseline", default="reports/baseline.json")
+    p.add_argument("--tolerance", type=float, default=None,
+                   help="allowed fractional drop (default: the baseline's, 0.15)")
+    p.add_argument("--update", action="store_true", help="write a new baseline instead")
+    p.set_defaults(func=_regress)
+
+    p = sub.add_parser("render", help="a pinhole image (OpenEXR + PNG) with any intersector")
+    p.add_argument("dataset", help="a generator or embedded field (hftrace datasets list)")
+    p.add_argument("--size", type=_positive_int, default=None)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE")
+    p.add_argument("--algorithm", default="runs", help="an intersector name")
+    p.add_argument("--surface", default="triangles", choices=algos.SURFACES)
+    p.add_argument("--width", type=_positive_int, default=640)
+    p.add_argument("--height", type=_positive_int, default=360)
+    p.add_argument("--camera", type=_vector, default=None, help="x,y,z (default: above a corner)")
+    p.add_argument("--look-at", type=_vector, default=None, help="x,y,z (default: the centre)")
+    p.add_argument("--fov", type=float, default=60.0, help="horizontal field of view, degrees")
+    p.add_argument("--fog", type=float, default=0.0,
+                   help="height-fog density sigma0 per cell at the lowest point (0: none)")
+    p.add_argument("--diff", nargs=2, metavar=("A", "B"), default=None,
+                   help="also write the depth difference and step ratio of two intersectors")
+    p.add_argument("--out", default="render", help="output path prefix")
+    p.set_defaults(func=_render)
+
+    p = sub.add_parser("plot", help="tables and plots from a results.csv")
+    p.add_argument("results", help="a results.csv of reproduce or sweep")
+    p.add_argument("--out", default=None, help="output directory (default: beside the CSV)")
+    p.set_defaults(func=_plot)
     return parser
 
 

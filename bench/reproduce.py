@@ -1,0 +1,57 @@
+"""``hftrace reproduce``: the speedup-by-run-length study of Henning & Stephenson (2004),
+measured here, next to every registered algorithm and Embree.
+
+Presets (both seeded; every field is generated or loaded from the embedded data):
+
+* quick (default, a few minutes at most here): fBm, terraces and uniform random at
+  1024^2 and the Jacksboro DEM upsampled to 2048 samples on its longer side; r in
+  {1, 2, 5, 25, 100} plus uniformly random azimuths; workloads visit, runs and first_hit
+  on all four surfaces; 1500 rays per group, 7 interleaved repeats.
+* full (``--full``): adds fBm 2048^2; r in {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus
+  random; 4000 rays, 11 repeats.
+"""
+from __future__ import annotations
+
+import os
+
+from . import analysis
+from .sweep import SweepConfig, run_sweep
+
+DATASETS_QUICK = [
+    {"name": "fbm", "size": 1024, "seed": 1},
+    {"name": "terraces", "size": 1024, "seed": 1},
+    {"name": "uniform", "size": 1024, "seed": 1},
+    {"name": "jacksboro", "size": 2048},
+]
+
+
+def preset(full=False) -> SweepConfig:
+    if full:
+        return SweepConfig(
+            name="reproduce-full", rays=4000, repeats=11, seed=2004,
+            workloads=["visit", "runs", "first_hit"],
+            surfaces=["flat", "plane3", "triangles", "bilinear"],
+            run_lengths=[1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100, "random"],
+            datasets=DATASETS_QUICK + [{"name": "fbm", "size": 2048, "seed": 1}])
+    return SweepConfig(
+        name="reproduce", rays=1500, repeats=7, seed=2004,
+        workloads=["visit", "runs", "first_hit"],
+        surfaces=["flat", "plane3", "triangles", "bilinear"],
+        run_lengths=[1, 2, 5, 25, 100, "random"], datasets=list(DATASETS_QUICK))
+
+
+def run(full=False, out_dir=None, resume=False, progress=True, echo=print):
+    cfg = preset(full)
+    out_dir = out_dir or os.path.join("reports", cfg.name)
+    from .intersect_bench import pin_to_one_cpu
+
+    pin_to_one_cpu()
+    run_sweep(cfg, out_dir, resume=resume, progress=progress, echo=echo)
+    paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
+                                   title=f"hftrace reproduce ({'full' if full else 'quick'} preset)")
+    with open(paths["speedup"]) as f:
+        text = f.read()
+    echo(text[: text.find("## Workload")] if "## Workload" in text else text)
+    echo(f"wrote {out_dir}/results.csv, speedup.md, run_length_vs_speedup.png, "
+         f"ns_per_ray_vs_cells.png, env.json")
+    return paths

@@ -1,0 +1,50 @@
+"""The pytest-benchmark suite: every kernel at a fixed r on a fixed dataset.
+
+Run with ``pytest bench --benchmark-only`` (``make bench-ci``); compare runs with
+pytest-benchmark's ``--benchmark-autosave`` / ``--benchmark-compare``. Each benchmark
+times one whole batch walked in C; the rays and the field are seeded.
+"""
+import numpy as np
+import pytest
+
+import algos
+import datasets_gen
+from algos.intersect import prepare_timed_intersect
+from datasets_gen import rays as raysets
+
+R = 25          # mean run length of every ray set here
+N_RAYS = 2000   # rays per batch
+SIDE = 512      # fBm 512^2, seed 1
+
+
+@pytest.fixture(scope="module")
+def field():
+    return algos.Field(datasets_gen.load("fbm", size=SIDE, seed=1).heights)
+
+
+@pytest.fixture(scope="module")
+def rays2():
+    rs = raysets.by_run_length(R, N_RAYS, (SIDE - 1, SIDE - 1), seed=3)
+    return rs.origins, rs.directions
+
+
+@pytest.fixture(scope="module")
+def rays3(field):
+    from bench.sweep import _rays3
+
+    return _rays3(field, R, N_RAYS, 3)
+
+
+@pytest.mark.parametrize("name", algos.TRAVERSALS)
+@pytest.mark.parametrize("workload", list(algos.WORKLOADS))
+def test_traverse(benchmark, name, workload, rays2):
+    o, d = rays2
+    run, _ = algos.prepare_timed(name, o, d, (SIDE - 1, SIDE - 1), workload)
+    benchmark(run)
+
+
+@pytest.mark.parametrize("name", algos.INTERSECTORS)
+def test_first_hit_triangles(benchmark, name, field, rays3):
+    o, d = rays3
+    run, _ = prepare_timed_intersect(name, field, o, d, surface="triangles")
+    benchmark(run)

@@ -1,0 +1,208 @@
+"""The benchmark harness: sweep configs, resume after a kill, reports, regress logic,
+render and the CLI. Timing values are never asserted; only structure and logic."""
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from bench import analysis, regress, sweep
+from bench.cli import main
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+TINY = {
+    "name": "tiny", "rays": 40, "repeats": 3, "seed": 1,
+    "algorithms": ["dda", "midpoint", "runs", "runs_maxmip", "march_linear"],
+    "workloads": ["visit", "first_hit"], "surfaces": ["triangles"],
+    "run_lengths": [1, 25, "random"],
+    "datasets": [{"name": "fbm", "size": 64, "seed": 1}, {"name": "uniform", "size": 48, "seed": 2}],
+}
+
+
+# ---- config validation ---------------------------------------------------------------
+@pytest.mark.parametrize("change,message", [
+    ({"rayz": 10}, "rayz: unknown key"),
+    ({"rays": 0}, "rays: expected an integer >= 8"),
+    ({"repeats": 2}, "repeats: expected an integer >= 3"),
+    ({"workloads": ["walk"]}, "workloads: unknown workload 'walk'"),
+    ({"surfaces": ["smooth"]}, "surfaces: unknown surface 'smooth'"),
+    ({"run_lengths": [0.5]}, "run_lengths: 0.5 is neither"),
+    ({"algorithms": ["bvh"]}, "algorithms: unknown algorithm 'bvh'"),
+    ({"datasets": [{"name": "mars"}]}, r"datasets\[0\].name: unknown dataset 'mars'"),
+    ({"datasets": [{"name": "fbm", "colour": 1}]}, r"datasets\[0\].colour: unknown key"),
+    ({"datasets": [{"name": "fbm", "params": {"oct": 2}}]}, r"datasets\[0\].params.oct: not a parameter"),
+    ({"datasets": []}, "datasets: expected a non-empty list"),
+])
+def test_bad_configs_name_the_key(change, message):
+    with pytest.raises(sweep.ConfigError, match=message):
+        sweep.load_config({**TINY, **change})
+
+
+def test_toml_config_and_errors(tmp_path):
+    good = tmp_path / "ok.toml"
+    good.write_text('name = "t"\nrays = 16\nrepeats = 3\nrun_lengths = [1, "random"]\n'
+                    '[[datasets]]\nname = "flat"\nsize = 16\n')
+    cfg = sweep.load_config(good)
+    assert cfg.rays == 16 and cfg.datasets == [{"name": "flat", "size": 16}]
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = \n")
+    with pytest.raises(sweep.ConfigError, match="not valid TOML"):
+        sweep.load_config(bad)
+    with pytest.raises(sweep.ConfigError, match="does not exist"):
+        sweep.load_config(tmp_path / "none.toml")
+
+
+def test_cli_rejects_bad_config_before_work(tmp_path, capsys):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('rays = 16\nrepeats = 3\nsurfaces = ["smooth"]\n')
+    assert main(["sweep", str(cfg), "--out", str(tmp_path / "out"), "--no-progress"]) == 2
+    assert "surfaces" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+# ---- sweeps, resume, reports -----------------------------------------------------------
+def _expected_keys(cfg):
+    keys = set()
+    for ds, workload, surface, r, names in sweep.groups(cfg):
+        for n in names:
+            keys.add((sweep.dataset_label(ds), workload, surface, str(r), n))
+    return keys
+
+
+def test_sweep_rows_and_reports(tmp_path):
+    cfg = sweep.load_config(TINY)
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    keys = [sweep.row_key(r) for r in rows]
+    assert len(keys) == len(set(keys)) == len(_expected_keys(cfg))
+    assert set(keys) == _expected_keys(cfg)
+    for column in ("algorithm", "baseline", "workload", "surface", "dataset", "grid", "run_length",
+                   "rays", "cells_per_ray", "runs_per_ray", "ns_per_ray", "ns_per_ray_ci_low",
+                   "ns_per_ray_ci_high", "speedup"):
+        assert column in rows[0]
+    assert {r["run_length"] for r in rows} == {"1", "25", "random"}
+    exact = [r for r in rows if r["algorithm"] in ("midpoint", "runs")]
+    assert all(float(r["agree"]) == 1.0 for r in exact)  # exact kernels agree with the reference
+    assert all(float(r["speedup"]) == 1.0 for r in rows if r["algorithm"] == "dda")
+    paths = analysis.write_reports(str(tmp_path / "results.csv"))
+    text = open(paths["speedup"]).read()
+    assert "| r | paper |" in text and "1.80" in text and "## Targets" in text
+    assert os.path.getsize(paths["plot"]) > 10_000 and os.path.getsize(paths["cost"]) > 10_000
+    env = json.load(open(tmp_path / "env.json"))
+    assert {"cpu", "compiler", "numpy", "git_commit"} <= set(env)
+    # `hftrace plot` regenerates the same reports elsewhere
+    assert main(["plot", str(tmp_path / "results.csv"), "--out", str(tmp_path / "again")]) == 0
+    assert open(tmp_path / "again" / "speedup.md").read() == text
+
+
+def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
+    """Kill a sweep mid-way, resume it, and check every row is there exactly once."""
+    cfg_path = tmp_path / "c.toml"
+    cfg_path.write_text(
+        'name = "killme"\nrays = 400\nrepeats = 5\nalgorithms = ["dda", "midpoint", "runs"]\n'
+        'workloads = ["visit", "runs", "first_hit"]\nsurfaces = ["triangles", "bilinear"]\n'
+        'run_lengths = [1, 2, 5, 25, 100, "random"]\n'
+        '[[datasets]]\nname = "fbm"\nsize = 256\nseed = 1\n'
+        '[[datasets]]\nname = "terraces"\nsize = 256\nseed = 1\n')
+    out = tmp_path / "out"
+    results = out / "results.csv"
+    cmd = [sys.executable, "-m", "bench.cli", "sweep", str(cfg_path), "--out", str(out), "--no-progress"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        if results.exists() and sum(1 for _ in open(results)) > 10:
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    before = list(csv.DictReader(open(results)))
+    cfg = sweep.load_config(cfg_path)
+    expected = _expected_keys(cfg)
+    assert 0 < len(before) < len(expected), "the kill must land mid-way"
+    subprocess.run(cmd + ["--resume"], cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL, timeout=300)
+    after = list(csv.DictReader(open(results)))
+    keys = [sweep.row_key(r) for r in after]
+    assert len(keys) == len(set(keys)), "a row is duplicated"
+    assert set(keys) == expected, "a row is lost"
+    # rows measured before the kill are kept as they were
+    assert [sweep.row_key(r) for r in after[:len(before)]] == [sweep.row_key(r) for r in before]
+
+
+# ---- regress -----------------------------------------------------------------------------
+def test_regress_compare_logic():
+    base = {"a": 2.0, "b": 1.0, "c": 1.5}
+    assert regress.compare(base, {"a": 1.8, "b": 1.2, "c": 1.5}, 0.15) == []
+    failures = regress.compare(base, {"a": 1.6, "b": 1.0}, 0.15)
+    assert [f["ratio"] for f in failures] == ["a", "c"]
+    assert failures[0]["floor"] == pytest.approx(1.7) and "20.0 %" in failures[0]["reason"]
+    assert failures[1]["reason"] == "not measured"
+    assert regress.compare(base, {"a": 1.7, "b": 0.85, "c": 1.275}, 0.15) == []  # on the floor
+    with pytest.raises(ValueError, match="tolerance"):
+        regress.compare(base, base, 1.5)
+
+
+def test_regress_exit_codes(tmp_path, monkeypatch, capsys):
+    path = tmp_path / "baseline.json"
+    monkeypatch.setattr(regress, "measure", lambda: {"x": 2.0, "y": 1.0})
+    assert regress.run(str(path), update=True, echo=lambda *_: None) == 0
+    assert json.load(open(path))["ratios"] == {"x": 2.0, "y": 1.0}
+    assert regress.run(str(path), echo=print) == 0
+    monkeypatch.setattr(regress, "measure", lambda: {"x": 1.5, "y": 1.0})
+    assert regress.run(str(path), echo=print) == 1
+    assert "REGRESSED" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="does not exist"):
+        regress.run(str(tmp_path / "missing.json"))
+
+
+def test_committed_baseline_matches_the_checks():
+    data = regress.load_baseline(os.path.join(ROOT, "reports", "baseline.json"))
+    expected = {regress.key(w, s, r, n) for w, s, r, names, _ in regress.CHECKS for n in names}
+    assert set(data["ratios"]) == expected
+
+
+# ---- render and CLI ---------------------------------------------------------------------
+def test_render_writes_exr_png_and_diff(tmp_path):
+    import OpenEXR
+
+    from bench import render
+
+    prefix = str(tmp_path / "img")
+    paths = render.render("fbm", size=48, seed=2, algorithm="runs", width=24, height=16,
+                          fog=0.05, out=prefix, diff=("runs", "dda"), echo=lambda *_: None)
+    with OpenEXR.File(paths["exr"]) as f:
+        channels = f.channels()
+        assert set(channels) == {"Z", "N.x", "N.y", "N.z", "cellsVisited", "runsVisited"}
+        z = channels["Z"].pixels
+        assert z.shape == (16, 24) and np.isfinite(z).any()
+    with OpenEXR.File(paths["diff_exr"]) as f:
+        dz = f.channels()["dZ"].pixels
+        assert np.nanmax(np.abs(dz)) < 1e-3  # two exact kernels: the same depths
+    for key in ("png", "diff_png"):
+        assert os.path.getsize(paths[key]) > 200
+
+
+def test_cli_smoke(tmp_path, capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "runs_maxmip" in out and "embree" in out
+    assert main(["bench-traverse", "--rays", "40", "--repeats", "3", "--grid", "64",
+                 "--run-lengths", "1,25", "--out", str(tmp_path / "bt")]) == 0
+    assert (tmp_path / "bt" / "tables.md").exists()
+    assert main(["render", "flat", "--size", "8", "--width", "4", "--height", "3",
+                 "--out", str(tmp_path / "r")]) == 0
+    assert main(["render", "flat", "--algorithm", "nope"]) == 2
+
+
+def test_benchmark_suite_runs():
+    """`pytest bench --benchmark-only` works: here every benchmark runs once."""
+    done = subprocess.run([sys.executable, "-m", "pytest", "bench", "-q", "--benchmark-disable",
+                           "-p", "no:cacheprovider"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stdout[-2000:]
+    assert " passed" in done.stdout
