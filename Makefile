@@ -2,6 +2,8 @@
 #   make test       install into .venv and run the test suite
 #   make reproduce  install into .venv and run the main study (`hftrace reproduce`)
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
+#   make bench-ci   the pytest-benchmark suite (pytest bench --benchmark-only)
+#   make regress    re-measure the speedup ratios against reports/baseline.json
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -11,7 +13,7 @@ STAMP := $(VENV)/.hftrace-installed
 ASAN_TREE := build/asan
 ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 
-.PHONY: all test reproduce bench-traverse sanitize clean
+.PHONY: all test reproduce bench-traverse bench-intersect bench-ci regress sanitize clean
 
 all: test
 
@@ -29,6 +31,15 @@ reproduce: $(STAMP)
 
 bench-traverse: $(STAMP)
 	$(BIN)/hftrace bench-traverse
+
+bench-intersect: $(STAMP)
+	$(BIN)/hftrace bench-intersect
+
+bench-ci: $(STAMP)
+	$(BIN)/python -m pytest bench --benchmark-only -q
+
+regress: $(STAMP)
+	$(BIN)/hftrace regress --baseline reports/baseline.json
 
 # The sanitized build lives in its own copy of the tree (an editable install puts the
 # extension next to the sources, so it must not share them with .venv). Python itself is
