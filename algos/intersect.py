@@ -201,7 +201,10 @@ class _Prepared:
         kind = bound_kind(surface)
         cellmax = fld.cellmax_for(kind)
         hmin, hmax = fld.zrange_for(kind)
-        run_culling = {"row_max", "col_max"} <= uses and opts.get("cull_runs", False)
+        # run culling reads the range maxima; built on request even where the registry
+        # leaves it off by default (runs_maxmip)
+        run_culling = bool(opts.get("cull_runs", False)) and algorithm.traversal in (
+            "runs", "runs_f64", "runs_periodic")
         row_max = fld.row_max_for(kind) if run_culling else None
         col_max = fld.col_max_for(kind) if run_culling else None
         mip = fld.mip_for(kind) if "mip" in uses else None

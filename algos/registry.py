@@ -160,8 +160,9 @@ INTERSECTOR_REGISTRY.update({
         citation="Tevs, Ihrke & Seidel 2008"),
     "runs_maxmip": Intersector(
         "runs_maxmip", 7, "maxmip", "exact", "runs",
-        ("cellmax", "row_max", "col_max", "mip"), dict(_RUN_CULL, fine_level=3),
-        summary="maximum-mipmap tile skipping, exact runs inside 2^fine_level tiles",
+        ("cellmax", "mip"), dict(cull_cells=True, cull_runs=False, fine_level=3),
+        summary="maximum-mipmap tile skipping, exact runs inside 2^fine_level tiles "
+                "(run culling off by default: the mipmap already rejects what it would)",
         citation="Tevs, Ihrke & Seidel 2008; Henning & Stephenson 2004"),
     "march_linear": Intersector(
         "march_linear", 8, "march", "approximate", None, (), dict(_MARCH),

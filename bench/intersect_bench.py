@@ -98,6 +98,17 @@ def measure(dataset, side, field, surface, r, n, repeats, seed, names):
     return rows
 
 
+def kernel_bytes(field, name) -> int:
+    """Bytes an intersector reads with its default options: the heights and the
+    structures it uses."""
+    entry = algos.INTERSECTOR_REGISTRY[name]
+    used = [k for k in ("cellmax", "mip") if k in entry.structures]
+    if (entry.options or {}).get("cull_runs"):
+        used += ["row_max", "col_max"]
+    return field.heights.nbytes + sum(field.build_stats[k]["bytes"] for k in used
+                                      if k in field.build_stats)
+
+
 def _structures(field):
     lines = ["| structure | build (s) | MB |", "|---|---|---|"]
     for name, s in sorted(field.build_stats.items()):
@@ -128,20 +139,23 @@ def _targets(rows, fields_by_name):
         embree = [x for x in rows if x["dataset"] == dataset and x["algorithm"] == "embree"]
         if not embree or "embree" not in field.build_stats:
             continue
-        exact = [x for x in rows if x["dataset"] == dataset and
-                 algos.INTERSECTOR_REGISTRY[x["algorithm"]].accuracy == "exact"]
-        ratios = []
-        for r in sorted({x["run_length"] for x in embree}):
-            e = [float(x["ns_per_ray"]) for x in embree if x["run_length"] == r][0]
-            b = min(float(x["ns_per_ray"]) for x in exact if x["run_length"] == r)
-            ratios.append(e / b)
-        ours = field.heights.nbytes + sum(
-            s["bytes"] for k, s in field.build_stats.items() if k != "embree")
-        theirs = field.build_stats["embree"]["bytes"]
-        speed = float(np.median(ratios))
-        out.append(f"- best exact kernel vs Embree on {dataset}: {speed:.2f}x its rays/s "
-                   f"(median over r; target >= 2): {'met' if speed >= 2 else 'missed'}; memory "
-                   f"{ours / 2**20:.0f} MB vs {theirs / 2**20:.0f} MB "
+        exact = sorted({x["algorithm"] for x in rows if x["dataset"] == dataset and
+                        algos.INTERSECTOR_REGISTRY[x["algorithm"]].accuracy == "exact"})
+        speed = {}
+        for name in exact:
+            ratios = []
+            for r in sorted({x["run_length"] for x in embree}):
+                e = [float(x["ns_per_ray"]) for x in embree if x["run_length"] == r][0]
+                k = [float(x["ns_per_ray"]) for x in rows if x["dataset"] == dataset and
+                     x["algorithm"] == name and x["run_length"] == r][0]
+                ratios.append(e / k)
+            speed[name] = float(np.median(ratios))
+        best = max(speed, key=speed.get)
+        ours, theirs = kernel_bytes(field, best), field.build_stats["embree"]["bytes"]
+        out.append(f"- best exact kernel vs Embree on {dataset}: `{best}` at {speed[best]:.2f}x "
+                   f"Embree's rays/s (median over r; target >= 2): "
+                   f"{'met' if speed[best] >= 2 else 'missed'}; its memory {ours / 2**20:.0f} MB "
+                   f"(heights and the structures it reads) vs Embree's {theirs / 2**20:.0f} MB "
                    f"(target <= 1/10): {'met' if theirs and ours <= theirs / 10 else 'missed'}")
     return out
 

@@ -6,7 +6,7 @@ Presets (both seeded; every field is generated or loaded from the embedded data)
 * quick (default, a few minutes at most here): fBm, terraces and uniform random at
   1024^2 and the Jacksboro DEM upsampled to 2048 samples on its longer side; r in
   {1, 2, 5, 25, 100} plus uniformly random azimuths; workloads visit, runs and first_hit
-  on all four surfaces; 1500 rays per group, 7 interleaved repeats.
+  on all four surfaces; 1000 rays per group, 7 interleaved repeats.
 * full (``--full``): adds fBm 2048^2; r in {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus
   random; 4000 rays, 11 repeats.
 """
@@ -34,7 +34,7 @@ def preset(full=False) -> SweepConfig:
             run_lengths=[1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100, "random"],
             datasets=DATASETS_QUICK + [{"name": "fbm", "size": 2048, "seed": 1}])
     return SweepConfig(
-        name="reproduce", rays=1500, repeats=7, seed=2004,
+        name="reproduce", rays=1000, repeats=7, seed=2004,
         workloads=["visit", "runs", "first_hit"],
         surfaces=["flat", "plane3", "triangles", "bilinear"],
         run_lengths=[1, 2, 5, 25, 100, "random"], datasets=list(DATASETS_QUICK))

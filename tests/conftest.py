@@ -10,3 +10,14 @@ settings.register_profile(
     max_examples=int(os.environ.get("HFTRACE_HYPOTHESIS_EXAMPLES", "200")),
 )
 settings.load_profile("hftrace")
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _private_cache(tmp_path_factory):
+    """Tests never touch the user's dataset cache: one temporary cache per session
+    (inherited by the subprocesses the tests start)."""
+    os.environ["HFTRACE_CACHE"] = str(tmp_path_factory.mktemp("hftrace-cache"))
+    yield
