@@ -60,8 +60,9 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
     h00, h10 = H[jj, ii].astype(np.float64), H[jj, ii + 1].astype(np.float64)
     h01, h11 = H[jj + 1, ii].astype(np.float64), H[jj + 1, ii + 1].astype(np.float64)
 
-    def gap(t):
-        """z - s at parameter t, per candidate cell, by the cell's own surface."""
+    def gap(t, lower=None):
+        """z - s at parameter t, per candidate cell, by the cell's own surface; for
+        triangles ``lower`` forces the triangle (default: the one containing the point)."""
         u = o[0] + t * d[0] - ii
         v = o[1] + t * d[1] - jj
         z = o[2] + t * d[2]
@@ -70,7 +71,8 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         elif surface == "plane3":
             s = h00 + (h10 - h00) * u + (h01 - h00) * v
         elif surface == "triangles":
-            s = np.where(u >= v, h00 + (h10 - h00) * u + (h11 - h10) * v,
+            side = (u >= v) if lower is None else lower
+            s = np.where(side, h00 + (h10 - h00) * u + (h11 - h10) * v,
                          h00 + (h11 - h01) * u + (h01 - h00) * v)
         else:
             s = h00 * (1 - u) * (1 - v) + h10 * u * (1 - v) + h01 * (1 - u) * v + h11 * u * v
@@ -91,14 +93,21 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         with np.errstate(divide="ignore", invalid="ignore"):
             ts = (ii - jj - (o[0] - o[1])) / w if w != 0 else np.full_like(ta, np.inf)
         ts = np.where((ts > ta) & (ts < tb), ts, tb)
-        fs = gap(ts)
-        fb = gap(tb)
+        # each piece lies in one triangle: the one holding its midpoint; evaluate each
+        # piece with its own plane, at both of its ends
+        mid1, mid2 = 0.5 * (ta + ts), 0.5 * (ts + tb)
+        lower1 = (o[0] + mid1 * d[0] - ii) >= (o[1] + mid1 * d[1] - jj)
+        lower2 = (o[0] + mid2 * d[0] - ii) >= (o[1] + mid2 * d[1] - jj)
+        fs1, fs2 = gap(ts, lower1), gap(ts, lower2)
+        fb = gap(tb, lower2)
         with np.errstate(divide="ignore", invalid="ignore"):
-            r1 = ta + (ts - ta) * fa / (fa - fs)
-            r2 = ts + (tb - ts) * fs / (fs - fb)
-        first = (fa > 0) & (fs <= 0)
-        second = (fa > 0) & (fs > 0) & (fb <= 0)
+            r1 = ta + (ts - ta) * fa / (fa - fs1)
+            r2 = ts + (tb - ts) * fs2 / (fs2 - fb)
+        first = (fa > 0) & (fs1 <= 0)
+        at_split = (fa > 0) & (fs1 > 0) & (fs2 <= 0) & (ts < tb)
+        second = (fa > 0) & (fs1 > 0) & (fs2 > 0) & (fb <= 0)
         best = np.where(first, np.minimum(best, np.clip(r1, ta, ts)), best)
+        best = np.where(at_split, np.minimum(best, ts), best)
         best = np.where(second, np.minimum(best, np.clip(r2, ts, tb)), best)
     else:
         # bilinear: z - s is quadratic in t; A t^2 + B t + C in absolute t

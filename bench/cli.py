@@ -147,6 +147,20 @@ def _render(args):
     return 0
 
 
+def _accuracy(args):
+    from . import accuracy
+
+    accuracy.run(out_dir=args.out, full=args.full)
+    return 0
+
+
+def _stress(args):
+    from . import stress
+
+    stress.run(out_dir=args.out, full=args.full)
+    return 0
+
+
 def _list(args):
     print("traversals (algos.traverse):")
     for t in algos.TRAVERSAL_REGISTRY.values():
@@ -278,6 +292,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write the depth difference and step ratio of two intersectors")
     p.add_argument("--out", default="render", help="output path prefix")
     p.set_defaults(func=_render)
+
+    p = sub.add_parser("accuracy", help="run time against error for every algorithm")
+    p.add_argument("--full", action="store_true")
+    p.add_argument("--out", default="reports/accuracy")
+    p.set_defaults(func=_accuracy)
+
+    p = sub.add_parser("stress", help="adversarial and very long rays: the drift table")
+    p.add_argument("--full", action="store_true")
+    p.add_argument("--out", default="reports/stress")
+    p.set_defaults(func=_stress)
 
     p = sub.add_parser("plot", help="tables and plots from a results.csv")
     p.add_argument("results", help="a results.csv of reproduce or sweep")

@@ -212,11 +212,22 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
             }
         }
         if (t_split < tb) {
-            /* second piece [t_split, tb] on the other triangle */
+            /* second piece [t_split, tb] on the other triangle. Its own value at the split
+             * too: the two planes meet on the diagonal, and either one at or below the
+             * ray there is a hit at the split (a ray lying in the second plane, where the
+             * first plane's value may round a hair above it, is the case this catches). */
+            const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
+            const double zs = h->oz + t_split * h->dz;
+            const double f_split2 = lower_first ? zs - (h00 + ua_ * us + ub_ * vs)
+                                                : zs - (h00 + la * us + lb * vs);
             const double fb = lower_first ? zb - (h00 + ua_ * ub + ub_ * vb)
                                           : zb - (h00 + la * ub + lb * vb);
+            if (f_split2 <= 0) {
+                return lower_first ? hf_hit_at(h, t_split, i, j, -1, ua_, ub_)
+                                   : hf_hit_at(h, t_split, i, j, -1, la, lb);
+            }
             if (fb <= 0) {
-                const double t = hf_linear_root(t_split, tb, f_split, fb);
+                const double t = hf_linear_root(t_split, tb, f_split2, fb);
                 return lower_first ? hf_hit_at(h, t, i, j, -1, ua_, ub_)
                                    : hf_hit_at(h, t, i, j, -1, la, lb);
             }
