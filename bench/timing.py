@@ -88,8 +88,11 @@ def _git_commit() -> str:
         out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
                              text=True, timeout=5)
         commit = out.stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               cwd=here, capture_output=True, text=True, timeout=5).stdout
+        # reports/ holds the outputs being regenerated: changes there are not the code's
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
+                                ".", ":(exclude)reports"],
+                               cwd=os.path.dirname(here), capture_output=True, text=True,
+                               timeout=5).stdout
         return commit + ("+dirty" if dirty.strip() else "") if commit else "unknown"
     except (OSError, subprocess.SubprocessError):
         return "unknown"
