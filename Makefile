@@ -12,6 +12,9 @@ STAMP := $(VENV)/.hftrace-installed
 
 ASAN_TREE := build/asan
 ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
+# libstdc++ preloaded too: otherwise ASan cannot find the real __cxa_throw when a C++
+# extension (matplotlib's) loads it later, and aborts on the first C++ exception
+STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
 .PHONY: all test reproduce bench-traverse bench-intersect bench-ci regress sanitize clean
 
@@ -51,7 +54,7 @@ sanitize:
 	cd $(ASAN_TREE) && HFTRACE_SANITIZE=1 .venv/bin/python -m pip install --quiet -e ".[test]"
 	cd $(ASAN_TREE) && ldd algos/_kernels*.so | grep -q libasan \
 		|| (echo "sanitize: the extension is not linked with ASan" >&2; exit 1)
-	cd $(ASAN_TREE) && LD_PRELOAD=$(ASAN_LIB) ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
+	cd $(ASAN_TREE) && LD_PRELOAD="$(ASAN_LIB) $(STDCXX_LIB)" ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
 		UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 HFTRACE_HYPOTHESIS_EXAMPLES=50 \
 		.venv/bin/python -m pytest -q -p no:cacheprovider
 
