@@ -14,7 +14,6 @@ agree = fraction of rays whose hit/miss and t match the exact ``runs`` kernel (|
 """
 from __future__ import annotations
 
-import math
 import os
 import time
 
@@ -23,9 +22,9 @@ import numpy as np
 import algos
 import datasets_gen
 from algos.intersect import prepare_timed_intersect
-from datasets_gen import rays as raysets
 
 from .report import RowWriter, speedup_table
+from .sweep import first_hit_rays, hit_agreement
 from .timing import environment, interleaved, median_ci, ratio_ci, write_json
 
 BASELINE = "dda"
@@ -47,29 +46,8 @@ def pin_to_one_cpu():
     return None
 
 
-def ray_set(field, r, n, seed):
-    """3D rays for one run length: elevations 5-20 degrees, origins above the field."""
-    rows, cols = field.heights.shape
-    rs = raysets.by_run_length(r, n, (cols - 1, rows - 1), seed=seed, origins="inside")
-    rng = np.random.Generator(np.random.PCG64(seed + 1))
-    elevation = np.radians(rng.uniform(5.0, 20.0, n))
-    d2 = rs.directions / np.linalg.norm(rs.directions, axis=1, keepdims=True)
-    d = np.column_stack([d2 * np.cos(elevation)[:, None], -np.sin(elevation)])
-    o = np.column_stack([rs.origins, np.full(n, float(field.heights.max()) + 1.0)])
-    order = np.argsort(np.arange(n) % 8, kind="stable")  # parallel rays together
-    return o[order], d[order]
-
-
-def _agreement(t, reference, tolerance):
-    hit, ref_hit = np.isfinite(t), np.isfinite(reference)
-    both = hit & ref_hit
-    close = np.ones(len(t), bool)
-    close[both] = np.abs(t[both] - reference[both]) <= tolerance * (1 + np.abs(reference[both]))
-    return float(np.mean((hit == ref_hit) & close))
-
-
 def measure(dataset, side, field, surface, r, n, repeats, seed, names):
-    o, d = ray_set(field, r, n, seed)
+    o, d = first_hit_rays(field, r, n, seed)
     stats = algos.intersect(REFERENCE, field, o, d, surface=surface, outputs=("t", "stats"))
     reference_t = stats.t
     jobs, results = {}, {}
@@ -84,7 +62,6 @@ def measure(dataset, side, field, surface, r, n, repeats, seed, names):
         median, low, high = median_ci(per_ray, seed=seed)
         speedup, s_low, s_high = ratio_ci(times[BASELINE], times[name], seed=seed)
         t = results[name]()
-        tolerance = 1e-4 if name == "embree" else 1e-9
         rows.append(dict(
             dataset=dataset, grid=f"{side}x{side}", surface=surface, run_length=r,
             algorithm=name, baseline=BASELINE, rays=n,
@@ -93,7 +70,7 @@ def measure(dataset, side, field, surface, r, n, repeats, seed, names):
             ns_per_ray=round(median, 2), ns_per_ray_ci_low=round(low, 2),
             ns_per_ray_ci_high=round(high, 2), speedup=round(speedup, 4),
             speedup_ci_low=round(s_low, 4), speedup_ci_high=round(s_high, 4),
-            agree=round(_agreement(t, reference_t, tolerance), 6),
+            agree=round(hit_agreement(t, reference_t, 1e-4 if name == "embree" else 1e-9), 6),
             hit_fraction=round(float(np.mean(np.isfinite(t))), 4), repeats=repeats))
     return rows
 

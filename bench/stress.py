@@ -150,8 +150,8 @@ def run(out_dir="reports/stress", full=False, echo=print):
     names = list(algos.TRAVERSALS)
     lines = ["# hftrace stress", "", f"Machine: {env['cpu']}, commit `{env['git_commit']}`. "
              "Method: bench/stress.py.", "",
-             f"## Drift: % of rays whose first N cells differ from the exact walk "
-             f"(grid 2^20 per side, origins near 2^16)", "",
+             "## Drift: % of rays whose first N cells differ from the exact walk "
+             "(grid 2^20 per side, origins near 2^16)", "",
              "| N | " + " | ".join(names) + " | exact time / dda_f32 (midpoint, runs) |",
              "|---" * (len(names) + 2) + "|"]
     for n_cells in lengths:

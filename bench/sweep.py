@@ -191,7 +191,7 @@ def _rays2(shape, r, n, seed):
     return rs.origins[order], rs.directions[order]
 
 
-def _rays3(field, r, n, seed):
+def first_hit_rays(field, r, n, seed):
     """First-hit rays: 5-20 degrees below the horizon, from one cell above the field."""
     rows, cols = field.heights.shape
     o2, d2 = _rays2((cols - 1, rows - 1), r, n, seed)
@@ -203,13 +203,23 @@ def _rays3(field, r, n, seed):
     return o, d
 
 
+def hit_agreement(t, reference, tolerance) -> float:
+    """Fraction of rays with the reference's hit/miss and, where both hit,
+    |t - t_ref| <= tolerance (1 + |t_ref|)."""
+    hit, ref_hit = np.isfinite(t), np.isfinite(reference)
+    both = hit & ref_hit
+    close = np.ones(len(t), bool)
+    close[both] = np.abs(t[both] - reference[both]) <= tolerance * (1 + np.abs(reference[both]))
+    return float(np.mean((hit == ref_hit) & close))
+
+
 def measure_group(field, label, workload, surface, r, names, rays, repeats, seed):
     """Rows for one group: every algorithm on the same rays, interleaved."""
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
     jobs, outputs = {}, {}
     if workload == "first_hit":
-        o, d = _rays3(field, r, rays, seed)
+        o, d = first_hit_rays(field, r, rays, seed)
         ref = algos.intersect("runs", field, o, d, surface=surface, outputs=("t", "stats"))
         cells = float(ref.stats["cells_visited"].mean())
         runs = float(ref.stats["runs_visited"].mean())
@@ -235,12 +245,7 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
         speedup, s_low, s_high = ratio_ci(times[BASELINE], times[name], seed=seed)
         got = outputs[name]()
         if workload == "first_hit":
-            tol = 1e-4 if name == "embree" else 1e-9
-            hit, ref_hit = np.isfinite(got), np.isfinite(reference)
-            both = hit & ref_hit
-            close = np.ones(len(got), bool)
-            close[both] = np.abs(got[both] - reference[both]) <= tol * (1 + np.abs(reference[both]))
-            agree = float(np.mean((hit == ref_hit) & close))
+            agree = hit_agreement(got, reference, 1e-4 if name == "embree" else 1e-9)
         else:
             agree = float(np.mean(got == reference))
         out.append(dict(

@@ -4,7 +4,6 @@ Run with ``pytest bench --benchmark-only`` (``make bench-ci``); compare runs wit
 pytest-benchmark's ``--benchmark-autosave`` / ``--benchmark-compare``. Each benchmark
 times one whole batch walked in C; the rays and the field are seeded.
 """
-import numpy as np
 import pytest
 
 import algos
@@ -30,9 +29,9 @@ def rays2():
 
 @pytest.fixture(scope="module")
 def rays3(field):
-    from bench.sweep import _rays3
+    from bench.sweep import first_hit_rays
 
-    return _rays3(field, R, N_RAYS, 3)
+    return first_hit_rays(field, R, N_RAYS, 3)
 
 
 @pytest.mark.parametrize("name", algos.TRAVERSALS)

@@ -18,7 +18,6 @@ import time
 import numpy as np
 
 import algos
-from algos.registry import TRAVERSAL_REGISTRY
 from datasets_gen import rays as raysets
 
 from .report import RowWriter, speedup_table

@@ -1,6 +1,5 @@
 """The accuracy and stress studies: their exactness claims hold on small runs."""
 import numpy as np
-import pytest
 
 import algos
 from bench import accuracy, stress

@@ -14,7 +14,7 @@ import algos
 from algos.registry import TRAVERSAL_REGISTRY
 from datasets_gen import rays as raysets
 
-from .helpers import as_tuples, assert_paths_equal, reproducer
+from .helpers import assert_paths_equal, reproducer
 
 EXACT = [t.name for t in TRAVERSAL_REGISTRY.values() if t.precision == "exact"]
 SEED = 20260522
