@@ -21,20 +21,17 @@ import numpy as np
 
 import algos
 import datasets_gen
-from algos.intersect import prepare_timed_intersect
 
 from .report import RowWriter, speedup_table
-from .sweep import first_hit_rays, hit_agreement
-from .timing import environment, interleaved, median_ci, ratio_ci, write_json
+from .sweep import COLUMNS as SWEEP_COLUMNS
+from .sweep import measure_group
+from .timing import environment, write_json
 
 BASELINE = "dda"
 REFERENCE = "runs"
 RUN_LENGTHS = (1, 2, 5, 25, 100)
 DATASETS = (("fbm", 1024), ("fbm", 2048), ("uniform", 1024))
-COLUMNS = ["dataset", "grid", "surface", "run_length", "algorithm", "baseline", "rays",
-           "cells_per_ray", "runs_per_ray", "ns_per_ray", "ns_per_ray_ci_low",
-           "ns_per_ray_ci_high", "speedup", "speedup_ci_low", "speedup_ci_high", "agree",
-           "hit_fraction", "repeats"]
+COLUMNS = SWEEP_COLUMNS
 
 
 def pin_to_one_cpu():
@@ -47,32 +44,9 @@ def pin_to_one_cpu():
 
 
 def measure(dataset, side, field, surface, r, n, repeats, seed, names):
-    o, d = first_hit_rays(field, r, n, seed)
-    stats = algos.intersect(REFERENCE, field, o, d, surface=surface, outputs=("t", "stats"))
-    reference_t = stats.t
-    jobs, results = {}, {}
-    for name in names:
-        if surface not in algos.INTERSECTOR_REGISTRY[name].surfaces:
-            continue
-        jobs[name], results[name] = prepare_timed_intersect(name, field, o, d, surface=surface)
-    times = interleaved(jobs, repeats)
-    rows = []
-    for name in jobs:
-        per_ray = times[name] / n
-        median, low, high = median_ci(per_ray, seed=seed)
-        speedup, s_low, s_high = ratio_ci(times[BASELINE], times[name], seed=seed)
-        t = results[name]()
-        rows.append(dict(
-            dataset=dataset, grid=f"{side}x{side}", surface=surface, run_length=r,
-            algorithm=name, baseline=BASELINE, rays=n,
-            cells_per_ray=round(float(stats.stats["cells_visited"].mean()), 2),
-            runs_per_ray=round(float(stats.stats["runs_visited"].mean()), 2),
-            ns_per_ray=round(median, 2), ns_per_ray_ci_low=round(low, 2),
-            ns_per_ray_ci_high=round(high, 2), speedup=round(speedup, 4),
-            speedup_ci_low=round(s_low, 4), speedup_ci_high=round(s_high, 4),
-            agree=round(hit_agreement(t, reference_t, 1e-4 if name == "embree" else 1e-9), 6),
-            hit_fraction=round(float(np.mean(np.isfinite(t))), 4), repeats=repeats))
-    return rows
+    """One group: every intersector that supports ``surface``, on the same rays."""
+    names = [x for x in names if surface in algos.INTERSECTOR_REGISTRY[x].surfaces]
+    return measure_group(field, dataset, "first_hit", surface, r, names, n, repeats, seed)
 
 
 def kernel_bytes(field, name) -> int:

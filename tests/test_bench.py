@@ -194,6 +194,11 @@ def test_cli_smoke(tmp_path, capsys):
     assert main(["bench-traverse", "--rays", "40", "--repeats", "3", "--grid", "64",
                  "--run-lengths", "1,25", "--out", str(tmp_path / "bt")]) == 0
     assert (tmp_path / "bt" / "tables.md").exists()
+    assert main(["bench-intersect", "--rays", "40", "--repeats", "3", "--datasets", "fbm:64",
+                 "--run-lengths", "1", "--algorithms", "dda,runs,embree",
+                 "--out", str(tmp_path / "bi")]) == 0
+    text = (tmp_path / "bi" / "tables.md").read_text()
+    assert "## Targets" in text and "embree" in text
     assert main(["render", "flat", "--size", "8", "--width", "4", "--height", "3",
                  "--out", str(tmp_path / "r")]) == 0
     assert main(["render", "flat", "--algorithm", "nope"]) == 2
