@@ -27,6 +27,7 @@ import time
 import numpy as np
 
 from .lattice import MAX_GRID_SIDE
+from .traverse import _as_float_array
 
 __all__ = ["Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind"]
 
@@ -34,12 +35,7 @@ RMQ_BLOCK_SHIFT = 3
 
 
 def _validate_heights(heights) -> np.ndarray:
-    try:
-        h = np.asarray(heights)
-    except Exception as exc:
-        raise TypeError(f"heights: cannot be read as an array ({exc})") from None
-    if h.dtype.kind not in "fiu":
-        raise TypeError(f"heights: expected real numbers, got dtype {h.dtype}")
+    h = _as_float_array(heights, "heights")
     if h.ndim != 2:
         raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {h.shape}")
     if h.shape[0] < 2 or h.shape[1] < 2:

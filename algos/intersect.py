@@ -12,7 +12,8 @@ import numpy as np
 from . import _kernels
 from .field import Field, as_field, bound_kind
 from .registry import SURFACES, get_intersector
-from .traverse import DEFAULT_MAX_DENOMINATOR, MAX_DENOMINATOR, _check_t, _first_bad
+from .traverse import (DEFAULT_MAX_DENOMINATOR, MAX_DENOMINATOR, _as_float_array, _check_t,
+                       _first_bad)
 from .lattice import MAX_ORIGIN
 
 __all__ = ["Hits", "intersect", "HIT_OUTPUTS", "STATS"]
@@ -53,12 +54,7 @@ class Hits:
 def _check_rays3(origins, directions):
     arrays = []
     for name, value in (("origins", origins), ("directions", directions)):
-        try:
-            array = np.asarray(value)
-        except Exception as exc:
-            raise TypeError(f"{name}: cannot be read as an array ({exc})") from None
-        if array.dtype.kind not in "fiu":
-            raise TypeError(f"{name}: expected real numbers, got dtype {array.dtype}")
+        array = _as_float_array(value, name)
         if array.ndim != 2 or array.shape[1] != 3:
             raise ValueError(f"{name}: expected shape (N, 3), got {array.shape}")
         array = np.ascontiguousarray(array, dtype=np.float64)
