@@ -1,0 +1,101 @@
+"""Fixed first-hit cases whose outputs are pinned bit for bit (tests/data/hit_pin.npz).
+
+The pin was written by the kernels as they stood before the tight first-hit loops
+(issue "Every kernel at its best"): tuning may make a kernel faster, never change its t or
+its cell. Exact kernels must keep them forever; a float kernel may change only by a
+deliberate, documented change, which regenerates the pin:
+
+    python -m tests.hit_pin --write      # then say why in the commit
+"""
+from __future__ import annotations
+
+import argparse
+import os
+
+import numpy as np
+
+import algos
+from datasets_gen import fields
+from bench.sweep import first_hit_rays
+
+PIN = os.path.join(os.path.dirname(__file__), "data", "hit_pin.npz")
+#: Every C intersector; the peer (Embree) is not ours to pin.
+KERNELS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.kind != "peer")
+EXACT = tuple(n for n in KERNELS if algos.INTERSECTOR_REGISTRY[n].accuracy == "exact")
+
+
+def _small_rays(shape, seed, n=200):
+    """Grazing, steep, vertical (some on grid lines), starting low, entering by the sides."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    rows, cols = shape
+    k = n // 5
+    o = [np.column_stack([rng.uniform(-5, cols + 5, k), rng.uniform(-5, rows + 5, k), rng.uniform(0, 8, k)]),
+         np.column_stack([rng.uniform(0, cols - 1, k), rng.uniform(0, rows - 1, k), rng.uniform(6, 20, k)])]
+    d = [np.column_stack([rng.normal(size=k), rng.normal(size=k), rng.uniform(-0.05, 0.0, k)]),
+         np.column_stack([rng.normal(size=k) * 0.2, rng.normal(size=k) * 0.2, -np.ones(k)])]
+    xy = np.column_stack([rng.uniform(0, cols - 1, k), rng.uniform(0, rows - 1, k)])
+    xy[: k // 2] = np.round(xy[: k // 2])
+    o.append(np.column_stack([xy, rng.uniform(-2, 20, k)]))
+    d.append(np.tile([0.0, 0.0, -1.0], (k, 1)))
+    o.append(np.column_stack([rng.uniform(0, cols - 1, k), rng.uniform(0, rows - 1, k), rng.uniform(-3, 1, k)]))
+    d.append(np.column_stack([rng.normal(size=k), rng.normal(size=k), rng.normal(size=k)]))
+    # axis-aligned and diagonal horizontal-ish rays, some along grid lines
+    a = rng.integers(0, 4, k)
+    dirs = np.array([[1.0, 0.0], [0.0, -1.0], [1.0, 1.0], [-3.0, 1.0]])[a]
+    start = np.column_stack([rng.integers(0, cols - 1, k).astype(float),
+                             rng.integers(0, rows - 1, k).astype(float)])
+    start[::2] += rng.uniform(0, 1, (len(start[::2]), 2))
+    o.append(np.column_stack([start, rng.uniform(0, 8, k)]))
+    d.append(np.column_stack([dirs, rng.uniform(-0.2, 0.0, k)]))
+    return np.concatenate(o), np.concatenate(d)
+
+
+def cases():
+    """(label, heights, origins, directions) of every pinned group."""
+    shape = (33, 41)
+    small = {
+        "fbm": fields.generate("fbm", shape, seed=3, amplitude=6.0, scale=16.0),
+        "terraces": fields.generate("terraces", shape, seed=4, amplitude=6.0, scale=16.0),
+        "uniform": fields.generate("uniform", shape, seed=5, high=6.0),
+        "spike": fields.generate("spike", shape, height=8.0, radius=9.0),
+        "flat": fields.generate("flat", shape, height=2.0),
+        "tilted": fields.generate("tilted_plane", shape, slope_x=0.1, slope_y=-0.05, height=1.0),
+    }
+    o, d = _small_rays(shape, 29)
+    out = [(name, H, o, d) for name, H in small.items()]
+    # bench-like rays on a field big enough for several mip levels and long runs
+    H = fields.generate("fbm", (257, 300), seed=7, amplitude=40.0, scale=64.0)
+    fld = algos.Field(H)
+    for r in (1, 3, 25, 100):
+        o, d = first_hit_rays(fld, r, 150, seed=11 + r)
+        out.append((f"fbm257-r{r}", H, o, d))
+    return out
+
+
+def compute():
+    """{key: array} of t and cell for every (case, surface, kernel)."""
+    result = {}
+    for label, H, o, d in cases():
+        fld = algos.Field(H)
+        for surface in algos.SURFACES:
+            for name in KERNELS:
+                if surface not in algos.INTERSECTOR_REGISTRY[name].surfaces:
+                    continue
+                hits = algos.intersect(name, fld, o, d, surface=surface, outputs=("t", "cell"))
+                result[f"{label}/{surface}/{name}/t"] = hits.t
+                result[f"{label}/{surface}/{name}/cell"] = hits.cell
+    return result
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="rewrite the pin")
+    args = parser.parse_args(argv)
+    result = compute()
+    if args.write:
+        np.savez_compressed(PIN, **result)
+        print(f"wrote {len(result)} arrays to {PIN}")
+
+
+if __name__ == "__main__":
+    main()
