@@ -19,6 +19,7 @@
         REAL t0 = (REAL)hf_tmin(b, ray), t1 = (REAL)hf_tmax(b, ray), t;                   \
         REAL t_max_x, t_max_y, t_delta_x, t_delta_y, x, y;                                \
         int32_t i, j, step_x, step_y;                                                     \
+        hf_cull cull;                                                                     \
         const int status = hf_ray_begin(b, ray, s, mode, (REAL)fabs(dx) >= (REAL)fabs(dy)); \
         (void)ctx;                                                                        \
         if (status != HF_OK) return status;                                               \
@@ -51,19 +52,25 @@
         t_delta_y = dy != 0 ? 1 / (REAL)fabs(dy) : inf;                                   \
         t_max_x = dx > 0 ? ((REAL)(i + 1) - ox) / dx : (dx < 0 ? ((REAL)i - ox) / dx : inf); \
         t_max_y = dy > 0 ? ((REAL)(j + 1) - oy) / dy : (dy < 0 ? ((REAL)j - oy) / dy : inf); \
+        hf_cull_begin(&cull, s, mode, i, j, 0);                                           \
         for (;;) {                                                                        \
-            if (hf_emit_cell(s, mode, i, j)) break;                                       \
+            if (hf_visit_cell(s, mode, &cull, i, j)) break;                               \
             if (t_max_x < t_max_y) {                                                      \
                 t = t_max_x; i += step_x; t_max_x += t_delta_x;                           \
+                hf_cull_walk(&cull, mode, 0);                                             \
             } else if (t_max_y < t_max_x) {                                               \
                 t = t_max_y; j += step_y; t_max_y += t_delta_y;                           \
+                hf_cull_walk(&cull, mode, 1);                                             \
             } else { /* vertex crossing (or a vertical ray: both infinite) */             \
                 t = t_max_x; i += step_x; j += step_y;                                    \
                 t_max_x += t_delta_x; t_max_y += t_delta_y;                               \
+                hf_cull_walk(&cull, mode, 0);                                             \
+                hf_cull_walk(&cull, mode, 1);                                             \
             }                                                                             \
             if (!(t < t1)) break;                                                         \
             if ((uint32_t)i >= (uint32_t)b->nx || (uint32_t)j >= (uint32_t)b->ny) break;  \
         }                                                                                 \
+        hf_cull_end(&cull, s, mode);                                                      \
         return HF_OK;                                                                     \
     }
 

@@ -300,6 +300,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
             h.t0 = t0;
             h.t1 = t1;
             h.entry_axis = entry_axis;
+            hf_hit_prepare(&h);
             memset(&b2, 0, sizeof b2);
             o2[0] = o[0]; o2[1] = o[1]; d2[0] = d[0]; d2[1] = d[1];
             /* A ray lying in the far box face x = cols-1 (or y = rows-1) has no half-open

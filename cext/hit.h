@@ -39,6 +39,15 @@ typedef struct {
      * 1 y, 2 z) or -1 when t0 is tmin */
     double ox, oy, oz, dx, dy, dz, inv_dx, inv_dy, t0, t1;
     int entry_axis;
+    /* The tight path (hf_hit_prepare): with cell culling on and no grid-line special
+     * case, a cell (or a run) is first rejected by a bound computed from its index along
+     * one axis alone; only the survivors pay for the exact interval. */
+    int fast;               /* cell kernels: use the bound                               */
+    int cell_axis;          /* the axis whose slab bounds a cell of a cell kernel       */
+    int fast_runs;          /* run kernels: use it too (descending rays, dz < 0)         */
+    int bound_off[2];       /* per axis: 1 when the low-z end of cell k is boundary k+1 */
+    double bound_lo, bound_hi;  /* clamp of that boundary's parameter to [t0, t1]       */
+    double o_axis[2], inv_axis[2];
     /* the result */
     int found;
     double t;
@@ -305,12 +314,146 @@ static inline int hf_test_line_neighbours(hf_hit *h, int32_t i, int32_t j, doubl
     return h->found;
 }
 
-/* One visited cell: cull, then test. Returns 1 on a hit. */
-static inline int hf_hit_cell(hf_hit *h, int32_t i, int32_t j) {
+/* ---- the tight path -----------------------------------------------------------------
+ * The exact per-cell test works on [ta, tb] = [t0, t1] intersected with the cell's x and
+ * y slabs (hf_cell_interval), and culls when min(z(ta), z(tb)) > cellmax. The slab of
+ * one axis alone gives a wider interval, so z over it reaches at least as low: its
+ * parameter at the low-z end of cell k is ((k + off) - o) * inv, the very expression the
+ * exact interval computes for that face, clamped to [t0, t1]. Rounding is monotone, so
+ * the z computed from it is <= the z the exact test computes: a cell this bound rejects
+ * is one the exact cull rejects too, and outputs stay bit-identical. No division, no
+ * interval rebuild: a subtract, a multiply, a clamp and a multiply-add per cell. */
+static inline void hf_hit_prepare(hf_hit *h) {
+    const int descending = h->dz < 0;
+    int k;
+    h->o_axis[0] = h->ox;
+    h->o_axis[1] = h->oy;
+    h->inv_axis[0] = h->inv_dx;
+    h->inv_axis[1] = h->inv_dy;
+    for (k = 0; k < 2; ++k) {
+        const double d = k == 0 ? h->dx : h->dy;
+        h->bound_off[k] = descending == (d > 0);
+    }
+    /* descending: the exit face, clamped to t1; else the entry face, clamped to t0 */
+    h->bound_lo = descending ? -(double)INFINITY : h->t0;
+    h->bound_hi = descending ? h->t1 : (double)INFINITY;
+    h->fast = h->cull_cells && !hf_on_grid_line(h) && (h->dx != 0 || h->dy != 0);
+    h->fast_runs = h->fast && descending;
+    h->cell_axis = fabs(h->dx) >= fabs(h->dy) ? 0 : 1;
+}
+
+/* z at the low-end face of slab k along `axis`, unclamped; with the floor z(t1) or z(t0)
+ * it bounds z over the cell: max(z(T), z(t_end)) is z(clamp(T)) for monotone z. */
+static inline double hf_axis_zlow_unclamped(const hf_hit *h, int axis, int32_t k) {
+    const double t = ((double)(k + h->bound_off[axis]) - h->o_axis[axis]) * h->inv_axis[axis];
+    return h->oz + t * h->dz;
+}
+
+/* The lowest z the exact test can see in a cell whose index along `axis` is k. */
+static inline double hf_axis_zlow(const hf_hit *h, int axis, int32_t k) {
+    double t = ((double)(k + h->bound_off[axis]) - h->o_axis[axis]) * h->inv_axis[axis];
+    t = t > h->bound_lo ? t : h->bound_lo;
+    t = t < h->bound_hi ? t : h->bound_hi;
+    return h->oz + t * h->dz;
+}
+
+static inline float hf_cellmax(const hf_hit *h, int32_t i, int32_t j) {
+    return h->cellmax[(int64_t)j * (h->cols - 1) + i];
+}
+
+/* ---- the bound carried by a walk ------------------------------------------------------
+ * A walk keeps, in locals, z at the low end of the current slab of each axis and adds a
+ * constant per step instead of recomputing it: z[a] for index k along axis a is
+ * z(T) with T = ((k + off) - o) * inv, and one step in the travel direction adds
+ * dz |inv|. The sum drifts from the direct expression by rounding; `margin` bounds that
+ * drift over the longest walk (and the direct expression's own error), and is subtracted
+ * from every value, so the carried bound is never above the one hf_axis_zlow computes:
+ * the cull stays conservative and the outputs bit-identical. The margin is about
+ * 1e-12 of the z range on a 1024^2 grid, so it culls as well as the exact bound. */
+typedef struct {
+    const float *cellmax;
+    int64_t stride;
+    double z[2];       /* bound for the current index along x and y (-inf: no slab)   */
+    double step[2];    /* dz |inv| per step, 0 for an axis the ray does not cross     */
+    double zfloor;     /* z at t1 (descending) or t0, minus the margin                */
+    double margin;
+    int64_t cell;      /* offset of the current cell's maximum in cellmax              */
+    int64_t cell_step[2];  /* its change per step along x and y                      */
+    int32_t k[2];      /* the current index along x and y                             */
+    int32_t sign[2];   /* the direction of travel along x and y                       */
+    int fast;          /* the bound applies (else every cell takes hf_hit_cell)        */
+    int64_t visited;   /* cells that went through the bound                          */
+} hf_cull;
+
+/* The bound of index k along axis a, directly (for a start, or a jump). */
+static inline double hf_cull_direct(const hf_hit *h, const hf_cull *c, int a, int32_t k) {
+    return hf_axis_zlow_unclamped(h, a, k) - c->margin;
+}
+
+static inline void hf_cull_init(hf_cull *c, const hf_hit *h, int32_t i, int32_t j, int runs) {
+    const double n = (double)h->cols + (double)h->rows + 16.0;
+    double span = fabs(h->t0) > fabs(h->t1) ? fabs(h->t0) : fabs(h->t1);
+    int a;
+    c->fast = runs ? h->fast_runs : h->fast;
+    c->visited = 0;
+    c->cellmax = h->cellmax;
+    c->stride = h->cols - 1;
+    for (a = 0; a < 2; ++a)
+        if (h->inv_axis[a] != (double)INFINITY) span += 2.0 * fabs(h->inv_axis[a]);
+    /* |z| along the walk <= |oz| + |dz| span; each of <= n steps and the direct
+     * expression add at most a few units of 2^-53 of that */
+    c->margin = (fabs(h->oz) + fabs(h->dz) * span + 1.0) * n * 0x1p-46;
+    if (!(c->margin < (double)INFINITY)) c->fast = 0;
+    c->k[0] = i;
+    c->k[1] = j;
+    c->cell = (int64_t)j * c->stride + i;
+    for (a = 0; a < 2; ++a) {
+        const double d = a == 0 ? h->dx : h->dy;
+        c->sign[a] = d > 0 ? 1 : -1;
+        c->cell_step[a] = a == 0 ? c->sign[a] : c->sign[a] * c->stride;
+        if (d != 0 && h->inv_axis[a] != (double)INFINITY) {
+            c->step[a] = h->dz * fabs(h->inv_axis[a]);
+            c->z[a] = hf_cull_direct(h, c, a, a == 0 ? i : j);
+        } else {
+            c->step[a] = 0;
+            c->z[a] = -(double)INFINITY;
+        }
+    }
+    c->zfloor = h->oz + (h->dz < 0 ? h->t1 : h->t0) * h->dz - c->margin;
+    if (!c->fast) {
+        /* no bound: every cell goes on to the general path */
+        c->z[0] = c->z[1] = c->zfloor = -(double)INFINITY;
+        c->step[0] = c->step[1] = 0;
+    }
+}
+
+/* One step along axis a in the travel direction. */
+static inline void hf_cull_step(hf_cull *c, int a) {
+    c->k[a] += c->sign[a];
+    c->z[a] += c->step[a];
+    c->cell += c->cell_step[a];
+}
+
+/* Move axis a to index k: one step, or a direct start (never a long sum). */
+static inline void hf_cull_goto(hf_cull *c, const hf_hit *h, int a, int32_t k) {
+    if (k == c->k[a]) return;
+    if (k == c->k[a] + c->sign[a]) { hf_cull_step(c, a); return; }
+    c->k[a] = k;
+    c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
+    if (c->step[a] != 0 || c->z[a] != -(double)INFINITY) c->z[a] = hf_cull_direct(h, c, a, k);
+}
+
+/* The bound of the current cell: z over it is at least this. */
+static inline double hf_cull_zlow(const hf_cull *c) {
+    const double z = c->z[0] > c->z[1] ? c->z[0] : c->z[1];
+    return z > c->zfloor ? z : c->zfloor;
+}
+
+/* One visited cell: the exact interval, cull, then test. Returns 1 on a hit. */
+static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
     double ta, tb;
     const int axis = hf_cell_interval(h, i, j, &ta, &tb);
     int wall;
-    h->cells_visited += 1;
     if (!(ta <= tb)) return 0;  /* the float ray misses this cell of the rounded walk */
     /* Walls: at t0 the box's side faces (every surface); inside the grid the cell borders,
      * where flat and plane3 jump. Entering below a continuous surface (triangles,
@@ -326,20 +469,100 @@ static inline int hf_hit_cell(hf_hit *h, int32_t i, int32_t j) {
     return hf_surface_test(h, i, j, ta, tb, wall);
 }
 
-/* One run (minor, first, last) of a run kernel: reject it whole when the ray's lowest z
- * over the run is above the maximum over the run's cells, else test its cells, each with
- * one multiply-add for its interval along the major axis. */
+/* One visited cell of a cell kernel: the cheap bound first (along the axis that crosses
+ * the ray travels fastest), then the exact path. */
+static inline int hf_hit_cell_uncounted(hf_hit *h, int32_t i, int32_t j) {
+    if (h->fast) {
+        const int axis = h->cell_axis;
+        if (hf_axis_zlow(h, axis, axis == 0 ? i : j) > (double)hf_cellmax(h, i, j)) return 0;
+    }
+    return hf_hit_cell_exact(h, i, j);
+}
+
+static inline int hf_hit_cell(hf_hit *h, int32_t i, int32_t j) {
+    h->cells_visited += 1;
+    return hf_hit_cell_uncounted(h, i, j);
+}
+
+/* ---- runs ------------------------------------------------------------------------------
+ * The parameter interval of a run: its minor strip and its span of major cells, within
+ * [t0, t1]; entry_axis: the axis whose face sets ta (-1: t0). Empty when ta > tb. */
+typedef struct {
+    double ta, tb;
+    int entry_axis;
+} hf_span;
+
+static inline hf_span hf_run_span(const hf_hit *h, int major_is_x, int32_t minor, int32_t lo,
+                                  int32_t hi) {
+    const double o_min = major_is_x ? h->oy : h->ox, inv_min = major_is_x ? h->inv_dy : h->inv_dx;
+    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
+    const double d_min = major_is_x ? h->dy : h->dx;
+    hf_span s;
+    s.ta = h->t0;
+    s.tb = h->t1;
+    s.entry_axis = -1;
+    if (d_min != 0) {
+        double a = (minor - o_min) * inv_min, b = (minor + 1 - o_min) * inv_min;
+        if (a > b) { const double x = a; a = b; b = x; }
+        if (a > s.ta) { s.ta = a; s.entry_axis = major_is_x ? 1 : 0; }
+        s.tb = b < s.tb ? b : s.tb;
+    }
+    {
+        double a = (lo - o_maj) * inv_maj, b = (hi + 1 - o_maj) * inv_maj;
+        if (a > b) { const double x = a; a = b; b = x; }
+        if (a > s.ta) { s.ta = a; s.entry_axis = major_is_x ? 0 : 1; }
+        s.tb = b < s.tb ? b : s.tb;
+    }
+    return s;
+}
+
+/* Cell k of a run whose first cell is `first`, on the run's span: the cell's interval
+ * runs from the previous cell's exit (or the span's start) to its own exit, each clipped
+ * to the span; then the exact cull and the surface test. Cells are not split where the
+ * minor strip ends: the span's tb covers that. */
+static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
+                              int32_t k, const hf_span *s) {
+    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
+    const double d_maj = major_is_x ? h->dx : h->dy;
+    const int32_t i = major_is_x ? k : minor, j = major_is_x ? minor : k;
+    double ta = s->ta, t_out = (double)(d_maj > 0 ? k + 1 : k);
+    int wall;
+    t_out = (t_out - o_maj) * inv_maj;
+    if (t_out > s->tb) t_out = s->tb;
+    if (k != first) {
+        /* the previous cell's exit; exits grow along the run, so it is the latest */
+        double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
+        if (t_prev > s->tb) t_prev = s->tb;
+        ta = t_prev > ta ? t_prev : ta;
+    }
+    if (!(ta <= t_out)) return 0;
+    if (h->cull_cells) {
+        const double za = h->oz + ta * h->dz, zb = h->oz + t_out * h->dz;
+        if ((za < zb ? za : zb) > (double)hf_cellmax(h, i, j)) return 0;
+    }
+    /* walls: the box face at t0, else the grid line crossed at ta (for the surfaces that
+     * jump there) */
+    if (ta == h->t0) wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
+    else if (!(h->surface == HF_FLAT || h->surface == HF_PLANE3)) wall = -1;
+    else wall = k == first ? s->entry_axis : (major_is_x ? 0 : 1);
+    return hf_surface_test(h, i, j, ta, t_out, wall);
+}
+
+/* Below this many cells a run is culled cell by cell: the range-maximum query costs
+ * more than the cell bounds it would save (measured: reports/METHOD.md). */
+#ifndef HF_RUN_RMQ_MIN
+#define HF_RUN_RMQ_MIN 6
+#endif
+
+/* One run (minor, first, last) of a run kernel, first and last in travel order: the
+ * exact span, the run cull, every cell (hf_hit_run_tight is the fast path). */
 static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
                              int32_t last) {
     const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
     const int32_t step = last >= first ? 1 : -1;
-    const double o_min = major_is_x ? h->oy : h->ox, inv_min = major_is_x ? h->inv_dy : h->inv_dx;
-    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
-    const double d_min = major_is_x ? h->dy : h->dx, d_maj = major_is_x ? h->dx : h->dy;
-    const int axis_maj = major_is_x ? 0 : 1, axis_min = 1 - axis_maj;
-    const int jumps = h->surface == HF_FLAT || h->surface == HF_PLANE3;
-    double ta_run = h->t0, tb_run = h->t1, t_in;
-    int run_entry_axis = -1;
+    const double d_maj = major_is_x ? h->dx : h->dy;
+    const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
+    hf_span s;
     int32_t k;
     h->runs_visited += 1;
     if (d_maj == 0 || hf_on_grid_line(h)) {
@@ -350,56 +573,85 @@ static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t f
         }
         return 0;
     }
-    /* the run's parameter interval: its minor strip and its span of major cells */
-    if (d_min != 0) {
-        double a = (minor - o_min) * inv_min, b = (minor + 1 - o_min) * inv_min;
-        if (a > b) { const double s = a; a = b; b = s; }
-        if (a > ta_run) { ta_run = a; run_entry_axis = axis_min; }
-        tb_run = b < tb_run ? b : tb_run;
-    }
-    {
-        double a = (lo - o_maj) * inv_maj, b = (hi + 1 - o_maj) * inv_maj;
-        if (a > b) { const double s = a; a = b; b = s; }
-        if (a > ta_run) { ta_run = a; run_entry_axis = axis_maj; }
-        tb_run = b < tb_run ? b : tb_run;
-    }
-    if (!(ta_run <= tb_run)) {
+    s = hf_run_span(h, major_is_x, minor, lo, hi);
+    if (!(s.ta <= s.tb)) {
         h->cells_visited += hi - lo + 1;  /* the float ray misses the rounded walk's run */
         return 0;
     }
-    if (h->row_max != NULL) {
-        const double za = h->oz + ta_run * h->dz, zb = h->oz + tb_run * h->dz;
-        const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
+    if (q != NULL) {
+        const double za = h->oz + s.ta * h->dz, zb = h->oz + s.tb * h->dz;
         if ((za < zb ? za : zb) > (double)hf_rmq_query(q, minor, lo, hi)) {
             h->runs_culled += 1;
             h->cells_visited += hi - lo + 1;
             return 0;
         }
     }
-    /* the cells in travel order; cell k spans major boundaries k and k + 1 */
-    t_in = ta_run;
     for (k = first;; k += step) {
-        const double boundary_out = d_maj > 0 ? k + 1 : k;
-        double t_out = (boundary_out - o_maj) * inv_maj, ta = t_in;
-        int wall;
-        const int32_t i = major_is_x ? k : minor, j = major_is_x ? minor : k;
-        if (t_out > tb_run) t_out = tb_run;
         h->cells_visited += 1;
-        if (ta <= t_out) {
-            const double za = h->oz + ta * h->dz, zb = h->oz + t_out * h->dz;
-            if (!h->cull_cells ||
-                (za < zb ? za : zb) <= (double)h->cellmax[(int64_t)j * (h->cols - 1) + i]) {
-                /* walls: the box face at t0, else the grid line crossed at ta (for the
-                 * surfaces that jump there) */
-                if (ta == h->t0) wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
-                else if (!jumps) wall = -1;
-                else wall = k == first ? run_entry_axis : axis_maj;
-                if (hf_surface_test(h, i, j, ta, t_out, wall)) return 1;
+        if (hf_run_cell(h, major_is_x, minor, first, k, &s)) return 1;
+        if (k == last) break;
+    }
+    return 0;
+}
+
+/* The tight path for a run (descending rays, cull on; c bounds along the run's major
+ * axis): the run is rejected whole when z at its exit face is above the maximum over its
+ * cells (a range-maximum query, for runs long enough to pay), else each cell by its own
+ * exit face; the run's exact span is computed only once a cell survives. The cells that
+ * reach hf_run_cell, and their intervals, are those of hf_hit_run. */
+static inline int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_t minor,
+                                   int32_t first, int32_t last) {
+    const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
+    const int32_t step = last >= first ? 1 : -1;
+    const int am = major_is_x ? 0 : 1, an = 1 - am;
+    const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
+    const float *row = major_is_x ? c->cellmax + (int64_t)minor * c->stride : c->cellmax + minor;
+    const int64_t k_stride = major_is_x ? 1 : c->stride;
+    double zrun, zk, dzk;
+    hf_span s;
+    int ready = 0;
+    int32_t k;
+    h->runs_visited += 1;
+    hf_cull_goto(c, h, an, minor);
+    hf_cull_goto(c, h, am, first);
+    zrun = c->z[an] > c->zfloor ? c->z[an] : c->zfloor;
+    zk = c->z[am];
+    dzk = c->step[am];
+    if (q != NULL && hi - lo + 1 >= HF_RUN_RMQ_MIN) {
+        /* z at the run's exit face: the last cell's bound, directly */
+        const double zexit = hf_cull_direct(h, c, am, last);
+        if ((zexit > zrun ? zexit : zrun) > (double)hf_rmq_query(q, minor, lo, hi)) {
+            h->runs_culled += 1;
+            c->visited += hi - lo + 1;
+            c->k[am] = last;
+            c->z[am] = zexit;
+            c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
+            return 0;
+        }
+    }
+    for (k = first;; k += step) {
+        c->visited += 1;
+        if ((zk > zrun ? zk : zrun) <= (double)row[k * k_stride]) {
+            if (!ready) {
+                s = hf_run_span(h, major_is_x, minor, lo, hi);
+                if (!(s.ta <= s.tb)) {
+                    /* the float ray misses the rounded walk's run */
+                    c->visited += (int64_t)(last - k) * step;
+                    break;
+                }
+                ready = 1;
             }
+            if (hf_run_cell(h, major_is_x, minor, first, k, &s)) return 1;
         }
         if (k == last) break;
-        t_in = t_out > t_in ? t_out : t_in;
+        zk += dzk;
     }
+    /* the carried bound ends on the last cell (k - first steps were summed: within the
+     * margin, as for any walk) */
+    c->k[am] = last;
+    c->z[am] = zk;
+    c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
+    if (k != last) c->z[am] = hf_cull_direct(h, c, am, last);
     return 0;
 }
 

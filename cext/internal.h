@@ -195,6 +195,42 @@ HF_INLINE int hf_emit_cell(hf_sink *s, const int mode, int32_t i, int32_t j) {
     return 0;
 }
 
+/* ---- first hits: the cull in the walk's registers ------------------------------------
+ * In HF_MODE_HIT a walk copies the per-ray invariants of the cheap bound (hit.h,
+ * "the tight path") into this local struct, so they stay in registers across the loop
+ * (the out-of-line surface test would otherwise force every field to be reloaded per
+ * cell), and counts visited cells here. Only cells that survive reach hf_hit. */
+/* In HF_MODE_HIT: the carried bound of hit.h starting at cell (i, j); runs: for a run
+ * kernel (its tight path needs descending rays). Other modes: nothing. */
+HF_INLINE void hf_cull_begin(hf_cull *c, const hf_sink *s, const int mode, int32_t i, int32_t j,
+                             int runs) {
+    c->fast = 0;
+    c->visited = 0;
+    if (mode == HF_MODE_HIT) hf_cull_init(c, s->hit, i, j, runs);
+}
+
+HF_INLINE void hf_cull_end(hf_cull *c, hf_sink *s, const int mode) {
+    if (mode == HF_MODE_HIT) s->hit->cells_visited += c->visited;
+}
+
+/* A cell kernel stepped along axis a (0 x, 1 y) in its travel direction. */
+HF_INLINE void hf_cull_walk(hf_cull *c, const int mode, int a) {
+    if (mode == HF_MODE_HIT) hf_cull_step(c, a);
+}
+
+/* A cell from a cell kernel: rejected by the bound, or handed on. */
+HF_INLINE int hf_visit_cell(hf_sink *s, const int mode, hf_cull *c, int32_t i, int32_t j) {
+    if (mode == HF_MODE_HIT) {
+        /* the walk's cell is the cull's */
+        HF_ASSERT(i == c->k[0] && j == c->k[1] && c->cell == (int64_t)j * c->stride + i,
+                  "walk (%d, %d) cull (%d, %d)", i, j, c->k[0], c->k[1]);
+        c->visited += 1;
+        if (hf_cull_zlow(c) > (double)c->cellmax[c->cell]) return 0;
+        return c->fast ? hf_hit_cell_exact(s->hit, i, j) : hf_hit_cell_uncounted(s->hit, i, j);
+    }
+    return hf_emit_cell(s, mode, i, j);
+}
+
 /* Close the run a cell kernel was assembling. */
 HF_INLINE void hf_sink_finish(hf_sink *s, const int mode) {
     if ((mode == HF_MODE_COUNT || mode == HF_MODE_RUNS || mode == HF_MODE_RUNFOLD) &&
@@ -231,6 +267,42 @@ HF_INLINE int hf_emit_reduced_run(hf_sink *s, const int mode, const hf_frame *f,
                                   int32_t b, int32_t first, int32_t last) {
     return hf_emit_run(s, mode, f->base_minor + f->sign_minor * b,
                 f->base_major + f->sign_major * first, f->base_major + f->sign_major * last);
+}
+
+/* hf_cull_begin at the reduced cell (a, b). */
+HF_INLINE void hf_cull_begin_reduced(hf_cull *c, const hf_sink *s, const int mode,
+                                     const hf_frame *f, int32_t a, int32_t b, int runs) {
+    const int32_t major = f->base_major + f->sign_major * a;
+    const int32_t minor = f->base_minor + f->sign_minor * b;
+    if (f->swap) hf_cull_begin(c, s, mode, minor, major, runs);
+    else hf_cull_begin(c, s, mode, major, minor, runs);
+}
+
+HF_INLINE int hf_visit_reduced_cell(hf_sink *s, const int mode, hf_cull *c, const hf_frame *f,
+                                    int32_t a, int32_t b) {
+    if (mode == HF_MODE_HIT) {
+        /* the cull carries the cell's grid indices; no mapping per cell */
+        HF_ASSERT(c->k[f->swap] == f->base_major + f->sign_major * a &&
+                  c->k[!f->swap] == f->base_minor + f->sign_minor * b,
+                  "reduced (%d, %d) cull (%d, %d)", a, b, c->k[0], c->k[1]);
+        return hf_visit_cell(s, mode, c, c->k[0], c->k[1]);
+    }
+    {
+    const int32_t major = f->base_major + f->sign_major * a;
+    const int32_t minor = f->base_minor + f->sign_minor * b;
+    return f->swap ? hf_visit_cell(s, mode, c, minor, major) : hf_visit_cell(s, mode, c, major, minor);
+    }
+}
+
+/* A run from a run kernel; in HF_MODE_HIT with the cull's tight path. */
+HF_INLINE int hf_visit_reduced_run(hf_sink *s, const int mode, hf_cull *c, const hf_frame *f,
+                                   int32_t b, int32_t first, int32_t last) {
+    if (mode == HF_MODE_HIT && c->fast) {
+        return hf_hit_run_tight(s->hit, c, s->major_is_x, f->base_minor + f->sign_minor * b,
+                                f->base_major + f->sign_major * first,
+                                f->base_major + f->sign_major * last);
+    }
+    return hf_emit_reduced_run(s, mode, f, b, first, last);
 }
 
 /* The ray's inputs, with the documented defaults for a missing tmin/tmax. */

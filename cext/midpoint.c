@@ -10,24 +10,60 @@
  * |E| <= 2 A 2^16 < 2^48, so the loop runs in int64. */
 #include "internal.h"
 
+/* The cell loop from (a, m), decision variable E. `swap` is a compile-time constant at
+ * both call sites, so the hit mode's carried bound steps along a fixed axis. The loop
+ * ends on (a1, b1); `left` is negative only if exact arithmetic went wrong, which is
+ * reported rather than walked. */
+HF_INLINE int midpoint_loop(hf_sink *s, const int mode, hf_cull *cull, const hf_line *L,
+                            const hf_frame *f, int32_t a, int32_t m, int64_t E,
+                            const int swap) {
+    const int64_t step_major = L->slope_minor * HF_ONE, step_minor = L->slope_major * HF_ONE;
+    const int32_t a1 = L->a1, b1 = L->b1;
+    int32_t left = (a1 - a) | (b1 - m);
+    for (;;) {
+        if (hf_visit_reduced_cell(s, mode, cull, f, a, m)) break;
+        if (left == 0) break;
+        if (E < 0) {
+            a += 1; E += step_major;
+            hf_cull_walk(cull, mode, swap);
+        } else if (E > 0) {
+            m += 1; E -= step_minor;
+            hf_cull_walk(cull, mode, !swap);
+        } else {
+            a += 1; m += 1; E += step_major - step_minor;
+            hf_cull_walk(cull, mode, 0);
+            hf_cull_walk(cull, mode, 1);
+        }
+        left = (a1 - a) | (b1 - m);
+        if (left < 0) return HF_ERR_INTERNAL;
+    }
+    return HF_OK;
+}
+
 HF_INLINE int walk_midpoint(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
                             void *ctx) {
     hf_line L;
     hf_frame f;
     int32_t a, m;
-    int64_t E, step_major, step_minor;
+    int64_t E;
+    hf_cull cull;
+    int status;
     const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
                                        hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, 0,
                                        &L);
-    const int status = hf_ray_begin(b, ray, s, mode, !L.swap);
+    status = hf_ray_begin(b, ray, s, mode, !L.swap);
     (void)ctx;
     if (status != HF_OK || !nonempty) return status;
     f = hf_frame_of(&L);
+    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 0);
 
     /* parallel to the major axis: one straight run */
     if (L.slope_minor == 0) {
-        for (a = L.a0; a <= L.a1; ++a)
-            if (hf_emit_reduced_cell(s, mode, &f, a, L.b0)) return HF_OK;
+        for (a = L.a0; a <= L.a1; ++a) {
+            if (hf_visit_reduced_cell(s, mode, &cull, &f, a, L.b0)) break;
+            hf_cull_walk(&cull, mode, L.swap);
+        }
+        hf_cull_end(&cull, s, mode);
         return HF_OK;
     }
 
@@ -39,18 +75,10 @@ HF_INLINE int walk_midpoint(hf_batch *b, int64_t ray, hf_sink *s, const int mode
         E = (int64_t)(A * (hf_i128)L.o_minor + B * ((hf_i128)(a + 1) * HF_ONE - L.o_major) -
                       A * (hf_i128)(m + 1) * HF_ONE);
     }
-    step_major = L.slope_minor * HF_ONE;
-    step_minor = L.slope_major * HF_ONE;
-    for (;;) {
-        if (hf_emit_reduced_cell(s, mode, &f, a, m)) return HF_OK;
-        if (a == L.a1 && m == L.b1) break;
-        if (E < 0) { a += 1; E += step_major; }
-        else if (E > 0) { m += 1; E -= step_minor; }
-        else { a += 1; m += 1; E += step_major - step_minor; }
-        /* exact arithmetic ends on (a1, b1); anything else is a bug, never a wild write */
-        if (a > L.a1 || m > L.b1) return HF_ERR_INTERNAL;
-    }
-    return HF_OK;
+    status = L.swap ? midpoint_loop(s, mode, &cull, &L, &f, a, m, E, 1)
+                    : midpoint_loop(s, mode, &cull, &L, &f, a, m, E, 0);
+    hf_cull_end(&cull, s, mode);
+    return status;
 }
 
 HF_DEFINE_BATCH(hf_batch_midpoint, walk_midpoint)

@@ -27,6 +27,7 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
     hf_frame f;
     int32_t row, first, last;
     int64_t W, rem, short_length, column, R;
+    hf_cull cull;
     const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
                                        hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, 0,
                                        &L);
@@ -34,8 +35,10 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
     (void)ctx;
     if (status != HF_OK || !nonempty) return status;
     f = hf_frame_of(&L);
+    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 1);
     if (L.slope_minor == 0) {
-        if (hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1)) return HF_OK;
+        hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
+        hf_cull_end(&cull, s, mode);
         return HF_OK;
     }
 
@@ -55,14 +58,18 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
         last = (int32_t)(R == 0 ? column - 1 : column);
         HF_ASSERT(last >= first && last <= L.a1, "row=%d first=%d last=%d a1=%d", row,
                   first, last, L.a1);
-        if (hf_emit_reduced_run(s, mode, &f, row, first, last)) return HF_OK;
+        if (hf_visit_reduced_run(s, mode, &cull, &f, row, first, last)) {
+            hf_cull_end(&cull, s, mode);
+            return HF_OK;
+        }
         first = (int32_t)column;
         column += short_length;
         R += rem;
         if (R >= W) { R -= W; column += 1; }
     }
     if (first > L.a1) return HF_ERR_INTERNAL;
-    if (hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1)) return HF_OK;
+    hf_visit_reduced_run(s, mode, &cull, &f, L.b1, first, L.a1);
+    hf_cull_end(&cull, s, mode);
     return HF_OK;
 }
 
@@ -106,6 +113,7 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     hf_frame f;
     int32_t row, first, last;
     int64_t p, column, delta, position;
+    hf_cull cull;
     const int32_t *lengths;
     const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
                                        hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny,
@@ -113,8 +121,10 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     const int status = hf_ray_begin(b, ray, s, mode, !L.swap);
     if (status != HF_OK || !nonempty) return status;
     f = hf_frame_of(&L);
+    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 1);
     if (L.slope_minor == 0) {
-        if (hf_emit_reduced_run(s, mode, &f, L.b0, L.a0, L.a1)) return HF_OK;
+        hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
+        hf_cull_end(&cull, s, mode);
         return HF_OK;
     }
     p = L.slope_minor;
@@ -136,13 +146,17 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     first = L.a0;
     for (row = L.b0; row < L.b1; ++row) {
         last = (int32_t)((position == 0 && delta == 0) ? column - 1 : column);
-        if (hf_emit_reduced_run(s, mode, &f, row, first, last)) return HF_OK;
+        if (hf_visit_reduced_run(s, mode, &cull, &f, row, first, last)) {
+            hf_cull_end(&cull, s, mode);
+            return HF_OK;
+        }
         first = (int32_t)column;
         column += lengths[position];
         if (++position == p) position = 0;
     }
     if (first > L.a1) return HF_ERR_INTERNAL;
-    if (hf_emit_reduced_run(s, mode, &f, L.b1, first, L.a1)) return HF_OK;
+    hf_visit_reduced_run(s, mode, &cull, &f, L.b1, first, L.a1);
+    hf_cull_end(&cull, s, mode);
     return HF_OK;
 }
 
@@ -167,6 +181,7 @@ HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode
     int32_t row, first, last, row0, row1, col0, col1;
     int64_t column, step_whole;
     hf_frame f;
+    hf_cull cull;
     int status = hf_ray_begin(b, ray, s, mode, !swap);
     (void)ctx;
     if (status != HF_OK) return status;
@@ -201,8 +216,10 @@ HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode
     f.base_minor = mirror_minor ? n_minor - 1 : 0;
     f.sign_minor = mirror_minor ? -1 : 1;
     f.swap = swap;
+    hf_cull_begin_reduced(&cull, s, mode, &f, col0, row0, 1);
     if (B == 0.0 || row0 == row1) {
-        if (hf_emit_reduced_run(s, mode, &f, row0, col0, col1)) return HF_OK;
+        hf_visit_reduced_run(s, mode, &cull, &f, row0, col0, col1);
+        hf_cull_end(&cull, s, mode);
         return HF_OK;
     }
     /* a nearly flat slope: clamp before converting to integers (no overflow UB); any
@@ -219,14 +236,18 @@ HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode
         last = (int32_t)(frac == 0.0 ? column - 1 : column);
         if (last > col1) last = col1;
         if (last < first) last = first;
-        if (hf_emit_reduced_run(s, mode, &f, row, first, last)) return HF_OK;
+        if (hf_visit_reduced_run(s, mode, &cull, &f, row, first, last)) {
+            hf_cull_end(&cull, s, mode);
+            return HF_OK;
+        }
         first = column > col1 ? col1 : (int32_t)column;
         if (first < last) first = last;
         column += step_whole;
         frac += step_frac;
         if (frac >= 1.0) { frac -= 1.0; column += 1; }
     }
-    if (hf_emit_reduced_run(s, mode, &f, row1, first, col1 < first ? first : col1)) return HF_OK;
+    hf_visit_reduced_run(s, mode, &cull, &f, row1, first, col1 < first ? first : col1);
+    hf_cull_end(&cull, s, mode);
     return HF_OK;
 }
 
