@@ -6,6 +6,14 @@ k of cell (i, j). Embree computes in float32. Its scene is built once per Field;
 build time and the process's resident-memory growth during the build (Embree does not
 report its own bytes through embreex) are recorded in ``field.build_stats["embree"]``.
 Rays are traced one at a time by embreex's loop, i.e. on one thread.
+
+Two ways in: :func:`embree_hits` (t, cell and normal: embreex's ``output=1`` query,
+which allocates five arrays) serves ``algos.intersect`` and the tests, where Embree's
+robust mode is ground truth; :func:`embree_timed` is the peer in benchmarks, in its
+fastest configuration documented by embreex: a ``DISTANCE`` query (tfar only) into a
+preallocated float32 buffer, each ray's far bound passed as its ``tfar`` (where it leaves
+the field's box, or reaches the lowest height, after which a hit is certain), and every
+allocation and conversion outside the timed call.
 """
 from __future__ import annotations
 
@@ -40,8 +48,40 @@ def triangles(heights: np.ndarray):
     return vertices, tri.reshape(-1, 3)
 
 
-def embree_scene(field):
+#: The scene flag the peer uses: RTC_SCENE_FLAG_ROBUST off (Embree's fast default). The
+#: tests also build a robust scene for ground truth (``embree_scene(field, robust=True)``).
+ROBUST = False
+
+
+def embree_version() -> str:
+    """The version of the Embree library embreex loaded (e.g. "4.4.0"), or ""."""
+    import ctypes
+    import glob
+    import os
+
+    import embreex
+
+    root = os.path.dirname(os.path.dirname(embreex.__file__))
+    libs = sorted(glob.glob(os.path.join(root, "embreex.libs", "libembree*.so*")))
+    try:
+        lib = ctypes.CDLL(libs[0]) if libs else ctypes.CDLL("libembree4.so.4")
+        lib.rtcNewDevice.restype = ctypes.c_void_p
+        lib.rtcNewDevice.argtypes = [ctypes.c_char_p]
+        lib.rtcGetDeviceProperty.restype = ctypes.c_ssize_t
+        lib.rtcGetDeviceProperty.argtypes = [ctypes.c_void_p, ctypes.c_int]
+        lib.rtcReleaseDevice.argtypes = [ctypes.c_void_p]
+        device = lib.rtcNewDevice(None)
+        version = lib.rtcGetDeviceProperty(device, 0)  # RTC_DEVICE_PROPERTY_VERSION
+        lib.rtcReleaseDevice(device)
+        return f"{version // 10000}.{version // 100 % 100}.{version % 100}"
+    except (OSError, AttributeError, IndexError):
+        return ""
+
+
+def embree_scene(field, robust=ROBUST):
     """The Embree scene of a Field, built on first use and kept on the Field."""
+    key = "embree-robust" if robust else "embree"
+
     def build():
         from embreex import rtcore_scene as rtcs
         from embreex.mesh_construction import TriangleMesh
@@ -49,24 +89,68 @@ def embree_scene(field):
         vertices, indices = triangles(field.heights)
         before = _rss_bytes()
         start = time.perf_counter()
-        scene = rtcs.EmbreeScene()
+        scene = rtcs.EmbreeScene(robust=robust)
         mesh = TriangleMesh(scene, vertices, indices)
         scene.run(np.zeros((1, 3), np.float32), np.array([[0, 0, -1]], np.float32))  # commit
         seconds = time.perf_counter() - start
         grown = max(_rss_bytes() - before, 0)
         return scene, mesh, seconds, grown
 
-    if "embree" not in field._cache:
+    if key not in field._cache:
         scene, mesh, seconds, grown = build()
-        field._cache["embree"] = (scene, mesh)
-        field.build_stats["embree"] = {"seconds": seconds, "bytes": int(grown),
-                                       "bytes_note": "resident-memory growth during the build"}
-    return field._cache["embree"][0]
+        field._cache[key] = (scene, mesh)
+        field.build_stats[key] = {"seconds": seconds, "bytes": int(grown), "robust": robust,
+                                  "bytes_note": "resident-memory growth during the build"}
+    return field._cache[key][0]
+
+
+def far_bounds(field, origins, directions):
+    """Per ray, the parameter after which no first hit can lie: where the ray leaves the
+    box [0, cols-1] x [0, rows-1] x (-inf, hmax], or reaches the lowest height going
+    down (from there on it is inside the solid). Widened by a hair for float32."""
+    o, d = np.asarray(origins, float), np.asarray(directions, float)
+    rows, cols = field.heights.shape
+    hmin, hmax = float(field.heights.min()), float(field.heights.max())
+    far = np.full(len(o), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k, top in ((0, cols - 1.0), (1, rows - 1.0)):
+            exit_ = np.where(d[:, k] > 0, (top - o[:, k]) / d[:, k],
+                             np.where(d[:, k] < 0, -o[:, k] / d[:, k], np.inf))
+            far = np.minimum(far, exit_)
+        far = np.minimum(far, np.where(d[:, 2] < 0, (hmin - o[:, 2]) / d[:, 2],
+                                       np.where(d[:, 2] > 0, (hmax - o[:, 2]) / d[:, 2], np.inf)))
+    far = np.where(np.isfinite(far), np.maximum(far, 0) * (1 + 1e-5) + 1e-4, 1e37)
+    return far.astype(np.float32)
+
+
+def embree_timed(field, origins, directions):
+    """(run, t) for benchmarks: each ``run()`` traces every ray once with the fastest
+    query and returns the elapsed ns of embreex's loop alone; ``t()`` gives the latest
+    first-hit parameters (inf on a miss)."""
+    scene = embree_scene(field)
+    o32 = np.ascontiguousarray(origins, dtype=np.float32)
+    d32 = np.ascontiguousarray(directions, dtype=np.float32)
+    far = far_bounds(field, origins, directions)
+    tfar = np.empty_like(far)
+    scene.run(o32[:1], d32[:1], dists=tfar[:1].copy(), query="DISTANCE")  # warm, untimed
+
+    def run():
+        np.copyto(tfar, far)
+        start = time.perf_counter_ns()
+        scene.run(o32, d32, dists=tfar, query="DISTANCE")
+        return time.perf_counter_ns() - start
+
+    def t():
+        out = tfar.astype(np.float64)
+        return np.where(tfar < far, out, np.inf)
+
+    return run, t
 
 
 def embree_hits(field, origins, directions, tmin, tmax):
-    """(t, cell, normal, elapsed_ns) of the first hits; misses have t = inf."""
-    scene = embree_scene(field)
+    """(t, cell, normal, elapsed_ns) of the first hits in Embree's robust mode (ground
+    truth: ``algos.intersect("embree", ...)`` and the tests); misses have t = inf."""
+    scene = embree_scene(field, robust=True)
     n = len(origins)
     lo = np.zeros(n) if tmin is None else tmin
     start_points = origins + lo[:, None] * directions

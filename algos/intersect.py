@@ -240,17 +240,10 @@ def prepare_timed_intersect(name, heights, origins, directions, surface="triangl
     fld = as_field(heights)
     o, d = _check_rays3(origins, directions)
     if algorithm.kind == "peer":
-        from .embree_peer import embree_hits, embree_scene
+        from .embree_peer import embree_timed
 
-        embree_scene(fld)
-        state = {}
-
-        def run_peer():
-            t, _, _, elapsed = embree_hits(fld, o, d, None, None)
-            state["t"] = t
-            return elapsed
-
-        return run_peer, lambda: state.get("t")
+        # the peer's fastest documented configuration (embree_peer.embree_timed)
+        return embree_timed(fld, o, d)
     if surface not in algorithm.surfaces:
         raise ValueError(f"surface: {name} supports only {', '.join(algorithm.surfaces)}")
     opts = _options(algorithm, options)

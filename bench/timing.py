@@ -115,7 +115,22 @@ def environment() -> dict:
         or os.environ.get("HFTRACE_SANITIZE") == "1",
         "git_commit": _git_commit(),
         "threads": 1,
+        **_embree_info(),
     }
+
+
+def _embree_info() -> dict:
+    """The peer's versions and its scene flag (benchmarks time the non-robust scene)."""
+    try:
+        import importlib.metadata
+
+        from algos.embree_peer import ROBUST, embree_version
+
+        return {"embreex": importlib.metadata.version("embreex"), "embree": embree_version(),
+                "embree_robust": ROBUST,
+                "embree_query": "DISTANCE (tfar only), far bound per ray, buffers preallocated"}
+    except Exception as exc:  # the peer is optional for the report
+        return {"embreex": f"unavailable ({exc.__class__.__name__})"}
 
 
 def write_json(path, data) -> None:
