@@ -21,56 +21,57 @@
  * carries (c, R) from run to run in int64 (R < 2^47). */
 #include "internal.h"
 
-/* ---- runs: the exact recurrence ------------------------------------------------------ */
-HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
-    hf_line L;
-    hf_frame f;
+/* ---- runs: the exact recurrence ------------------------------------------------------
+ * The runs of a line with B = slope_minor > 0, from its start-clipped first run to its
+ * last. Shared by runs and by runs_periodic for rays too short for a pattern to pay. */
+HF_INLINE int runs_recurrence(hf_sink *s, const int mode, hf_cull *cull, const hf_line *L,
+                              const hf_frame *f) {
     int32_t row, first, last;
-    int64_t W, rem, short_length, column, R;
-    hf_cull cull;
-    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
-                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, 0,
-                                       &L);
-    const int status = hf_ray_begin(b, ray, s, mode, !L.swap);
-    (void)ctx;
-    if (status != HF_OK || !nonempty) return status;
-    f = hf_frame_of(&L);
-    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 1);
-    if (L.slope_minor == 0) {
-        hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
-        hf_cull_end(&cull, s, mode);
-        return HF_OK;
-    }
-
-    W = L.slope_minor * HF_ONE;
-    short_length = L.slope_major / L.slope_minor;
-    rem = (L.slope_major % L.slope_minor) * HF_ONE;
+    int64_t column, R;
+    const int64_t W = L->slope_minor * HF_ONE;
+    const int64_t short_length = L->slope_major / L->slope_minor;
+    const int64_t rem = (L->slope_major % L->slope_minor) * HF_ONE;
     {
         /* start clipping: the crossing into row b0 + 1, exactly */
-        const hf_i128 N = (hf_i128)L.o_major * L.slope_minor +
-                          ((hf_i128)(L.b0 + 1) * HF_ONE - L.o_minor) * L.slope_major;
+        const hf_i128 N = (hf_i128)L->o_major * L->slope_minor +
+                          ((hf_i128)(L->b0 + 1) * HF_ONE - L->o_minor) * L->slope_major;
         const hf_i128 c = hf_floor_div(N, W);
         column = (int64_t)c;
         R = (int64_t)(N - c * W);
     }
-    first = L.a0;
-    for (row = L.b0; row < L.b1; ++row) {
+    first = L->a0;
+    for (row = L->b0; row < L->b1; ++row) {
         last = (int32_t)(R == 0 ? column - 1 : column);
-        HF_ASSERT(last >= first && last <= L.a1, "row=%d first=%d last=%d a1=%d", row,
-                  first, last, L.a1);
-        if (hf_visit_reduced_run(s, mode, &cull, &f, row, first, last)) {
-            hf_cull_end(&cull, s, mode);
-            return HF_OK;
-        }
+        HF_ASSERT(last >= first && last <= L->a1, "row=%d first=%d last=%d a1=%d", row,
+                  first, last, L->a1);
+        if (hf_visit_reduced_run(s, mode, cull, f, row, first, last)) return HF_OK;
         first = (int32_t)column;
         column += short_length;
         R += rem;
         if (R >= W) { R -= W; column += 1; }
     }
-    if (first > L.a1) return HF_ERR_INTERNAL;
-    hf_visit_reduced_run(s, mode, &cull, &f, L.b1, first, L.a1);
-    hf_cull_end(&cull, s, mode);
+    if (first > L->a1) return HF_ERR_INTERNAL;
+    hf_visit_reduced_run(s, mode, cull, f, L->b1, first, L->a1);
     return HF_OK;
+}
+
+HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
+    hf_line L;
+    hf_frame f;
+    hf_cull cull;
+    int status;
+    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
+                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, 0,
+                                       &L);
+    status = hf_ray_begin(b, ray, s, mode, !L.swap);
+    (void)ctx;
+    if (status != HF_OK || !nonempty) return status;
+    f = hf_frame_of(&L);
+    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 1);
+    if (L.slope_minor == 0) hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
+    else status = runs_recurrence(s, mode, &cull, &L, &f);
+    hf_cull_end(&cull, s, mode);
+    return status;
 }
 
 HF_DEFINE_BATCH(hf_batch_runs, walk_runs)
@@ -129,6 +130,14 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     }
     p = L.slope_minor;
     if (p > b->max_denominator) return HF_ERR_CAPACITY;
+    /* A pattern costs p steps to build and pays back one step per run; a ray with fewer
+     * runs than that, on a slope whose pattern is not already built, takes the plain
+     * recurrence on the same rational line: the same runs, exactly. */
+    if ((pattern->p != p || pattern->q != L.slope_major) && (int64_t)L.b1 - L.b0 < p) {
+        const int done = runs_recurrence(s, mode, &cull, &L, &f);
+        hf_cull_end(&cull, s, mode);
+        return done;
+    }
     /* parallel rays share one pattern; a new slope builds a new one */
     if (pattern->p != p || pattern->q != L.slope_major) build_pattern(pattern, p, L.slope_major);
     lengths = pattern->lengths;
