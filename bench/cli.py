@@ -213,6 +213,29 @@ def _datasets_show(args):
     return 0
 
 
+def _profile(args):
+    from . import profile as prof
+
+    if args.workload == "first_hit":
+        algos.get_intersector(args.kernel)
+    else:
+        algos.get_traversal(args.kernel)
+    if args.surface not in algos.SURFACES:
+        raise ValueError(f"--surface: unknown surface {args.surface!r}; valid: {', '.join(algos.SURFACES)}")
+    r = args.r if args.r == "random" else float(args.r) if "." in args.r else int(args.r)
+    if r != "random" and r < 1:
+        raise ValueError(f"--r: expected a number >= 1 or 'random', got {args.r!r}")
+    try:
+        result = prof.profile(args.kernel, dataset=args.dataset, size=args.size, r=r,
+                              rays=args.rays, surface=args.surface, workload=args.workload,
+                              seed=args.seed, cache_sim=args.cache_sim)
+    except RuntimeError as exc:
+        print(f"hftrace: error: {exc}", file=sys.stderr)
+        return 2
+    print(prof.format_profile(result))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hftrace",
@@ -302,6 +325,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--full", action="store_true")
     p.add_argument("--out", default="reports/stress")
     p.set_defaults(func=_stress)
+
+    p = sub.add_parser("profile", help="instruction and branch counts of one kernel (callgrind)")
+    p.add_argument("kernel", help="an intersector (first_hit) or traversal (visit, runs)")
+    p.add_argument("--workload", default="first_hit", choices=("first_hit", "visit", "runs"))
+    p.add_argument("--dataset", default="fbm")
+    p.add_argument("--size", type=_positive_int, default=1024, help="field side in samples")
+    p.add_argument("--r", default="25", help="mean run length, or 'random'")
+    p.add_argument("--rays", type=_positive_int, default=1000)
+    p.add_argument("--surface", default="triangles")
+    p.add_argument("--seed", type=int, default=2008)
+    p.add_argument("--cache-sim", action="store_true",
+                   help="also simulate the caches (D1 and last-level misses; slower)")
+    p.set_defaults(func=_profile)
 
     p = sub.add_parser("plot", help="tables and plots from a results.csv")
     p.add_argument("results", help="a results.csv of reproduce or sweep")
