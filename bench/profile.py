@@ -150,6 +150,7 @@ def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="tri
                f"--cache-sim={'yes' if cache_sim else 'no'}",
                sys.executable, "-c", _CHILD, json.dumps(spec)]
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+        env.pop("LD_PRELOAD", None)  # a sanitizer runtime preloaded here cannot run under valgrind
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env)

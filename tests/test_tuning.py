@@ -1,5 +1,6 @@
 """The tuned kernels: the tight paths against the general ones, runs_periodic's two paths,
 the Embree peer's fast query, and the callgrind profile."""
+import os
 import shutil
 
 import numpy as np
@@ -84,6 +85,8 @@ def test_embree_fast_query_agrees_with_the_robust_scene(field):
 
 
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+@pytest.mark.skipif("libasan" in os.environ.get("LD_PRELOAD", ""),
+                    reason="valgrind cannot run a process with AddressSanitizer preloaded")
 def test_profile_counts_are_exact_and_repeatable():
     from bench.profile import profile
 
