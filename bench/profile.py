@@ -17,7 +17,6 @@ import subprocess
 import sys
 import tempfile
 
-import numpy as np
 
 __all__ = ["profile", "ENTRY", "callgrind_available"]
 

@@ -349,6 +349,23 @@ HF_INLINE int hf_ray_end(hf_batch *b, int64_t ray, hf_sink *s, const int mode) {
     return HF_OK;
 }
 
+/* The shared start of the exact walks: the exact line (max_denominator > 0: the
+ * runs_periodic slope), the sink, the frame and, in HF_MODE_HIT, the carried bound at the
+ * first cell. Returns 1 with *status = HF_OK to walk; 0 to return *status (an error, or a
+ * ray that visits no cell). */
+HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
+                             int64_t max_denominator, int runs, hf_line *L, hf_frame *f,
+                             hf_cull *c, int *status) {
+    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
+                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny,
+                                       max_denominator, L);
+    *status = hf_ray_begin(b, ray, s, mode, !L->swap);
+    if (*status != HF_OK || !nonempty) return 0;
+    *f = hf_frame_of(L);
+    hf_cull_begin_reduced(c, s, mode, f, L->a0, L->b0, runs);
+    return 1;
+}
+
 #define HF_DEFINE_BATCH(NAME, WALK)                                                      \
     HF_INLINE int NAME##_loop(hf_batch *b, const int mode, void *ctx) {                  \
         int64_t ray;                                                                     \

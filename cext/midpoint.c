@@ -48,14 +48,8 @@ HF_INLINE int walk_midpoint(hf_batch *b, int64_t ray, hf_sink *s, const int mode
     int64_t E;
     hf_cull cull;
     int status;
-    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
-                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, 0,
-                                       &L);
-    status = hf_ray_begin(b, ray, s, mode, !L.swap);
     (void)ctx;
-    if (status != HF_OK || !nonempty) return status;
-    f = hf_frame_of(&L);
-    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 0);
+    if (!hf_exact_begin(b, ray, s, mode, 0, 0, &L, &f, &cull, &status)) return status;
 
     /* parallel to the major axis: one straight run */
     if (L.slope_minor == 0) {

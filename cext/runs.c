@@ -60,14 +60,8 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
     hf_frame f;
     hf_cull cull;
     int status;
-    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
-                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, 0,
-                                       &L);
-    status = hf_ray_begin(b, ray, s, mode, !L.swap);
     (void)ctx;
-    if (status != HF_OK || !nonempty) return status;
-    f = hf_frame_of(&L);
-    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 1);
+    if (!hf_exact_begin(b, ray, s, mode, 0, 1, &L, &f, &cull, &status)) return status;
     if (L.slope_minor == 0) hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
     else status = runs_recurrence(s, mode, &cull, &L, &f);
     hf_cull_end(&cull, s, mode);
@@ -116,13 +110,9 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     int64_t p, column, delta, position;
     hf_cull cull;
     const int32_t *lengths;
-    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
-                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny,
-                                       b->max_denominator, &L);
-    const int status = hf_ray_begin(b, ray, s, mode, !L.swap);
-    if (status != HF_OK || !nonempty) return status;
-    f = hf_frame_of(&L);
-    hf_cull_begin_reduced(&cull, s, mode, &f, L.a0, L.b0, 1);
+    int status;
+    if (!hf_exact_begin(b, ray, s, mode, b->max_denominator, 1, &L, &f, &cull, &status))
+        return status;
     if (L.slope_minor == 0) {
         hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
         hf_cull_end(&cull, s, mode);
