@@ -132,7 +132,8 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     **options
         Per-intersector options (see ``algos.INTERSECTOR_REGISTRY[name].options``):
         ``cull_cells``, ``cull_runs`` (switch culling off, for checks),
-        ``max_denominator`` (runs_periodic), ``fine_level`` (runs_maxmip), and the
+        ``max_denominator`` (runs_periodic), ``fine_level`` (the maxmip kernels: the
+        floor level whose 2^fine_level tiles are walked cell by cell or run by run), and the
         marching parameters ``march_steps``, ``march_refinements``, ``march_growth``,
         ``march_first_fraction``, ``march_min_step``.
 

@@ -155,8 +155,9 @@ for _t in TRAVERSAL_REGISTRY.values():
         citation=_t.citation)
 INTERSECTOR_REGISTRY.update({
     "dda_maxmip": Intersector(
-        "dda_maxmip", 6, "maxmip", "float64", "dda", ("cellmax", "mip"), dict(_CULL),
-        summary="maximum-mipmap tile skipping, single cells at the finest level",
+        "dda_maxmip", 6, "maxmip", "float64", "dda", ("cellmax", "mip"),
+        dict(cull_cells=True, fine_level=3),
+        summary="maximum-mipmap tile skipping, a tight cell walk inside 2^fine_level tiles",
         citation="Tevs, Ihrke & Seidel 2008"),
     "runs_maxmip": Intersector(
         "runs_maxmip", 7, "maxmip", "exact", "runs",

@@ -143,7 +143,7 @@ def fair_baseline(df, workload="first_hit", surface="triangles") -> pd.DataFrame
     return table.loc[order]
 
 
-def speedup_markdown(df, env=None, title="hftrace reproduce") -> str:
+def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> str:
     lines = [f"# {title}: speedup over `dda`", ""]
     if env:
         lines += [f"Machine: {env.get('cpu')} ({env.get('cores')} cores, one used), Python "
@@ -186,13 +186,7 @@ def speedup_markdown(df, env=None, title="hftrace reproduce") -> str:
         t = pivot(df, workload, surface)
         label = workload if surface == "-" else f"{workload}, {surface}"
         lines += [f"## Workload: {label}", "", _markdown(t), ""]
-    cost = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1])]
-    if not cost.empty:
-        c = cost.groupby("algorithm", sort=False)[["ns_per_cell", "ns_per_run"]].median()
-        lines += ["## Cost per cell and per run (first hit, triangles; medians)", "",
-                  "| algorithm | ns/cell | ns/run |", "|---|---|---|"]
-        lines += [f"| {a} | {r.ns_per_cell:.2f} | {r.ns_per_run:.2f} |" for a, r in c.iterrows()]
-        lines.append("")
+    lines += cost_model(df, counts)
     agree = df[df["agree"] < 1.0]
     if not agree.empty:
         worst = agree.groupby("algorithm")["agree"].min()
@@ -276,6 +270,35 @@ def plot_cost(df, path):
     plt.close(fig)
 
 
+def cost_model(df, counts=None) -> list:
+    """The cost model's table: ns per ray, cell and run (medians over the first-hit
+    groups on triangles), with instructions and branches per cell from ``counts.csv``
+    (:mod:`bench.counts`) where they were counted."""
+    cost = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1])]
+    if cost.empty:
+        return []
+    c = cost.groupby("algorithm", sort=False)[["ns_per_ray", "ns_per_cell", "ns_per_run"]].median()
+    counts = counts or {}
+    lines = ["## Cost model (first hit, triangles; medians over groups)", ""]
+    if counts:
+        any_row = next(iter(counts.values()))
+        lines += [f"Instructions and branches per cell: callgrind, {any_row['dataset']} "
+                  f"{any_row['size']}^2, r = {any_row['r']}, {any_row['rays']} rays "
+                  "(`hftrace profile KERNEL`; per cell of the `runs` walk up to its hit, "
+                  "each ray's setup included).", ""]
+    else:
+        lines += ["No instruction counts here (valgrind was not available, or "
+                  "`--no-counts`); `hftrace profile KERNEL` gives them.", ""]
+    lines += ["| algorithm | ns/ray | ns/cell | ns/run | instr/cell | branches/cell |",
+              "|---|---|---|---|---|---|"]
+    for a, r in c.iterrows():
+        k = counts.get(a, {})
+        lines.append(f"| {a} | {r.ns_per_ray:.0f} | {r.ns_per_cell:.2f} | {r.ns_per_run:.2f} | "
+                     f"{k.get('instructions_per_cell', '')} | {k.get('branches_per_cell', '')} |")
+    lines.append("")
+    return lines
+
+
 def write_reports(csv_path, out_dir=None, title="hftrace reproduce") -> dict:
     """speedup.md, run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV."""
     out_dir = out_dir or os.path.dirname(os.path.abspath(csv_path))
@@ -286,8 +309,11 @@ def write_reports(csv_path, out_dir=None, title="hftrace reproduce") -> dict:
     paths = {"speedup": os.path.join(out_dir, "speedup.md"),
              "plot": os.path.join(out_dir, "run_length_vs_speedup.png"),
              "cost": os.path.join(out_dir, "ns_per_ray_vs_cells.png")}
+    from .counts import read_counts
+
+    counts = read_counts(os.path.join(os.path.dirname(os.path.abspath(csv_path)), "counts.csv"))
     with open(paths["speedup"], "w") as f:
-        f.write(speedup_markdown(df, env, title))
+        f.write(speedup_markdown(df, env, title, counts=counts))
     plot_speedup(df, paths["plot"])
     plot_cost(df, paths["cost"])
     return paths

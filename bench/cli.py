@@ -83,7 +83,7 @@ def _reproduce(args):
     from . import reproduce
 
     reproduce.run(full=args.full, out_dir=args.out, resume=args.resume,
-                  progress=not args.no_progress)
+                  progress=not args.no_progress, counts=not args.no_counts)
     return 0
 
 
@@ -225,10 +225,19 @@ def _profile(args):
     r = args.r if args.r == "random" else float(args.r) if "." in args.r else int(args.r)
     if r != "random" and r < 1:
         raise ValueError(f"--r: expected a number >= 1 or 'random', got {args.r!r}")
+    options = {}
+    for item in args.option:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--option: expected KEY=VALUE, got {item!r}")
+        try:
+            options[key] = int(value)
+        except ValueError:
+            raise ValueError(f"--option {key}: expected an integer, got {value!r}") from None
     try:
         result = prof.profile(args.kernel, dataset=args.dataset, size=args.size, r=r,
                               rays=args.rays, surface=args.surface, workload=args.workload,
-                              seed=args.seed, cache_sim=args.cache_sim)
+                              seed=args.seed, cache_sim=args.cache_sim, options=options)
     except RuntimeError as exc:
         print(f"hftrace: error: {exc}", file=sys.stderr)
         return 2
@@ -281,6 +290,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="output directory (default reports/reproduce)")
     p.add_argument("--resume", action="store_true", help="keep the rows already measured")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-counts", action="store_true",
+                   help="skip the instruction counts (callgrind, about 4 minutes)")
     p.set_defaults(func=_reproduce)
 
     p = sub.add_parser("sweep", help="a custom sweep from a TOML config")
@@ -337,6 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=2008)
     p.add_argument("--cache-sim", action="store_true",
                    help="also simulate the caches (D1 and last-level misses; slower)")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="an integer intersector option, e.g. fine_level=2 (repeatable)")
     p.set_defaults(func=_profile)
 
     p = sub.add_parser("plot", help="tables and plots from a results.csv")

@@ -50,7 +50,7 @@ def _batch(spec: dict):
         field = algos.Field(heights)
         o, d = first_hit_rays(field, spec["r"], spec["rays"], spec["seed"])
         run, _ = prepare_timed_intersect(
-            spec["kernel"], field, o, d, surface=spec["surface"])
+            spec["kernel"], field, o, d, surface=spec["surface"], **spec.get("options", {}))
         return run
     rows, cols = heights.shape
     shape = (cols - 1, rows - 1)
@@ -123,13 +123,14 @@ def _name(text: str, names: dict) -> str:
 
 
 def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="triangles",
-            workload="first_hit", seed=2008, cache_sim=False) -> dict:
+            workload="first_hit", seed=2008, cache_sim=False, options=None) -> dict:
     """Run one kernel's batch under callgrind; counts per ray, per cell and per run.
 
     Returns a dict with ``instructions``, ``branches`` (conditional + indirect
     executed), ``mispredicts`` (callgrind's simple predictor), their per-ray, per-cell
     and per-run values, the ``functions`` with the most instructions, and, with
-    ``cache_sim``, ``d1_misses`` and ``ll_misses`` (simulated caches).
+    ``cache_sim``, ``d1_misses`` and ``ll_misses`` (simulated caches). ``options`` are
+    the intersector's options (first hits only), e.g. ``{"fine_level": 2}``.
     """
     if not callgrind_available():
         raise RuntimeError("profile: valgrind is not installed (apt-get install valgrind); "
@@ -139,7 +140,9 @@ def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="tri
     if kernel == "embree":
         raise ValueError("kernel: embree runs outside our C entry; profile counts our kernels")
     spec = dict(kernel=kernel, dataset=dataset, size=size, r=r, rays=rays, surface=surface,
-                workload=workload, seed=seed)
+                workload=workload, seed=seed, options=dict(options or {}))
+    if spec["options"] and workload != "first_hit":
+        raise ValueError("options: only first-hit intersectors take options")
     # warm the dataset cache natively: under valgrind a generator is ~50x slower
     cells, runs = _visited(spec)
     with tempfile.TemporaryDirectory() as tmp:
@@ -178,7 +181,8 @@ def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="tri
 
 
 def format_profile(p: dict) -> str:
-    lines = [f"{p['kernel']} on {p['dataset']} {p['size']}^2, {p['workload']}"
+    opts = "".join(f" {k}={v}" for k, v in p.get("options", {}).items())
+    lines = [f"{p['kernel']}{opts} on {p['dataset']} {p['size']}^2, {p['workload']}"
              + (f" {p['surface']}" if p["workload"] == "first_hit" else "")
              + f", r = {p['r']}, {p['rays']} rays "
              f"({p['cells'] / p['rays']:.1f} cells, {p['runs'] / p['rays']:.1f} runs per ray)",

@@ -40,13 +40,20 @@ def preset(full=False) -> SweepConfig:
         run_lengths=[1, 2, 5, 25, 100, "random"], datasets=list(DATASETS_QUICK))
 
 
-def run(full=False, out_dir=None, resume=False, progress=True, echo=print):
+def run(full=False, out_dir=None, resume=False, progress=True, echo=print, counts=True):
     cfg = preset(full)
     out_dir = out_dir or os.path.join("reports", cfg.name)
     from .intersect_bench import pin_to_one_cpu
 
     pin_to_one_cpu()
     run_sweep(cfg, out_dir, resume=resume, progress=progress, echo=echo)
+    if counts:
+        # the cost model's instruction counts (callgrind), next to the timings
+        from .counts import write_counts
+
+        df = analysis.load(os.path.join(out_dir, "results.csv"))
+        kernels = list(dict.fromkeys(df.loc[df["workload"] == "first_hit", "algorithm"]))
+        write_counts(os.path.join(out_dir, "counts.csv"), kernels, resume=resume, echo=echo)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace reproduce ({'full' if full else 'quick'} preset)")
     with open(paths["speedup"]) as f:

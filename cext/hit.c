@@ -140,30 +140,12 @@ static void march(hf_hit *h, const hf_hit_batch *b, int kernel) {
 
 /* ---- max-mipmap skipping (Tevs, Ihrke & Seidel 2008) ------------------------------------
  * Level 0 holds the cell maxima; level k the maxima of 2x2 blocks of level k-1 (the last
- * row/column of an odd size stands alone), so every size works. From the current cell
- * the walk climbs to the coarsest tile whose maximum lies below the ray's lowest z over
- * the ray's stretch inside the tile and leaps to that tile's exit; when even the level-1
- * tile cannot be skipped it hands the stretch inside the current fine tile to the base
- * kernel: one cell for dda_maxmip, a run walk for runs_maxmip. Cell indices are carried
- * as integers and clamped into the current tile, so rounding never stalls the walk. */
-static double tile_exit(const hf_hit *h, int32_t ti, int32_t tj, int level, int *axis) {
-    const double size = (double)((int64_t)1 << level);
-    double t = h->t1;
-    *axis = -1;
-    if (h->dx != 0) {
-        const double x = h->dx > 0 ? (ti + 1) * size : ti * size;
-        const double tx = (x - h->ox) * h->inv_dx;
-        if (tx < t) { t = tx; *axis = 0; }
-    }
-    if (h->dy != 0) {
-        const double y = h->dy > 0 ? (tj + 1) * size : tj * size;
-        const double ty = (y - h->oy) * h->inv_dy;
-        if (ty < t) { t = ty; *axis = 1; }
-        else if (ty == t && *axis == 0) *axis = 2;  /* through a tile corner */
-    }
-    return t;
-}
-
+ * row/column of an odd size stands alone), so every size works. From the current cell the
+ * walk tests the tile around it with the ray's lowest z over the ray's stretch inside the
+ * tile, climbs one level after every skip, descends one level when a tile cannot be
+ * skipped, and walks the tiles of a floor level cell by cell (dda_maxmip, below) or run
+ * by run (runs_maxmip, runs.c). Cell indices are carried as integers and clamped into the
+ * current tile, so rounding never stalls the walk. */
 static int32_t clamp32(int64_t v, int64_t lo, int64_t hi) {
     return (int32_t)(v < lo ? lo : (v > hi ? hi : v));
 }
@@ -175,70 +157,94 @@ static int32_t cell_at(double o, double d, double t, int32_t n) {
     return clamp32((int64_t)(c < -1e9 ? -1e9 : (c > 1e9 ? 1e9 : c)), 0, n - 1);
 }
 
-static int maxmip_walk(hf_hit *h, const hf_hit_batch *b, hf_hit_walk fine_walk, int fine_level,
-                       hf_batch *b2, hf_sink *sink) {
+/* dda_maxmip: the walk stops descending at `floor_level`, whose 2^floor x 2^floor tiles
+ * it walks cell by cell with face parameters computed directly (no drift: the exact
+ * interval's own expressions). A cell is culled by z at its exit face (descending) or at its entry (else): for a descending ray that is
+ * exactly the exact test's cull, so only the cells it passes pay for the interval and the
+ * surface test. A skipped tile is left by an integer step on its exit axis, the other
+ * index recomputed at the exit and clamped into the tile just left. */
+static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
     const int32_t nx = h->cols - 1, ny = h->rows - 1;
     const int top = b->mip_levels - 1;
+    const int F = floor_level < top ? floor_level : top;
+    const int descending = h->dz < 0;
+    const int32_t sx = h->dx > 0 ? 1 : -1, sy = h->dy > 0 ? 1 : -1;
+    const int32_t fx = h->dx > 0, fy = h->dy > 0;  /* exit face of index k: k + f */
+    const int has_x = h->dx != 0, has_y = h->dy != 0;
+    const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
+    const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
+    const double inf = (double)INFINITY;
+    const float *cellmax = h->cellmax;
+    const int cull = h->cull_cells;
     double t = h->t0;
     int32_t i = cell_at(h->ox, h->dx, t, nx), j = cell_at(h->oy, h->dy, t, ny);
-    int hint = top, guard;
-    /* every pass moves (i, j) into a new tile, so the walk ends within nx + ny passes */
-    for (guard = 0; guard <= 2 * (nx + ny) + 2; ++guard) {
-        int axis = -1, L, skipped = 0;
-        double te = t;
-        /* 1. the coarsest skippable tile, from the hint down to level 1 */
-        for (L = hint < top ? hint : top; L >= 1; --L) {
-            const int32_t ti = i >> L, tj = j >> L;
-            double za, zb;
-            te = tile_exit(h, ti, tj, L, &axis);
-            za = h->oz + t * h->dz;
-            zb = h->oz + te * h->dz;
-            if ((za < zb ? za : zb) > (double)b->mip[L][(int64_t)tj * b->mip_cols[L] + ti]) {
-                skipped = 1;
-                break;
-            }
-        }
-        if (skipped) {
-            /* 2. leap over the tile; next time try one level coarser */
+    int L = F + 1 < top ? F + 1 : top;
+    int64_t guard;
+    for (guard = 0; guard <= 4 * ((int64_t)nx + ny) + 64; ++guard) {
+        const int32_t ti = i >> L, tj = j >> L;
+        const double tx = has_x ? ((double)(((int64_t)ti + fx) << L) - ox) * inv_x : inf;
+        const double ty = has_y ? ((double)(((int64_t)tj + fy) << L) - oy) * inv_y : inf;
+        double te = t1;
+        int axis = -1;
+        if (tx < te) { te = tx; axis = 0; }
+        if (ty < te) { te = ty; axis = 1; }
+        else if (ty == te && axis == 0) axis = 2;
+        if (oz + (descending ? te : t) * dz > (double)b->mip[L][(int64_t)tj * b->mip_cols[L] + ti]) {
+            /* skip the tile, then try one level coarser */
             h->tiles_skipped += 1;
-            hint = L + 1;
+        } else if (L > F) {
+            --L;
+            continue;
         } else {
-            /* 3. the base kernel walks the fine tile: one cell (dda) or its runs */
-            L = fine_level;
-            te = tile_exit(h, i >> L, j >> L, L, &axis);
-            if (L == 0) {
-                if (hf_hit_cell(h, i, j)) return 1;
-            } else {
-                double lo = t, hi = te < h->t1 ? te : h->t1;
-                b2->tmin = &lo;
-                b2->tmax = &hi;
-                if (hi > lo) {
-                    (void)fine_walk(b2, sink, NULL);
-                    b2->tmin = b2->tmax = NULL;
-                    if (h->found) return 1;
-                } else if (hf_hit_cell(h, i, j)) {
-                    return 1;
+            /* walk the floor tile cell by cell; mx, my: the exit faces of the current
+             * cell, recomputed only on the axis that stepped */
+            const int32_t ilo = ti << F, jlo = tj << F;
+            const uint32_t iw = (uint32_t)((((int64_t)ti + 1) << F) < nx ? (1 << F) : nx - ilo) - 1;
+            const uint32_t jw = (uint32_t)((((int64_t)tj + 1) << F) < ny ? (1 << F) : ny - jlo) - 1;
+            double t_in = t;
+            double mx = has_x ? ((double)(i + fx) - ox) * inv_x : inf;
+            double my = has_y ? ((double)(j + fy) - oy) * inv_y : inf;
+            for (;;) {
+                const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
+                h->cells_visited += 1;
+                if (!cull || !(oz + (descending ? tb : t_in) * dz >
+                               (double)cellmax[(int64_t)j * nx + i])) {
+                    if (hf_hit_cell_exact(h, i, j)) return 1;
                 }
+                if (!(tb < t1)) return 0;
+                if (mx < my) {
+                    i += sx; t_in = mx;
+                    mx = ((double)(i + fx) - ox) * inv_x;
+                } else if (my < mx) {
+                    j += sy; t_in = my;
+                    my = ((double)(j + fy) - oy) * inv_y;
+                } else {
+                    i += sx; j += sy; t_in = mx;
+                    mx = ((double)(i + fx) - ox) * inv_x;
+                    my = ((double)(j + fy) - oy) * inv_y;
+                }
+                if ((uint32_t)(i - ilo) > iw || (uint32_t)(j - jlo) > jw) break;
             }
-            hint = L + 1;
+            if ((uint32_t)i >= (uint32_t)nx || (uint32_t)j >= (uint32_t)ny) return 0;
+            t = t_in > t ? t_in : t;
+            L = F + 1 < top ? F + 1 : top;
+            continue;
         }
-        if (!(te < h->t1)) return 0;
+        if (!(te < t1)) return 0;
         {
-            /* into the next tile at level L: an integer step on the exit axis, the other
-             * index recomputed and clamped into the tile just left (rounding can never
-             * send the walk backwards or keep it in place) */
+            /* into the next tile at level L */
             const int64_t size = (int64_t)1 << L;
-            const int64_t ti = i >> L, tj = j >> L;
-            int64_t ni = cell_at(h->ox, h->dx, te, nx), nj = cell_at(h->oy, h->dy, te, ny);
-            if (axis == 0 || axis == 2) ni = h->dx > 0 ? (ti + 1) * size : ti * size - 1;
-            else ni = clamp32(ni, ti * size, (ti + 1) * size - 1);
-            if (axis == 1 || axis == 2) nj = h->dy > 0 ? (tj + 1) * size : tj * size - 1;
-            else nj = clamp32(nj, tj * size, (tj + 1) * size - 1);
+            int64_t ni = i, nj = j;
+            if (axis == 0 || axis == 2) ni = h->dx > 0 ? ((int64_t)ti + 1) * size : (int64_t)ti * size - 1;
+            else ni = clamp32(cell_at(ox, h->dx, te, nx), (int64_t)ti * size, ((int64_t)ti + 1) * size - 1);
+            if (axis == 1 || axis == 2) nj = h->dy > 0 ? ((int64_t)tj + 1) * size : (int64_t)tj * size - 1;
+            else nj = clamp32(cell_at(oy, h->dy, te, ny), (int64_t)tj * size, ((int64_t)tj + 1) * size - 1);
             if (axis < 0 || ni < 0 || ni >= nx || nj < 0 || nj >= ny) return 0;
             i = (int32_t)ni;
             j = (int32_t)nj;
             t = te > t ? te : t;
         }
+        if (L < top) ++L;
     }
     return 0;
 }
@@ -336,9 +342,18 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                 h.cells_visited += 1;
                 (void)hf_surface_test(&h, i, j, t0, t0,
                                       (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
-            } else if (maxmip && !hf_on_grid_line(&h)) {
-                maxmip_walk(&h, b, walk, kernel == HF_HIT_RUNS_MAXMIP ? b->fine_level : 0, &b2,
-                            &sink);
+            } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(&h)) {
+                maxmip_tight(&h, b, b->fine_level);
+            } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(&h)) {
+                hf_mipmap m;
+                m.levels = b->mip;
+                m.cols = b->mip_cols;
+                m.n_levels = b->mip_levels;
+                m.floor_level = b->fine_level;
+                {
+                    const int status = hf_runs_maxmip_hit(&b2, &sink, &m);
+                    if (status != HF_OK) { b->bad_ray = ray; return status; }
+                }
             } else {
                 /* (a maxmip kernel on a grid line, where neighbouring tiles matter, walks
                  * every cell with its base kernel) */

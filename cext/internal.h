@@ -408,6 +408,16 @@ int hf_batch_runs_hit(hf_batch *b, hf_sink *sink, void *ctx);
 int hf_batch_runs_f64_hit(hf_batch *b, hf_sink *sink, void *ctx);
 int hf_batch_runs_periodic_hit(hf_batch *b, hf_sink *sink, void *ctx);
 
+/* runs_maxmip: the maximum mipmap its walk skips with (level 0: the cell maxima). */
+typedef struct {
+    const float *const *levels;
+    const int32_t *cols;   /* row stride of each level */
+    int n_levels;
+    int floor_level;       /* tiles of 2^floor_level cells are walked run by run */
+} hf_mipmap;
+
+int hf_runs_maxmip_hit(hf_batch *b, hf_sink *sink, const hf_mipmap *m);
+
 /* runs_periodic keeps its pattern between the rays of a batch (the ctx above). */
 typedef struct {
     int64_t p, q;          /* the pattern's slope p/q in lowest terms; q == 0: none yet */

@@ -70,6 +70,177 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
 
 HF_DEFINE_BATCH(hf_batch_runs, walk_runs)
 
+/* ---- runs_maxmip: one exact run walker under the maximum mipmap -------------------------
+ * The walker is the recurrence above, set up once per ray; the mipmap decides what it may
+ * skip. From the walker's current cell the walk tests the tile around it, at level L, with
+ * z at the tile's exit face (descending; else at the walk's current parameter), climbs
+ * one level after a skip and descends one level when a tile cannot be skipped (Tevs et al.
+ * 2008). Tiles of the floor level that cannot be skipped are walked run by run: each run
+ * clipped to the tile is one segment for the tight run test. Skipping a tile moves the
+ * walker past it exactly, row by row through the recurrence, or, over more than
+ * HF_SEEK_ROWS rows, by computing the crossings at the target row directly. The cells the
+ * walker visits are the runs kernel's, so its hits are too. */
+#ifndef HF_SEEK_ROWS
+#define HF_SEEK_ROWS 32
+#endif
+
+typedef struct {
+    const hf_line *L;
+    int32_t row, first, last, pos;  /* the current run (reduced) and the current cell   */
+    int64_t column, R;              /* the crossing into row + 1: column, remainder     */
+    int64_t W, short_length, rem;   /* the recurrence's constants                       */
+} run_walker;
+
+/* The crossing of the line into row k: column and remainder (k > b0). */
+static void walker_crossing(const hf_line *L, int64_t k, int64_t W, int64_t *column, int64_t *R) {
+    const hf_i128 N = (hf_i128)L->o_major * L->slope_minor +
+                      ((hf_i128)k * HF_ONE - L->o_minor) * L->slope_major;
+    const hf_i128 c = hf_floor_div(N, W);
+    *column = (int64_t)c;
+    *R = (int64_t)(N - c * W);
+}
+
+HF_INLINE void walker_set_last(run_walker *w) {
+    w->last = w->row < w->L->b1 ? (int32_t)(w->R == 0 ? w->column - 1 : w->column) : w->L->a1;
+}
+
+HF_INLINE void walker_next_row(run_walker *w) {
+    w->row += 1;
+    w->first = (int32_t)w->column;
+    w->pos = w->first;
+    w->column += w->short_length;
+    w->R += w->rem;
+    if (w->R >= w->W) { w->R -= w->W; w->column += 1; }
+    walker_set_last(w);
+}
+
+/* Row k (> the current row, <= b1) directly, at cell `pos` (>= its first cell). */
+static void walker_seek(run_walker *w, int32_t k, int32_t pos) {
+    int64_t c, R;
+    walker_crossing(w->L, k, w->W, &c, &R);
+    w->row = k;
+    w->first = (int32_t)c;
+    walker_crossing(w->L, (int64_t)k + 1, w->W, &w->column, &w->R);
+    walker_set_last(w);
+    w->pos = pos > w->first ? pos : w->first;
+}
+
+/* The row in which the line enters column P (P <= a1, in a row after the current one). */
+static int32_t walker_row_of_column(const run_walker *w, int32_t P) {
+    const hf_line *L = w->L;
+    const hf_i128 N = (hf_i128)L->o_minor * L->slope_major +
+                      ((hf_i128)P * HF_ONE - L->o_major) * L->slope_minor;
+    return (int32_t)hf_floor_div(N, (hf_i128)L->slope_major * HF_ONE);
+}
+
+/* Move the walker to its first cell past the tile whose last reduced column and row are
+ * cmax and rmax (the walker is inside it). Returns 1 when the line ends inside the tile. */
+static int walker_leave(run_walker *w, int32_t cmax, int32_t rmax) {
+    const hf_line *L = w->L;
+    for (;;) {
+        if (w->last > cmax) { w->pos = cmax + 1; return 0; }
+        if (w->row >= L->b1) return 1;
+        if ((int64_t)rmax - w->row > HF_SEEK_ROWS) {
+            if (rmax >= L->b1) {
+                /* the line's last row lies in the tile: it leaves only if it passes cmax */
+                if (L->a1 <= cmax) return 1;
+            } else {
+                int64_t c, R;
+                walker_crossing(L, (int64_t)rmax + 1, w->W, &c, &R);
+                if (c <= cmax) { walker_seek(w, rmax + 1, (int32_t)c); return 0; }
+            }
+            /* through the tile's major face: column cmax + 1, in the row it enters it */
+            walker_seek(w, walker_row_of_column(w, cmax + 1), cmax + 1);
+            return 0;
+        }
+        walker_next_row(w);
+        if (w->row > rmax || w->first > cmax) return 0;
+    }
+}
+
+int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
+    hf_line L;
+    hf_frame f;
+    hf_cull cull;
+    run_walker w;
+    hf_hit *h = s->hit;
+    int status, L_level, F;
+    int64_t guard;
+    const int top = m->n_levels - 1;
+    const int descending = h->dz < 0;
+    const int32_t fx = h->dx > 0, fy = h->dy > 0;
+    const int has_x = h->dx != 0, has_y = h->dy != 0;
+    const double inf = (double)INFINITY;
+    double t = h->t0;
+    if (!hf_exact_begin(b, 0, s, HF_MODE_HIT, 0, 1, &L, &f, &cull, &status)) return status;
+    F = m->floor_level < top ? m->floor_level : top;
+    w.L = &L;
+    w.row = L.b0;
+    w.first = w.pos = L.a0;
+    w.W = L.slope_minor * HF_ONE;
+    w.column = w.R = 0;
+    w.short_length = w.rem = 0;
+    if (L.slope_minor != 0) {
+        w.short_length = L.slope_major / L.slope_minor;
+        w.rem = (L.slope_major % L.slope_minor) * HF_ONE;
+        walker_crossing(&L, (int64_t)L.b0 + 1, w.W, &w.column, &w.R);
+    }
+    walker_set_last(&w);
+    L_level = F + 1 < top ? F + 1 : top;
+    for (guard = 0; guard <= (int64_t)(top + 2) * (2 * ((int64_t)b->nx + b->ny) + 4); ++guard) {
+        /* the walker's cell in grid indices, and its tile at this level */
+        const int32_t major = f.base_major + f.sign_major * w.pos;
+        const int32_t minor = f.base_minor + f.sign_minor * w.row;
+        const int32_t i = f.swap ? minor : major, j = f.swap ? major : minor;
+        const int32_t ti = i >> L_level, tj = j >> L_level;
+        const double tx = has_x ? ((double)(((int64_t)ti + fx) << L_level) - h->ox) * h->inv_dx : inf;
+        const double ty = has_y ? ((double)(((int64_t)tj + fy) << L_level) - h->oy) * h->inv_dy : inf;
+        const double te = tx < ty ? (tx < h->t1 ? tx : h->t1) : (ty < h->t1 ? ty : h->t1);
+        const float tile_max = m->levels[L_level][(int64_t)tj * m->cols[L_level] + ti];
+        int32_t cmax, rmax;
+        if (!(h->oz + (descending ? te : t) * h->dz > (double)tile_max) && L_level > F) {
+            --L_level;
+            continue;
+        }
+        {
+            /* the tile's last column and row in the reduced frame */
+            const int64_t size = (int64_t)1 << L_level;
+            const int64_t lo_major = (int64_t)(major >> L_level) << L_level;
+            const int64_t lo_minor = (int64_t)(minor >> L_level) << L_level;
+            cmax = (int32_t)(f.sign_major > 0
+                                 ? (lo_major + size <= L.n_major ? lo_major + size : L.n_major) - 1 - f.base_major
+                                 : f.base_major - lo_major);
+            rmax = (int32_t)(f.sign_minor > 0
+                                 ? (lo_minor + size <= L.n_minor ? lo_minor + size : L.n_minor) - 1 - f.base_minor
+                                 : f.base_minor - lo_minor);
+        }
+        if (h->oz + (descending ? te : t) * h->dz > (double)tile_max) {
+            h->tiles_skipped += 1;
+            if (walker_leave(&w, cmax, rmax)) break;
+            if (L_level < top) ++L_level;
+        } else {
+            /* the floor tile: its segment of each run */
+            int ended = 0;
+            for (;;) {
+                const int32_t seg_last = w.last < cmax ? w.last : cmax;
+                if (hf_visit_reduced_run(s, HF_MODE_HIT, &cull, &f, w.row, w.pos, seg_last)) {
+                    hf_cull_end(&cull, s, HF_MODE_HIT);
+                    return HF_OK;
+                }
+                if (w.last > cmax) { w.pos = cmax + 1; break; }
+                if (w.row >= L.b1) { ended = 1; break; }
+                walker_next_row(&w);
+                if (w.row > rmax || w.first > cmax) break;
+            }
+            if (ended) break;
+            L_level = F + 1 < top ? F + 1 : top;
+        }
+        t = te > t ? te : t;
+    }
+    hf_cull_end(&cull, s, HF_MODE_HIT);
+    return HF_OK;
+}
+
 /* ---- runs_periodic: replay the run pattern of a rational slope --------------------------
  * For a slope p/q in lowest terms the fractional crossing position advances by
  * (q mod p)/p per run, so its residue a = floor(R / 2^16) in [0, p) walks the cycle

@@ -47,6 +47,31 @@ def test_tight_path_equals_the_unculled_walk(name, surface, field):
             assert np.array_equal(fast.cell, slow.cell)
 
 
+@pytest.mark.parametrize("name,base", [("dda_maxmip", "dda"), ("runs_maxmip", "runs")])
+@pytest.mark.parametrize("surface", algos.SURFACES)
+def test_maxmip_floors_equal_their_base_walk(name, base, surface):
+    """Every floor level of the max-mipmap walks gives the base walk's t and cell, bit for
+    bit: on rays that descend, rise, cross the whole field (the run walker's seeks over
+    many rows) or run along an axis; on a field whose sides are not powers of two."""
+    heights = fields.generate("fbm", (301, 517), seed=4, amplitude=60.0, scale=90.0)
+    fld = algos.Field(heights)
+    rng = np.random.Generator(np.random.PCG64(11))
+    n = 600
+    o = np.column_stack([rng.uniform(-20, 540, n), rng.uniform(-20, 320, n),
+                         rng.uniform(heights.min() - 5, heights.max() + 40, n)])
+    az = rng.uniform(0, 2 * np.pi, n)
+    az[:60] = rng.integers(0, 8, 60) * (np.pi / 4)   # axis-aligned and diagonal
+    el = rng.uniform(-0.4, 0.15, n)
+    el[60:120] = rng.uniform(-0.01, 0.0, 60)          # grazing: long rays, wide skips
+    d = np.column_stack([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+    ref = algos.intersect(base, fld, o, d, surface=surface)
+    assert np.isfinite(ref.t).sum() > n // 4
+    for floor in range(0, 7):
+        got = algos.intersect(name, fld, o, d, surface=surface, fine_level=floor)
+        assert np.array_equal(got.t, ref.t), (name, floor)
+        assert np.array_equal(got.cell, ref.cell), (name, floor)
+
+
 def test_runs_periodic_paths_agree():
     """Short rays take the plain recurrence, long parallel rays the pattern: both are the
     exact runs of the same rational line, so both equal `runs` on exactly rational
