@@ -230,10 +230,14 @@ def _profile(args):
         key, sep, value = item.partition("=")
         if not sep or not key:
             raise ValueError(f"--option: expected KEY=VALUE, got {item!r}")
+        if value.lower() in ("true", "false"):
+            options[key] = value.lower() == "true"
+            continue
         try:
             options[key] = int(value)
         except ValueError:
-            raise ValueError(f"--option {key}: expected an integer, got {value!r}") from None
+            raise ValueError(f"--option {key}: expected an integer, true or false, "
+                             f"got {value!r}") from None
     try:
         result = prof.profile(args.kernel, dataset=args.dataset, size=args.size, r=r,
                               rays=args.rays, surface=args.surface, workload=args.workload,
@@ -349,7 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cache-sim", action="store_true",
                    help="also simulate the caches (D1 and last-level misses; slower)")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
-                   help="an integer intersector option, e.g. fine_level=2 (repeatable)")
+                   help="an intersector option, e.g. fine_level=2 or cull_runs=false (repeatable)")
     p.set_defaults(func=_profile)
 
     p = sub.add_parser("plot", help="tables and plots from a results.csv")

@@ -548,10 +548,11 @@ static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t 
     return hf_surface_test(h, i, j, ta, t_out, wall);
 }
 
-/* Below this many cells a run is culled cell by cell: the range-maximum query costs
- * more than the cell bounds it would save (measured: reports/METHOD.md). */
+/* Below this many cells a run is culled cell by cell: the range-maximum query reads up to
+ * four lines of three field-sized tables, which at r ~ 5 cost more than the cell bounds
+ * they save (measured: reports/METHOD.md, "The tight first-hit path"). */
 #ifndef HF_RUN_RMQ_MIN
-#define HF_RUN_RMQ_MIN 6
+#define HF_RUN_RMQ_MIN 16
 #endif
 
 /* One run (minor, first, last) of a run kernel, first and last in travel order: the
@@ -594,14 +595,45 @@ static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t f
     return 0;
 }
 
+/* The cold parts of the tight run path, out of line so that the hot loop inlines into
+ * every run walk: the range-maximum cull of a long run (returns 1 when it rejects the run,
+ * given the run's lowest z), and a cell that survived the bound (returns 1 on a
+ * hit, -1 when the float ray misses the rounded walk's run, else 0). */
+#if defined(__GNUC__) || defined(__clang__)
+#define HF_COLD static __attribute__((noinline))
+#define HF_HOT static inline __attribute__((always_inline))
+#else
+#define HF_COLD static
+#define HF_HOT static inline
+#endif
+
+HF_COLD int hf_run_rmq_cull(hf_hit *h, const hf_rmq *q, int32_t minor, int32_t lo, int32_t hi,
+                            double zlow) {
+    if (zlow > (double)hf_rmq_query(q, minor, lo, hi)) {
+        h->runs_culled += 1;
+        return 1;
+    }
+    return 0;
+}
+
+HF_COLD int hf_run_survivor(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
+                            int32_t last, int32_t k, hf_span *s, int *ready) {
+    if (!*ready) {
+        const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
+        *s = hf_run_span(h, major_is_x, minor, lo, hi);
+        if (!(s->ta <= s->tb)) return -1;
+        *ready = 1;
+    }
+    return hf_run_cell(h, major_is_x, minor, first, k, s);
+}
+
 /* The tight path for a run (descending rays, cull on; c bounds along the run's major
  * axis): the run is rejected whole when z at its exit face is above the maximum over its
  * cells (a range-maximum query, for runs long enough to pay), else each cell by its own
  * exit face; the run's exact span is computed only once a cell survives. The cells that
  * reach hf_run_cell, and their intervals, are those of hf_hit_run. */
-static inline int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_t minor,
-                                   int32_t first, int32_t last) {
-    const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
+HF_HOT int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_t minor,
+                            int32_t first, int32_t last) {
     const int32_t step = last >= first ? 1 : -1;
     const int am = major_is_x ? 0 : 1, an = 1 - am;
     const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
@@ -617,12 +649,12 @@ static inline int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_
     zrun = c->z[an] > c->zfloor ? c->z[an] : c->zfloor;
     zk = c->z[am];
     dzk = c->step[am];
-    if (q != NULL && hi - lo + 1 >= HF_RUN_RMQ_MIN) {
+    if (q != NULL && (last - first) * step + 1 >= HF_RUN_RMQ_MIN) {
         /* z at the run's exit face: the last cell's bound, directly */
         const double zexit = hf_cull_direct(h, c, am, last);
-        if ((zexit > zrun ? zexit : zrun) > (double)hf_rmq_query(q, minor, lo, hi)) {
-            h->runs_culled += 1;
-            c->visited += hi - lo + 1;
+        if (hf_run_rmq_cull(h, q, minor, first < last ? first : last, first < last ? last : first,
+                            zexit > zrun ? zexit : zrun)) {
+            c->visited += (int64_t)(last - first) * step + 1;
             c->k[am] = last;
             c->z[am] = zexit;
             c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
@@ -632,16 +664,13 @@ static inline int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_
     for (k = first;; k += step) {
         c->visited += 1;
         if ((zk > zrun ? zk : zrun) <= (double)row[k * k_stride]) {
-            if (!ready) {
-                s = hf_run_span(h, major_is_x, minor, lo, hi);
-                if (!(s.ta <= s.tb)) {
-                    /* the float ray misses the rounded walk's run */
-                    c->visited += (int64_t)(last - k) * step;
-                    break;
-                }
-                ready = 1;
+            const int r = hf_run_survivor(h, major_is_x, minor, first, last, k, &s, &ready);
+            if (r > 0) return 1;
+            if (r < 0) {
+                /* the float ray misses the rounded walk's run */
+                c->visited += (int64_t)(last - k) * step;
+                break;
             }
-            if (hf_run_cell(h, major_is_x, minor, first, k, &s)) return 1;
         }
         if (k == last) break;
         zk += dzk;

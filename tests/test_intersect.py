@@ -101,7 +101,22 @@ def test_run_culling_changes_nothing(name, cases):
         assert np.array_equal(culled.t, plain.t), (name, fname, surface)
         assert np.array_equal(culled.cell, plain.cell)
         assert plain.stats["runs_culled"].sum() == 0
-    assert culled.stats["runs_culled"].sum() > 0 or name == "runs_maxmip"
+    # long runs (the range-maximum cull takes runs of >= 16 cells): rays at slope ~1/40
+    # over a long field, on every surface, must also agree, and the cull must fire
+    fld = algos.Field(fields.generate("fbm", (70, 400), seed=21, amplitude=20.0, scale=60.0))
+    rng = np.random.Generator(np.random.PCG64(8))
+    n = 300
+    o = np.column_stack([rng.uniform(0, 20, n), rng.uniform(0, 69, n),
+                         rng.uniform(fld.heights.max() - 5, fld.heights.max() + 20, n)])
+    d = np.column_stack([np.ones(n), rng.uniform(-1 / 40, 1 / 40, n), -rng.uniform(0.01, 0.08, n)])
+    culled_total = 0
+    for surface in algos.SURFACES:
+        culled = algos.intersect(name, fld, o, d, surface=surface, outputs=("t", "cell", "stats"))
+        plain = algos.intersect(name, fld, o, d, surface=surface, cull_runs=False, cull_cells=False)
+        assert np.array_equal(culled.t, plain.t), (name, "long runs", surface)
+        assert np.array_equal(culled.cell, plain.cell)
+        culled_total += culled.stats["runs_culled"].sum()
+    assert culled_total > 0 or name == "runs_maxmip"
 
 
 @pytest.mark.parametrize("name,base", [("dda_maxmip", "dda"), ("runs_maxmip", "runs")])
