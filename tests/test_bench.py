@@ -135,25 +135,43 @@ def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
 
 
 # ---- regress -----------------------------------------------------------------------------
+def _samples(center, spread, n=45, seed=0):
+    rng = np.random.Generator(np.random.PCG64(seed))
+    return list(center * (1 + spread * rng.standard_normal(n)))
+
+
 def test_regress_compare_logic():
-    base = {"a": 2.0, "b": 1.0, "c": 1.5}
-    assert regress.compare(base, {"a": 1.8, "b": 1.2, "c": 1.5}, 0.15) == []
-    failures = regress.compare(base, {"a": 1.6, "b": 1.0}, 0.15)
+    """A significant drop beyond the tolerance fails; noise, a drop inside the tolerance
+    and a rise pass; the smallest detectable drop grows with the noise."""
+    base = {"a": _samples(2.0, 0.02), "b": _samples(1.0, 0.02, seed=1), "c": _samples(1.5, 0.02, seed=2)}
+    same = {"a": _samples(2.0, 0.02, seed=5), "b": _samples(1.0, 0.02, seed=6), "c": _samples(1.5, 0.02, seed=7)}
+    assert regress.compare(base, same, 0.05) == []
+    dropped = dict(same, a=_samples(1.6, 0.02, seed=8))          # -20 %
+    del dropped["c"]
+    failures = regress.compare(base, dropped, 0.05)
     assert [f["ratio"] for f in failures] == ["a", "c"]
-    assert failures[0]["floor"] == pytest.approx(1.7) and "20.0 %" in failures[0]["reason"]
+    assert "20." in failures[0]["reason"] or "19." in failures[0]["reason"]
     assert failures[1]["reason"] == "not measured"
-    assert regress.compare(base, {"a": 1.7, "b": 0.85, "c": 1.275}, 0.15) == []  # on the floor
+    # a real 3 % drop stays inside a 5 % tolerance; a 10 % one is caught
+    assert regress.compare(base, dict(same, a=_samples(1.94, 0.02, seed=9)), 0.05) == []
+    assert [f["ratio"] for f in regress.compare(base, dict(same, a=_samples(1.8, 0.02, seed=9)), 0.05)] == ["a"]
+    # a 10 % drop inside heavy noise is not significant, and says so
+    noisy = regress.assess(_samples(2.0, 0.3), _samples(1.8, 0.3, seed=3), 0.05)
+    quiet = regress.assess(_samples(2.0, 0.01), _samples(1.8, 0.01, seed=3), 0.05)
+    assert not noisy["regressed"] and quiet["regressed"]
+    assert noisy["detectable"] > quiet["detectable"] >= 0.05
     with pytest.raises(ValueError, match="tolerance"):
         regress.compare(base, base, 1.5)
 
 
 def test_regress_exit_codes(tmp_path, monkeypatch, capsys):
     path = tmp_path / "baseline.json"
-    monkeypatch.setattr(regress, "measure", lambda: {"x": 2.0, "y": 1.0})
+    monkeypatch.setattr(regress, "measure", lambda: {"x": _samples(2.0, 0.02), "y": _samples(1.0, 0.02)})
     assert regress.run(str(path), update=True, echo=lambda *_: None) == 0
-    assert json.load(open(path))["ratios"] == {"x": 2.0, "y": 1.0}
+    assert json.load(open(path))["ratios"] == pytest.approx({"x": 2.0, "y": 1.0}, rel=0.02)
     assert regress.run(str(path), echo=print) == 0
-    monkeypatch.setattr(regress, "measure", lambda: {"x": 1.5, "y": 1.0})
+    assert "smallest drop this run could flag" in capsys.readouterr().out
+    monkeypatch.setattr(regress, "measure", lambda: {"x": _samples(1.5, 0.02, seed=4), "y": _samples(1.0, 0.02)})
     assert regress.run(str(path), echo=print) == 1
     assert "REGRESSED" in capsys.readouterr().out
     with pytest.raises(ValueError, match="does not exist"):
@@ -163,7 +181,8 @@ def test_regress_exit_codes(tmp_path, monkeypatch, capsys):
 def test_committed_baseline_matches_the_checks():
     data = regress.load_baseline(os.path.join(ROOT, "reports", "baseline.json"))
     expected = {regress.key(w, s, r, n) for w, s, r, names, _ in regress.CHECKS for n in names}
-    assert set(data["ratios"]) == expected
+    assert set(data["samples"]) == expected
+    assert all(len(v) >= 30 for v in data["samples"].values())
 
 
 # ---- render and CLI ---------------------------------------------------------------------

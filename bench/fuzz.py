@@ -1,0 +1,254 @@
+"""``make fuzz``: coverage-guided fuzzing of the C entry points.
+
+Each input is a byte string that :func:`decode` turns into one call of the public API,
+``algos.traverse`` or ``algos.intersect``, with arbitrary doubles (NaN, +-inf, +-0,
+subnormals, huge values, values on and next to grid lines), grid shapes up to and just
+past the documented limits, tmin/tmax, every output mode and option. :func:`check` runs
+it and asserts the invariants:
+
+* the call returns, or raises ValueError/TypeError (errors come back as errors); any other
+  exception, a crash or a sanitizer report is a finding;
+* the inputs are unmodified;
+* every exact kernel equals every other exact kernel (traversal: ``midpoint`` and
+  ``runs``; first hits: ``midpoint``, ``runs``, ``runs_periodic`` and ``runs_maxmip``);
+* cells are 8-adjacent, never repeat and lie in the grid; runs are consistent with them;
+* hits lie inside ``[tmin, tmax]`` and their cells in the grid.
+
+The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
+(``tests/data/fuzz_corpus``; every finding is added there) in every test run.
+
+    python -m bench.fuzz [--seconds 60] [--runs N] [--crashes DIR] [CORPUS_DIR ...]
+
+The first corpus directory receives the new inputs the fuzzer keeps; ``make fuzz`` works
+on a copy of the committed corpus and runs the sanitized build.
+"""
+from __future__ import annotations
+
+import math
+import os
+import struct
+import sys
+
+import numpy as np
+
+import algos
+
+TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
+INTERSECTORS = tuple(n for n in algos.INTERSECTOR_REGISTRY if n != "embree")
+EXACT_TRAVERSALS = ("midpoint", "runs")
+EXACT_INTERSECTORS = ("midpoint", "runs", "runs_periodic", "runs_maxmip")
+CORPUS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                      "tests", "data", "fuzz_corpus")
+
+_SPECIAL = (0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 2.0, 3.0, 1e-300, 5e-324, -5e-324, 2.0 ** 30,
+            -(2.0 ** 30), 2.0 ** 30 + 1, 2.0 ** 31, 1e308, -1e308, 2.0 ** 1000, 2.0 ** 1001,
+            math.nan, math.inf, -math.inf, 1 / 3, 0.1, 1 - 2 ** -53, 1 + 2 ** -52,
+            65536.0, 2.0 ** -16, 0.75 / 65536)
+
+
+class Reader:
+    """Values from a byte string; past its end every value is 0."""
+
+    def __init__(self, data: bytes):
+        self.data, self.pos = data, 0
+
+    def take(self, n: int) -> bytes:
+        chunk = self.data[self.pos:self.pos + n]
+        self.pos += n
+        return chunk + b"\0" * (n - len(chunk))
+
+    def byte(self) -> int:
+        return self.take(1)[0]
+
+    def u16(self) -> int:
+        return struct.unpack("<H", self.take(2))[0]
+
+    def small(self, scale=4.0) -> float:
+        """A finite value on a 1/256 grid (a sane height)."""
+        return (self.byte() - 128) / 256.0 * scale + (self.byte() % 8) * scale / 8
+
+    def double(self, scale=8.0) -> float:
+        """Mostly small values and values on or next to grid lines; sometimes a special
+        value or raw bits."""
+        kind = self.byte() % 8
+        if kind <= 2:
+            return (self.u16() - 32768) / 4096.0 * scale            # small, 1/4096 steps
+        if kind == 3:
+            v = float((self.u16() % 64) - 16)                         # on a grid line
+            return float(np.nextafter(v, v + (1 if self.byte() % 2 else -1)))
+        if kind == 4:
+            return float((self.u16() % 80) - 16)
+        if kind == 5:
+            return _SPECIAL[self.byte() % len(_SPECIAL)]
+        if kind == 6:
+            return struct.unpack("<d", self.take(8))[0]               # any bits
+        return (self.u16() - 32768) / 64.0
+
+
+def decode(data: bytes) -> dict:
+    """The call a byte string stands for."""
+    r = Reader(data)
+    op = "intersect" if r.byte() % 2 else "traverse"
+    n = r.byte() % 7
+    case: dict = {"op": op}
+    if r.byte() % 8 == 0:
+        case["tmin"], case["tmax"] = r.double(), r.double()
+    elif r.byte() % 8 == 0:
+        case["tmin"] = [r.double() for _ in range(n)]
+        case["tmax"] = [r.double() for _ in range(n)]
+    if op == "traverse":
+        big = r.byte() % 16
+        if big == 0:
+            shape = (2 ** 24 + r.byte() % 2, 1 + r.byte() % 8)        # at and past the limit
+        elif big == 1:
+            shape = (1 + r.u16() % 4096, 1 + r.u16() % 4096)
+        else:
+            shape = (1 + r.byte() % 40, 1 + r.byte() % 40)
+        case.update(kernel=TRAVERSALS[r.byte() % len(TRAVERSALS)], shape=shape,
+                    output=("cells", "runs", "count")[r.byte() % 3],
+                    origins=[[r.double(30), r.double(30)] for _ in range(n)],
+                    directions=[[r.double(), r.double()] for _ in range(n)])
+        if shape[0] * shape[1] > 4096 * 4096 // 4:
+            case["output"] = "count"
+        if case["kernel"] == "runs_periodic" and r.byte() % 2:
+            case["max_denominator"] = (1, 2, 7, 64, 2 ** 16, 2 ** 20, 0, -3)[r.byte() % 8]
+    else:
+        rows, cols = 1 + r.byte() % 24, 1 + r.byte() % 24
+        wild = r.byte() % 8 == 0  # then any sample may be NaN, inf, huge or subnormal
+        heights = [r.double(4.0) if wild else r.small() for _ in range(rows * cols)]
+        case.update(kernel=INTERSECTORS[r.byte() % len(INTERSECTORS)],
+                    surface=algos.SURFACES[r.byte() % len(algos.SURFACES)],
+                    heights=np.asarray(heights, dtype=np.float64).reshape(rows, cols),
+                    origins=[[r.double(20), r.double(20), r.double(6)] for _ in range(n)],
+                    directions=[[r.double(), r.double(), r.double()] for _ in range(n)],
+                    outputs=tuple(o for k, o in enumerate(("t", "cell", "normal", "stats"))
+                                  if (r.byte() >> k) & 1) or ("t",))
+        if r.byte() % 4 == 0:
+            case["cull_cells"] = bool(r.byte() % 2)
+    return case
+
+
+def _frozen(case):
+    return {k: np.array(v, dtype=object if isinstance(v, str) else None, copy=True)
+            if isinstance(v, (list, np.ndarray)) else v for k, v in case.items()}
+
+
+def _same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    if a.dtype.kind == "f" and b.dtype.kind == "f":
+        return a.shape == b.shape and bool(np.all((a == b) | (np.isnan(a) & np.isnan(b))))
+    return bool(np.array_equal(a, b))
+
+
+def _call(case, kernel=None):
+    kernel = kernel or case["kernel"]
+    if case["op"] == "traverse":
+        kw = {"output": case["output"]}
+        if "max_denominator" in case and kernel == "runs_periodic":
+            kw["max_denominator"] = case["max_denominator"]
+        return algos.traverse(kernel, np.asarray(case["origins"], dtype=float).reshape(-1, 2),
+                              np.asarray(case["directions"], dtype=float).reshape(-1, 2),
+                              case["shape"], case.get("tmin"), case.get("tmax"), **kw)
+    kw = {}
+    if "cull_cells" in case:
+        kw["cull_cells"] = case["cull_cells"]
+    return algos.intersect(kernel, case["heights"],
+                           np.asarray(case["origins"], dtype=float).reshape(-1, 3),
+                           np.asarray(case["directions"], dtype=float).reshape(-1, 3),
+                           surface=case["surface"], tmin=case.get("tmin"), tmax=case.get("tmax"),
+                           outputs=case["outputs"], **kw)
+
+
+def _check_cells(paths, shape):
+    nx, ny = shape
+    for k in range(len(paths.offsets) - 1):
+        cells = paths.cells[paths.offsets[k]:paths.offsets[k + 1]]
+        if len(cells) == 0:
+            continue
+        assert cells[:, 0].min() >= 0 and cells[:, 0].max() < nx, "a cell outside the grid"
+        assert cells[:, 1].min() >= 0 and cells[:, 1].max() < ny, "a cell outside the grid"
+        step = np.abs(np.diff(cells.astype(np.int64), axis=0))
+        assert np.all(step.max(axis=1, initial=0) == 1) if len(step) else True, \
+            f"ray {k}: consecutive cells are not adjacent"
+        keys = cells[:, 0].astype(np.int64) * (ny + 1) + cells[:, 1]
+        assert len(np.unique(keys)) == len(keys), f"ray {k}: a cell repeats"
+
+
+def check(data: bytes) -> None:
+    """Run one decoded call and assert the invariants (module docstring)."""
+    with np.errstate(all="ignore"):
+        _check(data)
+
+
+def _check(data: bytes) -> None:
+    case = decode(data)
+    before = _frozen(case)
+    try:
+        result = _call(case)
+    except (ValueError, TypeError):
+        result = None
+    for k, v in before.items():
+        if isinstance(v, np.ndarray):
+            assert _same(v, np.asarray(case[k], dtype=v.dtype)), f"the call modified {k}"
+    if result is None:
+        return
+    if case["op"] == "traverse":
+        if case["output"] == "cells":
+            _check_cells(result, case["shape"])
+        if case["kernel"] in EXACT_TRAVERSALS:
+            other = _call(case, "runs" if case["kernel"] == "midpoint" else "midpoint")
+            for field in ("cells", "runs", "offsets", "counts"):
+                if hasattr(result, field):
+                    assert _same(getattr(result, field), getattr(other, field)), \
+                        f"{case['kernel']} and the other exact traversal differ in {field}"
+        return
+    t = getattr(result, "t", None)
+    n = len(case["origins"])
+    if t is not None:
+        lo = np.broadcast_to(np.asarray(case.get("tmin", 0.0), dtype=float), (n,))
+        hi = np.broadcast_to(np.asarray(case.get("tmax", math.inf), dtype=float), (n,))
+        hit = np.isfinite(t)
+        assert np.all((t[hit] >= lo[hit]) & (t[hit] <= hi[hit])), "a hit outside [tmin, tmax]"
+        assert np.all(np.isinf(t[~hit]) & (t[~hit] > 0)), "a miss that is not +inf"
+    cell = getattr(result, "cell", None)
+    if cell is not None:
+        rows, cols = case["heights"].shape
+        found = cell[:, 0] >= 0
+        assert np.all((cell[found, 0] < cols - 1) & (cell[found, 1] >= 0) & (cell[found, 1] < rows - 1))
+        if t is not None:
+            assert np.array_equal(found, np.isfinite(t)), "cell and t disagree on a hit"
+    if case["kernel"] in EXACT_INTERSECTORS and t is not None:
+        for other in EXACT_INTERSECTORS:
+            if other != case["kernel"]:
+                got = _call(case, other)
+                assert _same(got.t, t), f"{case['kernel']} and {other} differ: {t} {got.t}"
+
+
+def main(argv=None):
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("corpus", nargs="*", default=[CORPUS])
+    parser.add_argument("--seconds", type=int, default=60)
+    parser.add_argument("--runs", type=int, default=-1, help="executions (-1: until --seconds)")
+    parser.add_argument("--crashes", default=os.path.join(CORPUS, "crashes"),
+                        help="where a finding is written (commit it: the tests replay it)")
+    args = parser.parse_args(argv)
+    try:
+        import atheris
+    except ImportError:
+        sys.exit("fuzz: atheris is not installed (pip install -e '.[fuzz]'; `make fuzz` does it)")
+    crashes = args.crashes
+    os.makedirs(crashes, exist_ok=True)
+    # coverage of the Python side (decoding, validation, dispatch) guides the search;
+    # the C extension is built by gcc, which has no libFuzzer instrumentation
+    atheris.instrument_all()
+    fuzzer_args = [sys.argv[0], f"-max_total_time={args.seconds}", f"-runs={args.runs}",
+                   f"-artifact_prefix={crashes}{os.sep}", "-max_len=4096", "-print_final_stats=1",
+                   *args.corpus]
+    atheris.Setup(fuzzer_args, check)
+    atheris.Fuzz()
+
+
+if __name__ == "__main__":
+    main()

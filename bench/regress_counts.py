@@ -1,0 +1,255 @@
+"""``hftrace regress --metric instructions``: a regression gate that cannot flake.
+
+Every C kernel runs once per (workload, surface) on a small fixed input (fBm 256^2,
+seed 1; 200 first-hit rays or 400 traversal rays at r = 25) in one child Python under
+``valgrind --tool=callgrind --branch-sim=yes``. ``--dump-before`` and ``--dump-after`` on
+the two C batch entries cut the run into one profile per batch, and only instructions
+executed in the extension's own code (the ``algos._kernels`` object) are counted, so
+NumPy, the interpreter and the set-up between batches never enter. The counts are exact
+for one build on one input: two runs give identical numbers (tested), so the default
+tolerance is 1 %. Instructions and branches are recorded per ray, with each kernel's
+per-function counts so that a regression can name the functions that grew.
+"""
+from __future__ import annotations
+
+import glob
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+from .profile import callgrind_available
+
+DEFAULT_TOLERANCE = 0.01
+SIZE = 256
+FIRST_HIT_RAYS = 200
+TRAVERSAL_RAYS = 400
+R = 25
+SEED = 2008
+
+_CHILD = r"""
+import json, sys
+import numpy as np
+import algos
+from algos.intersect import prepare_timed_intersect
+from bench.sweep import _rays2, first_hit_rays
+spec = json.loads(sys.argv[1])
+heights = np.load(spec["heights"])
+field = algos.Field(heights)
+shape = (heights.shape[1] - 1, heights.shape[0] - 1)
+o3, d3 = first_hit_rays(field, spec["r"], spec["first_hit_rays"], spec["seed"])
+o2, d2 = _rays2(shape, spec["r"], spec["traversal_rays"], spec["seed"])
+runs = []
+for workload, surface, kernel in spec["cases"]:
+    if workload == "first_hit":
+        run, _ = prepare_timed_intersect(kernel, field, o3, d3, surface=surface)
+    else:
+        run, _ = algos.prepare_timed(kernel, o2, d2, shape, workload)
+    runs.append(run)
+for run in runs:
+    run()
+"""
+
+
+def cases():
+    """Every (workload, surface, kernel) the gate counts: each C intersector on each
+    surface, each traversal on both 2D workloads."""
+    import algos
+
+    out = []
+    for name in algos.INTERSECTORS:
+        if name == "embree":
+            continue
+        for surface in algos.SURFACES:
+            out.append(("first_hit", surface, name))
+    for name in algos.TRAVERSAL_REGISTRY:
+        for workload in ("visit", "runs"):
+            out.append((workload, "-", name))
+    return out
+
+
+def key(workload, surface, kernel) -> str:
+    return f"{workload}/{surface}/{kernel}"
+
+
+def _parse_dump(path: str, object_part: str) -> tuple[str, dict, dict]:
+    """(trigger, totals by event, self instructions by function) of one callgrind dump,
+    counting only functions whose object path contains ``object_part``."""
+    events, trigger = [], ""
+    obs, fns, fls = {}, {}, {}
+    current_ob = current_fn = None
+    in_call = False
+    totals: dict = {}
+    per_fn: dict = {}
+
+    def name(table, text):
+        text = text.strip()
+        if text.startswith("("):
+            close = text.index(")")
+            ident, rest = text[1:close], text[close + 1:].strip()
+            if rest:
+                table[ident] = rest
+            return table.get(ident, rest)
+        return text
+
+    with open(path) as f:
+        for line in f:
+            if line.startswith("events:"):
+                events = line.split()[1:]
+            elif line.startswith("desc: Trigger:"):
+                trigger = line.split("Trigger:", 1)[1].strip()
+            elif line.startswith("ob="):
+                current_ob = name(obs, line[3:])
+            elif line.startswith(("fl=", "fi=", "fe=")):
+                name(fls, line[3:])
+            elif line.startswith("fn="):
+                current_fn = name(fns, line[3:])
+            elif line.startswith("cob="):
+                name(obs, line[4:])
+            elif line.startswith(("cfi=", "cfl=")):
+                name(fls, line[4:])
+            elif line.startswith("cfn="):
+                name(fns, line[4:])
+            elif line.startswith("calls="):
+                in_call = True
+            elif line[:1].isdigit() or line[:1] in "+-*":
+                if in_call:  # the inclusive cost of a call, not the caller's own
+                    in_call = False
+                    continue
+                if current_ob is None or object_part not in current_ob:
+                    continue
+                values = [int(v) for v in line.split()[1:]]
+                for ev, v in zip(events, values):
+                    totals[ev] = totals.get(ev, 0) + v
+                if values:
+                    per_fn[current_fn] = per_fn.get(current_fn, 0) + values[0]
+    return trigger, totals, per_fn
+
+
+def measure(echo=print, only=None) -> dict:
+    """Counts of every case (or of the cases in ``only``), now: {key:
+    {instructions_per_ray, branches_per_ray, functions}}."""
+    if not callgrind_available():
+        raise RuntimeError("regress --metric instructions needs valgrind (apt-get install "
+                           "valgrind); it is not on PATH")
+    import numpy as np
+
+    import algos
+    import datasets_gen
+
+    heights = datasets_gen.load("fbm", size=SIZE, seed=1).heights
+    todo = [c for c in cases() if only is None or key(*c) in only]
+    object_part = os.path.basename(algos._kernels.__file__)
+    with tempfile.TemporaryDirectory() as tmp:
+        np.save(os.path.join(tmp, "heights.npy"), heights)
+        spec = dict(heights=os.path.join(tmp, "heights.npy"), r=R, seed=SEED,
+                    first_hit_rays=FIRST_HIT_RAYS, traversal_rays=TRAVERSAL_RAYS,
+                    cases=todo)
+        out = os.path.join(tmp, "cg.out")
+        cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+               "--branch-sim=yes", "--dump-before=hf_intersect_batch",
+               "--dump-before=hf_walk_batch", "--dump-after=hf_intersect_batch",
+               "--dump-after=hf_walk_batch", sys.executable, "-c", _CHILD, json.dumps(spec)]
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
+                   PYTHONHASHSEED="0")
+        env.pop("LD_PRELOAD", None)
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+        echo(f"regress: counting {len(todo)} batches under callgrind ...")
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        if proc.returncode != 0:
+            raise RuntimeError(f"regress: valgrind failed ({proc.returncode}):\n"
+                               f"{proc.stderr[-2000:]}")
+        dumps = sorted(glob.glob(out + ".*"), key=lambda p: int(p.rsplit(".", 1)[1]))
+        parsed = [_parse_dump(p, object_part) for p in dumps]
+    batches = [(t, f) for trigger, t, f in parsed if trigger.startswith("--dump-after")]
+    if len(batches) != len(todo):
+        raise RuntimeError(f"regress: expected {len(todo)} batch profiles, got {len(batches)}")
+    result = {}
+    for (workload, surface, kernel), (totals, per_fn) in zip(todo, batches):
+        rays = FIRST_HIT_RAYS if workload == "first_hit" else TRAVERSAL_RAYS
+        instructions = totals.get("Ir", 0)
+        branches = totals.get("Bc", 0) + totals.get("Bi", 0)
+        top = {fn: v for fn, v in sorted(per_fn.items(), key=lambda kv: -kv[1])
+               if v >= 0.005 * max(instructions, 1)}
+        result[key(workload, surface, kernel)] = dict(
+            instructions_per_ray=round(instructions / rays, 3),
+            branches_per_ray=round(branches / rays, 3), functions=top)
+    return result
+
+
+def compare(baseline: dict, measured: dict, tolerance: float) -> list[dict]:
+    """Cases whose instructions or branches per ray grew by more than ``tolerance``, or
+    that were not measured; each with the functions whose counts grew."""
+    if not 0 <= tolerance < 1:
+        raise ValueError(f"tolerance: expected a fraction in [0, 1), got {tolerance}")
+    failures = []
+    for name, base in sorted(baseline.items()):
+        got = measured.get(name)
+        if got is None:
+            failures.append(dict(case=name, reason="not measured", grew=[]))
+            continue
+        reasons = []
+        for metric in ("instructions_per_ray", "branches_per_ray"):
+            b, m = base[metric], got[metric]
+            if m > b * (1 + tolerance):
+                reasons.append(f"{metric.replace('_per_ray', '')} per ray {b:,.1f} -> {m:,.1f} "
+                               f"(+{100 * (m / b - 1):.2f} %)")
+        if reasons:
+            rays = FIRST_HIT_RAYS if name.startswith("first_hit") else TRAVERSAL_RAYS
+            grew = []
+            for fn in set(base.get("functions", {})) | set(got.get("functions", {})):
+                before = base.get("functions", {}).get(fn, 0)
+                after = got.get("functions", {}).get(fn, 0)
+                if after > before:
+                    grew.append((fn, before / rays, after / rays))
+            grew.sort(key=lambda g: g[1] - g[2])
+            failures.append(dict(case=name, reason="; ".join(reasons), grew=grew[:5]))
+    return failures
+
+
+def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
+    from .timing import environment, write_json
+
+    try:
+        measured = measure(echo)
+    except RuntimeError as exc:
+        echo(f"hftrace: error: {exc}")
+        return 2
+    if update:
+        write_json(baseline_path, {"metric": "instructions", "cases": measured,
+                                   "tolerance": tolerance if tolerance is not None else DEFAULT_TOLERANCE,
+                                   "input": dict(dataset="fbm", size=SIZE, r=R, seed=SEED,
+                                                 first_hit_rays=FIRST_HIT_RAYS,
+                                                 traversal_rays=TRAVERSAL_RAYS),
+                                   "env": environment(),
+                                   "note": "callgrind counts per ray; see bench/regress_counts.py"})
+        echo(f"wrote {len(measured)} cases to {baseline_path}")
+        return 0
+    if not os.path.isfile(baseline_path):
+        echo(f"hftrace: error: baseline: {baseline_path} does not exist (create it with --update)")
+        return 2
+    with open(baseline_path) as f:
+        base = json.load(f)
+    if base.get("metric") != "instructions" or not isinstance(base.get("cases"), dict):
+        echo(f"hftrace: error: baseline: {baseline_path} is not an instruction-count baseline")
+        return 2
+    tol = tolerance if tolerance is not None else base.get("tolerance", DEFAULT_TOLERANCE)
+    failures = compare(base["cases"], measured, tol)
+    echo(f"{'case':40s} {'instr/ray before':>17s} {'after':>12s} {'branches before':>16s} {'after':>10s}")
+    for name, b in sorted(base["cases"].items()):
+        m = measured.get(name, {})
+        flag = "  REGRESSED" if any(f["case"] == name for f in failures) else ""
+        echo(f"{name:40s} {b['instructions_per_ray']:17,.1f} "
+             f"{m.get('instructions_per_ray', float('nan')):12,.1f} "
+             f"{b['branches_per_ray']:16,.1f} {m.get('branches_per_ray', float('nan')):10,.1f}{flag}")
+    if failures:
+        echo(f"{len(failures)} case(s) grew by more than {100 * tol:g} %:")
+        for f in failures:
+            echo(f"  {f['case']}: {f['reason']}")
+            for fn, before, after in f["grew"]:
+                echo(f"      {fn}: {before:,.1f} -> {after:,.1f} instructions per ray")
+        return 1
+    echo(f"all {len(base['cases'])} cases within {100 * tol:g} % of the baseline")
+    return 0
