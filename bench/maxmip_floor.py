@@ -3,7 +3,8 @@
 ``dda_maxmip`` walks the tiles of its floor level (2^floor cells wide) cell by cell,
 ``runs_maxmip`` run by run; above the floor both skip or descend. This times every floor
 from 0 to 5 for both, next to ``dda`` and the fair Embree peer, on the rays of
-bench-intersect (interleaved repeats in one process, one pinned CPU), and counts
+bench-intersect (interleaved repeats in one process, caches flushed before each timed
+run, one pinned CPU), and counts
 instructions per ray with callgrind (fbm 1024^2, r = 25).
 
     python -m bench.maxmip_floor [--out reports/tuning] [--no-counts]
@@ -22,6 +23,7 @@ from algos.intersect import prepare_timed_intersect
 
 from .intersect_bench import pin_to_one_cpu
 from .sweep import first_hit_rays
+from .timing import interleaved
 
 FLOORS = range(6)
 FIELDS = (("fbm", 1024), ("fbm", 2048))
@@ -48,10 +50,8 @@ def measure(rays=4000, repeats=7, seed=2008):
             o, d = first_hit_rays(field, r, rays, seed)
             runs = [(k, opts, prepare_timed_intersect(k, field, o, d, **opts)[0])
                     for k, opts in configs()]
-            times = [[] for _ in runs]
-            for _ in range(repeats):
-                for slot, (_, _, run) in enumerate(runs):
-                    times[slot].append(run())
+            got = interleaved({slot: run for slot, (_, _, run) in enumerate(runs)}, repeats)
+            times = [got[slot] for slot in range(len(runs))]
             dda = np.median(times[0]) / rays
             for (k, opts, _), t in zip(runs, times):
                 ns = np.median(t) / rays
@@ -85,7 +85,7 @@ def write(rows, out):
         w.writerows(rows)
     lines = ["# Max-mipmap floor level", "",
              "Written by `python -m bench.maxmip_floor`. ns per ray (median of interleaved "
-             "repeats, one pinned CPU), speedup over `dda` in the same process; "
+             "repeats, caches flushed before each, one pinned CPU), speedup over `dda` in the same process; "
              "instructions per ray from callgrind (fbm 1024^2, r = 25, 300 rays).", ""]
     groups = [(d, r) for d in dict.fromkeys(x["dataset"] for x in rows)
               for r in dict.fromkeys(x["r"] for x in rows)]

@@ -2,9 +2,10 @@
 
 Method (reports/METHOD.md): every algorithm in a comparison is timed on the same rays,
 in the same process, on one thread, interleaved A B C A B C ... with the starting
-algorithm rotated each repeat, after one untimed warm-up round. The clock
-(CLOCK_MONOTONIC) runs in C around the whole batch. A speedup is the ratio of two
-medians from the same run.
+algorithm rotated each repeat, after one untimed warm-up round, and with the caches
+flushed before every timed run (so no kernel inherits the cache lines its predecessor
+left, which on the same rays are its own). The clock (CLOCK_MONOTONIC) runs in C around
+the whole batch. A speedup is the ratio of two medians from the same run.
 """
 from __future__ import annotations
 
@@ -21,16 +22,50 @@ import numpy as np
 __all__ = ["interleaved", "median_ci", "ratio_ci", "environment"]
 
 
-def interleaved(jobs: dict[str, Callable[[], int]], repeats: int) -> dict[str, np.ndarray]:
+def last_level_cache_bytes() -> int:
+    """The largest CPU cache of this machine (sysfs), or 32 MiB when it cannot be read."""
+    best = 0
+    base = "/sys/devices/system/cpu/cpu0/cache"
+    try:
+        for entry in os.listdir(base):
+            with open(os.path.join(base, entry, "size")) as f:
+                text = f.read().strip().upper()
+            scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1:], 1)
+            best = max(best, int(text.rstrip("KMG")) * scale)
+    except (OSError, ValueError):
+        pass
+    return best or 32 << 20
+
+
+_EVICT: dict = {}
+
+
+def flush_caches(nbytes: int | None = None) -> None:
+    """Evict the caches: write every line of a buffer of 4x the last-level cache (at least
+    32 MiB), so the next timed run starts cold whatever ran before it."""
+    nbytes = nbytes or max(4 * last_level_cache_bytes(), 32 << 20)
+    buf = _EVICT.get(nbytes)
+    if buf is None:
+        buf = _EVICT[nbytes] = np.zeros(nbytes // 8)
+    np.add(buf, 1.0, out=buf)
+
+
+def interleaved(jobs: dict[str, Callable[[], int]], repeats: int,
+                flush: bool = True) -> dict[str, np.ndarray]:
     """Run each job ``repeats`` times, interleaved and rotated; each job returns its own
-    elapsed nanoseconds (measured in C). One untimed warm-up round comes first."""
+    elapsed nanoseconds (measured in C). One untimed warm-up round comes first. With
+    ``flush`` the caches are evicted before every timed run: interleaving on the same
+    rays otherwise hands each job the lines its predecessor loaded (measured: `dda`
+    right after Embree, whose BVH evicts the field, took 1.9x its time after `midpoint`)."""
     names = list(jobs)
-    for name in names:  # warm-up: caches, branch predictors, page faults
+    for name in names:  # warm-up: branch predictors, page faults
         jobs[name]()
     times = {name: [] for name in names}
     for rep in range(repeats):
         shift = rep % len(names)
         for name in names[shift:] + names[:shift]:
+            if flush:
+                flush_caches()
             times[name].append(jobs[name]())
     return {name: np.asarray(v, dtype=np.float64) for name, v in times.items()}
 
