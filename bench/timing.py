@@ -42,7 +42,12 @@ _EVICT: dict = {}
 
 def flush_caches(nbytes: int | None = None) -> None:
     """Evict the caches: write every line of a buffer of 4x the last-level cache (at least
-    32 MiB), so the next timed run starts cold whatever ran before it."""
+    32 MiB), so the next timed run starts cold whatever ran before it. ``$HFTRACE_FLUSH_MB``
+    overrides the size; 0 turns flushing off (tests that only check sweep bookkeeping)."""
+    if nbytes is None and os.environ.get("HFTRACE_FLUSH_MB"):
+        nbytes = int(float(os.environ["HFTRACE_FLUSH_MB"]) * (1 << 20))
+        if nbytes <= 0:
+            return
     nbytes = nbytes or max(4 * last_level_cache_bytes(), 32 << 20)
     buf = _EVICT.get(nbytes)
     if buf is None:

@@ -1,6 +1,10 @@
 """Shared test settings: every random choice is seeded."""
 import os
 
+# Tests check correctness, not speed: no cache flushing between timed runs (bench/timing.py);
+# tests/test_bench.py::test_flush_caches_evicts covers the flush itself.
+os.environ.setdefault("HFTRACE_FLUSH_MB", "0")
+
 from hypothesis import HealthCheck, settings
 
 # derandomize: Hypothesis draws the same examples on every run and machine
