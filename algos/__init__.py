@@ -22,6 +22,15 @@ from .registry import (
     get_intersector,
     get_traversal,
 )
+from .terrain import (
+    HORIZON_ALGORITHMS,
+    VIEWSHED_ALGORITHMS,
+    horizon,
+    rational_azimuths,
+    shadows,
+    sky_view_factor,
+    viewshed,
+)
 from .traverse import (
     DEFAULT_MAX_DENOMINATOR,
     OUTPUTS,
@@ -41,4 +50,6 @@ __all__ = [
     "DEFAULT_MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
     "INTERSECTORS", "INTERSECTOR_REGISTRY", "Intersector", "get_intersector", "SURFACES",
     "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "brute_force_hits",
+    "horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
+    "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS",
 ]

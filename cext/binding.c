@@ -10,6 +10,7 @@
 #include <time.h>
 #include "hftrace.h"
 #include "hitbatch.h"
+#include "terrain.h"
 
 /* An optional array argument: None, or a C-contiguous, aligned array of `type` with
  * exactly `size` elements (size < 0: at least one). */
@@ -395,11 +396,369 @@ static PyObject *best_rational(PyObject *self, PyObject *args) {
     return Py_BuildValue("LL", (long long)p, (long long)q);
 }
 
+/* ---- terrain products ------------------------------------------------------------- */
+
+/* heights: a C-contiguous float64 (rows, cols) array with both sides in [2, 2^24]. */
+static int get_heights(PyObject *object, const double **data, int64_t *rows, int64_t *cols) {
+    PyArrayObject *a;
+    void *p;
+    if (!PyArray_Check(object) || PyArray_NDIM((PyArrayObject *)object) != 2) {
+        PyErr_SetString(PyExc_TypeError, "heights: expected a 2D numpy array");
+        return 0;
+    }
+    a = (PyArrayObject *)object;
+    *rows = PyArray_DIM(a, 0);
+    *cols = PyArray_DIM(a, 1);
+    if (*rows < 2 || *cols < 2 || *rows > HF_MAX_GRID_SIDE || *cols > HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
+        return 0;
+    }
+    if (!get_array(object, "heights", NPY_FLOAT64, -1, 0, 0, &p, NULL)) return 0;
+    *data = (const double *)p;
+    return 1;
+}
+
+static int vertex_range(long long start, long long stop, int64_t rows, int64_t cols) {
+    if (start < 0 || stop < start || stop > (long long)(rows * cols)) {
+        PyErr_Format(PyExc_ValueError, "vertex range [%lld, %lld) outside [0, %lld]", start,
+                     stop, (long long)(rows * cols));
+        return 0;
+    }
+    return 1;
+}
+
+/* Optional mipmap (None or data, offset, rows, cols), checked against the cell grid. */
+static int get_mip(PyObject *o_mip, int64_t rows, int64_t cols, hf_hz_mip *mip, int *has) {
+    PyObject *o_data, *o_off, *o_r, *o_c;
+    npy_intp n_data, n_levels;
+    void *p;
+    *has = 0;
+    if (o_mip == Py_None) return 1;
+    if (!PyArg_ParseTuple(o_mip, "OOOO", &o_data, &o_off, &o_r, &o_c)) return 0;
+    if (!get_array(o_data, "mip data", NPY_FLOAT64, -1, 0, 0, &p, &n_data)) return 0;
+    mip->data = (const double *)p;
+    if (!get_array(o_off, "mip offset", NPY_INT64, -1, 0, 0, &p, &n_levels)) return 0;
+    mip->offset = (const int64_t *)p;
+    if (!get_array(o_r, "mip rows", NPY_INT64, n_levels, 0, 0, &p, NULL)) return 0;
+    mip->rows = (const int64_t *)p;
+    if (!get_array(o_c, "mip cols", NPY_INT64, n_levels, 0, 0, &p, NULL)) return 0;
+    mip->cols = (const int64_t *)p;
+    if (n_levels < 1 || n_levels > 62) {
+        PyErr_SetString(PyExc_ValueError, "mip: 1 to 62 levels");
+        return 0;
+    }
+    for (npy_intp L = 0; L < n_levels; L++) {
+        int64_t need_r = ((rows - 1) + ((int64_t)1 << L) - 1) >> L;
+        int64_t need_c = ((cols - 1) + ((int64_t)1 << L) - 1) >> L;
+        if (mip->rows[L] < need_r || mip->cols[L] < need_c || mip->offset[L] < 0 ||
+            mip->offset[L] + mip->rows[L] * mip->cols[L] > n_data) {
+            PyErr_Format(PyExc_ValueError, "mip: level %ld does not cover the grid", (long)L);
+            return 0;
+        }
+    }
+    if (mip->rows[n_levels - 1] != 1 || mip->cols[n_levels - 1] != 1) {
+        PyErr_SetString(PyExc_ValueError, "mip: the top level must be one tile");
+        return 0;
+    }
+    mip->n_levels = (int32_t)n_levels;
+    *has = 1;
+    return 1;
+}
+
+static PyObject *stats_tuple(const hf_hz_stats *s, const struct timespec *a,
+                             const struct timespec *b) {
+    long long ns = (long long)(b->tv_sec - a->tv_sec) * 1000000000LL + (b->tv_nsec - a->tv_nsec);
+    return Py_BuildValue("LLL", ns, (long long)s->cells, (long long)s->skips);
+}
+
+PyDoc_STRVAR(horizon_pattern_doc,
+             "horizon_pattern(heights, inv_t, dx_a, dy_a, dx_b, dy_b, w, limit_x, limit_y,\n"
+             "                end_k, end_f, end_inv_t, zmax, stop_every, start, stop, out)\n"
+             "-> (ns, 0, 0)\n\nHorizon tangents by one shared pattern (octant frame). Private:\n"
+             "use algos.horizon.");
+
+static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_inv, *o_dxa, *o_dya, *o_dxb, *o_dyb, *o_w, *o_lx, *o_ly, *o_out;
+    long long end_k, stop_every, start, stop;
+    double end_f, end_inv_t, zmax;
+    const double *H;
+    int64_t rows, cols, *off_a = NULL, *off_b = NULL;
+    const int64_t *dxa, *dya, *dxb, *dyb, *lx, *ly;
+    npy_intp n;
+    void *p;
+    hf_hz_pattern pat;
+    hf_hz_stats st = {0, 0};
+    struct timespec t0, t1;
+    int64_t reach = 0;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb,
+                          &o_dyb, &o_w, &o_lx, &o_ly, &end_k, &end_f, &end_inv_t, &zmax,
+                          &stop_every, &start, &stop, &o_out))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
+    if (!get_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
+    pat.inv_t = (const double *)p;
+    if (!get_array(o_dxa, "dx_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dxa = (const int64_t *)p;
+    if (!get_array(o_dya, "dy_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dya = (const int64_t *)p;
+    if (!get_array(o_dxb, "dx_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dxb = (const int64_t *)p;
+    if (!get_array(o_dyb, "dy_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dyb = (const int64_t *)p;
+    if (!get_array(o_w, "w", NPY_FLOAT64, n, 0, 0, &p, NULL)) return NULL;
+    pat.w = (const double *)p;
+    if (!get_array(o_lx, "limit_x", NPY_INT64, cols, 0, 0, &p, NULL)) return NULL;
+    lx = (const int64_t *)p;
+    if (!get_array(o_ly, "limit_y", NPY_INT64, rows, 0, 0, &p, NULL)) return NULL;
+    ly = (const int64_t *)p;
+    if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &p, NULL)) return NULL;
+    if (end_k < -1 || end_k + 1 >= (long long)n + (end_k < 0)) {
+        PyErr_SetString(PyExc_ValueError, "end_k: outside the pattern");
+        return NULL;
+    }
+    /* memory safety: every breakpoint a limit admits reads inside the field */
+    for (int64_t k = 0; k < cols; k++)
+        if (lx[k] < 0 || lx[k] > n || (k && lx[k] < lx[k - 1])) reach = -1;
+    for (int64_t k = 0; k < rows; k++)
+        if (ly[k] < 0 || ly[k] > n || (k && ly[k] < ly[k - 1])) reach = -1;
+    if (reach == 0) {
+        int64_t e = 0, mxx = 0, myy = 0;
+        for (int64_t k = 0; k < cols && reach == 0; k++) {
+            for (; e < lx[k]; e++) {
+                int64_t ax = dxa[e] > dxb[e] ? dxa[e] : dxb[e];
+                if (dxa[e] < 0 || dxb[e] < 0 || dya[e] < 0 || dyb[e] < 0) reach = -1;
+                if (ax > mxx) mxx = ax;
+            }
+            if (mxx > k) reach = -1;
+        }
+        e = 0;
+        for (int64_t k = 0; k < rows && reach == 0; k++) {
+            for (; e < ly[k]; e++) {
+                int64_t ay = dya[e] > dyb[e] ? dya[e] : dyb[e];
+                if (ay > myy) myy = ay;
+            }
+            if (myy > k) reach = -1;
+        }
+    }
+    if (reach < 0) {
+        PyErr_SetString(PyExc_ValueError, "pattern: a limit admits a breakpoint outside the field");
+        return NULL;
+    }
+    off_a = malloc((size_t)(n ? n : 1) * sizeof *off_a);
+    off_b = malloc((size_t)(n ? n : 1) * sizeof *off_b);
+    if (!off_a || !off_b) {
+        free(off_a); free(off_b);
+        return PyErr_NoMemory();
+    }
+    for (npy_intp e = 0; e < n; e++) {
+        off_a[e] = dya[e] * cols + dxa[e];
+        off_b[e] = dyb[e] * cols + dxb[e];
+    }
+    pat.n = n;
+    pat.off_a = off_a;
+    pat.off_b = off_b;
+    pat.limit_x = lx;
+    pat.limit_y = ly;
+    pat.end_k = end_k;
+    pat.end_f = end_f;
+    pat.end_inv_t = end_inv_t;
+    Py_BEGIN_ALLOW_THREADS
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    hf_horizon_pattern(H, rows, cols, &pat, zmax, stop_every, start, stop, (double *)p);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    Py_END_ALLOW_THREADS
+    free(off_a);
+    free(off_b);
+    return stats_tuple(&st, &t0, &t1);
+}
+
+PyDoc_STRVAR(horizon_sweep_doc,
+             "horizon_sweep(heights, q, p, tfrac, dx_a, dy_a, dx_b, dy_b, w, mx, my, norm, out)\n"
+             "-> (ns, 0, 0)\n\nHorizon tangents of every vertex by the rational sweep\n"
+             "(octant frame). Private: use algos.horizon.");
+
+static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_tf, *o_dxa, *o_dya, *o_dxb, *o_dyb, *o_w, *o_mx, *o_my, *o_out;
+    long long q, pp;
+    double norm;
+    const double *H, *tf, *w;
+    const int64_t *dxa, *dya, *dxb, *dyb, *mx, *my;
+    int64_t rows, cols;
+    npy_intp n;
+    void *p, *out;
+    int status;
+    hf_hz_stats st = {0, 0};
+    struct timespec t0, t1;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OLLOOOOOOOOdO", &o_h, &q, &pp, &o_tf, &o_dxa, &o_dya, &o_dxb,
+                          &o_dyb, &o_w, &o_mx, &o_my, &norm, &o_out))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols)) return NULL;
+    if (q < 1 || pp < 0 || pp > q || q > HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "direction: need q >= p >= 0 and 1 <= q <= 2^24");
+        return NULL;
+    }
+    if (!get_array(o_tf, "tfrac", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
+    tf = (const double *)p;
+    if (!get_array(o_dxa, "dx_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dxa = (const int64_t *)p;
+    if (!get_array(o_dya, "dy_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dya = (const int64_t *)p;
+    if (!get_array(o_dxb, "dx_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dxb = (const int64_t *)p;
+    if (!get_array(o_dyb, "dy_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    dyb = (const int64_t *)p;
+    if (!get_array(o_w, "w", NPY_FLOAT64, n, 0, 0, &p, NULL)) return NULL;
+    w = (const double *)p;
+    if (!get_array(o_mx, "mx", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    mx = (const int64_t *)p;
+    if (!get_array(o_my, "my", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    my = (const int64_t *)p;
+    if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (n < 1 || mx[n - 1] != q || my[n - 1] != pp || dxa[n - 1] != q || dya[n - 1] != pp ||
+        dxb[n - 1] != q || dyb[n - 1] != pp) {
+        PyErr_SetString(PyExc_ValueError, "pattern: the last breakpoint must be the next vertex");
+        return NULL;
+    }
+    for (npy_intp e = 0; e < n; e++) {
+        if (dxa[e] < 0 || dya[e] < 0 || dxb[e] < 0 || dyb[e] < 0 || dxa[e] > mx[e] ||
+            dxb[e] > mx[e] || dya[e] > my[e] || dyb[e] > my[e] || mx[e] > q || my[e] > pp ||
+            !(tf[e] > 0.0 && tf[e] <= 1.0) || (e && !(tf[e] > tf[e - 1]))) {
+            PyErr_Format(PyExc_ValueError, "pattern: breakpoint %ld is inconsistent", (long)e);
+            return NULL;
+        }
+    }
+    Py_BEGIN_ALLOW_THREADS
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    status = hf_horizon_sweep(H, rows, cols, q, pp, n, tf, dxa, dya, dxb, dyb, w, mx, my, norm,
+                              (double *)out);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    Py_END_ALLOW_THREADS
+    if (status) return PyErr_NoMemory();
+    return stats_tuple(&st, &t0, &t1);
+}
+
+PyDoc_STRVAR(horizon_walk_doc,
+             "horizon_walk(heights, mip, dx, dy, max_distance, start, stop, out)\n"
+             "-> (ns, cells, skips)\n\nPer-vertex horizon walks (mip None: every cell).\n"
+             "Private: use algos.horizon.");
+
+static PyObject *horizon_walk(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_mip, *o_out;
+    double dx, dy, max_distance;
+    long long start, stop;
+    const double *H;
+    int64_t rows, cols;
+    hf_hz_mip mip;
+    int has_mip;
+    void *out;
+    hf_hz_stats st = {0, 0};
+    struct timespec t0, t1;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOdddLLO", &o_h, &o_mip, &dx, &dy, &max_distance, &start,
+                          &stop, &o_out))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
+        !get_mip(o_mip, rows, cols, &mip, &has_mip))
+        return NULL;
+    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || isnan(max_distance)) {
+        PyErr_SetString(PyExc_ValueError, "direction: finite and nonzero; max_distance not NaN");
+        return NULL;
+    }
+    if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    Py_BEGIN_ALLOW_THREADS
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    hf_horizon_walk(H, rows, cols, has_mip ? &mip : NULL, dx, dy, max_distance, start, stop,
+                    (double *)out, &st);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    Py_END_ALLOW_THREADS
+    return stats_tuple(&st, &t0, &t1);
+}
+
+PyDoc_STRVAR(viewshed_doc,
+             "viewshed(heights, mip, ox, oy, z0, target_height, drop, eps, start, stop, out)\n"
+             "-> (ns, cells, skips)\n\nLine of sight to every target vertex: out 0 visible,\n"
+             "1 blocked, 2 uncertain. Private: use algos.viewshed.");
+
+static PyObject *viewshed(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_mip, *o_out;
+    double ox, oy, z0, th, drop, eps;
+    long long start, stop;
+    const double *H;
+    int64_t rows, cols;
+    hf_hz_mip mip;
+    int has_mip;
+    void *out;
+    hf_hz_stats st = {0, 0};
+    struct timespec t0, t1;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOddddddLLO", &o_h, &o_mip, &ox, &oy, &z0, &th, &drop, &eps,
+                          &start, &stop, &o_out))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
+        !get_mip(o_mip, rows, cols, &mip, &has_mip))
+        return NULL;
+    if (!(ox >= 0 && ox <= (double)(cols - 1) && oy >= 0 && oy <= (double)(rows - 1)) ||
+        !isfinite(z0) || !isfinite(th) || !isfinite(drop) || !(eps >= 0) || !isfinite(eps)) {
+        PyErr_SetString(PyExc_ValueError, "observer: outside the footprint, or a non-finite value");
+        return NULL;
+    }
+    if (!get_array(o_out, "out", NPY_UINT8, rows * cols, 1, 0, &out, NULL)) return NULL;
+    Py_BEGIN_ALLOW_THREADS
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    hf_viewshed(H, rows, cols, has_mip ? &mip : NULL, ox, oy, z0, th, drop, eps, start, stop,
+                (uint8_t *)out, &st);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    Py_END_ALLOW_THREADS
+    return stats_tuple(&st, &t0, &t1);
+}
+
+PyDoc_STRVAR(horizon_march_doc,
+             "horizon_march(heights, dx, dy, step, max_distance, zmax, start, stop, out)\n"
+             "-> (ns, samples, 0)\n\nThe r.horizon-style fixed-step marcher. Private: use\n"
+             "algos.horizon(algorithm='march').");
+
+static PyObject *horizon_march(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_out;
+    double dx, dy, step, max_distance, zmax;
+    long long start, stop;
+    const double *H;
+    int64_t rows, cols;
+    void *out;
+    hf_hz_stats st = {0, 0};
+    struct timespec t0, t1;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OdddddLLO", &o_h, &dx, &dy, &step, &max_distance, &zmax,
+                          &start, &stop, &o_out))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols))
+        return NULL;
+    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || !(step > 0) ||
+        !isfinite(step) || isnan(max_distance) || isnan(zmax)) {
+        PyErr_SetString(PyExc_ValueError, "direction, step or max_distance invalid");
+        return NULL;
+    }
+    if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    Py_BEGIN_ALLOW_THREADS
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, start, stop,
+                     (double *)out, &st);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    Py_END_ALLOW_THREADS
+    return stats_tuple(&st, &t0, &t1);
+}
+
 static PyMethodDef methods[] = {
     {"walk", walk, METH_VARARGS, walk_doc},
     {"intersect", intersect, METH_VARARGS, intersect_doc},
     {"quantize_ray", quantize_ray, METH_VARARGS, quantize_doc},
     {"best_rational", best_rational, METH_VARARGS, best_rational_doc},
+    {"horizon_pattern", horizon_pattern, METH_VARARGS, horizon_pattern_doc},
+    {"horizon_sweep", horizon_sweep, METH_VARARGS, horizon_sweep_doc},
+    {"horizon_walk", horizon_walk, METH_VARARGS, horizon_walk_doc},
+    {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
+    {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "algos._kernels",

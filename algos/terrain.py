@@ -1,0 +1,745 @@
+"""Terrain products from parallel rays: horizon angles, cast shadows, sky-view factor and
+viewsheds, on the two-triangle surface (CONVENTIONS.md, "Terrain products").
+
+The maths
+---------
+Along any straight line the two-triangle surface is piecewise linear, with breakpoints
+where the line crosses a grid line x = k or y = k or a cell diagonal. At a breakpoint the
+surface is the linear interpolation between the two ends of the edge or diagonal crossed.
+
+* **Horizon.** For a vertex v and a horizontal ray from it, the ratio (s(t) - H(v)) / t on
+  a linear piece s = a + b t is (a - H(v)) / t + b, monotone in t. Its supremum over a
+  piece is therefore at one of the piece's ends. The first piece starts at v itself, where
+  s(0) = H(v): there the ratio is the constant b, so the slope limit at t -> 0+ is the
+  ratio at the first breakpoint. The horizon tangent is the maximum of the ratio over
+  the breakpoints in (0, T], where T is the edge of the footprint or max_distance. The
+  value at max_distance interpolates the two breakpoints around it. The angle is atan of
+  that maximum, and -pi/2 when there is no breakpoint. Every method evaluates these same
+  points in float64, so its angles agree with the exact reference
+  (:mod:`algos.terrain_ref`) to rounding (1e-12 in the tests).
+* **Shared patterns.** Rays from lattice vertices in one direction are translates of each
+  other, so their breakpoints, relative to the start vertex, are the same list: one
+  pattern per azimuth serves every vertex (``algorithm="pattern"``).
+* **Rational sweep.** For a slope p/q in lowest terms, the line from vertex (i, j) passes
+  exactly through (i + q, j + p). The vertices therefore lie on shared lines, and one
+  period's breakpoints repeat along each line. Sweeping every line from its far end while
+  keeping the upper convex hull of the points passed (Dozier & Frew 1990) gives each
+  vertex its horizon as the tangent from it to that hull, in amortised O(1) per point
+  (``algorithm="sweep"``; unlimited distance only).
+* **Line of sight.** The gap between the surface and a straight segment is linear on every
+  piece, so the segment passes strictly below the surface if and only if it does at a
+  breakpoint. The target vertex itself never counts. Breakpoints within a rounding bound of
+  the segment are decided exactly, in rational arithmetic.
+
+Azimuths are degrees clockwise from north, and north is the -y edge (row 0), as in
+north-up rasters. An azimuth within 1e-9 degrees of a direction with slope p/q,
+q <= :data:`MAX_SNAP_DENOMINATOR`, is taken as exactly that direction by every method.
+:func:`rational_azimuths` yields such azimuths, so that the exact sweep applies.
+
+Units: heights are in cell units (CONVENTIONS.md). ``spacing`` (the length of a cell, e.g.
+in metres, or a HeightField's own) makes ``max_distance``, ``observer_height`` and
+``target_height`` lengths in that unit, and enables curvature. Without it they are in
+cells.
+"""
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from . import _kernels
+from .terrain_ref import line_of_sight_exact, surface_exact
+
+__all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
+           "azimuth_direction", "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "TerrainAlgorithm",
+           "MAX_SNAP_DENOMINATOR", "EARTH_RADIUS_M", "TerrainStats"]
+
+#: Azimuths this close to a small rational slope are taken as exactly that slope.
+MAX_SNAP_DENOMINATOR = 64
+SNAP_TOLERANCE_DEG = 1e-9
+#: The Earth radius GDAL's viewshed uses by default (metres).
+EARTH_RADIUS_M = 6378137.0
+#: Breakpoints between early-stop checks in the pattern walk.
+PATTERN_STOP_EVERY = 32
+
+
+@dataclass(frozen=True)
+class TerrainAlgorithm:
+    """One way to compute a terrain product.
+
+    exact: agrees with the exact reference to rounding on every input it accepts.
+    rational_only: needs every azimuth to snap to a rational slope.
+    max_distance: accepts a finite max_distance.
+    """
+
+    name: str
+    exact: bool
+    rational_only: bool
+    max_distance: bool
+    summary: str
+    citation: str = ""
+
+
+HORIZON_ALGORITHMS: dict[str, TerrainAlgorithm] = {a.name: a for a in (
+    TerrainAlgorithm("sweep", True, True, False,
+                     "one sweep per line of a rational direction, upper convex hull",
+                     "Dozier & Frew 1990"),
+    TerrainAlgorithm("pattern", True, False, True,
+                     "per-vertex walk over one shared breakpoint pattern per azimuth"),
+    TerrainAlgorithm("dda", True, False, True,
+                     "per-vertex cell walk (Amanatides & Woo) over every breakpoint",
+                     "Amanatides & Woo 1987"),
+    TerrainAlgorithm("dda_maxmip", True, False, True,
+                     "per-vertex cell walk that skips max-mipmap tiles below the horizon",
+                     "Tevs et al. 2008"),
+    TerrainAlgorithm("march", False, False, True,
+                     "GRASS r.horizon-style fixed-step marcher (baseline)",
+                     "Hofierka & Suri 2002 (r.horizon)"),
+    TerrainAlgorithm("embree", False, False, True,
+                     "HORAYZON-style: Embree occlusion rays, bisection over elevation (peer)",
+                     "Steger et al. 2022 (HORAYZON)"),
+)}
+
+VIEWSHED_ALGORITHMS: dict[str, TerrainAlgorithm] = {a.name: a for a in (
+    TerrainAlgorithm("dda", True, False, True, "line-of-sight cell walk per target"),
+    TerrainAlgorithm("dda_maxmip", True, False, True,
+                     "line-of-sight walk per target, skipping mipmap tiles below the segment"),
+)}
+
+
+@dataclass
+class TerrainStats:
+    """What the last call did: C time, cells evaluated, tiles skipped, vertices resolved
+    exactly (viewshed), per algorithm."""
+
+    algorithm: str = ""
+    ns: int = 0
+    cells: int = 0
+    skips: int = 0
+    exact_resolved: int = 0
+
+
+#: Statistics of the most recent product call in this thread of control.
+LAST_STATS = TerrainStats()
+
+
+# ---- inputs --------------------------------------------------------------------------
+
+def _field(heights, spacing):
+    """(float64 C-contiguous heights in north-up order, spacing or None, flip_rows)."""
+    flip = False
+    field_spacing = None
+    if hasattr(heights, "heights") and hasattr(heights, "spacing"):  # a HeightField
+        params = getattr(heights, "params", {}) or {}
+        flip = params.get("north") == "+y"
+        field_spacing = float(heights.spacing) if getattr(heights, "unit", "cell") != "cell" else None
+        heights = heights.heights
+    if isinstance(heights, np.ndarray) and heights.dtype.kind not in "fiub":
+        raise TypeError(f"heights: expected a real numeric array, got dtype {heights.dtype}")
+    h = np.asarray(heights)
+    if h.dtype.kind not in "fiub":
+        raise TypeError(f"heights: expected a real numeric array, got dtype {h.dtype}")
+    if h.ndim != 2:
+        raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {h.shape}")
+    if h.shape[0] < 2 or h.shape[1] < 2 or max(h.shape) > _kernels.MAX_GRID_SIDE:
+        raise ValueError(f"heights: each side must be in [2, {_kernels.MAX_GRID_SIDE}], got {h.shape}")
+    h = np.ascontiguousarray(h, dtype=np.float64)
+    bad = ~np.isfinite(h)
+    if bad.any():
+        row, col = (int(v) for v in np.argwhere(bad)[0])
+        raise ValueError(f"heights: non-finite value {h[row, col]} at (row {row}, col {col})")
+    if flip:
+        h = np.ascontiguousarray(h[::-1])
+    if spacing is None:
+        spacing = field_spacing
+    if spacing is not None:
+        spacing = float(spacing)
+        if not (math.isfinite(spacing) and spacing > 0):
+            raise ValueError(f"spacing: expected a positive finite length, got {spacing}")
+    return h, spacing, flip
+
+
+def _length(value, name, spacing, allow_none=True, allow_zero=True):
+    if value is None:
+        if allow_none:
+            return None
+        raise ValueError(f"{name}: a number is required")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: expected a number, got {value!r}") from None
+    if math.isnan(v) or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} "
+                         f"length, got {value!r}")
+    if math.isinf(v):
+        return None if allow_none else v
+    return v / spacing if spacing else v
+
+
+def _threads(threads):
+    if threads is None:
+        try:
+            return max(1, len(os.sched_getaffinity(0)))
+        except AttributeError:
+            return os.cpu_count() or 1
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ValueError(f"threads: expected None or a positive int, got {threads!r}")
+    return int(threads)
+
+
+def _run_ranges(n, threads, call):
+    """call(start, stop) over [0, n) split into contiguous ranges; returns the results."""
+    if threads <= 1 or n < 4096:
+        return [call(0, n)]
+    bounds = np.linspace(0, n, threads * 4 + 1).astype(np.int64)
+    with ThreadPoolExecutor(threads) as pool:
+        return list(pool.map(lambda k: call(int(bounds[k]), int(bounds[k + 1])),
+                             range(len(bounds) - 1)))
+
+
+# ---- directions ------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Direction:
+    """An azimuth as a unit direction (dx, dy) in grid coordinates, and its octant frame:
+    mirror x when sx < 0, mirror y when sy < 0, then swap x and y when swap, which maps it to
+    (a, b) with a >= b >= 0. rational: (q, p) when the octant slope is exactly p / q."""
+
+    azimuth: float
+    dx: float
+    dy: float
+    sx: int
+    sy: int
+    swap: bool
+    a: float
+    b: float
+    rational: tuple[int, int] | None
+
+    @property
+    def anti(self) -> bool:
+        """In the octant frame, the cells are split on u + v = 1 instead of u = v."""
+        return (self.sx < 0) != (self.sy < 0)
+
+
+def azimuth_direction(azimuth) -> Direction:
+    """The :class:`Direction` of an azimuth in degrees (clockwise from north = -y)."""
+    try:
+        az = float(azimuth)
+    except (TypeError, ValueError):
+        raise TypeError(f"azimuth: expected a number, got {azimuth!r}") from None
+    if not math.isfinite(az):
+        raise ValueError(f"azimuth: expected a finite number of degrees, got {azimuth!r}")
+    az = az % 360.0
+    rad = math.radians(az)
+    ux, uy = math.sin(rad), -math.cos(rad)
+    ax, ay = abs(ux), abs(uy)
+    big, small = max(ax, ay), min(ax, ay)
+    rational = None
+    frac = Fraction(small / big).limit_denominator(MAX_SNAP_DENOMINATOR)
+    q, p = frac.denominator, frac.numerator
+    if abs(math.degrees(math.atan2(p, q) - math.atan2(small, big))) <= SNAP_TOLERANCE_DEG:
+        rational = (q, p)
+        norm = math.hypot(q, p)
+        big, small = q / norm, p / norm
+        if ax >= ay:
+            ax, ay = big, small
+        else:
+            ax, ay = small, big
+        # exact zeros keep the half-open cell rules exact along grid lines
+    sx = 1 if ux > 0 and ax > 0 else -1 if ux < 0 and ax > 0 else 0
+    sy = 1 if uy > 0 and ay > 0 else -1 if uy < 0 and ay > 0 else 0
+    swap = ay > ax
+    return Direction(az, sx * ax if sx else 0.0, sy * ay if sy else 0.0, sx, sy, swap,
+                     max(ax, ay), min(ax, ay), rational)
+
+
+def rational_azimuths(n: int, max_denominator: int = 5) -> np.ndarray:
+    """``n`` azimuths (degrees) near 0, 360/n, 2*360/n, ..., each moved to the nearest
+    direction whose octant slope is p/q with q <= max_denominator, so that the exact sweep
+    applies.
+
+    The sweep reads about 2 q (or 2 (q + p) against the diagonals) breakpoints per vertex,
+    so small denominators are fast. The default 5 moves 16 azimuths by at most 0.70
+    degrees (22.5 becomes atan(2/5) = 21.80); 12 moves them by at most 0.12 degrees
+    (atan(5/12) = 22.62) at about 2.4 times the cost."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n: expected a positive int, got {n!r}")
+    if not 1 <= max_denominator <= MAX_SNAP_DENOMINATOR:
+        raise ValueError(f"max_denominator: expected 1..{MAX_SNAP_DENOMINATOR}, got {max_denominator}")
+    candidates = sorted({math.degrees(math.atan2(p, q))
+                         for q in range(1, max_denominator + 1) for p in range(0, q + 1)
+                         if math.gcd(p, q) == 1})
+    out = []
+    for k in range(n):
+        az = 360.0 * k / n
+        octant, rest = divmod(az, 45.0)
+        octant = int(octant) % 8
+        # within an octant, the angle from its start (even octants) or to its end (odd)
+        offset = rest if octant % 2 == 0 else 45.0 - rest
+        best = min(candidates, key=lambda c: (abs(c - offset), c))
+        snapped = octant * 45.0 + (best if octant % 2 == 0 else 45.0 - best)
+        out.append(snapped % 360.0)
+    return np.array(out)
+
+
+# ---- frames and patterns ---------------------------------------------------------------------
+
+def _to_frame(a: np.ndarray, d: Direction) -> np.ndarray:
+    if d.sx < 0:
+        a = a[:, ::-1]
+    if d.sy < 0:
+        a = a[::-1, :]
+    if d.swap:
+        a = a.T
+    return a
+
+
+def _from_frame(a: np.ndarray, d: Direction) -> np.ndarray:
+    if d.swap:
+        a = a.T
+    if d.sy < 0:
+        a = a[::-1, :]
+    if d.sx < 0:
+        a = a[:, ::-1]
+    return a
+
+
+def _period_pattern(q: int, p: int, anti: bool):
+    """The breakpoints of one period of the direction (q, p) in the octant frame, from a
+    vertex (exclusive) to the next vertex (q, p) (inclusive): a list of
+    (T, xa, ya, xb, yb, w) with T an exact Fraction in (0, 1], sorted, without repeats."""
+    points = {}
+
+    def add(T, xa, ya, xb, yb, w):
+        if w == 0:
+            xb, yb = xa, ya
+        points.setdefault(T, (T, xa, ya, xb, yb, w))
+
+    for X in range(1, q + 1):  # x = X
+        y = Fraction(X * p, q)
+        y0 = math.floor(y)
+        add(Fraction(X, q), X, y0, X, y0 + 1, y - y0)
+    for Y in range(1, p + 1):  # y = Y
+        x = Fraction(Y * q, p)
+        x0 = math.floor(x)
+        add(Fraction(Y, p), x0, Y, x0 + 1, Y, x - x0)
+    if not anti and q != p:  # x - y = c, c = 1 .. q - p
+        for c in range(1, q - p + 1):
+            T = Fraction(c, q - p)
+            x = T * q
+            x0 = math.floor(x)
+            add(T, x0, x0 - c, x0 + 1, x0 - c + 1, x - x0)
+    if anti:  # x + y = c, c = 1 .. q + p (c = 0 is the start vertex)
+        for c in range(1, q + p + 1):
+            T = Fraction(c, q + p)
+            x = T * q
+            x0 = math.floor(x)
+            y0 = c - 1 - x0
+            u = x - x0
+            if u == 0:  # a vertex: (x0, c - x0)
+                add(T, x0, c - x0, x0, c - x0, Fraction(0))
+            else:  # from (x0, y0 + 1) at u = 0 to (x0 + 1, y0) at u = 1
+                add(T, x0, y0 + 1, x0 + 1, y0, u)
+    return [points[T] for T in sorted(points)]
+
+
+def _pattern_arrays(entries):
+    cols = list(zip(*entries))
+    T = np.array([float(v) for v in cols[0]])
+    xa, ya, xb, yb = (np.array(c, dtype=np.int64) for c in cols[1:5])
+    w = np.array([float(v) for v in cols[5]])
+    return T, xa, ya, xb, yb, w
+
+
+def _float_pattern(a: float, b: float, anti: bool, t_max: float):
+    """Breakpoints of the octant direction (a, b) (unit, a >= b >= 0) up to distance t_max
+    and one beyond, as arrays (t, xa, ya, xb, yb, w), sorted by t."""
+    parts = []
+    n = int(math.ceil(t_max * a)) + 2
+    X = np.arange(1, n + 1, dtype=np.float64)
+    t = X / a
+    y = t * b
+    y0 = np.floor(y)
+    parts.append((t, X, y0, X, y0 + 1, y - y0))
+    if b > 0:
+        n = int(math.ceil(t_max * b)) + 2
+        Y = np.arange(1, n + 1, dtype=np.float64)
+        t = Y / b
+        x = t * a
+        x0 = np.floor(x)
+        parts.append((t, x0, Y, x0 + 1, Y, x - x0))
+    rate = (a + b) if anti else (a - b)
+    if rate > 0:
+        n = int(math.ceil(t_max * rate)) + 2
+        C = np.arange(1, n + 1, dtype=np.float64)
+        t = C / rate
+        x = t * a
+        x0 = np.floor(x)
+        u = x - x0
+        if anti:
+            parts.append((t, x0, C - x0, x0 + 1, C - 1 - x0, u))
+        else:
+            parts.append((t, x0, x0 - C, x0 + 1, x0 - C + 1, u))
+    t, xa, ya, xb, yb, w = (np.concatenate(c) for c in zip(*parts))
+    order = np.argsort(t, kind="stable")
+    t, xa, ya, xb, yb, w = (v[order] for v in (t, xa, ya, xb, yb, w))
+    zero = w == 0
+    xb = np.where(zero, xa, xb)
+    yb = np.where(zero, ya, yb)
+    keep = np.searchsorted(t, t_max, side="right") + 1
+    return (t[:keep], xa[:keep].astype(np.int64), ya[:keep].astype(np.int64),
+            xb[:keep].astype(np.int64), yb[:keep].astype(np.int64), w[:keep])
+
+
+def _shared_pattern(d: Direction, rows: int, cols: int, max_distance):
+    """The pattern of direction d in its octant frame (rows, cols of that frame)."""
+    reach = math.hypot(rows - 1, cols - 1)  # no ray inside the footprint is longer
+    t_max = reach if max_distance is None else min(max_distance, reach)
+    if d.rational is not None:
+        q, p = d.rational
+        period = _period_pattern(q, p, d.anti)
+        norm = math.hypot(q, p)
+        T, xa, ya, xb, yb, w = _pattern_arrays(period)
+        periods = int(math.ceil(t_max / norm)) + 1
+        m = np.repeat(np.arange(periods), len(T))
+        t = (np.tile(T, periods) + m) * norm
+        xa, xb = np.tile(xa, periods) + m * q, np.tile(xb, periods) + m * q
+        ya, yb = np.tile(ya, periods) + m * p, np.tile(yb, periods) + m * p
+        w = np.tile(w, periods)
+        keep = np.searchsorted(t, t_max * (1 + 1e-15), side="right") + 1
+        t, xa, ya, xb, yb, w = (v[:keep] for v in (t, xa, ya, xb, yb, w))
+    else:
+        t, xa, ya, xb, yb, w = _float_pattern(d.a, d.b, d.anti, t_max)
+    mx = np.maximum.accumulate(np.maximum(xa, xb))
+    my = np.maximum.accumulate(np.maximum(ya, yb))
+    limit_x = np.searchsorted(mx, np.arange(cols), side="right").astype(np.int64)
+    limit_y = np.searchsorted(my, np.arange(rows), side="right").astype(np.int64)
+    end_k, end_f, end_inv = -1, 0.0, 0.0
+    if max_distance is not None and max_distance < reach:
+        k = int(np.searchsorted(t, max_distance, side="right")) - 1
+        if 0 <= k < len(t) - 1:
+            end_k = k
+            end_f = (max_distance - t[k]) / (t[k + 1] - t[k])
+            end_inv = 1.0 / max_distance
+        elif k < 0:  # max_distance before the first breakpoint: interpolate from v itself
+            pass
+    return dict(inv_t=1.0 / t, xa=xa, ya=ya, xb=xb, yb=yb, w=w, limit_x=limit_x,
+                limit_y=limit_y, end_k=end_k, end_f=end_f, end_inv=end_inv, t=t)
+
+
+def _mipmap(h: np.ndarray):
+    """(data, offset, rows, cols): the max-mipmap of the cell maxima, float64."""
+    cell = np.maximum(np.maximum(h[:-1, :-1], h[:-1, 1:]), np.maximum(h[1:, :-1], h[1:, 1:]))
+    levels = [cell]
+    while max(levels[-1].shape) > 1:
+        a = levels[-1]
+        r, c = a.shape
+        padded = np.full((r + r % 2, c + c % 2), -np.inf)
+        padded[:r, :c] = a
+        levels.append(padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3)))
+    offset = np.cumsum([0] + [lv.size for lv in levels[:-1]]).astype(np.int64)
+    return (np.ascontiguousarray(np.concatenate([lv.ravel() for lv in levels])), offset,
+            np.array([lv.shape[0] for lv in levels], dtype=np.int64),
+            np.array([lv.shape[1] for lv in levels], dtype=np.int64))
+
+
+# ---- horizon ---------------------------------------------------------------------------
+
+def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, march_step,
+                 embree_tolerance):
+    rows, cols = h.shape
+    if algorithm in ("sweep", "pattern"):
+        hf = np.ascontiguousarray(_to_frame(h, d))
+        fr, fc = hf.shape
+        out = np.empty(fr * fc)
+        if algorithm == "sweep":
+            q, p = d.rational
+            T, xa, ya, xb, yb, w = _pattern_arrays(_period_pattern(q, p, d.anti))
+            mx, my = np.maximum(xa, xb), np.maximum(ya, yb)
+            ns, _, _ = _kernels.horizon_sweep(hf, q, p, T, xa, ya, xb, yb, w, mx, my,
+                                              math.hypot(q, p), out)
+            stats.ns += ns
+        else:
+            pat = _shared_pattern(d, fr, fc, max_distance)
+            zmax = float(hf.max())
+
+            def call(start, stop):
+                return _kernels.horizon_pattern(
+                    hf, pat["inv_t"], pat["xa"], pat["ya"], pat["xb"], pat["yb"], pat["w"],
+                    pat["limit_x"], pat["limit_y"], pat["end_k"], pat["end_f"], pat["end_inv"],
+                    zmax, PATTERN_STOP_EVERY, start, stop, out)
+
+            for ns, _, _ in _run_ranges(fr * fc, threads, call):
+                stats.ns += ns
+        return _from_frame(out.reshape(fr, fc), d)
+    out = np.empty(rows * cols)
+    md = math.inf if max_distance is None else max_distance
+    if algorithm in ("dda", "dda_maxmip"):
+        def call(start, stop):
+            return _kernels.horizon_walk(h, mip if algorithm == "dda_maxmip" else None,
+                                         d.dx, d.dy, md, start, stop, out)
+    elif algorithm == "march":
+        zmax = float(h.max())
+
+        def call(start, stop):
+            return _kernels.horizon_march(h, d.dx, d.dy, march_step, md, zmax, start, stop, out)
+    elif algorithm == "embree":
+        from .embree_peer import embree_horizon_tangents
+
+        t0 = __import__("time").perf_counter_ns()
+        out[:] = embree_horizon_tangents(h, d.dx, d.dy, md, tolerance=embree_tolerance).ravel()
+        stats.ns += __import__("time").perf_counter_ns() - t0
+        return out.reshape(rows, cols)
+    else:  # pragma: no cover - checked by the caller
+        raise AssertionError(algorithm)
+    for ns, cells, skips in _run_ranges(rows * cols, threads, call):
+        stats.ns += ns
+        stats.cells += cells
+        stats.skips += skips
+    return out.reshape(rows, cols)
+
+
+def _pick_horizon_algorithm(algorithm, directions, max_distance):
+    if algorithm is None or algorithm == "auto":
+        # chosen by measurement (reports/terrain): the sweep wherever it applies, else the
+        # mipmap walk for long rays and the shared pattern for short ones
+        if max_distance is None and all(d.rational is not None for d in directions):
+            return "sweep"
+        return "pattern" if max_distance is not None and max_distance <= 64 else "dda_maxmip"
+    if algorithm not in HORIZON_ALGORITHMS:
+        raise ValueError(f"algorithm: expected one of {sorted(HORIZON_ALGORITHMS)} or 'auto', "
+                         f"got {algorithm!r}")
+    info = HORIZON_ALGORITHMS[algorithm]
+    if info.rational_only:
+        for k, d in enumerate(directions):
+            if d.rational is None:
+                raise ValueError(
+                    f"azimuths[{k}]: {d.azimuth} is not a rational direction (slope p/q with "
+                    f"q <= {MAX_SNAP_DENOMINATOR}); algorithm={algorithm!r} needs one "
+                    f"(see algos.rational_azimuths)")
+    if max_distance is not None and not info.max_distance:
+        raise ValueError(f"max_distance: algorithm={algorithm!r} supports only unlimited distance")
+    return algorithm
+
+
+def _check_surface(surface):
+    if surface != "triangles":
+        raise ValueError(f"surface: the terrain products are defined on 'triangles' (the "
+                         f"default), got {surface!r}")
+
+
+def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="triangles",
+            spacing=None, threads=None, march_step=1.0, embree_tolerance=1e-4):
+    """Horizon elevation angles (radians) seen from every vertex.
+
+    For each azimuth, the horizon of vertex v is the supremum, over the surface points p on
+    the horizontal ray from v with 0 < dist(p, v) <= max_distance inside the footprint
+    [0, cols-1] x [0, rows-1], of atan2(s(p) - H(v), dist); -pi/2 where there is none.
+    On the two triangles the supremum is attained at a breakpoint of the ray (an edge or
+    diagonal crossing, or the far end), or is the slope limit at dist -> 0+, which equals
+    the ratio at the first breakpoint (module docstring). It is computed exactly, up to
+    float64 rounding, by every exact algorithm.
+
+    Parameters
+    ----------
+    heights : (rows, cols) array or HeightField
+    azimuths : float or sequence of floats, degrees clockwise from north (-y).
+    max_distance : float, optional
+        In cells, or in the unit of ``spacing``. None: unlimited.
+    algorithm : str, optional
+        A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
+        rational and the distance unlimited, else "dda_maxmip" ("pattern" for
+        max_distance <= 64).
+    threads : None or int
+        Vertices are split over threads; results are identical for every value.
+    march_step, embree_tolerance : the baselines' step (cells) and angle tolerance (rad).
+
+    Returns
+    -------
+    float64 array (len(azimuths), rows, cols).
+    """
+    _check_surface(surface)
+    h, spacing, flip = _field(heights, spacing)
+    scalar = np.ndim(azimuths) == 0
+    az = np.atleast_1d(np.asarray(azimuths, dtype=object if scalar else None))
+    if az.ndim != 1 or len(az) == 0:
+        raise ValueError(f"azimuths: expected a number or a non-empty 1D sequence, got shape {az.shape}")
+    directions = []
+    for k, a in enumerate(az):
+        try:
+            directions.append(azimuth_direction(a))
+        except (TypeError, ValueError) as exc:
+            raise type(exc)(f"azimuths[{k}]: {exc}") from None
+    md = _length(max_distance, "max_distance", spacing)
+    step = float(march_step)
+    if not (math.isfinite(step) and step > 0):
+        raise ValueError(f"march_step: expected a positive number of cells, got {march_step!r}")
+    name = _pick_horizon_algorithm(algorithm, directions, md)
+    nthreads = _threads(threads)
+    stats = TerrainStats(name)
+    mip = _mipmap(h) if name == "dda_maxmip" else None
+    out = np.empty((len(directions),) + h.shape)
+    for k, d in enumerate(directions):
+        out[k] = _horizon_one(h, d, name, md, nthreads, mip, stats, step, embree_tolerance)
+    np.arctan(out, out=out)
+    if flip:
+        out = np.ascontiguousarray(out[:, ::-1])
+    LAST_STATS.__dict__.update(stats.__dict__)
+    return out
+
+
+def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
+            surface="triangles", spacing=None, threads=None):
+    """Cast shadows: True where the vertex is in shadow, i.e. where its horizon along the
+    sun's ``azimuth`` (degrees) is strictly above the sun's ``elevation`` (degrees); a tie
+    is lit. Returns bool (rows, cols)."""
+    try:
+        el = float(elevation)
+    except (TypeError, ValueError):
+        raise TypeError(f"elevation: expected a number of degrees, got {elevation!r}") from None
+    if not -90.0 <= el <= 90.0:
+        raise ValueError(f"elevation: expected degrees in [-90, 90], got {elevation!r}")
+    if np.ndim(azimuth) != 0:
+        raise ValueError("azimuth: expected one number (the sun's azimuth)")
+    angles = horizon(heights, azimuth, max_distance, algorithm=algorithm, surface=surface,
+                     spacing=spacing, threads=threads)[0]
+    return angles > math.radians(el)
+
+
+def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False,
+                    azimuths=None, algorithm=None, surface="triangles", spacing=None,
+                    threads=None):
+    """Sky-view factor (Zaksek et al. 2011, as in RVT): 1 - mean_k sin(max(horizon_k, 0))
+    over ``n_azimuths`` equally spaced azimuths starting at north. ``rational=True`` moves
+    each to the nearest rational direction (:func:`rational_azimuths`), where the exact
+    sweep applies; ``azimuths`` gives them explicitly. Returns float64 (rows, cols)."""
+    if azimuths is None:
+        if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
+            raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
+        azimuths = (rational_azimuths(n_azimuths) if rational
+                    else np.arange(n_azimuths) * (360.0 / n_azimuths))
+    angles = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
+                     spacing=spacing, threads=threads)
+    return 1.0 - np.mean(np.sin(np.maximum(angles, 0.0)), axis=0)
+
+
+# ---- viewshed --------------------------------------------------------------------------
+
+def _observers(observer, h):
+    rows, cols = h.shape
+    obs = np.asarray(observer, dtype=np.float64) if not isinstance(observer, np.ndarray) \
+        else observer.astype(np.float64)
+    single = obs.ndim == 1
+    obs = np.atleast_2d(obs)
+    if obs.ndim != 2 or obs.shape[1] != 2 or obs.shape[0] == 0:
+        raise ValueError(f"observer: expected (x, y) or an (N, 2) array, got shape {np.shape(observer)}")
+    for k, (x, y) in enumerate(obs):
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError(f"observer[{k}]: non-finite position ({x}, {y})")
+        if not (0 <= x <= cols - 1 and 0 <= y <= rows - 1):
+            raise ValueError(f"observer[{k}]: ({x}, {y}) outside the footprint "
+                             f"[0, {cols - 1}] x [0, {rows - 1}]")
+    return obs, single
+
+
+def _surface_float(h, x, y):
+    rows, cols = h.shape
+    i = min(max(int(math.floor(x)), 0), cols - 2)
+    j = min(max(int(math.floor(y)), 0), rows - 2)
+    u, v = x - i, y - j
+    h00, h10, h01, h11 = h[j, i], h[j, i + 1], h[j + 1, i], h[j + 1, i + 1]
+    if u >= v:
+        return float(h00 + (h10 - h00) * u + (h11 - h10) * v)
+    return float(h00 + (h11 - h01) * u + (h01 - h00) * v)
+
+
+def _viewshed_one(h, ox, oy, oh, th, drop, algorithm, threads, mip, stats):
+    rows, cols = h.shape
+    z0 = _surface_float(h, ox, oy) + oh
+    out = np.empty(rows * cols, dtype=np.uint8)
+    # rounding bound on the gap at a breakpoint: a few ulps of the heights involved, plus
+    # the surface slope times the error of a crossing's position
+    zscale = float(np.abs(h).max()) + abs(z0) + th
+    grad = float(max(np.abs(np.diff(h, axis=0)).max(), np.abs(np.diff(h, axis=1)).max()))
+    eps = 64 * np.finfo(float).eps * (zscale + (grad + 1.0) * (rows + cols))
+    used = mip if algorithm == "dda_maxmip" else None
+
+    def call(start, stop):
+        return _kernels.viewshed(h, used, ox, oy, z0, th, drop, eps, start, stop, out)
+
+    for ns, cells, skips in _run_ranges(rows * cols, threads, call):
+        stats.ns += ns
+        stats.cells += cells
+        stats.skips += skips
+    unsure = np.flatnonzero(out == 2)
+    if len(unsure):
+        hl = h.tolist()
+        fx, fy = Fraction(ox), Fraction(oy)
+        z0e = surface_exact(hl, fx, fy) + Fraction(oh)
+        for v in unsure:
+            j, i = divmod(int(v), cols)
+            seen = line_of_sight_exact(hl, (fx, fy), z0e, (i, j), Fraction(hl[j][i]) + Fraction(th),
+                                       Fraction(drop))
+            out[v] = 0 if seen else 1
+        stats.exact_resolved += len(unsure)
+    return (out == 0).reshape(rows, cols)
+
+
+def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_distance=None,
+             curvature=False, refraction=0.13, *, algorithm=None, surface="triangles",
+             spacing=None, earth_radius=EARTH_RADIUS_M, threads=None):
+    """Which vertices an observer sees.
+
+    Vertex v is visible when the segment from (ox, oy, s(ox, oy) + observer_height) to
+    (i, j, H[j, i] + target_height) never passes strictly below the surface, and, with
+    ``max_distance``, when v lies within that horizontal distance. ``curvature`` lowers the
+    surface by (1 - refraction) d^2 / (2 R), as GDAL's viewshed does. It is applied at the
+    breakpoints, and needs ``spacing`` (R = earth_radius / spacing cells).
+
+    ``observer`` is (x, y) in grid coordinates, or an (N, 2) array. One observer gives a
+    bool (rows, cols). Several give a uint16 (rows, cols) count of the observers that see
+    each vertex.
+    """
+    _check_surface(surface)
+    h, spacing, flip = _field(heights, spacing)
+    rows = h.shape[0]
+    obs, single = _observers(observer, h) if not flip else _observers(
+        np.asarray(observer, dtype=np.float64) * [1, -1] + [0, rows - 1], h)
+    oh = _length(observer_height, "observer_height", spacing, allow_none=False)
+    th = _length(target_height, "target_height", spacing, allow_none=False)
+    md = _length(max_distance, "max_distance", spacing)
+    if not isinstance(curvature, (bool, np.bool_)):
+        raise TypeError(f"curvature: expected a bool, got {curvature!r}")
+    drop = 0.0
+    if curvature:
+        if spacing is None:
+            raise ValueError("curvature: needs spacing (the cell length in the unit of earth_radius)")
+        r = float(refraction)
+        if not (math.isfinite(r) and 0 <= r < 1):
+            raise ValueError(f"refraction: expected a coefficient in [0, 1), got {refraction!r}")
+        radius = float(earth_radius)
+        if not (math.isfinite(radius) and radius > 0):
+            raise ValueError(f"earth_radius: expected a positive length, got {earth_radius!r}")
+        drop = (1.0 - r) / (2.0 * radius / spacing)
+    if algorithm is None or algorithm == "auto":
+        algorithm = "dda_maxmip"
+    if algorithm not in VIEWSHED_ALGORITHMS:
+        raise ValueError(f"algorithm: expected one of {sorted(VIEWSHED_ALGORITHMS)} or 'auto', "
+                         f"got {algorithm!r}")
+    nthreads = _threads(threads)
+    stats = TerrainStats(algorithm)
+    mip = _mipmap(h) if algorithm == "dda_maxmip" else None
+    count = np.zeros(h.shape, dtype=np.uint16)
+    jj, ii = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    for ox, oy in obs:
+        seen = _viewshed_one(h, float(ox), float(oy), oh, th, drop, algorithm, nthreads, mip, stats)
+        if md is not None:
+            seen &= (ii - ox) ** 2 + (jj - oy) ** 2 <= md * md
+        count += seen
+    LAST_STATS.__dict__.update(stats.__dict__)
+    result = count.astype(bool) if single else count
+    return np.ascontiguousarray(result[::-1]) if flip else result

@@ -1,0 +1,416 @@
+/* Terrain products: horizon angles by shared patterns, by the rational sweep, by
+ * per-vertex walks (plain or max-mipmap) and by a fixed-step marcher, and line of sight
+ * for viewsheds. See terrain.h for the contracts and algos/terrain.py for the maths. */
+#include <math.h>
+#include <stdlib.h>
+#include "terrain.h"
+
+#define HZ_INF HUGE_VAL
+
+static int64_t clamp64(int64_t v, int64_t lo, int64_t hi) {
+    return v < lo ? lo : v > hi ? hi : v;
+}
+
+/* The two-triangle surface (split u = v) at any point of the footprint. */
+static double surface_at(const double *H, int64_t rows, int64_t cols, double x, double y) {
+    int64_t i = clamp64((int64_t)floor(x), 0, cols - 2);
+    int64_t j = clamp64((int64_t)floor(y), 0, rows - 2);
+    double u = x - (double)i, v = y - (double)j;
+    const double *c = H + j * cols + i;
+    double h00 = c[0], h10 = c[1], h01 = c[cols], h11 = c[cols + 1];
+    if (u >= v) return h00 + (h10 - h00) * u + (h11 - h10) * v;
+    return h00 + (h11 - h01) * u + (h01 - h00) * v;
+}
+
+/* The surface on the vertical grid line x = X (an integer) at height y. */
+static double on_column(const double *H, int64_t rows, int64_t cols, int64_t X, double y) {
+    int64_t j = clamp64((int64_t)floor(y), 0, rows - 2);
+    double w = y - (double)j;
+    double a = H[j * cols + X], b = H[(j + 1) * cols + X];
+    return a + (b - a) * w;
+}
+
+/* The surface on the horizontal grid line y = Y at x. */
+static double on_row(const double *H, int64_t cols, int64_t Y, double x) {
+    int64_t i = clamp64((int64_t)floor(x), 0, cols - 2);
+    double w = x - (double)i;
+    double a = H[Y * cols + i], b = H[Y * cols + i + 1];
+    return a + (b - a) * w;
+}
+
+/* ---- shared pattern ----------------------------------------------------------------- */
+
+void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz_pattern *p,
+                        double zmax, int64_t stop_every, int64_t start, int64_t stop,
+                        double *out) {
+    const double *inv_t = p->inv_t, *w = p->w;
+    const int64_t *off_a = p->off_a, *off_b = p->off_b;
+    int64_t chunk = stop_every > 0 ? stop_every : p->n + 1;
+    for (int64_t v = start; v < stop; v++) {
+        int64_t j = v / cols, i = v - j * cols;
+        int64_t n = p->limit_x[cols - 1 - i];
+        int64_t ny = p->limit_y[rows - 1 - j];
+        int64_t n_valid;
+        const double *base = H + v;
+        double h = base[0], best = -HZ_INF;
+        if (ny < n) n = ny;
+        n_valid = n;
+        if (p->end_k >= 0 && n > p->end_k + 1) n = p->end_k + 1;
+        for (int64_t e0 = 0; e0 < n; e0 += chunk) {
+            int64_t e1 = e0 + chunk < n ? e0 + chunk : n;
+            for (int64_t e = e0; e < e1; e++) {
+                double a = base[off_a[e]];
+                double s = a + (base[off_b[e]] - a) * w[e];
+                double r = (s - h) * inv_t[e];
+                best = r > best ? r : best;
+            }
+            if (stop_every > 0 && (zmax - h) * inv_t[e1 - 1] <= best) {
+                n_valid = 0; /* nothing further can count, the end included */
+                break;
+            }
+        }
+        if (p->end_k >= 0 && n_valid > p->end_k + 1) {
+            int64_t k = p->end_k;
+            double a = base[off_a[k]], sa = a + (base[off_b[k]] - a) * w[k];
+            double b = base[off_a[k + 1]], sb = b + (base[off_b[k + 1]] - b) * w[k + 1];
+            double r = (sa + (sb - sa) * p->end_f - h) * p->end_inv_t;
+            best = r > best ? r : best;
+        }
+        out[v] = best;
+    }
+}
+
+/* ---- rational sweep with an upper convex hull --------------------------------------- */
+
+/* Lines are taken in order of c = p x - q y, so that neighbouring lines, which read the
+ * same cache lines of H, follow each other. Each line is generated from its far end
+ * backwards, straight into the hull: no buffer. */
+static void sweep_line(const double *H, int64_t rows, int64_t cols, int64_t q, int64_t p,
+                       int64_t i0, int64_t j0, int64_t n_entries, const double *tfrac,
+                       const int64_t *rel_a, const int64_t *rel_b, const double *w,
+                       const int64_t *mx, const int64_t *my, double inv_norm, double *ht,
+                       double *hs, double *out) {
+    int64_t periods = (cols - 1 - i0) / q, top = 0;
+    if (p > 0 && (rows - 1 - j0) / p < periods) periods = (rows - 1 - j0) / p;
+    for (int64_t m = periods; m >= 0; m--) {
+        int64_t vi = i0 + m * q, vj = j0 + m * p, base = vj * cols + vi;
+        int64_t last = n_entries - 1;
+        if (m == periods) { /* the partial period: its breakpoints inside the footprint */
+            last = -1;
+            while (last + 1 < n_entries && vi + mx[last + 1] <= cols - 1 &&
+                   vj + my[last + 1] <= rows - 1)
+                last++;
+        }
+        for (int64_t e = last; e >= 0; e--) {
+            double a = H[base + rel_a[e]];
+            double sp = a + (H[base + rel_b[e]] - a) * w[e];
+            double tp = (double)m + tfrac[e];
+            while (top >= 2 && (hs[top - 1] - sp) * (ht[top - 2] - tp) <=
+                                   (hs[top - 2] - sp) * (ht[top - 1] - tp))
+                top--;
+            if (e == n_entries - 1) /* the next vertex on the line */
+                out[base + p * cols + q] =
+                    top ? (hs[top - 1] - sp) / (ht[top - 1] - tp) * inv_norm : -HZ_INF;
+            ht[top] = tp;
+            hs[top] = sp;
+            top++;
+        }
+    }
+    {
+        double sp = H[j0 * cols + i0], tp = 0.0;
+        while (top >= 2 && (hs[top - 1] - sp) * (ht[top - 2] - tp) <=
+                               (hs[top - 2] - sp) * (ht[top - 1] - tp))
+            top--;
+        out[j0 * cols + i0] = top ? (hs[top - 1] - sp) / (ht[top - 1] - tp) * inv_norm : -HZ_INF;
+    }
+}
+
+int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int64_t p,
+                     int64_t n_entries, const double *tfrac, const int64_t *dxa,
+                     const int64_t *dya, const int64_t *dxb, const int64_t *dyb,
+                     const double *w, const int64_t *mx, const int64_t *my, double norm,
+                     double *out) {
+    int64_t max_periods = (cols - 1) / q + 2;
+    int64_t cap = 1 + max_periods * n_entries;
+    int64_t c_min = -q * (rows - 1), c_max = p * (cols - 1), n_c = c_max - c_min + 1;
+    double *ht = malloc((size_t)cap * sizeof *ht), *hs = malloc((size_t)cap * sizeof *hs);
+    int64_t *rel_a = malloc((size_t)n_entries * sizeof *rel_a);
+    int64_t *rel_b = malloc((size_t)n_entries * sizeof *rel_b);
+    int64_t *first = malloc((size_t)n_c * sizeof *first);
+    if (!ht || !hs || !rel_a || !rel_b || !first) {
+        free(ht); free(hs); free(rel_a); free(rel_b); free(first);
+        return -1;
+    }
+    for (int64_t e = 0; e < n_entries; e++) {
+        rel_a[e] = dya[e] * cols + dxa[e];
+        rel_b[e] = dyb[e] * cols + dxb[e];
+    }
+    for (int64_t k = 0; k < n_c; k++) first[k] = -1;
+    for (int64_t j0 = 0; j0 < rows; j0++) {
+        /* a line's first vertex is one whose predecessor (i - q, j - p) is outside */
+        int64_t imax = j0 < p ? cols : (q < cols ? q : cols);
+        for (int64_t i0 = 0; i0 < imax; i0++) first[p * i0 - q * j0 - c_min] = j0 * cols + i0;
+    }
+    for (int64_t k = 0; k < n_c; k++) {
+        int64_t v = first[k];
+        if (v < 0) continue;
+        sweep_line(H, rows, cols, q, p, v % cols, v / cols, n_entries, tfrac, rel_a, rel_b, w,
+                   mx, my, 1.0 / norm, ht, hs, out);
+    }
+    free(ht); free(hs); free(rel_a); free(rel_b); free(first);
+    return 0;
+}
+
+/* ---- per-vertex and line-of-sight walks --------------------------------------------- */
+
+/* A ray o + t d over the cells of the footprint, with a tile-skipping step. */
+typedef struct {
+    double ox, oy, dx, dy, inv_dx, inv_dy;
+    int sx, sy;
+    int64_t nx, ny;     /* cells: cols - 1, rows - 1 */
+} walk_ray;
+
+static int64_t first_index(double o, int s, int64_t n) {
+    /* the cell holding the points just after o, moving with sign s (s = 0: [i, i+1)) */
+    int64_t i = s < 0 ? (int64_t)ceil(o) - 1 : (int64_t)floor(o);
+    if (s == 0 && i == n) i = n - 1; /* on the far edge of the footprint, moving along it */
+    return i;
+}
+
+static void walk_init(walk_ray *r, int64_t rows, int64_t cols, double ox, double oy,
+                      double dx, double dy) {
+    r->ox = ox; r->oy = oy; r->dx = dx; r->dy = dy;
+    r->sx = dx > 0 ? 1 : dx < 0 ? -1 : 0;
+    r->sy = dy > 0 ? 1 : dy < 0 ? -1 : 0;
+    r->inv_dx = r->sx ? 1.0 / dx : 0.0;
+    r->inv_dy = r->sy ? 1.0 / dy : 0.0;
+    r->nx = cols - 1;
+    r->ny = rows - 1;
+}
+
+/* Where the ray leaves the footprint [0, nx] x [0, ny]. */
+static double footprint_exit(const walk_ray *r) {
+    double tx = r->sx > 0 ? ((double)r->nx - r->ox) * r->inv_dx
+              : r->sx < 0 ? -r->ox * r->inv_dx : HZ_INF;
+    double ty = r->sy > 0 ? ((double)r->ny - r->oy) * r->inv_dy
+              : r->sy < 0 ? -r->oy * r->inv_dy : HZ_INF;
+    return tx < ty ? tx : ty;
+}
+
+/* Skip the largest tile around cell (ci, cj) that `can_skip` allows. On success moves the
+ * cell to the one after the tile, sets *t_in to the tile's exit and returns 1. */
+typedef int (*skip_test)(const void *ctx, double tile_max, double t_in, double t_exit);
+
+static int try_skip(const walk_ray *r, const hf_hz_mip *mip, int *level, int64_t *ci,
+                    int64_t *cj, double *t_in, double t_end, skip_test test,
+                    const void *ctx) {
+    int top = mip->n_levels - 1;
+    int L = *level + 1 < top ? *level + 1 : top;
+    for (; L >= 0; L--) {
+        int64_t tx = *ci >> L, ty = *cj >> L;
+        double m = mip->data[mip->offset[L] + ty * mip->cols[L] + tx];
+        int64_t X1 = r->sx > 0 ? ((tx + 1) << L) : (tx << L);
+        int64_t Y1 = r->sy > 0 ? ((ty + 1) << L) : (ty << L);
+        double tXe, tYe, te;
+        if (X1 > r->nx) X1 = r->nx;
+        if (Y1 > r->ny) Y1 = r->ny;
+        tXe = r->sx ? ((double)X1 - r->ox) * r->inv_dx : HZ_INF;
+        tYe = r->sy ? ((double)Y1 - r->oy) * r->inv_dy : HZ_INF;
+        te = tXe < tYe ? tXe : tYe;
+        if (te > t_end) te = t_end;
+        if (!test(ctx, m, *t_in, te)) continue;
+        *level = L;
+        *t_in = te;
+        if (te >= t_end) return 2; /* the rest of the ray is covered */
+        {
+            int64_t lo_x = tx << L, hi_x = ((tx + 1) << L) - 1;
+            int64_t lo_y = ty << L, hi_y = ((ty + 1) << L) - 1;
+            if (hi_x > r->nx - 1) hi_x = r->nx - 1;
+            if (hi_y > r->ny - 1) hi_y = r->ny - 1;
+            if (tXe <= tYe) {
+                *ci = r->sx > 0 ? X1 : X1 - 1;
+            } else {
+                double x = r->ox + te * r->dx;
+                *ci = clamp64(r->sx < 0 ? (int64_t)ceil(x) - 1 : (int64_t)floor(x), lo_x, hi_x);
+            }
+            if (tYe <= tXe) {
+                *cj = r->sy > 0 ? Y1 : Y1 - 1;
+            } else {
+                double y = r->oy + te * r->dy;
+                *cj = clamp64(r->sy < 0 ? (int64_t)ceil(y) - 1 : (int64_t)floor(y), lo_y, hi_y);
+            }
+        }
+        return 1;
+    }
+    *level = 0;
+    return 0;
+}
+
+/* The breakpoints of one ray in [0, t_end]: every exit of a cell, every diagonal crossing
+ * inside a cell and the end. visit(ctx, t, s) returns nonzero to stop the walk. */
+typedef int (*visit_fn)(void *ctx, double t, double s);
+
+static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
+                                 const hf_hz_mip *mip, const walk_ray *r, double t_end,
+                                 visit_fn visit, skip_test test, void *ctx,
+                                 hf_hz_stats *stats) {
+    int64_t ci = first_index(r->ox, r->sx, r->nx), cj = first_index(r->oy, r->sy, r->ny);
+    double t_in = 0.0, ddiag = r->dx - r->dy, c0 = r->ox - r->oy;
+    double inv_ddiag = ddiag != 0.0 ? 1.0 / ddiag : 0.0;
+    int level = 0;
+    int64_t cells = 0, skips = 0;
+    if (!(t_end > 0.0)) return;
+    while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
+        int64_t X = r->sx > 0 ? ci + 1 : ci, Y = r->sy > 0 ? cj + 1 : cj;
+        double tX, tY, t_out;
+        if (mip && test) {
+            int moved = try_skip(r, mip, &level, &ci, &cj, &t_in, t_end, test, ctx);
+            if (moved) {
+                skips++;
+                if (moved == 2) break;
+                continue;
+            }
+        }
+        cells++;
+        tX = r->sx ? ((double)X - r->ox) * r->inv_dx : HZ_INF;
+        tY = r->sy ? ((double)Y - r->oy) * r->inv_dy : HZ_INF;
+        t_out = tX < tY ? tX : tY;
+        if (ddiag != 0.0) {
+            double td = ((double)(ci - cj) - c0) * inv_ddiag;
+            if (td > t_in && td < t_out && td < t_end) {
+                double u = r->ox + td * r->dx - (double)ci;
+                const double *c = H + cj * cols + ci;
+                u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
+                if (visit(ctx, td, c[0] + (c[cols + 1] - c[0]) * u)) break;
+            }
+        }
+        if (t_out >= t_end) {
+            visit(ctx, t_end, surface_at(H, rows, cols, r->ox + t_end * r->dx,
+                                         r->oy + t_end * r->dy));
+            break;
+        }
+        if (tX < tY) {
+            if (visit(ctx, tX, on_column(H, rows, cols, X, r->oy + tX * r->dy))) break;
+            ci += r->sx;
+        } else if (tY < tX) {
+            if (visit(ctx, tY, on_row(H, cols, Y, r->ox + tY * r->dx))) break;
+            cj += r->sy;
+        } else {
+            if (visit(ctx, tX, H[Y * cols + X])) break;
+            ci += r->sx;
+            cj += r->sy;
+        }
+        t_in = t_out;
+    }
+    if (stats) {
+        stats->cells += cells;
+        stats->skips += skips;
+    }
+}
+
+typedef struct {
+    double h, best;
+} horizon_ctx;
+
+static int horizon_visit(void *vctx, double t, double s) {
+    horizon_ctx *c = vctx;
+    if (s - c->h > c->best * t) c->best = (s - c->h) / t;
+    return 0;
+}
+
+static int horizon_skip(const void *vctx, double tile_max, double t_in, double t_exit) {
+    const horizon_ctx *c = vctx;
+    if (c->best == -HZ_INF) return 0;
+    return tile_max - c->h <= c->best * (c->best >= 0 ? t_in : t_exit);
+}
+
+void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
+                     double dx, double dy, double max_distance, int64_t start, int64_t stop,
+                     double *out, hf_hz_stats *stats) {
+    for (int64_t v = start; v < stop; v++) {
+        int64_t j = v / cols, i = v - j * cols;
+        walk_ray r;
+        horizon_ctx c;
+        double t_end;
+        walk_init(&r, rows, cols, (double)i, (double)j, dx, dy);
+        t_end = footprint_exit(&r);
+        if (max_distance < t_end) t_end = max_distance;
+        c.h = H[v];
+        c.best = -HZ_INF;
+        walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, horizon_visit, horizon_skip, &c,
+                             stats);
+        out[v] = c.best;
+    }
+}
+
+typedef struct {
+    double z0, slope, drop2, eps;  /* drop2 = drop * |d|^2 */
+    int uncertain, blocked;
+} los_ctx;
+
+static int los_visit(void *vctx, double t, double s) {
+    los_ctx *c = vctx;
+    double margin = s - c->drop2 * t * t - (c->z0 + c->slope * t);
+    if (margin > c->eps) {
+        c->blocked = 1;
+        return 1;
+    }
+    if (margin > -c->eps) c->uncertain = 1;
+    return 0;
+}
+
+static int los_skip(const void *vctx, double tile_max, double t_in, double t_exit) {
+    const los_ctx *c = vctx;
+    double low = c->z0 + c->slope * (c->slope >= 0 ? t_in : t_exit);
+    return tile_max + c->eps < low;
+}
+
+void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
+                 double ox, double oy, double z0, double target_height, double drop,
+                 double eps, int64_t start, int64_t stop, uint8_t *out, hf_hz_stats *stats) {
+    for (int64_t v = start; v < stop; v++) {
+        int64_t j = v / cols, i = v - j * cols;
+        double dx = (double)i - ox, dy = (double)j - oy;
+        walk_ray r;
+        los_ctx c;
+        if (dx == 0.0 && dy == 0.0) {
+            out[v] = 0;
+            continue;
+        }
+        walk_init(&r, rows, cols, ox, oy, dx, dy);
+        c.z0 = z0;
+        c.drop2 = drop * (dx * dx + dy * dy);
+        c.slope = H[v] - c.drop2 + target_height - z0; /* the target sinks with the surface */
+        c.eps = eps;
+        c.uncertain = c.blocked = 0;
+        /* t in [0, 1): the target vertex itself is never strictly above its own segment */
+        walk_ray_breakpoints(H, rows, cols, mip, &r, 1.0, los_visit, los_skip, &c, stats);
+        out[v] = c.blocked ? 1 : c.uncertain ? 2 : 0;
+    }
+}
+
+/* ---- the r.horizon-style marcher ---------------------------------------------------- */
+
+void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,
+                      double step, double max_distance, double zmax, int64_t start,
+                      int64_t stop, double *out, hf_hz_stats *stats) {
+    int64_t samples = 0;
+    double xmax = (double)(cols - 1), ymax = (double)(rows - 1);
+    for (int64_t v = start; v < stop; v++) {
+        int64_t j = v / cols, i = v - j * cols;
+        double h = H[v], best = -HZ_INF;
+        for (int64_t k = 1;; k++) {
+            double t = (double)k * step, x, y, s;
+            if (t > max_distance) break;
+            x = (double)i + t * dx;
+            y = (double)j + t * dy;
+            if (x < 0.0 || y < 0.0 || x > xmax || y > ymax) break;
+            s = surface_at(H, rows, cols, x, y);
+            samples++;
+            if (s - h > best * t) best = (s - h) / t;
+            if ((zmax - h) <= best * t) break;
+        }
+        out[v] = best;
+    }
+    if (stats) stats->cells += samples;
+}

@@ -1,0 +1,95 @@
+/* Terrain products on the two-triangle surface: horizon angles and line of sight.
+ *
+ * Conventions: ../shared/spec/CONVENTIONS.md ("Terrain products"). Heights are float64,
+ * (rows, cols), C order, H[j * cols + i] the height of vertex (i, j). The surface is the
+ * two-triangle one, split on the diagonal u = v, or, in a mirrored frame, on u + v = 1.
+ *
+ * Along a straight line the surface is piecewise linear. Its breakpoints are where the line
+ * crosses a grid line x = k, y = k, or a cell diagonal. At every breakpoint the surface is
+ * the linear interpolation between the two ends of the edge or diagonal crossed, so every
+ * kernel here evaluates it as H[a] * (1 - w) + H[b] * w.
+ *
+ * The Python layer (algos/terrain.py) validates every argument. It builds the patterns and
+ * the octant frames and resolves the uncertain line-of-sight cases exactly. */
+#ifndef HF_TERRAIN_H
+#define HF_TERRAIN_H
+
+#include <stdint.h>
+
+/* One breakpoint of a shared pattern, relative to the ray's start vertex. The surface
+ * there is H[v + off_a] * (1 - w) + H[v + off_b] * w, where v is the start vertex's linear
+ * index. inv_t is 1 / (distance from the start vertex). */
+typedef struct {
+    int64_t n;              /* breakpoints                                              */
+    const double *inv_t;    /* (n,)                                                     */
+    const int64_t *off_a;   /* (n,)                                                     */
+    const int64_t *off_b;   /* (n,)                                                     */
+    const double *w;        /* (n,)                                                     */
+    const int64_t *limit_x; /* (cols,): the breakpoints a vertex with cols-1-i = k may use */
+    const int64_t *limit_y; /* (rows,): the same for rows-1-j                           */
+    int64_t end_k;          /* max_distance ends between breakpoints end_k and end_k + 1  */
+                            /* (-1: no end); the main loop stops after end_k             */
+    double end_f;           /* the end's fraction of the way from end_k to end_k + 1      */
+    double end_inv_t;       /* 1 / max_distance                                         */
+} hf_hz_pattern;
+
+/* Horizon tangents by one shared pattern (octant frame: direction dx >= dy >= 0).
+ * Vertices [start, stop) in C order; out[v] = sup over the vertex's valid breakpoints of
+ * (s - H[v]) / distance, or -inf when it has none. zmax: the highest height, for the early
+ * stop (every stop_every breakpoints, the walk ends once (zmax - H[v]) / distance <= best);
+ * stop_every = 0 disables it. */
+void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz_pattern *p,
+                        double zmax, int64_t stop_every, int64_t start, int64_t stop,
+                        double *out);
+
+/* Horizon tangents of every vertex by the rational-direction sweep (octant frame, direction
+ * (q, p) with q >= p >= 0, q >= 1, gcd 1). The period pattern holds the breakpoints of one
+ * period, from a vertex (exclusive) to the next vertex on its line (inclusive, last): their
+ * parameters tfrac in (0, 1], the interpolation offsets (dxa, dya) and (dxb, dyb) relative to
+ * the period's first vertex, the weight w, and (mx, my), the largest x and y offsets read.
+ * norm = sqrt(q^2 + p^2). Returns 0, or -1 when memory runs out. */
+int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int64_t p,
+                     int64_t n_entries, const double *tfrac, const int64_t *dxa,
+                     const int64_t *dya, const int64_t *dxb, const int64_t *dyb,
+                     const double *w, const int64_t *mx, const int64_t *my, double norm,
+                     double *out);
+
+/* A max-mipmap of the cell maxima: level k holds tiles of 2^k x 2^k cells. */
+typedef struct {
+    int32_t n_levels;
+    const double *data;         /* every level, concatenated                           */
+    const int64_t *offset;      /* (n_levels,) start of each level in data             */
+    const int64_t *rows;        /* (n_levels,) tile rows per level                     */
+    const int64_t *cols;        /* (n_levels,) tile columns per level                  */
+} hf_hz_mip;
+
+/* Walk statistics, summed over a batch. */
+typedef struct {
+    int64_t cells;     /* cells evaluated                                                */
+    int64_t skips;     /* tiles (or cells) skipped by the mipmap                          */
+} hf_hz_stats;
+
+/* Per-vertex horizon walks in the original frame, along the unit direction (dx, dy):
+ * vertices [start, stop), max_distance (inf: to the edge of the footprint), mip NULL for
+ * the plain cell walk. out[v] as in hf_horizon_pattern. */
+void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
+                     double dx, double dy, double max_distance, int64_t start, int64_t stop,
+                     double *out, hf_hz_stats *stats);
+
+/* Line of sight from the observer (ox, oy, z0) to every target vertex in [start, stop):
+ * the segment to (i, j, H + target_height) is blocked when the surface rises strictly
+ * above it. drop > 0 lowers the surface by drop * d^2 (curvature and refraction; d the
+ * horizontal distance from the observer). Writes 0 visible, 1 blocked, 2 uncertain (a
+ * breakpoint within eps of the segment and none clearly above: resolved by the caller).
+ * The target vertex itself is not tested; mip may be NULL. */
+void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
+                 double ox, double oy, double z0, double target_height, double drop,
+                 double eps, int64_t start, int64_t stop, uint8_t *out, hf_hz_stats *stats);
+
+/* The r.horizon-style marcher: samples the surface every `step` along the unit direction,
+ * stopping at the footprint, at max_distance, or once (zmax - H) / distance <= best. */
+void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,
+                      double step, double max_distance, double zmax, int64_t start,
+                      int64_t stop, double *out, hf_hz_stats *stats);
+
+#endif

@@ -1,0 +1,259 @@
+"""Terrain products (issue 11): every algorithm against the exact references of
+algos.terrain_ref, the conventions (azimuth, ties, units), and bad input."""
+import math
+
+import numpy as np
+import pytest
+
+import algos
+import algos.terrain as T
+from algos import _kernels
+from algos.terrain_ref import horizon_reference, viewshed_reference
+from datasets_gen.loaders import HeightField
+
+EXACT = [name for name, a in T.HORIZON_ALGORITHMS.items() if a.exact]
+AZIMUTHS = [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0, 30.0, 200.0, 333.3,
+            math.degrees(math.atan2(1, 2)), 180 + math.degrees(math.atan2(2, 5))]
+
+
+def lattice_fields():
+    """Small lattice fields over the usual families: integer noise, flat, a tilted plane,
+    a spike, ridges and a pit."""
+    rng = np.random.default_rng(11)
+    yy, xx = np.mgrid[0:9, 0:11]
+    return {
+        "noise": rng.integers(0, 6, size=(9, 11)).astype(float),
+        "flat": np.zeros((7, 8)),
+        "tilted": (xx + 2 * yy).astype(float),
+        "spike": np.where((xx == 5) & (yy == 4), 7.0, 0.0),
+        "ridges": (3 * ((xx + yy) % 4 == 0)).astype(float),
+        "pit": np.minimum(np.abs(xx - 5) + np.abs(yy - 4), 4).astype(float) * 2,
+    }
+
+
+FIELDS = lattice_fields()
+
+
+def _applies(name, direction, max_distance):
+    info = T.HORIZON_ALGORITHMS[name]
+    if info.rational_only and direction.rational is None:
+        return False
+    return max_distance is None or info.max_distance
+
+
+@pytest.mark.parametrize("family", sorted(FIELDS))
+@pytest.mark.parametrize("max_distance", [None, 0.5, 2.5, 6.0])
+def test_horizon_matches_exact_reference(family, max_distance):
+    h = FIELDS[family]
+    for az in AZIMUTHS:
+        d = T.azimuth_direction(az)
+        ref = np.array(horizon_reference(h, (d.dx, d.dy), max_distance))
+        for name in EXACT:
+            if not _applies(name, d, max_distance):
+                continue
+            got = T.horizon(h, az, max_distance, algorithm=name)[0]
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12,
+                                       err_msg=f"{name} az={az} md={max_distance}")
+
+
+def test_march_never_exceeds_the_supremum():
+    """The marcher samples surface points on the ray, so it can only miss the maximum."""
+    h = FIELDS["noise"]
+    for az in (0.0, 30.0, 135.0):
+        exact = T.horizon(h, az, algorithm="dda")[0]
+        march = T.horizon(h, az, algorithm="march", march_step=0.37)[0]
+        assert np.all(march <= exact + 1e-12)
+        assert np.mean(march < exact - 1e-9) > 0.05  # and it does miss some
+
+
+def test_embree_peer_close_to_exact():
+    h = FIELDS["noise"]
+    exact = T.horizon(h, 30.0, algorithm="dda")[0]
+    peer = T.horizon(h, 30.0, algorithm="embree", embree_tolerance=1e-5)[0]
+    finite = np.isfinite(exact) & (exact > -math.pi / 2)
+    assert np.array_equal(exact == -math.pi / 2, peer == -math.pi / 2)
+    err = np.abs(peer - exact)[finite]
+    assert np.median(err) < 1e-3
+
+
+def test_default_algorithm_choice():
+    h = FIELDS["noise"]
+    T.horizon(h, T.rational_azimuths(8))
+    assert T.LAST_STATS.algorithm == "sweep"
+    T.horizon(h, [10.0])
+    assert T.LAST_STATS.algorithm == "dda_maxmip"
+    T.horizon(h, [10.0], max_distance=5)
+    assert T.LAST_STATS.algorithm == "pattern"
+
+
+def test_sweep_refuses_what_it_cannot_do():
+    h = FIELDS["noise"]
+    with pytest.raises(ValueError, match=r"azimuths\[1\].*rational"):
+        T.horizon(h, [0.0, 10.0], algorithm="sweep")
+    with pytest.raises(ValueError, match="max_distance"):
+        T.horizon(h, [0.0], max_distance=3, algorithm="sweep")
+
+
+def test_azimuth_convention():
+    """Azimuth 90 looks along +x (east), 0 along -y (north, row 0)."""
+    h = np.zeros((6, 6))
+    h[:, 5] = 3.0  # a wall on the east edge
+    h[0, :] = 2.0  # a lower wall on the north edge
+    east, west, north, south = T.horizon(h, [90.0, 270.0, 0.0, 180.0])[:, 3, 2]
+    assert east == pytest.approx(math.atan2(3.0, 3.0))
+    assert north == pytest.approx(math.atan2(2.0, 3.0))
+    assert west == 0.0 and south == 0.0
+    d = T.azimuth_direction(90.0)
+    assert (d.dx, d.dy) == (1.0, 0.0)
+    d = T.azimuth_direction(0.0)
+    assert (d.dx, d.dy) == (0.0, -1.0)
+
+
+def test_empty_horizon_is_minus_half_pi():
+    h = FIELDS["noise"]
+    out = T.horizon(h, 90.0)[0]
+    assert np.all(out[:, -1] == -math.pi / 2)  # the east edge looks out of the field
+    assert np.all(out[:, :-1] > -math.pi / 2)
+
+
+def test_rational_azimuths():
+    az = T.rational_azimuths(16)
+    assert len(az) == 16
+    spaced = np.arange(16) * 22.5
+    assert np.max(np.abs(az - spaced)) < 0.71
+    assert all(T.azimuth_direction(a).rational is not None for a in az)
+    fine = T.rational_azimuths(16, max_denominator=12)
+    assert np.max(np.abs(fine - spaced)) < 0.13
+
+
+def test_shadows_strict_and_ties_lit():
+    h = np.zeros((5, 7))
+    h[:, 6] = 2.0  # a wall 2 high on the east edge; vertex (4, j) sees it at 45 degrees
+    sh = T.shadows(h, 90.0, 45.0)
+    assert not sh[2, 4]  # tie: lit
+    assert sh[2, 5]  # atan(2) > 45 degrees
+    assert not T.shadows(h, 90.0, 64.0)[2, 5]
+    flat = T.shadows(np.zeros((4, 4)), 123.0, 0.0)
+    assert not flat.any()  # horizon 0 equals elevation 0: lit
+    noise = FIELDS["noise"]
+    np.testing.assert_array_equal(T.shadows(noise, 30.0, 20.0),
+                                  T.horizon(noise, 30.0)[0] > math.radians(20.0))
+
+
+def test_sky_view_factor():
+    assert np.all(T.sky_view_factor(np.zeros((5, 5)), 8) == 1.0)
+    h = FIELDS["pit"]
+    az = np.arange(8) * 45.0
+    expected = 1 - np.mean(np.sin(np.maximum(T.horizon(h, az), 0)), axis=0)
+    np.testing.assert_allclose(T.sky_view_factor(h, 8), expected, atol=1e-15)
+    assert T.sky_view_factor(h, 8)[4, 5] < 0.9  # the bottom of the pit sees less sky
+    rat = T.sky_view_factor(h, 16, rational=True)
+    assert T.LAST_STATS.algorithm == "sweep"
+    assert np.all((rat > 0) & (rat <= 1))
+
+
+@pytest.mark.parametrize("family", ["noise", "tilted", "spike", "ridges", "pit", "flat"])
+def test_viewshed_matches_exact_reference(family):
+    h = FIELDS[family]
+    rows, cols = h.shape
+    for observer in [(0, 0), (5, 4), (2.5, 3.25), (cols - 1, rows - 1)]:
+        for oh, th in [(0.0, 0.0), (1.75, 0.0), (0.5, 1.0)]:
+            ref = np.array(viewshed_reference(h, observer, oh, th))
+            for name in T.VIEWSHED_ALGORITHMS:
+                got = T.viewshed(h, observer, oh, th, algorithm=name)
+                assert got.dtype == bool
+                np.testing.assert_array_equal(got, ref, err_msg=f"{name} {observer} {oh} {th}")
+
+
+def test_viewshed_curvature_and_many_observers():
+    h = FIELDS["noise"]
+    obs = np.array([[0, 0], [5, 4], [10, 8]])
+    count = T.viewshed(h, obs, 1.0)
+    assert count.dtype == np.uint16
+    expected = sum(T.viewshed(h, o, 1.0).astype(int) for o in obs)
+    np.testing.assert_array_equal(count, expected)
+    with pytest.raises(ValueError, match="curvature: needs spacing"):
+        T.viewshed(h, (1, 1), curvature=True)
+    # a tiny earth lowers distant terrain, targets included: the answer changes, exactly
+    plain = T.viewshed(h, (5, 4), 3.0, spacing=1.0)
+    curved = T.viewshed(h, (5, 4), 3.0, curvature=True, spacing=1.0, earth_radius=20.0)
+    assert np.all(curved <= plain) and curved.sum() < plain.sum()  # the bulge hides
+    ref = np.array(viewshed_reference(h, (5, 4), 3.0, 0.0, drop=(1 - 0.13) / 40.0))
+    np.testing.assert_array_equal(curved, ref)
+    near = T.viewshed(h, (5, 4), 0.5, max_distance=2.0)
+    jj, ii = np.mgrid[0:9, 0:11]
+    assert not near[(ii - 5) ** 2 + (jj - 4) ** 2 > 4].any()
+
+
+def test_threads_bit_identical():
+    rng = np.random.default_rng(3)
+    h = np.cumsum(rng.normal(size=(80, 90)), axis=1)
+    for name in ("pattern", "dda_maxmip", "march"):
+        one = T.horizon(h, [17.0, 200.0], algorithm=name, threads=1)
+        two = T.horizon(h, [17.0, 200.0], algorithm=name, threads=2)
+        assert np.array_equal(one, two), name
+    np.testing.assert_array_equal(T.viewshed(h, (40, 30), threads=1),
+                                  T.viewshed(h, (40, 30), threads=2))
+
+
+def test_heightfield_units_and_north():
+    """A HeightField's spacing turns lengths into metres; fields whose rows run north
+    (params north='+y', as jacksboro) are flipped so that azimuths stay geographic."""
+    rng = np.random.default_rng(5)
+    h = rng.integers(0, 5, size=(8, 9)).astype(np.float32)
+    field = HeightField(h, "t", spacing=30.0, unit="m", params={"north": "+y"})
+    got = T.horizon(field, [0.0, 90.0], max_distance=90.0)  # 3 cells
+    want = T.horizon(h[::-1], [0.0, 90.0], max_distance=3.0)[:, ::-1]
+    np.testing.assert_allclose(got, want, atol=0)
+    v = T.viewshed(field, (2, 1), observer_height=30.0)
+    np.testing.assert_array_equal(v, T.viewshed(h[::-1], (2, 6), observer_height=1.0)[::-1])
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: T.horizon(np.zeros(5), 0), "heights: expected a 2D"),
+    (lambda: T.horizon(np.zeros((1, 5)), 0), "heights: each side"),
+    (lambda: T.horizon(np.array([[0, 1], [np.nan, 2]]), 0), r"heights: non-finite .*row 1, col 0"),
+    (lambda: T.horizon(np.zeros((3, 3)), [0, np.inf]), r"azimuths\[1\]"),
+    (lambda: T.horizon(np.zeros((3, 3)), 0, max_distance=-1), "max_distance"),
+    (lambda: T.horizon(np.zeros((3, 3)), 0, algorithm="nope"), "algorithm"),
+    (lambda: T.horizon(np.zeros((3, 3)), 0, surface="flat"), "surface"),
+    (lambda: T.horizon(np.zeros((3, 3)), 0, threads=0), "threads"),
+    (lambda: T.shadows(np.zeros((3, 3)), 0, 95), "elevation"),
+    (lambda: T.viewshed(np.zeros((3, 3)), (5, 0)), r"observer\[0\]"),
+    (lambda: T.viewshed(np.zeros((3, 3)), [[0, 0], [1, np.nan]]), r"observer\[1\]"),
+    (lambda: T.viewshed(np.zeros((3, 3)), (1, 1), observer_height=-1), "observer_height"),
+    (lambda: T.viewshed(np.zeros((3, 3)), (1, 1), curvature=True, spacing=1, refraction=2),
+     "refraction"),
+    (lambda: T.sky_view_factor(np.zeros((3, 3)), 0), "n_azimuths"),
+])
+def test_bad_input_raises_naming_the_argument(call, match):
+    with pytest.raises((ValueError, TypeError), match=match):
+        call()
+
+
+def test_string_heights_rejected():
+    with pytest.raises(TypeError, match="heights"):
+        T.horizon(np.array([["a", "b"], ["c", "d"]]), 0)
+
+
+def test_kernel_rejects_a_pattern_reading_outside():
+    """The binding checks that every breakpoint a limit admits stays inside the field."""
+    h = np.zeros((4, 4))
+    one = np.ones(1)
+    far = np.array([5], dtype=np.int64)
+    zero = np.zeros(1, dtype=np.int64)
+    out = np.empty(16)
+    with pytest.raises(ValueError, match="outside the field"):
+        _kernels.horizon_pattern(h, one, far, zero, far, zero, one,
+                                 np.ones(4, dtype=np.int64), np.ones(4, dtype=np.int64),
+                                 -1, 0.0, 0.0, 0.0, 0, 0, 16, out)
+    with pytest.raises(ValueError, match="vertex range"):
+        _kernels.horizon_walk(h, None, 1.0, 0.0, np.inf, 0, 17, out)
+    with pytest.raises(ValueError, match="next vertex"):
+        _kernels.horizon_sweep(h, 2, 1, one, zero, zero, zero, zero, one, zero, zero, 1.0, out)
+
+
+def test_public_names():
+    for name in ("horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
+                 "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS"):
+        assert hasattr(algos, name)
