@@ -3,6 +3,7 @@
 #   make reproduce  install into .venv and run the main study (`hftrace reproduce`)
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
 #   make bench-ci   the pytest-benchmark suite (pytest bench --benchmark-only)
+#   make terrain-bench  the terrain products' targets against the peers (reports/terrain)
 #   make regress    re-measure the speedup ratios against reports/baseline.json
 #   make regress-counts  instruction counts (callgrind) against reports/instructions_baseline.json
 #   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
@@ -18,7 +19,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all install test reproduce bench-traverse bench-intersect bench-ci regress regress-counts sanitize fuzz clean
+.PHONY: all install test reproduce terrain-bench bench-traverse bench-intersect bench-ci regress regress-counts sanitize fuzz clean
 
 all: test
 
@@ -35,8 +36,19 @@ install: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
-reproduce: $(STAMP)
+# the peers' optional extra (xarray-spatial) joins the figure and the viewshed comparison;
+# a machine where it cannot be installed still reproduces everything else
+PEERS_STAMP := $(VENV)/.hftrace-peers
+
+$(PEERS_STAMP): $(STAMP)
+	-$(BIN)/python -m pip install --quiet -e ".[test,peers]"
+	touch $(PEERS_STAMP)
+
+reproduce: $(PEERS_STAMP)
 	$(BIN)/hftrace reproduce
+
+terrain-bench: $(PEERS_STAMP)
+	$(BIN)/hftrace terrain-bench
 
 bench-traverse: $(STAMP)
 	$(BIN)/hftrace bench-traverse

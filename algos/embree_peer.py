@@ -181,8 +181,9 @@ class EmbreeHorizon:
     """HORAYZON-style horizons (Steger et al. 2022, GMD): Embree occlusion rays from each
     vertex, with a bisection over the elevation angle until the bracket is narrower than
     ``tolerance`` radians. The scene holds the same two triangles per cell, in float32.
-    Every ray starts ``offset`` cells along its own direction (Embree's rays have no tnear
-    in embreex's interface), so that the vertex's own triangles do not occlude it."""
+    Every ray starts ``offset`` cells above its vertex, as HORAYZON's ``ray_org_elev``
+    (0.1 m there) does, so that the vertex's own triangles do not occlude it; this biases
+    the angle to the nearest breakpoints by about offset / distance."""
 
     def __init__(self, heights, offset=1e-3):
         from embreex import rtcore_scene as rtcs
@@ -201,7 +202,7 @@ class EmbreeHorizon:
         rows, cols = h.shape
         idx = np.arange(h.size) if vertices is None else np.asarray(vertices, dtype=np.int64)
         j, i = np.divmod(idx, cols)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             ex = np.where(dx > 0, (cols - 1 - i) / dx, np.where(dx < 0, -i / dx if dx else 0, np.inf))
             ey = np.where(dy > 0, (rows - 1 - j) / dy, np.where(dy < 0, -j / dy if dy else 0, np.inf))
         reach = np.minimum(np.minimum(ex, ey), max_distance)
@@ -215,11 +216,9 @@ class EmbreeHorizon:
             mid = (lo + hi) / 2
             c, s = np.cos(mid), np.sin(mid)
             direction[:, 0], direction[:, 1], direction[:, 2] = c * dx, c * dy, s
-            origin[:, 0] = i + self.offset * direction[:, 0]
-            origin[:, 1] = j + self.offset * direction[:, 1]
-            origin[:, 2] = z + self.offset * direction[:, 2]
+            origin[:, 0], origin[:, 1], origin[:, 2] = i, j, z + self.offset
             # the ray's horizontal reach ends at the footprint edge or max_distance
-            far = np.maximum(reach / np.maximum(c, 1e-12) - self.offset, 0).astype(np.float32)
+            far = np.minimum(reach / np.maximum(c, 1e-12), 1e30).astype(np.float32)
             hit = self.scene.run(origin, direction, dists=far, query="OCCLUDED") == 0
             lo = np.where(hit, mid, lo)
             hi = np.where(hit, hi, mid)
@@ -228,8 +227,24 @@ class EmbreeHorizon:
         return out
 
 
+_HORIZON_SCENES: dict = {}
+
+
+def embree_horizon(heights) -> EmbreeHorizon:
+    """The EmbreeHorizon of these heights, built once and kept (one field at a time)."""
+    h = np.ascontiguousarray(heights, dtype=np.float64)
+    import hashlib
+
+    key = (h.shape, hashlib.sha256(h.tobytes()).hexdigest())
+    if key not in _HORIZON_SCENES:
+        _HORIZON_SCENES.clear()
+        _HORIZON_SCENES[key] = EmbreeHorizon(h)
+    return _HORIZON_SCENES[key]
+
+
 def embree_horizon_tangents(heights, dx, dy, max_distance=np.inf, tolerance=1e-4, vertices=None):
-    """:meth:`EmbreeHorizon.tangents` on a fresh scene; shaped (rows, cols) for all."""
-    peer = EmbreeHorizon(heights)
+    """:meth:`EmbreeHorizon.tangents` (the scene is kept between calls on one field);
+    shaped (rows, cols) for all vertices."""
+    peer = embree_horizon(heights)
     out = peer.tangents(dx, dy, max_distance, tolerance, vertices)
     return out.reshape(np.shape(heights)) if vertices is None else out

@@ -65,6 +65,8 @@ SNAP_TOLERANCE_DEG = 1e-9
 EARTH_RADIUS_M = 6378137.0
 #: Breakpoints between early-stop checks in the pattern walk.
 PATTERN_STOP_EVERY = 32
+#: The default algorithm is "pattern" up to this max_distance (cells), measured.
+PATTERN_MAX_DISTANCE = 384
 
 
 @dataclass(frozen=True)
@@ -505,11 +507,14 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
 
 def _pick_horizon_algorithm(algorithm, directions, max_distance):
     if algorithm is None or algorithm == "auto":
-        # chosen by measurement (reports/terrain): the sweep wherever it applies, else the
-        # mipmap walk for long rays and the shared pattern for short ones
+        # chosen by measurement (reports/terrain/targets.md, jacksboro 2048): the sweep
+        # wherever it applies (157 ns per vertex against 4184 for dda_maxmip); else the
+        # shared pattern up to max_distance 384 (431 against 1149 ns at 32 cells, 1569
+        # against 2450 at 128, 4349 against 4068 at 512), the mipmap walk beyond
         if max_distance is None and all(d.rational is not None for d in directions):
             return "sweep"
-        return "pattern" if max_distance is not None and max_distance <= 64 else "dda_maxmip"
+        return "pattern" if max_distance is not None and max_distance <= PATTERN_MAX_DISTANCE \
+            else "dda_maxmip"
     if algorithm not in HORIZON_ALGORITHMS:
         raise ValueError(f"algorithm: expected one of {sorted(HORIZON_ALGORITHMS)} or 'auto', "
                          f"got {algorithm!r}")
@@ -552,8 +557,8 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         In cells, or in the unit of ``spacing``. None: unlimited.
     algorithm : str, optional
         A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
-        rational and the distance unlimited, else "dda_maxmip" ("pattern" for
-        max_distance <= 64).
+        rational and the distance unlimited, else "pattern" for max_distance <= 384 cells
+        and "dda_maxmip" beyond (chosen by measurement).
     threads : None or int
         Vertices are split over threads; results are identical for every value.
     march_step, embree_tolerance : the baselines' step (cells) and angle tolerance (rad).
@@ -743,3 +748,90 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     LAST_STATS.__dict__.update(stats.__dict__)
     result = count.astype(bool) if single else count
     return np.ascontiguousarray(result[::-1]) if flip else result
+
+
+# ---- timing entry for the benchmarks ------------------------------------------------------
+
+def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance=None,
+                          march_step=1.0, embree_tolerance=1e-4):
+    """Validate and build once; return ``(run, values, n_vertices)``. Each ``run()``
+    computes the horizon tangents of one azimuth again, single-threaded, and returns the
+    nanoseconds measured around the C loop (around embreex's queries and the bisection for
+    the Embree peer). ``values()`` gives the tangents of the latest run, NaN outside the
+    vertices computed. ``ranges``: [(start, stop), ...] of C-order vertex indices, a
+    sample for the per-vertex methods; the sweep always covers every vertex (it is one
+    pass over shared lines), and n_vertices says how many were computed."""
+    import time
+
+    h, _, _ = _field(heights, None)
+    d = azimuth_direction(azimuth)
+    name = _pick_horizon_algorithm(algorithm, [d], max_distance)
+    rows, cols = h.shape
+    n_all = rows * cols
+    ranges = [(0, n_all)] if ranges is None or name == "sweep" else \
+        [(int(a), int(b)) for a, b in ranges]
+    n_vertices = sum(b - a for a, b in ranges)
+    md = math.inf if max_distance is None else float(max_distance)
+    out = np.full(n_all, np.nan)
+    if name in ("sweep", "pattern"):
+        hf = np.ascontiguousarray(_to_frame(h, d))
+        fr, fc = hf.shape
+        frame_out = np.full(fr * fc, np.nan)
+        # the sample's vertices, in the frame: ranges index the original C order
+        if name == "sweep":
+            q, p = d.rational
+            T, xa, ya, xb, yb, w = _pattern_arrays(_period_pattern(q, p, d.anti))
+            args = (hf, q, p, T, xa, ya, xb, yb, w, np.maximum(xa, xb), np.maximum(ya, yb),
+                    math.hypot(q, p), frame_out)
+
+            def run():
+                return _kernels.horizon_sweep(*args)[0]
+        else:
+            pat = _shared_pattern(d, fr, fc, max_distance)
+            zmax = float(hf.max())
+            index = _from_frame(np.arange(fr * fc).reshape(fr, fc), d).ravel()
+            wanted = np.concatenate([index[a:b] for a, b in ranges])
+            wanted.sort()
+            # contiguous runs of frame indices
+            breaks = np.flatnonzero(np.diff(wanted) != 1) + 1
+            frame_ranges = [(int(s[0]), int(s[-1]) + 1) for s in np.split(wanted, breaks)]
+
+            def run():
+                total = 0
+                for a, b in frame_ranges:
+                    total += _kernels.horizon_pattern(
+                        hf, pat["inv_t"], pat["xa"], pat["ya"], pat["xb"], pat["yb"], pat["w"],
+                        pat["limit_x"], pat["limit_y"], pat["end_k"], pat["end_f"],
+                        pat["end_inv"], zmax, PATTERN_STOP_EVERY, a, b, frame_out)[0]
+                return total
+
+        def values():
+            full = _from_frame(frame_out.reshape(fr, fc), d).ravel()
+            res = np.full(n_all, np.nan)
+            for a, b in ranges:
+                res[a:b] = full[a:b]
+            return res
+        return run, values, n_vertices
+    if name in ("dda", "dda_maxmip", "march"):
+        mip = _mipmap(h) if name == "dda_maxmip" else None
+        zmax = float(h.max())
+
+        def run():
+            total = 0
+            for a, b in ranges:
+                if name == "march":
+                    total += _kernels.horizon_march(h, d.dx, d.dy, march_step, md, zmax, a, b, out)[0]
+                else:
+                    total += _kernels.horizon_walk(h, mip, d.dx, d.dy, md, a, b, out)[0]
+            return total
+        return run, (lambda: out.copy()), n_vertices
+    from .embree_peer import embree_horizon
+
+    peer = embree_horizon(h)  # built once per field, outside the timed call
+    vertices = np.concatenate([np.arange(a, b) for a, b in ranges])
+
+    def run():
+        start = time.perf_counter_ns()
+        out[vertices] = peer.tangents(d.dx, d.dy, md, embree_tolerance, vertices)
+        return time.perf_counter_ns() - start
+    return run, (lambda: out.copy()), n_vertices

@@ -87,6 +87,82 @@ def _reproduce(args):
     return 0
 
 
+def _load_terrain(args):
+    """A HeightField from a dataset name or a file (GeoTIFF, PNG, EXR, .npy)."""
+    import datasets_gen
+
+    source = args.source
+    if os.path.exists(source):
+        return datasets_gen.load_file(source)
+    params = dict(args.param or [])
+    return datasets_gen.load(source, size=args.size, seed=args.seed, **params)
+
+
+def _terrain_product(args):
+    import numpy as np
+    from tqdm import tqdm
+
+    from . import terrain_bench
+
+    hf = _load_terrain(args)
+    kind = args.command
+    common = dict(algorithm=args.algorithm, threads=args.threads)
+    spacing = hf.spacing if hf.unit != "cell" else None
+    md = args.max_distance
+    progress = not args.no_progress
+    if kind in ("horizon", "svf"):
+        if args.azimuths:
+            az = np.array([float(v) for v in args.azimuths.split(",")])
+        elif kind == "svf":
+            az = (algos.rational_azimuths(args.n_azimuths) if args.rational
+                  else np.arange(args.n_azimuths) * (360.0 / args.n_azimuths))
+        else:
+            az = np.array([0.0])
+        layers = []
+        for a in tqdm(az, desc=f"{kind} {hf.name}", unit="azimuth", disable=not progress):
+            layers.append(algos.horizon(hf, [a], md, **common)[0])
+        angles = np.stack(layers)
+        if kind == "svf":
+            result = 1.0 - np.mean(np.sin(np.maximum(angles, 0.0)), axis=0)
+            outputs = {"svf": (result, "cividis", 0.0, 1.0)}
+        else:
+            outputs = {f"horizon_az{a:g}": (np.degrees(angles[k]), "magma", None, None)
+                       for k, a in enumerate(az)}
+    elif kind == "shadows":
+        result = algos.shadows(hf, args.azimuth, args.elevation, max_distance=md, **common)
+        outputs = {"shadows": (result.astype(np.float32), "gray_r", 0.0, 1.0)}
+    else:
+        observers = [tuple(float(v) for v in o.split(",")) for o in args.observer] or \
+            [((hf.shape[1] - 1) / 2, (hf.shape[0] - 1) / 2)]
+        count = np.zeros(hf.shape, dtype=np.uint16)
+        for o in tqdm(observers, desc=f"viewshed {hf.name}", unit="observer",
+                      disable=not progress or len(observers) == 1):
+            count += algos.viewshed(hf, o, args.observer_height, args.target_height, md,
+                                    curvature=args.curvature, refraction=args.refraction,
+                                    **common)
+        outputs = {"viewshed": (count.astype(np.float32), "Greens", 0.0,
+                                float(max(len(observers), 1)))}
+    flip = (hf.params or {}).get("north") == "+y"
+    for name, (array, cmap, lo, hi) in outputs.items():
+        shown = array[::-1] if flip else array  # files are written north-up
+        prefix = args.out if len(outputs) == 1 else f"{args.out}_{name}"
+        paths = terrain_bench.write_product(prefix, shown, spacing=spacing,
+                                            cmap=cmap, vmin=lo, vmax=hi)
+        finite = array[np.isfinite(array)]
+        print(f"{name}: {hf.name} {hf.shape[0]}x{hf.shape[1]}, min {finite.min():.4g}, "
+              f"mean {finite.mean():.4g}, max {finite.max():.4g} -> {', '.join(paths)}")
+    return 0
+
+
+def _terrain_bench(args):
+    from . import terrain_bench
+    from .intersect_bench import pin_to_one_cpu
+
+    pin_to_one_cpu()
+    terrain_bench.run_targets(out_dir=args.out, size=args.size, repeats=args.repeats)
+    return 0
+
+
 def _sweep(args):
     import os
 
@@ -247,7 +323,8 @@ def _profile(args):
     try:
         result = prof.profile(args.kernel, dataset=args.dataset, size=args.size, r=r,
                               rays=args.rays, surface=args.surface, workload=args.workload,
-                              seed=args.seed, cache_sim=args.cache_sim, options=options)
+                              seed=args.seed, cache_sim=args.cache_sim, options=options,
+                              parallel=args.parallel)
     except RuntimeError as exc:
         print(f"hftrace: error: {exc}", file=sys.stderr)
         return 2
@@ -303,6 +380,48 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-counts", action="store_true",
                    help="skip the instruction counts (callgrind, about 4 minutes)")
     p.set_defaults(func=_reproduce)
+
+    for kind, text in (("horizon", "horizon angles (degrees) along azimuths"),
+                       ("shadows", "cast shadows for a sun azimuth and elevation"),
+                       ("svf", "sky-view factor (Zaksek et al. 2011)"),
+                       ("viewshed", "what one or more observers see")):
+        p = sub.add_parser(kind, help=f"{text}: GeoTIFF, EXR and PNG")
+        p.add_argument("source", nargs="?", default="jacksboro",
+                       help="a dataset name (hftrace datasets list) or a file (default jacksboro)")
+        p.add_argument("--size", type=_positive_int, default=None)
+        p.add_argument("--seed", type=int, default=1)
+        p.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE")
+        p.add_argument("--algorithm", default=None, help="default: chosen by measurement")
+        p.add_argument("--threads", type=_positive_int, default=None,
+                       help="default: every core in the affinity")
+        p.add_argument("--max-distance", type=float, default=None,
+                       help="in the field's unit (metres for jacksboro)")
+        p.add_argument("--out", default=kind, help="output path prefix")
+        p.add_argument("--no-progress", action="store_true")
+        if kind == "horizon":
+            p.add_argument("--azimuths", default=None, help="comma-separated degrees (default 0)")
+        if kind == "svf":
+            p.add_argument("--n-azimuths", type=_positive_int, default=16)
+            p.add_argument("--azimuths", default=None, help="comma-separated degrees")
+            p.add_argument("--rational", action="store_true",
+                           help="nearest rational azimuths: the exact sweep applies")
+        if kind == "shadows":
+            p.add_argument("--azimuth", type=float, default=315.0)
+            p.add_argument("--elevation", type=float, default=30.0)
+        if kind == "viewshed":
+            p.add_argument("--observer", action="append", default=[], metavar="X,Y",
+                           help="grid coordinates (repeatable; default the centre)")
+            p.add_argument("--observer-height", type=float, default=1.75)
+            p.add_argument("--target-height", type=float, default=0.0)
+            p.add_argument("--curvature", action="store_true")
+            p.add_argument("--refraction", type=float, default=0.13)
+        p.set_defaults(func=_terrain_product, command=kind)
+
+    p = sub.add_parser("terrain-bench", help="the terrain products' targets against the peers")
+    p.add_argument("--size", type=_positive_int, default=2048)
+    p.add_argument("--repeats", type=_positive_int, default=3)
+    p.add_argument("--out", default="reports/terrain")
+    p.set_defaults(func=_terrain_bench)
 
     p = sub.add_parser("sweep", help="a custom sweep from a TOML config")
     p.add_argument("config", help="the TOML config (see bench/sweep.py)")
@@ -365,6 +484,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=2008)
     p.add_argument("--cache-sim", action="store_true",
                    help="also simulate the caches (D1 and last-level misses; slower)")
+    p.add_argument("--parallel", action="store_true",
+                   help="first hits: one batch of parallel rays of slope 1/r (orthographic)")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="an intersector option, e.g. fine_level=2 or cull_runs=false (repeatable)")
     p.set_defaults(func=_profile)

@@ -36,19 +36,34 @@ def callgrind_available() -> bool:
     return shutil.which("valgrind") is not None
 
 
+def _first_hit_rays(field, spec):
+    """The spec's first-hit rays: the sweep's random-origin rays at run length r, or with
+    ``parallel`` one batch of parallel rays of slope 1/r (orthographic, falling at 10
+    degrees), the workload runs_periodic is built for."""
+    from bench.sweep import first_hit_rays
+
+    if spec.get("parallel"):
+        from bench.terrain_bench import orthographic_rays
+
+        h = field.heights
+        return orthographic_rays((h.shape[1] - 1, h.shape[0] - 1), int(spec["r"]),
+                                 spec["rays"], spec["seed"], top=field.hmax)
+    return first_hit_rays(field, spec["r"], spec["rays"], spec["seed"])
+
+
 def _batch(spec: dict):
     """The prepared batch of ``spec`` (dataset, size, seed, r, rays, workload, surface,
     kernel); calling it runs the C loop once."""
     import algos
     import datasets_gen
     from algos.intersect import prepare_timed_intersect
-    from bench.sweep import _rays2, first_hit_rays
+    from bench.sweep import _rays2
 
     heights = datasets_gen.load(spec["dataset"], size=spec["size"], seed=1).heights
     workload = spec["workload"]
     if workload == "first_hit":
         field = algos.Field(heights)
-        o, d = first_hit_rays(field, spec["r"], spec["rays"], spec["seed"])
+        o, d = _first_hit_rays(field, spec)
         run, _ = prepare_timed_intersect(
             spec["kernel"], field, o, d, surface=spec["surface"], **spec.get("options", {}))
         return run
@@ -64,12 +79,12 @@ def _visited(spec: dict) -> tuple[float, float]:
     """Total cells and runs the batch visits (a native run of the same rays)."""
     import algos
     import datasets_gen
-    from bench.sweep import _rays2, first_hit_rays
+    from bench.sweep import _rays2
 
     heights = datasets_gen.load(spec["dataset"], size=spec["size"], seed=1).heights
     if spec["workload"] == "first_hit":
         field = algos.Field(heights)
-        o, d = first_hit_rays(field, spec["r"], spec["rays"], spec["seed"])
+        o, d = _first_hit_rays(field, spec)
         ref = algos.intersect("runs", field, o, d, surface=spec["surface"], outputs=("stats",))
         # cells along the ray up to the hit (the same for every exact walk): the cost
         # model divides by the work every kernel must account for, not by what it skipped
@@ -123,7 +138,8 @@ def _name(text: str, names: dict) -> str:
 
 
 def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="triangles",
-            workload="first_hit", seed=2008, cache_sim=False, options=None) -> dict:
+            workload="first_hit", seed=2008, cache_sim=False, options=None,
+            parallel=False) -> dict:
     """Run one kernel's batch under callgrind; counts per ray, per cell and per run.
 
     Returns a dict with ``instructions``, ``branches`` (conditional + indirect
@@ -131,6 +147,7 @@ def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="tri
     and per-run values, the ``functions`` with the most instructions, and, with
     ``cache_sim``, ``d1_misses`` and ``ll_misses`` (simulated caches). ``options`` are
     the intersector's options (first hits only), e.g. ``{"fine_level": 2}``.
+    ``parallel``: one batch of parallel rays of slope 1/r instead (first hits only).
     """
     if not callgrind_available():
         raise RuntimeError("profile: valgrind is not installed (apt-get install valgrind); "
@@ -140,7 +157,10 @@ def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="tri
     if kernel == "embree":
         raise ValueError("kernel: embree runs outside our C entry; profile counts our kernels")
     spec = dict(kernel=kernel, dataset=dataset, size=size, r=r, rays=rays, surface=surface,
-                workload=workload, seed=seed, options=dict(options or {}))
+                workload=workload, seed=seed, options=dict(options or {}),
+                parallel=bool(parallel))
+    if parallel and (workload != "first_hit" or r == "random"):
+        raise ValueError("parallel: one batch of parallel first-hit rays needs a numeric r")
     if spec["options"] and workload != "first_hit":
         raise ValueError("options: only first-hit intersectors take options")
     # warm the dataset cache natively: under valgrind a generator is ~50x slower

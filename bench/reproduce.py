@@ -9,6 +9,11 @@ Presets (both seeded; every field is generated or loaded from the embedded data)
   on all four surfaces; 1000 rays per group, 7 interleaved repeats.
 * full (``--full``): adds fBm 2048^2; r in {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus
   random; 3000 rays, 9 repeats (about 330 groups: an estimated 20-30 minutes here).
+
+Both presets end with the "parallel rays" part (``bench.terrain_bench.run_parallel``):
+every vertex's horizon along azimuths of slope 1/r, and orthographic first hits, on the
+embedded Jacksboro DEM with every method and the peers: ``parallel.md``, ``parallel.csv``
+and ``products.png``.
 """
 from __future__ import annotations
 
@@ -54,6 +59,12 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
         df = analysis.load(os.path.join(out_dir, "results.csv"))
         kernels = list(dict.fromkeys(df.loc[df["workload"] == "first_hit", "algorithm"]))
         write_counts(os.path.join(out_dir, "counts.csv"), kernels, resume=resume, echo=echo)
+    # parallel rays at work: horizons and orthographic first hits at slopes 1/r, with
+    # every method and the peers (bench/terrain_bench.py)
+    from .terrain_bench import run_parallel
+
+    run_parallel(out_dir=out_dir, resume=resume, echo=echo,
+                 repeats=7 if full else 5, sample=40000 if full else 20000)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace reproduce ({'full' if full else 'quick'} preset)")
     with open(paths["speedup"]) as f:

@@ -256,7 +256,6 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
                                  hf_hz_stats *stats) {
     int64_t ci = first_index(r->ox, r->sx, r->nx), cj = first_index(r->oy, r->sy, r->ny);
     double t_in = 0.0, ddiag = r->dx - r->dy, c0 = r->ox - r->oy;
-    double inv_ddiag = ddiag != 0.0 ? 1.0 / ddiag : 0.0;
     int level = 0;
     int64_t cells = 0, skips = 0;
     if (!(t_end > 0.0)) return;
@@ -276,7 +275,7 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
         tY = r->sy ? ((double)Y - r->oy) * r->inv_dy : HZ_INF;
         t_out = tX < tY ? tX : tY;
         if (ddiag != 0.0) {
-            double td = ((double)(ci - cj) - c0) * inv_ddiag;
+            double td = ((double)(ci - cj) - c0) / ddiag; /* divided: exact at vertices */
             if (td > t_in && td < t_out && td < t_end) {
                 double u = r->ox + td * r->dx - (double)ci;
                 const double *c = H + cj * cols + ci;
@@ -350,7 +349,12 @@ typedef struct {
 
 static int los_visit(void *vctx, double t, double s) {
     los_ctx *c = vctx;
-    double margin = s - c->drop2 * t * t - (c->z0 + c->slope * t);
+    double margin;
+    /* the target itself (t = 1) is never tested. A crossing computed within 1e-12 of it
+     * is the target up to rounding: the next breakpoint of a segment between lattice
+     * points lies at least 1 / (2 * 2^24) before it */
+    if (t > 1.0 - 1e-12) return 0;
+    margin = s - c->drop2 * t * t - (c->z0 + c->slope * t);
     if (margin > c->eps) {
         c->blocked = 1;
         return 1;

@@ -266,4 +266,5 @@ def jacksboro(size=None, vertical_scale=1.0, *, use_cache=True, cache_dir=None) 
     heights = cached_array(description, build, use_cache=use_cache, directory=cache_dir)
     return HeightField(heights, "jacksboro", cell, "m",
                        dict(size=size, vertical_scale=vertical_scale, dx_m=dx_m, dy_m=dy_m,
+                            north="+y",  # rows run north: the terrain products flip them
                             source="matplotlib sample data jacksboro_fault_dem.npz"))

@@ -257,3 +257,62 @@ def test_public_names():
     for name in ("horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
                  "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS"):
         assert hasattr(algos, name)
+
+
+def test_cli_products_write_files(tmp_path):
+    import tifffile
+
+    from bench.cli import main
+
+    prefix = str(tmp_path / "sh")
+    assert main(["shadows", "jacksboro", "--size", "48", "--azimuth", "135",
+                 "--elevation", "5", "--out", prefix, "--no-progress"]) == 0
+    for ext in (".tif", ".exr", ".png"):
+        assert (tmp_path / f"sh{ext}").stat().st_size > 0
+    import datasets_gen
+
+    hf = datasets_gen.load("jacksboro", size=48)
+    want = T.shadows(hf, 135.0, 5.0)[::-1]  # files are north-up
+    np.testing.assert_array_equal(tifffile.imread(prefix + ".tif"), want.astype(np.float32))
+    assert main(["viewshed", "fbm", "--size", "32", "--observer", "3,4", "--observer", "20,20",
+                 "--out", str(tmp_path / "vs"), "--no-progress"]) == 0
+    count = tifffile.imread(str(tmp_path / "vs.tif"))
+    hf = datasets_gen.load("fbm", size=32, seed=1)  # the CLI's default seed
+    np.testing.assert_array_equal(count, T.viewshed(hf, [[3, 4], [20, 20]]).astype(np.float32))
+    assert main(["svf", "fbm", "--size", "32", "--rational", "--out", str(tmp_path / "svf"),
+                 "--no-progress"]) == 0
+    assert main(["horizon", "fbm", "--size", "32", "--azimuths", "0,45", "--max-distance", "8",
+                 "--out", str(tmp_path / "hz"), "--no-progress"]) == 0
+    assert (tmp_path / "hz_horizon_az45.tif").exists()
+
+
+def test_parallel_section_writes_and_resumes(tmp_path):
+    from bench import terrain_bench
+
+    out = str(tmp_path / "rep")
+    rows = terrain_bench.run_parallel(out_dir=out, size=40, run_lengths=(1, 5), repeats=1,
+                                      sample=400, rays=40, echo=lambda *a: None, figure=True)
+    algorithms = {r["algorithm"] for r in rows}
+    assert set(terrain_bench.HORIZON_METHODS) <= algorithms
+    assert set(terrain_bench.HIT_METHODS) <= algorithms
+    exact = [r for r in rows if r["workload"] == "horizon" and
+             T.HORIZON_ALGORITHMS[r["algorithm"]].exact]
+    assert all(float(r["max_err_deg"]) < 1e-9 for r in exact)
+    text = (tmp_path / "rep" / "parallel.md").read_text()
+    assert "What the periodic patterns buy" in text and "`runs_periodic`" in text
+    assert (tmp_path / "rep" / "products.png").stat().st_size > 0
+    # a resumed run measures nothing again
+    again = terrain_bench.run_parallel(out_dir=out, size=40, run_lengths=(1, 5), repeats=1,
+                                       sample=400, rays=40, resume=True, echo=lambda *a: None,
+                                       figure=False)
+    assert len(again) == len(rows)
+
+
+def test_sample_ranges_spread_and_disjoint():
+    from bench.terrain_bench import sample_ranges
+
+    ranges = sample_ranges(100, 50, 640)
+    assert sum(b - a for a, b in ranges) == 640
+    assert all(a < b for a, b in ranges)
+    assert all(ranges[k][1] <= ranges[k + 1][0] for k in range(len(ranges) - 1))
+    assert ranges[0][0] < 50 and ranges[-1][1] > 99 * 50
