@@ -59,12 +59,14 @@ __all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimut
            "MAX_SNAP_DENOMINATOR", "EARTH_RADIUS_M", "TerrainStats"]
 
 #: Azimuths this close to a small rational slope are taken as exactly that slope.
-MAX_SNAP_DENOMINATOR = 64
+MAX_SNAP_DENOMINATOR = 128
 SNAP_TOLERANCE_DEG = 1e-9
 #: The Earth radius GDAL's viewshed uses by default (metres).
 EARTH_RADIUS_M = 6378137.0
 #: Breakpoints between early-stop checks in the pattern walk.
 PATTERN_STOP_EVERY = 32
+#: Heights (in cells) beyond this magnitude are refused: slopes between them stay finite.
+HEIGHT_LIMIT = 1e30
 #: The default algorithm is "pattern" up to this max_distance (cells), measured.
 PATTERN_MAX_DISTANCE = 384
 
@@ -154,6 +156,12 @@ def _field(heights, spacing):
     if bad.any():
         row, col = (int(v) for v in np.argwhere(bad)[0])
         raise ValueError(f"heights: non-finite value {h[row, col]} at (row {row}, col {col})")
+    bad = np.abs(h) > HEIGHT_LIMIT
+    if bad.any():
+        row, col = (int(v) for v in np.argwhere(bad)[0])
+        raise ValueError(f"heights: {h[row, col]} at (row {row}, col {col}) exceeds the "
+                         f"documented limit |h| <= {HEIGHT_LIMIT:g} (differences and slopes "
+                         "must not overflow)")
     if flip:
         h = np.ascontiguousarray(h[::-1])
     if spacing is None:
@@ -427,8 +435,13 @@ def _shared_pattern(d: Direction, rows: int, cols: int, max_distance):
             end_k = k
             end_f = (max_distance - t[k]) / (t[k + 1] - t[k])
             end_inv = 1.0 / max_distance
-        elif k < 0:  # max_distance before the first breakpoint: interpolate from v itself
-            pass
+        elif k < 0:
+            # max_distance before the first breakpoint: the surface is linear from v to it,
+            # so the ratio over (0, max_distance] is the ratio at that breakpoint; with
+            # max_distance 0 the set is empty
+            cap = 1 if max_distance > 0 else 0
+            limit_x = np.minimum(limit_x, cap)
+            limit_y = np.minimum(limit_y, cap)
     return dict(inv_t=1.0 / t, xa=xa, ya=ya, xb=xb, yb=yb, w=w, limit_x=limit_x,
                 limit_y=limit_y, end_k=end_k, end_f=end_f, end_inv=end_inv, t=t)
 

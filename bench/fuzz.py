@@ -1,7 +1,8 @@
 """``make fuzz``: coverage-guided fuzzing of the C entry points.
 
 Each input is a byte string that :func:`decode` turns into one call of the public API,
-``algos.traverse`` or ``algos.intersect``, with arbitrary doubles (NaN, +-inf, +-0,
+``algos.traverse``, ``algos.intersect``, or (first byte >= 240) ``algos.horizon`` or
+``algos.viewshed``, with arbitrary doubles (NaN, +-inf, +-0,
 subnormals, huge values, values on and next to grid lines), grid shapes up to and just
 past the documented limits, tmin/tmax, every output mode and option. :func:`check` runs
 it and asserts the invariants:
@@ -12,7 +13,9 @@ it and asserts the invariants:
 * every exact kernel equals every other exact kernel (traversal: ``midpoint`` and
   ``runs``; first hits: ``midpoint``, ``runs``, ``runs_periodic`` and ``runs_maxmip``);
 * cells are 8-adjacent, never repeat and lie in the grid; runs are consistent with them;
-* hits lie inside ``[tmin, tmax]`` and their cells in the grid.
+* hits lie inside ``[tmin, tmax]`` and their cells in the grid;
+* horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9;
+  the viewshed's plain and mipmap walks agree bit for bit.
 
 The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -88,7 +91,10 @@ class Reader:
 def decode(data: bytes) -> dict:
     """The call a byte string stands for."""
     r = Reader(data)
-    op = "intersect" if r.byte() % 2 else "traverse"
+    first = r.byte()
+    if first >= 240:
+        return _decode_terrain(r, "viewshed" if first % 2 else "horizon")
+    op = "intersect" if first % 2 else "traverse"
     n = r.byte() % 7
     case: dict = {"op": op}
     if r.byte() % 8 == 0:
@@ -128,6 +134,54 @@ def decode(data: bytes) -> dict:
     return case
 
 
+HORIZON_EXACT = tuple(n for n, a in algos.HORIZON_ALGORITHMS.items() if a.exact)
+
+
+def _decode_terrain(r: Reader, op: str) -> dict:
+    rows, cols = 1 + r.byte() % 14, 1 + r.byte() % 14
+    wild = r.byte() % 8 == 0
+    heights = [r.double(4.0) if wild else r.small() for _ in range(rows * cols)]
+    case = {"op": op, "heights": np.asarray(heights, dtype=np.float64).reshape(rows, cols)}
+    if r.byte() % 4 == 0:
+        case["max_distance"] = r.double(6.0)
+    if op == "horizon":
+        kind = r.byte() % 4
+        case["azimuth"] = (float(r.byte() % 8 * 45) if kind == 0 else
+                           float(r.byte() * 360.0 / 256) if kind == 1 else r.double(400.0))
+        case["kernel"] = HORIZON_EXACT[r.byte() % len(HORIZON_EXACT)]
+    else:
+        case["observer"] = [r.double(16.0), r.double(16.0)]
+        case["observer_height"] = r.double(2.0) if r.byte() % 4 == 0 else abs(r.small())
+        case["kernel"] = tuple(algos.VIEWSHED_ALGORITHMS)[r.byte() % 2]
+    return case
+
+
+def _call_terrain(case, kernel):
+    md = case.get("max_distance")
+    if case["op"] == "horizon":
+        return algos.horizon(case["heights"], case["azimuth"], md, algorithm=kernel)
+    return algos.viewshed(case["heights"], case["observer"], case["observer_height"],
+                          max_distance=md, algorithm=kernel)
+
+
+def _check_terrain(case, result):
+    if case["op"] == "horizon":
+        assert result.shape == (1,) + case["heights"].shape
+        assert np.all((result >= -math.pi / 2) & (result <= math.pi / 2)), "an angle out of range"
+        for other in HORIZON_EXACT:
+            try:
+                got = _call_terrain(case, other)
+            except ValueError:  # the sweep needs a rational azimuth and no max_distance
+                continue
+            assert np.allclose(got, result, rtol=0, atol=1e-9), \
+                f"{case['kernel']} and {other} differ"
+        return
+    assert result.dtype == bool and result.shape == case["heights"].shape
+    for other in algos.VIEWSHED_ALGORITHMS:
+        assert np.array_equal(_call_terrain(case, other), result), \
+            f"{case['kernel']} and {other} differ"
+
+
 def _frozen(case):
     return {k: np.array(v, dtype=object if isinstance(v, str) else None, copy=True)
             if isinstance(v, (list, np.ndarray)) else v for k, v in case.items()}
@@ -142,6 +196,8 @@ def _same(a, b) -> bool:
 
 def _call(case, kernel=None):
     kernel = kernel or case["kernel"]
+    if case["op"] in ("horizon", "viewshed"):
+        return _call_terrain(case, kernel)
     if case["op"] == "traverse":
         kw = {"output": case["output"]}
         if "max_denominator" in case and kernel == "runs_periodic":
@@ -191,6 +247,9 @@ def _check(data: bytes) -> None:
         if isinstance(v, np.ndarray):
             assert _same(v, np.asarray(case[k], dtype=v.dtype)), f"the call modified {k}"
     if result is None:
+        return
+    if case["op"] in ("horizon", "viewshed"):
+        _check_terrain(case, result)
         return
     if case["op"] == "traverse":
         if case["output"] == "cells":

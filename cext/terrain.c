@@ -18,8 +18,10 @@ static double surface_at(const double *H, int64_t rows, int64_t cols, double x, 
     double u = x - (double)i, v = y - (double)j;
     const double *c = H + j * cols + i;
     double h00 = c[0], h10 = c[1], h01 = c[cols], h11 = c[cols + 1];
-    if (u >= v) return h00 + (h10 - h00) * u + (h11 - h10) * v;
-    return h00 + (h11 - h01) * u + (h01 - h00) * v;
+    /* barycentric weights, all >= 0: exact at the corners and no cancellation on the
+     * edges, where a clamped cell puts the footprint's border */
+    if (u >= v) return h00 * (1.0 - u) + h10 * (u - v) + h11 * v;
+    return h00 * (1.0 - v) + h01 * (v - u) + h11 * u;
 }
 
 /* The surface on the vertical grid line x = X (an integer) at height y. */
@@ -27,7 +29,7 @@ static double on_column(const double *H, int64_t rows, int64_t cols, int64_t X, 
     int64_t j = clamp64((int64_t)floor(y), 0, rows - 2);
     double w = y - (double)j;
     double a = H[j * cols + X], b = H[(j + 1) * cols + X];
-    return a + (b - a) * w;
+    return a * (1.0 - w) + b * w; /* exact at both ends (w = 1 on the top border) */
 }
 
 /* The surface on the horizontal grid line y = Y at x. */
@@ -35,7 +37,7 @@ static double on_row(const double *H, int64_t cols, int64_t Y, double x) {
     int64_t i = clamp64((int64_t)floor(x), 0, cols - 2);
     double w = x - (double)i;
     double a = H[Y * cols + i], b = H[Y * cols + i + 1];
-    return a + (b - a) * w;
+    return a * (1.0 - w) + b * w;
 }
 
 /* ---- shared pattern ----------------------------------------------------------------- */
@@ -197,13 +199,21 @@ static double footprint_exit(const walk_ray *r) {
     return tx < ty ? tx : ty;
 }
 
+/* The surface where the ray leaves its cell through the face X (tX <= tY) or Y. */
+static double exit_value(const double *H, int64_t rows, int64_t cols, const walk_ray *r,
+                         int64_t X, int64_t Y, double tX, double tY) {
+    if (tX < tY) return on_column(H, rows, cols, X, r->oy + tX * r->dy);
+    if (tY < tX) return on_row(H, cols, Y, r->ox + tY * r->dx);
+    return H[Y * cols + X];
+}
+
 /* Skip the largest tile around cell (ci, cj) that `can_skip` allows. On success moves the
  * cell to the one after the tile, sets *t_in to the tile's exit and returns 1. */
 typedef int (*skip_test)(const void *ctx, double tile_max, double t_in, double t_exit);
 
-static int try_skip(const walk_ray *r, const hf_hz_mip *mip, int *level, int64_t *ci,
-                    int64_t *cj, double *t_in, double t_end, skip_test test,
-                    const void *ctx) {
+static int try_skip(const double *H, int64_t rows, int64_t cols, const walk_ray *r,
+                    const hf_hz_mip *mip, int *level, int64_t *ci, int64_t *cj, double *t_in,
+                    double *s_in, double t_end, skip_test test, const void *ctx) {
     int top = mip->n_levels - 1;
     int L = *level + 1 < top ? *level + 1 : top;
     for (; L >= 0; L--) {
@@ -222,6 +232,8 @@ static int try_skip(const walk_ray *r, const hf_hz_mip *mip, int *level, int64_t
         *level = L;
         *t_in = te;
         if (te >= t_end) return 2; /* the rest of the ray is covered */
+        /* the surface where the ray leaves the tile: the next cell's entry */
+        *s_in = exit_value(H, rows, cols, r, X1, Y1, tXe, tYe);
         {
             int64_t lo_x = tx << L, hi_x = ((tx + 1) << L) - 1;
             int64_t lo_y = ty << L, hi_y = ((ty + 1) << L) - 1;
@@ -247,23 +259,26 @@ static int try_skip(const walk_ray *r, const hf_hz_mip *mip, int *level, int64_t
 }
 
 /* The breakpoints of one ray in [0, t_end]: every exit of a cell, every diagonal crossing
- * inside a cell and the end. visit(ctx, t, s) returns nonzero to stop the walk. */
-typedef int (*visit_fn)(void *ctx, double t, double s);
+ * inside a cell and the end. The surface there is s + delta (delta is nonzero only at the
+ * end, which is given relative to the breakpoint before it, so that a visitor can subtract
+ * its reference height before adding a tiny delta). visit returns nonzero to stop. */
+typedef int (*visit_fn)(void *ctx, double t, double s, double delta);
 
 static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
                                  const hf_hz_mip *mip, const walk_ray *r, double t_end,
-                                 visit_fn visit, skip_test test, void *ctx,
+                                 double s_origin, visit_fn visit, skip_test test, void *ctx,
                                  hf_hz_stats *stats) {
     int64_t ci = first_index(r->ox, r->sx, r->nx), cj = first_index(r->oy, r->sy, r->ny);
-    double t_in = 0.0, ddiag = r->dx - r->dy, c0 = r->ox - r->oy;
+    double t_in = 0.0, s_in = s_origin, ddiag = r->dx - r->dy, c0 = r->ox - r->oy;
     int level = 0;
     int64_t cells = 0, skips = 0;
     if (!(t_end > 0.0)) return;
     while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
         int64_t X = r->sx > 0 ? ci + 1 : ci, Y = r->sy > 0 ? cj + 1 : cj;
-        double tX, tY, t_out;
+        double tX, tY, t_out, td, sd = 0.0;
         if (mip && test) {
-            int moved = try_skip(r, mip, &level, &ci, &cj, &t_in, t_end, test, ctx);
+            int moved = try_skip(H, rows, cols, r, mip, &level, &ci, &cj, &t_in, &s_in, t_end,
+                                 test, ctx);
             if (moved) {
                 skips++;
                 if (moved == 2) break;
@@ -274,31 +289,45 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
         tX = r->sx ? ((double)X - r->ox) * r->inv_dx : HZ_INF;
         tY = r->sy ? ((double)Y - r->oy) * r->inv_dy : HZ_INF;
         t_out = tX < tY ? tX : tY;
-        if (ddiag != 0.0) {
-            double td = ((double)(ci - cj) - c0) / ddiag; /* divided: exact at vertices */
-            if (td > t_in && td < t_out && td < t_end) {
-                double u = r->ox + td * r->dx - (double)ci;
-                const double *c = H + cj * cols + ci;
-                u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
-                if (visit(ctx, td, c[0] + (c[cols + 1] - c[0]) * u)) break;
-            }
+        td = ddiag != 0.0 ? ((double)(ci - cj) - c0) / ddiag /* divided: exact at vertices */
+                          : -HZ_INF;
+        if (td > t_in && td < t_out) {
+            double u = r->ox + td * r->dx - (double)ci;
+            const double *c = H + cj * cols + ci;
+            u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
+            sd = c[0] + (c[cols + 1] - c[0]) * u;
+            if (td < t_end && visit(ctx, td, sd, 0.0)) break;
+        } else {
+            td = -HZ_INF;
         }
         if (t_out >= t_end) {
-            visit(ctx, t_end, surface_at(H, rows, cols, r->ox + t_end * r->dx,
-                                         r->oy + t_end * r->dy));
+            /* The end lies on the linear piece from the last breakpoint before it (the
+             * diagonal crossing, the cell's entry, or the origin) to the first after it.
+             * Interpolating between them keeps the ratio exact however close the end is
+             * to the origin, where o + t d would round back onto o. */
+            double t0 = td > t_in && td <= t_end ? td : t_in, s0_ = t0 == td ? sd : s_in;
+            double t1, s1;
+            if (td > t_end) {
+                t1 = td;
+                s1 = sd;
+            } else {
+                t1 = t_out;
+                s1 = exit_value(H, rows, cols, r, X, Y, tX, tY);
+            }
+            if (t0 == 0.0) /* on the first piece the ratio to the origin is constant: use
+                            * its far end, exact however small t_end is */
+                visit(ctx, t1, s1, 0.0);
+            else { /* from the nearer end of the piece: no cancellation against the other */
+                double f = t1 > t0 ? (t_end - t0) / (t1 - t0) : 0.0;
+                if (f <= 0.5) visit(ctx, t_end, s0_, (s1 - s0_) * f);
+                else visit(ctx, t_end, s1, (s0_ - s1) * (1.0 - f));
+            }
             break;
         }
-        if (tX < tY) {
-            if (visit(ctx, tX, on_column(H, rows, cols, X, r->oy + tX * r->dy))) break;
-            ci += r->sx;
-        } else if (tY < tX) {
-            if (visit(ctx, tY, on_row(H, cols, Y, r->ox + tY * r->dx))) break;
-            cj += r->sy;
-        } else {
-            if (visit(ctx, tX, H[Y * cols + X])) break;
-            ci += r->sx;
-            cj += r->sy;
-        }
+        s_in = exit_value(H, rows, cols, r, X, Y, tX, tY); /* the next cell's entry */
+        if (visit(ctx, t_out, s_in, 0.0)) break;
+        if (tX <= tY) ci += r->sx;
+        if (tY <= tX) cj += r->sy;
         t_in = t_out;
     }
     if (stats) {
@@ -311,9 +340,10 @@ typedef struct {
     double h, best;
 } horizon_ctx;
 
-static int horizon_visit(void *vctx, double t, double s) {
+static int horizon_visit(void *vctx, double t, double s, double delta) {
     horizon_ctx *c = vctx;
-    if (s - c->h > c->best * t) c->best = (s - c->h) / t;
+    double rise = (s - c->h) + delta;
+    if (rise > c->best * t) c->best = rise / t;
     return 0;
 }
 
@@ -336,8 +366,8 @@ void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mi
         if (max_distance < t_end) t_end = max_distance;
         c.h = H[v];
         c.best = -HZ_INF;
-        walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, horizon_visit, horizon_skip, &c,
-                             stats);
+        walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, c.h, horizon_visit, horizon_skip,
+                             &c, stats);
         out[v] = c.best;
     }
 }
@@ -347,14 +377,14 @@ typedef struct {
     int uncertain, blocked;
 } los_ctx;
 
-static int los_visit(void *vctx, double t, double s) {
+static int los_visit(void *vctx, double t, double s, double delta) {
     los_ctx *c = vctx;
     double margin;
     /* the target itself (t = 1) is never tested. A crossing computed within 1e-12 of it
      * is the target up to rounding: the next breakpoint of a segment between lattice
      * points lies at least 1 / (2 * 2^24) before it */
     if (t > 1.0 - 1e-12) return 0;
-    margin = s - c->drop2 * t * t - (c->z0 + c->slope * t);
+    margin = s + delta - c->drop2 * t * t - (c->z0 + c->slope * t);
     if (margin > c->eps) {
         c->blocked = 1;
         return 1;
@@ -372,6 +402,7 @@ static int los_skip(const void *vctx, double tile_max, double t_in, double t_exi
 void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
                  double ox, double oy, double z0, double target_height, double drop,
                  double eps, int64_t start, int64_t stop, uint8_t *out, hf_hz_stats *stats) {
+    const double s_observer = surface_at(H, rows, cols, ox, oy);
     for (int64_t v = start; v < stop; v++) {
         int64_t j = v / cols, i = v - j * cols;
         double dx = (double)i - ox, dy = (double)j - oy;
@@ -388,7 +419,8 @@ void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *m
         c.eps = eps;
         c.uncertain = c.blocked = 0;
         /* t in [0, 1): the target vertex itself is never strictly above its own segment */
-        walk_ray_breakpoints(H, rows, cols, mip, &r, 1.0, los_visit, los_skip, &c, stats);
+        walk_ray_breakpoints(H, rows, cols, mip, &r, 1.0, s_observer, los_visit, los_skip, &c,
+                             stats);
         out[v] = c.blocked ? 1 : c.uncertain ? 2 : 0;
     }
 }

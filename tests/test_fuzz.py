@@ -42,8 +42,8 @@ def test_decoder_reaches_both_entry_points_and_errors():
             seen.add((case["op"], "ok"))
         except (ValueError, TypeError):
             seen.add((case["op"], "error"))
-    assert seen == {("traverse", "ok"), ("traverse", "error"), ("intersect", "ok"),
-                    ("intersect", "error")}
+    assert seen == {(op, outcome) for op in ("traverse", "intersect", "horizon", "viewshed")
+                    for outcome in ("ok", "error")}
 
 
 def test_a_violation_is_reported(monkeypatch):

@@ -214,6 +214,7 @@ def test_heightfield_units_and_north():
     (lambda: T.horizon(np.zeros((1, 5)), 0), "heights: each side"),
     (lambda: T.horizon(np.array([[0, 1], [np.nan, 2]]), 0), r"heights: non-finite .*row 1, col 0"),
     (lambda: T.horizon(np.zeros((3, 3)), [0, np.inf]), r"azimuths\[1\]"),
+    (lambda: T.horizon(np.array([[0, 1], [2, 1e300]]), 0), r"row 1, col 1\) exceeds"),
     (lambda: T.horizon(np.zeros((3, 3)), 0, max_distance=-1), "max_distance"),
     (lambda: T.horizon(np.zeros((3, 3)), 0, algorithm="nope"), "algorithm"),
     (lambda: T.horizon(np.zeros((3, 3)), 0, surface="flat"), "surface"),
@@ -316,3 +317,30 @@ def test_sample_ranges_spread_and_disjoint():
     assert all(a < b for a, b in ranges)
     assert all(ranges[k][1] <= ranges[k + 1][0] for k in range(len(ranges) - 1))
     assert ranges[0][0] < 50 and ranges[-1][1] > 99 * 50
+
+
+@pytest.mark.parametrize("max_distance", [0.0, 5e-324, 1e-300, 1e-9])
+def test_tiny_max_distance(max_distance):
+    """Found by fuzzing: o + t d rounds back onto o for tiny t, so the end of the ray must
+    come from the linear piece it lies on (the first piece's slope), and 0 is empty."""
+    h = FIELDS["noise"]
+    for az in (270.0, 30.0, 242.59375):
+        d = T.azimuth_direction(az)
+        ref = np.array(horizon_reference(h, (d.dx, d.dy), max_distance))
+        for name in ("pattern", "dda", "dda_maxmip"):
+            got = T.horizon(h, az, max_distance, algorithm=name)[0]
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12, err_msg=f"{name} {az}")
+
+
+def test_wide_dynamic_range():
+    """Found by fuzzing: heights of 1e20 next to 1 must not leak into the points beside
+    them (edge values with weights exactly 0 and 1, the end taken from its nearer end)."""
+    h = np.array([[46.0, -23.8349609375, -11.0], [1.0, -256.46875, -182.75],
+                  [-12.72265625, -2.4263538525227962e20, -1073741824.0],
+                  [26.0107421875, 9.04296875, 2.0], [-25.173828125, 3.0, 0.0]])
+    for az in (242.59375, 270.0, 90.0, 17.0):
+        d = T.azimuth_direction(az)
+        ref = np.array(horizon_reference(h, (d.dx, d.dy)))
+        for name in ("pattern", "dda", "dda_maxmip"):
+            got = T.horizon(h, az, algorithm=name)[0]
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9, err_msg=f"{name} {az}")
