@@ -47,3 +47,24 @@ def test_first_hit_triangles(benchmark, name, field, rays3):
     o, d = rays3
     run, _ = prepare_timed_intersect(name, field, o, d, surface="triangles")
     benchmark(run)
+
+
+@pytest.mark.parametrize("name", [n for n in algos.HORIZON_ALGORITHMS if n != "embree"])
+def test_horizon_one_azimuth(benchmark, name, field):
+    """Every vertex's horizon along atan(2/5) (rational: the sweep applies); the per-vertex
+    walks on a 4096-vertex sample, so that the suite stays quick."""
+    import numpy as np
+
+    from algos.terrain import prepare_horizon_timed, rational_azimuths
+    from bench.terrain_bench import sample_ranges
+
+    h = np.asarray(field.heights, dtype=np.float64)
+    ranges = None if name == "sweep" else sample_ranges(*h.shape, 4096)
+    run, _, _ = prepare_horizon_timed(h, rational_azimuths(16)[1], name, ranges=ranges)
+    benchmark(run)
+
+
+@pytest.mark.parametrize("name", list(algos.VIEWSHED_ALGORITHMS))
+def test_viewshed(benchmark, name, field):
+    benchmark(lambda: algos.viewshed(field.heights, (SIDE // 2, SIDE // 2), algorithm=name,
+                                     threads=1))
