@@ -80,7 +80,7 @@ def _mipmap(cellmax: np.ndarray) -> list[np.ndarray]:
     while max(levels[-1].shape) > 1:
         a = levels[-1]
         r, c = a.shape
-        padded = np.full((r + r % 2, c + c % 2), -np.inf, dtype=np.float32)
+        padded = np.full((r + r % 2, c + c % 2), -np.inf, dtype=a.dtype)
         padded[:r, :c] = a
         levels.append(np.ascontiguousarray(
             padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3))))

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from fractions import Fraction
@@ -52,6 +53,7 @@ from fractions import Fraction
 import numpy as np
 
 from . import _kernels
+from .field import _mipmap as field_mipmap
 from .terrain_ref import line_of_sight_exact, surface_exact
 
 __all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
@@ -447,15 +449,10 @@ def _shared_pattern(d: Direction, rows: int, cols: int, max_distance):
 
 
 def _mipmap(h: np.ndarray):
-    """(data, offset, rows, cols): the max-mipmap of the cell maxima, float64."""
+    """(data, offset, rows, cols): the max-mipmap of the cell maxima in float64 (the
+    levels of :func:`algos.field._mipmap`, concatenated for the C walks)."""
     cell = np.maximum(np.maximum(h[:-1, :-1], h[:-1, 1:]), np.maximum(h[1:, :-1], h[1:, 1:]))
-    levels = [cell]
-    while max(levels[-1].shape) > 1:
-        a = levels[-1]
-        r, c = a.shape
-        padded = np.full((r + r % 2, c + c % 2), -np.inf)
-        padded[:r, :c] = a
-        levels.append(padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3)))
+    levels = field_mipmap(cell)
     offset = np.cumsum([0] + [lv.size for lv in levels[:-1]]).astype(np.int64)
     return (np.ascontiguousarray(np.concatenate([lv.ravel() for lv in levels])), offset,
             np.array([lv.shape[0] for lv in levels], dtype=np.int64),
@@ -463,6 +460,22 @@ def _mipmap(h: np.ndarray):
 
 
 # ---- horizon ---------------------------------------------------------------------------
+
+def _sweep(hf, d: Direction, out):
+    """The rational sweep over the whole octant-frame field hf into out; returns ns."""
+    q, p = d.rational
+    T, xa, ya, xb, yb, w = _pattern_arrays(_period_pattern(q, p, d.anti))
+    return _kernels.horizon_sweep(hf, q, p, T, xa, ya, xb, yb, w, np.maximum(xa, xb),
+                                  np.maximum(ya, yb), math.hypot(q, p), out)[0]
+
+
+def _pattern_walk(hf, pat, zmax, start, stop, out):
+    """The shared-pattern walk of octant-frame vertices [start, stop); returns ns."""
+    return _kernels.horizon_pattern(
+        hf, pat["inv_t"], pat["xa"], pat["ya"], pat["xb"], pat["yb"], pat["w"],
+        pat["limit_x"], pat["limit_y"], pat["end_k"], pat["end_f"], pat["end_inv"], zmax,
+        PATTERN_STOP_EVERY, start, stop, out)[0]
+
 
 def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, march_step,
                  embree_tolerance):
@@ -472,24 +485,12 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
         fr, fc = hf.shape
         out = np.empty(fr * fc)
         if algorithm == "sweep":
-            q, p = d.rational
-            T, xa, ya, xb, yb, w = _pattern_arrays(_period_pattern(q, p, d.anti))
-            mx, my = np.maximum(xa, xb), np.maximum(ya, yb)
-            ns, _, _ = _kernels.horizon_sweep(hf, q, p, T, xa, ya, xb, yb, w, mx, my,
-                                              math.hypot(q, p), out)
-            stats.ns += ns
+            stats.ns += _sweep(hf, d, out)
         else:
             pat = _shared_pattern(d, fr, fc, max_distance)
             zmax = float(hf.max())
-
-            def call(start, stop):
-                return _kernels.horizon_pattern(
-                    hf, pat["inv_t"], pat["xa"], pat["ya"], pat["xb"], pat["yb"], pat["w"],
-                    pat["limit_x"], pat["limit_y"], pat["end_k"], pat["end_f"], pat["end_inv"],
-                    zmax, PATTERN_STOP_EVERY, start, stop, out)
-
-            for ns, _, _ in _run_ranges(fr * fc, threads, call):
-                stats.ns += ns
+            stats.ns += sum(_run_ranges(fr * fc, threads,
+                                        lambda a, b: _pattern_walk(hf, pat, zmax, a, b, out)))
         return _from_frame(out.reshape(fr, fc), d)
     out = np.empty(rows * cols)
     md = math.inf if max_distance is None else max_distance
@@ -505,9 +506,9 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
     elif algorithm == "embree":
         from .embree_peer import embree_horizon_tangents
 
-        t0 = __import__("time").perf_counter_ns()
+        t0 = time.perf_counter_ns()
         out[:] = embree_horizon_tangents(h, d.dx, d.dy, md, tolerance=embree_tolerance).ravel()
-        stats.ns += __import__("time").perf_counter_ns() - t0
+        stats.ns += time.perf_counter_ns() - t0
         return out.reshape(rows, cols)
     else:  # pragma: no cover - checked by the caller
         raise AssertionError(algorithm)
@@ -675,15 +676,20 @@ def _surface_float(h, x, y):
     return float(h00 + (h11 - h01) * u + (h01 - h00) * v)
 
 
-def _viewshed_one(h, ox, oy, oh, th, drop, algorithm, threads, mip, stats):
+def _rounding_scale(h):
+    """The field's part of the rounding bound on a line-of-sight gap: a few ulps of the
+    heights involved, plus the surface slope times the error of a crossing's position.
+    The observer adds |z0| + target_height."""
+    rows, cols = h.shape
+    grad = float(max(np.abs(np.diff(h, axis=0)).max(), np.abs(np.diff(h, axis=1)).max()))
+    return float(np.abs(h).max()) + (grad + 1.0) * (rows + cols)
+
+
+def _viewshed_one(h, ox, oy, oh, th, drop, algorithm, threads, mip, stats, scale):
     rows, cols = h.shape
     z0 = _surface_float(h, ox, oy) + oh
     out = np.empty(rows * cols, dtype=np.uint8)
-    # rounding bound on the gap at a breakpoint: a few ulps of the heights involved, plus
-    # the surface slope times the error of a crossing's position
-    zscale = float(np.abs(h).max()) + abs(z0) + th
-    grad = float(max(np.abs(np.diff(h, axis=0)).max(), np.abs(np.diff(h, axis=1)).max()))
-    eps = 64 * np.finfo(float).eps * (zscale + (grad + 1.0) * (rows + cols))
+    eps = 64 * np.finfo(float).eps * (scale + abs(z0) + th)
     used = mip if algorithm == "dda_maxmip" else None
 
     def call(start, stop):
@@ -753,8 +759,10 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     mip = _mipmap(h) if algorithm == "dda_maxmip" else None
     count = np.zeros(h.shape, dtype=np.uint16)
     jj, ii = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    scale = _rounding_scale(h)
     for ox, oy in obs:
-        seen = _viewshed_one(h, float(ox), float(oy), oh, th, drop, algorithm, nthreads, mip, stats)
+        seen = _viewshed_one(h, float(ox), float(oy), oh, th, drop, algorithm, nthreads, mip,
+                             stats, scale)
         if md is not None:
             seen &= (ii - ox) ** 2 + (jj - oy) ** 2 <= md * md
         count += seen
@@ -774,8 +782,6 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
     vertices computed. ``ranges``: [(start, stop), ...] of C-order vertex indices, a
     sample for the per-vertex methods; the sweep always covers every vertex (it is one
     pass over shared lines), and n_vertices says how many were computed."""
-    import time
-
     h, _, _ = _field(heights, None)
     d = azimuth_direction(azimuth)
     name = _pick_horizon_algorithm(algorithm, [d], max_distance)
@@ -792,13 +798,8 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
         frame_out = np.full(fr * fc, np.nan)
         # the sample's vertices, in the frame: ranges index the original C order
         if name == "sweep":
-            q, p = d.rational
-            T, xa, ya, xb, yb, w = _pattern_arrays(_period_pattern(q, p, d.anti))
-            args = (hf, q, p, T, xa, ya, xb, yb, w, np.maximum(xa, xb), np.maximum(ya, yb),
-                    math.hypot(q, p), frame_out)
-
             def run():
-                return _kernels.horizon_sweep(*args)[0]
+                return _sweep(hf, d, frame_out)
         else:
             pat = _shared_pattern(d, fr, fc, max_distance)
             zmax = float(hf.max())
@@ -810,13 +811,7 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
             frame_ranges = [(int(s[0]), int(s[-1]) + 1) for s in np.split(wanted, breaks)]
 
             def run():
-                total = 0
-                for a, b in frame_ranges:
-                    total += _kernels.horizon_pattern(
-                        hf, pat["inv_t"], pat["xa"], pat["ya"], pat["xb"], pat["yb"], pat["w"],
-                        pat["limit_x"], pat["limit_y"], pat["end_k"], pat["end_f"],
-                        pat["end_inv"], zmax, PATTERN_STOP_EVERY, a, b, frame_out)[0]
-                return total
+                return sum(_pattern_walk(hf, pat, zmax, a, b, frame_out) for a, b in frame_ranges)
 
         def values():
             full = _from_frame(frame_out.reshape(fr, fc), d).ravel()

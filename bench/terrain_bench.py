@@ -162,6 +162,18 @@ def _table(rows, workload, value, fmt, methods):
     return "\n".join(lines)
 
 
+#: The tables of parallel.md: (title, workload, column, format after the colon).
+PARALLEL_TABLES = (
+    ("Horizon: ns per vertex", "horizon", "ns_per_vertex", "0f"),
+    ("Horizon: speedup over the per-vertex `dda` walk", "horizon", "speedup_vs_dda", "2f"),
+    ("Horizon: largest angle error against the exact sweep (degrees)", "horizon",
+     "max_err_deg", "2g"),
+    ("Horizon: 99th percentile of the angle error (degrees)", "horizon", "p99_err_deg", "2g"),
+    ("Orthographic first hits: speedup over `dda`", "first_hit", "speedup_vs_dda", "2f"),
+    ("Orthographic first hits: ns per ray", "first_hit", "ns_per_vertex", "0f"),
+)
+
+
 def run_parallel(out_dir="reports/reproduce", size=None, run_lengths=RUN_LENGTHS, repeats=5,
                  sample=20000, rays=2000, seed=2004, resume=False, echo=print, figure=True):
     """The "parallel rays" part of ``hftrace reproduce`` (module docstring)."""
@@ -197,20 +209,12 @@ def run_parallel(out_dir="reports/reproduce", size=None, run_lengths=RUN_LENGTHS
             f"({rays} parallel rays falling at 10 degrees, same slope), single thread, "
             f"{repeats} interleaved repeats with flushed caches. Per-vertex methods ran on "
             f"about {sample} vertices in evenly spread row bands (Embree on 2048), scaled to "
-            "the field; the sweep does every vertex.", "",
-            "## Horizon: ns per vertex", "",
-            _table(rows, "horizon", "ns_per_vertex", lambda v: f"{v:.0f}", HORIZON_METHODS), "",
-            "## Horizon: speedup over the per-vertex `dda` walk", "",
-            _table(rows, "horizon", "speedup_vs_dda", lambda v: f"{v:.2f}", HORIZON_METHODS), "",
-            "## Horizon: largest angle error against the exact sweep (degrees)", "",
-            _table(rows, "horizon", "max_err_deg", lambda v: f"{v:.2g}", HORIZON_METHODS), "",
-            "## Horizon: 99th percentile of the angle error (degrees)", "",
-            _table(rows, "horizon", "p99_err_deg", lambda v: f"{v:.2g}", HORIZON_METHODS), "",
-            "## Orthographic first hits: speedup over `dda`", "",
-            _table(rows, "first_hit", "speedup_vs_dda", lambda v: f"{v:.2f}", HIT_METHODS), "",
-            "## Orthographic first hits: ns per ray", "",
-            _table(rows, "first_hit", "ns_per_vertex", lambda v: f"{v:.0f}", HIT_METHODS), "",
-            "## What the periodic patterns buy", ""]
+            "the field; the sweep does every vertex.", ""]
+    for title, workload, column, digits in PARALLEL_TABLES:
+        methods = HORIZON_METHODS if workload == "horizon" else HIT_METHODS
+        text += [f"## {title}", "",
+                 _table(rows, workload, column, lambda v, d=digits: f"{v:.{d}}", methods), ""]
+    text += ["## What the periodic patterns buy", ""]
     for r in sorted({int(x["run_length"]) for x in rows}):
         def ns(workload, name):
             m = [float(x["ns_per_vertex"]) for x in rows if x["workload"] == workload and

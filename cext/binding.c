@@ -471,6 +471,21 @@ static PyObject *stats_tuple(const hf_hz_stats *s, const struct timespec *a,
     return Py_BuildValue("LLL", ns, (long long)s->cells, (long long)s->skips);
 }
 
+/* A pattern's interpolation arrays: dx_a, dy_a, dx_b, dy_b (int64) and w (float64), n
+ * elements each. */
+static int get_lerp_arrays(PyObject *const objects[5], npy_intp n, const int64_t *ints[4],
+                           const double **w) {
+    static const char *const names[4] = {"dx_a", "dy_a", "dx_b", "dy_b"};
+    void *p;
+    for (int k = 0; k < 4; k++) {
+        if (!get_array(objects[k], names[k], NPY_INT64, n, 0, 0, &p, NULL)) return 0;
+        ints[k] = (const int64_t *)p;
+    }
+    if (!get_array(objects[4], "w", NPY_FLOAT64, n, 0, 0, &p, NULL)) return 0;
+    *w = (const double *)p;
+    return 1;
+}
+
 PyDoc_STRVAR(horizon_pattern_doc,
              "horizon_pattern(heights, inv_t, dx_a, dy_a, dx_b, dy_b, w, limit_x, limit_y,\n"
              "                end_k, end_f, end_inv_t, zmax, stop_every, start, stop, out)\n"
@@ -498,16 +513,12 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
     if (!get_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
     pat.inv_t = (const double *)p;
-    if (!get_array(o_dxa, "dx_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dxa = (const int64_t *)p;
-    if (!get_array(o_dya, "dy_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dya = (const int64_t *)p;
-    if (!get_array(o_dxb, "dx_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dxb = (const int64_t *)p;
-    if (!get_array(o_dyb, "dy_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dyb = (const int64_t *)p;
-    if (!get_array(o_w, "w", NPY_FLOAT64, n, 0, 0, &p, NULL)) return NULL;
-    pat.w = (const double *)p;
+    {
+        PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
+        const int64_t *ints[4];
+        if (!get_lerp_arrays(lerp, n, ints, &pat.w)) return NULL;
+        dxa = ints[0]; dya = ints[1]; dxb = ints[2]; dyb = ints[3];
+    }
     if (!get_array(o_lx, "limit_x", NPY_INT64, cols, 0, 0, &p, NULL)) return NULL;
     lx = (const int64_t *)p;
     if (!get_array(o_ly, "limit_y", NPY_INT64, rows, 0, 0, &p, NULL)) return NULL;
@@ -601,16 +612,12 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     }
     if (!get_array(o_tf, "tfrac", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
     tf = (const double *)p;
-    if (!get_array(o_dxa, "dx_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dxa = (const int64_t *)p;
-    if (!get_array(o_dya, "dy_a", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dya = (const int64_t *)p;
-    if (!get_array(o_dxb, "dx_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dxb = (const int64_t *)p;
-    if (!get_array(o_dyb, "dy_b", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
-    dyb = (const int64_t *)p;
-    if (!get_array(o_w, "w", NPY_FLOAT64, n, 0, 0, &p, NULL)) return NULL;
-    w = (const double *)p;
+    {
+        PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
+        const int64_t *ints[4];
+        if (!get_lerp_arrays(lerp, n, ints, &w)) return NULL;
+        dxa = ints[0]; dya = ints[1]; dxb = ints[2]; dyb = ints[3];
+    }
     if (!get_array(o_mx, "mx", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     mx = (const int64_t *)p;
     if (!get_array(o_my, "my", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
