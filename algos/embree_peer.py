@@ -5,7 +5,9 @@ vertex (i, j, H[j, i]) (CONVENTIONS.md), so primitive ``2 (j nx + i) + k`` is tr
 k of cell (i, j). Embree computes in float32. Its scene is built once per Field; the
 build time and the process's resident-memory growth during the build (Embree does not
 report its own bytes through embreex) are recorded in ``field.build_stats["embree"]``.
-Rays are traced one at a time by embreex's loop, i.e. on one thread.
+Rays are traced one at a time by embreex's loop; embreex releases the GIL there, so
+``threads`` > 1 splits the rays into ranges traced by Python threads sharing the one
+committed scene (as Embree users run it on every core).
 
 Two ways in: :func:`embree_hits` (t, cell and normal: embreex's ``output=1`` query,
 which allocates five arrays) serves ``algos.intersect`` and the tests, where Embree's
@@ -20,6 +22,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
+
+from .parallel import run_ranges
 
 __all__ = ["triangles", "embree_scene", "embree_hits"]
 
@@ -123,10 +127,12 @@ def far_bounds(field, origins, directions):
     return far.astype(np.float32)
 
 
-def embree_timed(field, origins, directions):
+def embree_timed(field, origins, directions, threads=1):
     """(run, t) for benchmarks: each ``run()`` traces every ray once with the fastest
-    query and returns the elapsed ns of embreex's loop alone; ``t()`` gives the latest
-    first-hit parameters (inf on a miss)."""
+    query and returns the elapsed ns of embreex's loop alone (with ``threads`` > 1, the
+    wall time of a thread pool over ray ranges sharing the committed scene; embreex
+    releases the GIL in its loop); ``t()`` gives the latest first-hit parameters (inf on
+    a miss)."""
     scene = embree_scene(field)
     o32 = np.ascontiguousarray(origins, dtype=np.float32)
     d32 = np.ascontiguousarray(directions, dtype=np.float32)
@@ -134,10 +140,13 @@ def embree_timed(field, origins, directions):
     tfar = np.empty_like(far)
     scene.run(o32[:1], d32[:1], dists=tfar[:1].copy(), query="DISTANCE")  # warm, untimed
 
+    def part(a, b):
+        scene.run(o32[a:b], d32[a:b], dists=tfar[a:b], query="DISTANCE")
+
     def run():
         np.copyto(tfar, far)
         start = time.perf_counter_ns()
-        scene.run(o32, d32, dists=tfar, query="DISTANCE")
+        run_ranges(len(o32), threads, part)
         return time.perf_counter_ns() - start
 
     def t():
@@ -147,7 +156,7 @@ def embree_timed(field, origins, directions):
     return run, t
 
 
-def embree_hits(field, origins, directions, tmin, tmax):
+def embree_hits(field, origins, directions, tmin, tmax, threads=1):
     """(t, cell, normal, elapsed_ns) of the first hits in Embree's robust mode (ground
     truth: ``algos.intersect("embree", ...)`` and the tests); misses have t = inf."""
     scene = embree_scene(field, robust=True)
@@ -157,8 +166,9 @@ def embree_hits(field, origins, directions, tmin, tmax):
     o32 = np.ascontiguousarray(start_points, dtype=np.float32)
     d32 = np.ascontiguousarray(directions, dtype=np.float32)
     start = time.perf_counter_ns()
-    result = scene.run(o32, d32, output=1)
+    parts = run_ranges(n, threads, lambda a, b: scene.run(o32[a:b], d32[a:b], output=1))
     elapsed = time.perf_counter_ns() - start
+    result = {k: np.concatenate([p[k] for p in parts]) for k in ("primID", "tfar", "Ng")}
     prim = result["primID"].astype(np.int64)
     t = result["tfar"].astype(np.float64) + lo
     hit = prim >= 0
@@ -195,7 +205,7 @@ class EmbreeHorizon:
         self._mesh = TriangleMesh(self.scene, vertices, indices)
         self.offset = float(offset)
 
-    def tangents(self, dx, dy, max_distance=np.inf, tolerance=1e-4, vertices=None):
+    def tangents(self, dx, dy, max_distance=np.inf, tolerance=1e-4, vertices=None, threads=1):
         """Horizon tangents along the unit direction (dx, dy) for the vertex indices given
         (C order; default all), -inf where the ray has no point in the footprint."""
         h = self.heights
@@ -219,7 +229,8 @@ class EmbreeHorizon:
             origin[:, 0], origin[:, 1], origin[:, 2] = i, j, z + self.offset
             # the ray's horizontal reach ends at the footprint edge or max_distance
             far = np.minimum(reach / np.maximum(c, 1e-12), 1e30).astype(np.float32)
-            hit = self.scene.run(origin, direction, dists=far, query="OCCLUDED") == 0
+            hit = np.concatenate(run_ranges(len(idx), threads, lambda a, b: self.scene.run(
+                origin[a:b], direction[a:b], dists=far[a:b], query="OCCLUDED"))) == 0
             lo = np.where(hit, mid, lo)
             hi = np.where(hit, hi, mid)
         out = np.tan((lo + hi) / 2)
@@ -242,9 +253,10 @@ def embree_horizon(heights) -> EmbreeHorizon:
     return _HORIZON_SCENES[key]
 
 
-def embree_horizon_tangents(heights, dx, dy, max_distance=np.inf, tolerance=1e-4, vertices=None):
+def embree_horizon_tangents(heights, dx, dy, max_distance=np.inf, tolerance=1e-4, vertices=None,
+                            threads=1):
     """:meth:`EmbreeHorizon.tangents` (the scene is kept between calls on one field);
     shaped (rows, cols) for all vertices."""
     peer = embree_horizon(heights)
-    out = peer.tangents(dx, dy, max_distance, tolerance, vertices)
+    out = peer.tangents(dx, dy, max_distance, tolerance, vertices, threads)
     return out.reshape(np.shape(heights)) if vertices is None else out

@@ -19,6 +19,26 @@ Structures (all float32; ``nx = cols - 1``, ``ny = rows - 1`` cells):
 * ``mip``: the maximum mipmap (Tevs, Ihrke & Seidel 2008): level 0 is ``cellmax``, level
   k holds maxima over 2^k x 2^k cells, sizes rounded up so every grid size works. About
   ``4/3 * 4 nx ny`` bytes.
+
+Bytes per cell each intersector needs besides the heights (4 B per sample, float32; a
+memory-mapped ``.npy`` is used in place, never copied):
+
+=====================================  =========================================
+dda, dda_f32, midpoint, runs*          4 (cellmax)
+runs* with ``cull_runs=True``          4 + about 2 x (12 + log2(n / 8) / 2)
+dda_maxmip, runs_maxmip                4 x 4/3 (cellmax is mip level 0)
+runs_maxmip on ``Field(lean=True)``    4 x 4/3 / 4^fine_level (0.08 at level 3)
+marching                               0
+embree                                 measured: ``build_stats["embree"]``
+=====================================  =========================================
+
+Every structure is built in streaming passes over bands of ``BAND_SAMPLES`` samples,
+so the extra memory of a build is its result plus a few MiB.
+
+``Field(heights, lean=True)`` is the layout for fields near the memory limit:
+``runs_maxmip`` then runs without per-cell culling (measured about 5 % slower at fbm
+2048^2, reports/scaling) on mipmap levels from ``fine_level`` up, built from the heights
+directly; the other intersectors build what they need as usual.
 """
 from __future__ import annotations
 
@@ -42,13 +62,56 @@ def _validate_heights(heights) -> np.ndarray:
         raise ValueError(f"heights: a height field needs at least 2 x 2 samples, got {h.shape}")
     if max(h.shape) > MAX_GRID_SIDE:
         raise ValueError(f"heights: shape {h.shape} exceeds the limit of 2**24 samples per side")
-    h = np.ascontiguousarray(h, dtype=np.float32)
-    bad = ~np.isfinite(h)
-    if bad.any():
-        row, col = (int(v) for v in np.argwhere(bad)[0])
-        raise ValueError(f"heights: sample (row {row}, col {col}) is {h[row, col]}; heights must "
-                         "be finite (datasets_gen.load_file has an explicit nodata policy)")
+    # no copy when it already is C-contiguous native float32 (a memory-mapped .npy too)
+    h = np.require(h, dtype=np.float32, requirements=["C", "A"])
+    step = _band_rows(h.shape[1])
+    for r0 in range(0, h.shape[0], step):  # bounded temporaries
+        bad = ~np.isfinite(h[r0:r0 + step])
+        if bad.any():
+            row, col = (int(v) for v in np.argwhere(bad)[0])
+            row += r0
+            raise ValueError(f"heights: sample (row {row}, col {col}) is {h[row, col]}; heights "
+                             "must be finite (datasets_gen.load_file has an explicit nodata policy)")
     return h
+
+
+#: samples per band of the streaming passes (their temporaries stay this small)
+BAND_SAMPLES = 1 << 20
+
+
+def _band_rows(cols: int) -> int:
+    return max(1, BAND_SAMPLES // max(cols, 1))
+
+
+def _cellmax_rows(h: np.ndarray, kind: str, r0: int, r1: int) -> np.ndarray:
+    """Rows ``r0:r1`` of the cell maxima (see the module docstring), from heights rows
+    ``r0:r1 + 1`` only."""
+    a = h[r0:r1 + 1]
+    top = np.maximum(np.maximum(a[:-1, :-1], a[:-1, 1:]), np.maximum(a[1:, :-1], a[1:, 1:]))
+    if kind == "plane3":
+        # float64, rounded up to float32: the bound must not fall below the value
+        fourth = a[:-1, 1:].astype(np.float64) + a[1:, :-1] - a[:-1, :-1]
+        fourth32 = fourth.astype(np.float32)
+        fourth32 = np.where(fourth32 < fourth, np.nextafter(fourth32, np.float32(np.inf)), fourth32)
+        top = np.maximum(top, fourth32)
+    return np.ascontiguousarray(top, dtype=np.float32)
+
+
+def _tile_max_rows(h: np.ndarray, kind: str, level: int) -> np.ndarray:
+    """Mipmap level ``level`` (maxima over 2^level x 2^level cells) straight from the
+    heights, one band of tile rows at a time: no full-size cellmax."""
+    size = 1 << level
+    ny, nx = h.shape[0] - 1, h.shape[1] - 1
+    out_rows, out_cols = -(-ny // size), -(-nx // size)
+    out = np.empty((out_rows, out_cols), dtype=np.float32)
+    tiles_per_band = max(1, _band_rows(h.shape[1]) // size)
+    for t0 in range(0, out_rows, tiles_per_band):
+        t1 = min(out_rows, t0 + tiles_per_band)
+        cm = _cellmax_rows(h, kind, t0 * size, min(ny, t1 * size))
+        padded = np.full(((t1 - t0) * size, out_cols * size), -np.inf, dtype=np.float32)
+        padded[:cm.shape[0], :nx] = cm
+        out[t0:t1] = padded.reshape(t1 - t0, size, out_cols, size).max(axis=(1, 3))
+    return out
 
 
 def _range_max(lines: np.ndarray, shift: int):
@@ -95,8 +158,9 @@ class Field:
     ``"cellmax/plane3"``, ...) to ``{"seconds", "bytes"}``.
     """
 
-    def __init__(self, heights):
+    def __init__(self, heights, *, lean=False):
         self.heights = _validate_heights(heights)
+        self.lean = bool(lean)
         self.rows, self.cols = self.heights.shape
         self.hmin = float(self.heights.min())
         self.hmax = float(self.heights.max())
@@ -123,15 +187,13 @@ class Field:
     def cellmax_for(self, kind="corners") -> np.ndarray:
         h = self.heights
 
-        def make():
-            top = np.maximum(np.maximum(h[:-1, :-1], h[:-1, 1:]), np.maximum(h[1:, :-1], h[1:, 1:]))
-            if kind == "plane3":
-                # float64, rounded up to float32: the bound must not fall below the value
-                fourth = h[:-1, 1:].astype(np.float64) + h[1:, :-1] - h[:-1, :-1]
-                fourth32 = fourth.astype(np.float32)
-                fourth32 = np.where(fourth32 < fourth, np.nextafter(fourth32, np.float32(np.inf)), fourth32)
-                top = np.maximum(top, fourth32)
-            return np.ascontiguousarray(top, dtype=np.float32)
+        def make():  # in bands: the only full-size array is the result
+            out = np.empty((self.rows - 1, self.cols - 1), dtype=np.float32)
+            step = _band_rows(self.cols)
+            for r0 in range(0, self.rows - 1, step):
+                r1 = min(self.rows - 1, r0 + step)
+                out[r0:r1] = _cellmax_rows(h, kind, r0, r1)
+            return out
 
         return self._build(self._key("cellmax", kind), make)
 
@@ -151,8 +213,17 @@ class Field:
         return self._build(self._key("col_max", kind),
                            lambda: _range_max(self.cellmax_for(kind).T, RMQ_BLOCK_SHIFT))
 
-    def mip_for(self, kind="corners") -> list[np.ndarray]:
-        return self._build(self._key("mip", kind), lambda: _mipmap(self.cellmax_for(kind)))
+    def mip_for(self, kind="corners", from_level=0) -> list:
+        """The maximum mipmap; with ``from_level`` > 0 (the lean layout) the levels below
+        it are ``None`` and the rest are built from the heights in bands, without the
+        full-size cell maxima."""
+        if from_level <= 0:
+            return self._build(self._key("mip", kind), lambda: _mipmap(self.cellmax_for(kind)))
+
+        def make():
+            return [None] * from_level + _mipmap(_tile_max_rows(self.heights, kind, from_level))
+
+        return self._build(self._key(f"mip{from_level}", kind), make)
 
     # the structures for the three surfaces that stay within their corners
     cellmax = property(lambda self: self.cellmax_for())

@@ -5,12 +5,14 @@ Validation and conversion live here; the C layer (``cext/hit.c``) trusts its inp
 from __future__ import annotations
 
 import numbers
+import time
 from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
 from . import _kernels
 from .field import Field, as_field, bound_kind
+from .parallel import resolve_threads, run_ranges, split
 from .registry import SURFACES, get_intersector
 from .traverse import (DEFAULT_MAX_DENOMINATOR, MAX_DENOMINATOR, _as_float_array, _check_t,
                        _first_bad)
@@ -112,7 +114,7 @@ def _options(algorithm, given: dict) -> dict:
 
 
 def intersect(name, heights, origins, directions, surface="triangles", tmin=None, tmax=None,
-              outputs=("t", "cell"), **options) -> Hits:
+              outputs=("t", "cell"), threads=None, **options) -> Hits:
     """First hits of rays ``o + t d`` on the solid ``{z <= s(x, y)}`` of a height field.
 
     Parameters
@@ -129,6 +131,9 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         Default ``[0, inf)``.
     outputs : iterable of {"t", "cell", "normal", "stats"}
         Only these are computed.
+    threads : None or int
+        Threads to split the rays over (``None``: every core in the process's affinity;
+        embreex's peer included). Results are bit-identical for every value.
     **options
         Per-intersector options (see ``algos.INTERSECTOR_REGISTRY[name].options``):
         ``cull_cells``, ``cull_runs`` (switch culling off, for checks),
@@ -164,11 +169,12 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     lo = _check_t(tmin, "tmin", n)
     hi = _check_t(tmax, "tmax", n)
     hits = Hits(name, surface)
+    nthreads = resolve_threads(threads)
 
     if algorithm.kind == "peer":
         from .embree_peer import embree_hits
 
-        t, cell, normal, elapsed = embree_hits(fld, o, d, lo, hi)
+        t, cell, normal, elapsed = embree_hits(fld, o, d, lo, hi, threads=nthreads)
         hits.elapsed_ns = elapsed
         hits.t = t if "t" in outputs else None
         hits.cell = cell if "cell" in outputs else None
@@ -177,7 +183,7 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
             hits.stats = {k: np.zeros(n, np.int64) for k in STATS}
         return hits
 
-    run = prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts)
+    run = prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts, nthreads)
     hits.elapsed_ns = run()
     hits.t, hits.cell, hits.normal, stats = run.outputs
     if stats is not None:
@@ -188,15 +194,20 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
 class _Prepared:
     """One validated call, ready to run (and re-run, for timing) in C."""
 
-    def __init__(self, algorithm, fld: Field, surface, o, d, lo, hi, outputs, opts):
+    def __init__(self, algorithm, fld: Field, surface, o, d, lo, hi, outputs, opts, threads=1):
         n = len(o)
+        self.n, self.threads = n, threads
         self.t = np.empty(n) if "t" in outputs else None
         self.cell = np.empty((n, 2), np.int32) if "cell" in outputs else None
         self.normal = np.empty((n, 3)) if "normal" in outputs else None
         self.stats = np.empty((n, 5), np.int64) if "stats" in outputs else None
         uses = set(algorithm.structures)
         kind = bound_kind(surface)
-        cellmax = fld.cellmax_for(kind)
+        lean = (fld.lean and algorithm.name == "runs_maxmip"
+                and not opts.get("cull_runs", False))
+        if lean:
+            # the lean layout: no cell maxima, mipmap levels from fine_level up
+            opts = dict(opts, cull_cells=False)
         hmin, hmax = fld.zrange_for(kind)
         # run culling reads the range maxima; built on request even where the registry
         # leaves it off by default (runs_maxmip)
@@ -204,10 +215,14 @@ class _Prepared:
             "runs", "runs_f64", "runs_periodic")
         row_max = fld.row_max_for(kind) if run_culling else None
         col_max = fld.col_max_for(kind) if run_culling else None
-        mip = fld.mip_for(kind) if "mip" in uses else None
         fine_level = int(opts.get("fine_level", 0))
-        if mip is not None and fine_level >= len(mip):
-            fine_level = len(mip) - 1
+        if "mip" in uses:
+            levels = _mip_levels(fld.rows - 1, fld.cols - 1)
+            fine_level = min(fine_level, levels - 1)
+            mip = fld.mip_for(kind, from_level=fine_level if lean else 0)
+        else:
+            mip = None
+        cellmax = None if lean else fld.cellmax_for(kind)
         q = int(opts.get("max_denominator") or 0)
         pattern = np.zeros(q + 1, np.int32) if q else None
         march = (int(opts.get("march_steps", 128)), int(opts.get("march_refinements", 16)),
@@ -219,24 +234,51 @@ class _Prepared:
                      int(bool(opts.get("cull_cells", False))), q, pattern, march, fine_level,
                      self.t, self.cell, self.normal, self.stats)
 
+    def _part(self, a, b):
+        """Rays [a, b) in C (views of every per-ray array; a private pattern scratch)."""
+        args = list(self.args)
+        for k in (9, 10, 11, 12, 18, 19, 20, 21):  # o, d, tmin, tmax, t, cell, normal, stats
+            if args[k] is not None:
+                args[k] = args[k][a:b]
+        if args[15] is not None:
+            args[15] = np.zeros_like(args[15])
+        try:
+            return _kernels.intersect(*args)
+        except RuntimeError as exc:
+            raise RuntimeError(f"{exc} (ray index counted from ray {a})") from None
+
     def __call__(self) -> int:
-        return _kernels.intersect(*self.args)
+        """Trace the batch; the elapsed ns: the C clock on one thread, else the wall time
+        of the whole pool."""
+        if len(split(self.n, self.threads)) == 1:
+            return _kernels.intersect(*self.args)
+        start = time.perf_counter_ns()
+        run_ranges(self.n, self.threads, self._part)
+        return time.perf_counter_ns() - start
 
     @property
     def outputs(self):
         return self.t, self.cell, self.normal, self.stats
 
 
-def prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts):
-    return _Prepared(algorithm, fld, surface, o, d, lo, hi, outputs, opts)
+def _mip_levels(ny: int, nx: int) -> int:
+    """Levels of the maximum mipmap of an ny x nx cell grid (down to 1 x 1)."""
+    levels, r, c = 1, ny, nx
+    while max(r, c) > 1:
+        r, c, levels = -(-r // 2), -(-c // 2), levels + 1
+    return levels
+
+
+def prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts, threads=1):
+    return _Prepared(algorithm, fld, surface, o, d, lo, hi, outputs, opts, threads)
 
 
 def prepare_timed_intersect(name, heights, origins, directions, surface="triangles",
-                            outputs=("t",), **options):
+                            outputs=("t",), threads=1, **options):
     """Validate once; return ``(run, hits)`` where each ``run()`` traces the batch again
-    and returns its elapsed nanoseconds (C clock, or around embreex's loop for the peer),
-    and ``hits()`` gives the latest t. Acceleration structures are built here, not in
-    ``run``."""
+    and returns its elapsed nanoseconds (C clock, or around embreex's loop for the peer;
+    the pool's wall time with ``threads`` > 1), and ``hits()`` gives the latest t.
+    Acceleration structures are built here, not in ``run``."""
     algorithm = get_intersector(name)
     fld = as_field(heights)
     o, d = _check_rays3(origins, directions)
@@ -244,9 +286,10 @@ def prepare_timed_intersect(name, heights, origins, directions, surface="triangl
         from .embree_peer import embree_timed
 
         # the peer's fastest documented configuration (embree_peer.embree_timed)
-        return embree_timed(fld, o, d)
+        return embree_timed(fld, o, d, threads=resolve_threads(threads))
     if surface not in algorithm.surfaces:
         raise ValueError(f"surface: {name} supports only {', '.join(algorithm.surfaces)}")
     opts = _options(algorithm, options)
-    prepared = prepare_intersect(algorithm, fld, surface, o, d, None, None, outputs, opts)
+    prepared = prepare_intersect(algorithm, fld, surface, o, d, None, None, outputs, opts,
+                                 resolve_threads(threads))
     return prepared, lambda: prepared.t

@@ -44,9 +44,7 @@ cells.
 from __future__ import annotations
 
 import math
-import os
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -54,6 +52,8 @@ import numpy as np
 
 from . import _kernels
 from .field import _mipmap as field_mipmap
+from .parallel import resolve_threads, run_ranges
+from .tiled import is_dask, tiled_product, tiled_viewshed
 from .terrain_ref import line_of_sight_exact, surface_exact
 
 __all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
@@ -153,7 +153,8 @@ def _field(heights, spacing):
         raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {h.shape}")
     if h.shape[0] < 2 or h.shape[1] < 2 or max(h.shape) > _kernels.MAX_GRID_SIDE:
         raise ValueError(f"heights: each side must be in [2, {_kernels.MAX_GRID_SIDE}], got {h.shape}")
-    h = np.ascontiguousarray(h, dtype=np.float64)
+    # aligned too: buffers from elsewhere (a Dask worker's deserialised block) need not be
+    h = np.require(h, dtype=np.float64, requirements=["C", "A"])
     bad = ~np.isfinite(h)
     if bad.any():
         row, col = (int(v) for v in np.argwhere(bad)[0])
@@ -192,25 +193,9 @@ def _length(value, name, spacing, allow_none=True, allow_zero=True):
     return v / spacing if spacing else v
 
 
-def _threads(threads):
-    if threads is None:
-        try:
-            return max(1, len(os.sched_getaffinity(0)))
-        except AttributeError:
-            return os.cpu_count() or 1
-    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-        raise ValueError(f"threads: expected None or a positive int, got {threads!r}")
-    return int(threads)
-
-
 def _run_ranges(n, threads, call):
-    """call(start, stop) over [0, n) split into contiguous ranges; returns the results."""
-    if threads <= 1 or n < 4096:
-        return [call(0, n)]
-    bounds = np.linspace(0, n, threads * 4 + 1).astype(np.int64)
-    with ThreadPoolExecutor(threads) as pool:
-        return list(pool.map(lambda k: call(int(bounds[k]), int(bounds[k + 1])),
-                             range(len(bounds) - 1)))
+    """call(start, stop) over [0, n) split into contiguous vertex ranges (algos.parallel)."""
+    return run_ranges(n, threads, call, chunks_per_thread=4, min_chunk=1024)
 
 
 # ---- directions ------------------------------------------------------------------------
@@ -507,7 +492,8 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
         from .embree_peer import embree_horizon_tangents
 
         t0 = time.perf_counter_ns()
-        out[:] = embree_horizon_tangents(h, d.dx, d.dy, md, tolerance=embree_tolerance).ravel()
+        out[:] = embree_horizon_tangents(h, d.dx, d.dy, md, tolerance=embree_tolerance,
+                                        threads=threads).ravel()
         stats.ns += time.perf_counter_ns() - t0
         return out.reshape(rows, cols)
     else:  # pragma: no cover - checked by the caller
@@ -580,7 +566,14 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     Returns
     -------
     float64 array (len(azimuths), rows, cols).
+
+    A dask array (or a HeightField holding one) gives a lazy dask array, computed tile by
+    tile with a halo of ``max_distance`` (which must be finite): :mod:`algos.tiled`.
     """
+    if is_dask(heights):
+        return _tiled_horizon(heights, azimuths, max_distance, spacing, dict(
+            algorithm=algorithm, surface=surface, threads=threads, march_step=march_step,
+            embree_tolerance=embree_tolerance))
     _check_surface(surface)
     h, spacing, flip = _field(heights, spacing)
     scalar = np.ndim(azimuths) == 0
@@ -598,7 +591,7 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     if not (math.isfinite(step) and step > 0):
         raise ValueError(f"march_step: expected a positive number of cells, got {march_step!r}")
     name = _pick_horizon_algorithm(algorithm, directions, md)
-    nthreads = _threads(threads)
+    nthreads = resolve_threads(threads)
     stats = TerrainStats(name)
     mip = _mipmap(h) if name == "dda_maxmip" else None
     out = np.empty((len(directions),) + h.shape)
@@ -624,6 +617,10 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
         raise ValueError(f"elevation: expected degrees in [-90, 90], got {elevation!r}")
     if np.ndim(azimuth) != 0:
         raise ValueError("azimuth: expected one number (the sun's azimuth)")
+    if is_dask(heights):
+        return tiled_product(lambda b, **kw: shadows(b, azimuth, el, **kw), heights,
+                             max_distance, spacing, bool, algorithm=algorithm,
+                             surface=surface, threads=threads)
     angles = horizon(heights, azimuth, max_distance, algorithm=algorithm, surface=surface,
                      spacing=spacing, threads=threads)[0]
     return angles > math.radians(el)
@@ -641,9 +638,23 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
             raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
         azimuths = (rational_azimuths(n_azimuths) if rational
                     else np.arange(n_azimuths) * (360.0 / n_azimuths))
+    if is_dask(heights):
+        return tiled_product(lambda b, **kw: sky_view_factor(b, azimuths=azimuths, **kw),
+                             heights, max_distance, spacing, np.float64, algorithm=algorithm,
+                             surface=surface, threads=threads)
     angles = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
                      spacing=spacing, threads=threads)
     return 1.0 - np.mean(np.sin(np.maximum(angles, 0.0)), axis=0)
+
+
+def _tiled_horizon(heights, azimuths, max_distance, spacing, options):
+    """horizon() of a dask array: one tiled map per azimuth, stacked."""
+    import dask.array as da
+
+    az = np.atleast_1d(np.asarray(azimuths, dtype=float))
+    layers = [tiled_product(lambda b, a=a, **kw: horizon(b, [a], **kw)[0], heights,
+                            max_distance, spacing, np.float64, **options) for a in az]
+    return da.stack(layers)
 
 
 # ---- viewshed --------------------------------------------------------------------------
@@ -727,7 +738,17 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     ``observer`` is (x, y) in grid coordinates, or an (N, 2) array. One observer gives a
     bool (rows, cols). Several give a uint16 (rows, cols) count of the observers that see
     each vertex.
+
+    A dask array (or a HeightField holding one) gives a lazy result: each observer's
+    window of ``max_distance`` (finite) is cut out and computed in memory
+    (:func:`algos.tiled.tiled_viewshed`).
     """
+    if is_dask(heights):
+        return tiled_viewshed(viewshed, heights, observer, max_distance, spacing,
+                              observer_height=observer_height, target_height=target_height,
+                              algorithm=algorithm, surface=surface, curvature=curvature,
+                              refraction=refraction, earth_radius=earth_radius,
+                              threads=threads)
     _check_surface(surface)
     h, spacing, flip = _field(heights, spacing)
     rows = h.shape[0]
@@ -754,7 +775,7 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     if algorithm not in VIEWSHED_ALGORITHMS:
         raise ValueError(f"algorithm: expected one of {sorted(VIEWSHED_ALGORITHMS)} or 'auto', "
                          f"got {algorithm!r}")
-    nthreads = _threads(threads)
+    nthreads = resolve_threads(threads)
     stats = TerrainStats(algorithm)
     mip = _mipmap(h) if algorithm == "dda_maxmip" else None
     count = np.zeros(h.shape, dtype=np.uint16)

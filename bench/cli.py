@@ -171,8 +171,13 @@ def _sweep(args):
 
     cfg = sweep.load_config(args.config)  # fails before any work, naming the key
     out_dir = args.out or os.path.join("reports", cfg.name)
-    pin_to_one_cpu()
-    rows = sweep.run_sweep(cfg, out_dir, resume=args.resume, progress=not args.no_progress)
+    if args.dask:
+        # each group on one single-threaded worker process (pinning is the workers' own)
+        rows = sweep.run_sweep_dask(cfg, out_dir, args.dask, resume=args.resume,
+                                    progress=not args.no_progress)
+    else:
+        pin_to_one_cpu()
+        rows = sweep.run_sweep(cfg, out_dir, resume=args.resume, progress=not args.no_progress)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace sweep {cfg.name}")
     df = analysis.load(os.path.join(out_dir, "results.csv"))
@@ -225,7 +230,8 @@ def _render(args):
     render.render(dataset=args.dataset, size=args.size, seed=args.seed, algorithm=args.algorithm,
                   surface=args.surface, width=args.width, height=args.height,
                   position=args.camera, look_at=args.look_at, fov=args.fov, fog=args.fog,
-                  out=args.out, diff=args.diff, params=dict(args.param or []))
+                  out=args.out, diff=args.diff, params=dict(args.param or []),
+                  threads=args.threads)
     return 0
 
 
@@ -428,6 +434,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="output directory (default reports/<name>)")
     p.add_argument("--resume", action="store_true", help="skip rows already in results.csv")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--dask", default=None, metavar="ADDRESS",
+                   help="run each group as a task on a Dask cluster: a scheduler address, or "
+                        "local:N for a LocalCluster of N single-threaded workers")
     p.set_defaults(func=_sweep)
 
     p = sub.add_parser("regress", help="CI check: instruction counts or speedup ratios against "
@@ -445,7 +454,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_regress)
 
     p = sub.add_parser("render", help="a pinhole image (OpenEXR + PNG) with any intersector")
-    p.add_argument("dataset", help="a generator or embedded field (hftrace datasets list)")
+    p.add_argument("dataset", help="a generator or embedded field (hftrace datasets list), or "
+                                   "a file (.npy is memory-mapped)")
     p.add_argument("--size", type=_positive_int, default=None)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE")
@@ -461,6 +471,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--diff", nargs=2, metavar=("A", "B"), default=None,
                    help="also write the depth difference and step ratio of two intersectors")
     p.add_argument("--out", default="render", help="output path prefix")
+    p.add_argument("--threads", type=_positive_int, default=None,
+                   help="default: every core in the affinity (the image is the same)")
     p.set_defaults(func=_render)
 
     p = sub.add_parser("accuracy", help="run time against error for every algorithm")

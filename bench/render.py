@@ -18,6 +18,7 @@ Outputs (``OUT`` is the path prefix):
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
@@ -37,10 +38,11 @@ def default_camera(heights):
     return position, centre
 
 
-def trace(heights_or_field, algorithm, surface, width, height, position, look_at, fov):
+def trace(heights_or_field, algorithm, surface, width, height, position, look_at, fov,
+          threads=None):
     rs = raysets.pinhole(position, look_at, fov, width, height)
     hits = algos.intersect(algorithm, heights_or_field, rs.origins, rs.directions, surface=surface,
-                           outputs=("t", "cell", "normal", "stats"))
+                           outputs=("t", "cell", "normal", "stats"), threads=threads)
     shape = (height, width)
     z = hits.t.reshape(shape)  # unit directions: t is a distance
     normal = hits.normal.reshape(height, width, 3)
@@ -99,16 +101,24 @@ def _save_png(path, rgb):
 
 def render(dataset="fbm", size=None, seed=1, algorithm="runs", surface="triangles", width=640,
            height=360, position=None, look_at=None, fov=60.0, fog=0.0, out="render", diff=None,
-           params=None, echo=print):
-    """Render, write the files, and return their paths."""
-    heights = datasets_gen.load(dataset, size=size, seed=seed, **(params or {})).heights
+           params=None, echo=print, threads=None):
+    """Render, write the files, and return their paths.
+
+    ``dataset`` is a dataset name or a file (``.npy`` files are memory-mapped, so a
+    field larger than memory renders); ``threads`` as in ``algos.intersect``
+    (default: every core), the image is bit-identical for every value."""
+    if os.path.exists(str(dataset)):
+        heights = datasets_gen.load_file(str(dataset)).heights
+        dataset = os.path.basename(str(dataset))
+    else:
+        heights = datasets_gen.load(dataset, size=size, seed=seed, **(params or {})).heights
     field = algos.Field(heights)
     cam, centre = default_camera(heights)
     position = np.asarray(position if position is not None else cam, dtype=float)
     look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)
     paths = {}
     z, normal, stats, points, hits = trace(field, algorithm, surface, width, height, position,
-                                           look_at, fov)
+                                           look_at, fov, threads)
     write_exr(f"{out}.exr", {"Z": z, "N.x": normal[..., 0], "N.y": normal[..., 1],
                              "N.z": normal[..., 2],
                              "cellsVisited": stats["cells_visited"].astype(np.float32),
@@ -119,8 +129,8 @@ def render(dataset="fbm", size=None, seed=1, algorithm="runs", surface="triangle
          f"{hits.elapsed_ns / 1e6:.1f} ms, {np.isfinite(z).mean():.1%} hit; wrote {out}.exr, {out}.png")
     if diff:
         a, b = diff
-        za, _, sa, _, _ = trace(field, a, surface, width, height, position, look_at, fov)
-        zb, _, sb, _, _ = trace(field, b, surface, width, height, position, look_at, fov)
+        za, _, sa, _, _ = trace(field, a, surface, width, height, position, look_at, fov, threads)
+        zb, _, sb, _, _ = trace(field, b, surface, width, height, position, look_at, fov, threads)
         with np.errstate(invalid="ignore", divide="ignore"):
             dz = np.where(np.isfinite(za) & np.isfinite(zb), za - zb,
                           np.where(np.isfinite(za) == np.isfinite(zb), 0.0, np.nan))

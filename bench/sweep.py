@@ -273,6 +273,98 @@ def read_rows(path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed):
+    """One group on a Dask worker: load the field there, measure, return the rows and the
+    worker's environment. Module-level (importable) so any worker can run it."""
+    heights = datasets_gen.load(ds["name"], size=ds.get("size"), seed=ds.get("seed", 0),
+                                **ds.get("params", {})).heights
+    rows = measure_group(algos.Field(heights), label, workload, surface, r, names, rays,
+                         repeats, seed)
+    import socket
+
+    return rows, dict(environment(), hostname=socket.gethostname(), pid=os.getpid())
+
+
+def _dask_client(address: str, echo=print):
+    """A distributed Client: ``local:N`` starts a LocalCluster of N single-threaded
+    worker processes; anything else is a scheduler address."""
+    from dask.distributed import Client, LocalCluster
+
+    if address.startswith("local:"):
+        try:
+            n = int(address.split(":", 1)[1])
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ValueError(f"--dask: expected local:N with N >= 1, got {address!r}")
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        return Client(cluster), cluster
+    return Client(address), None
+
+
+def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, progress=True,
+                   echo=print):
+    """The sweep with each group as one task on a Dask worker (single-threaded workers:
+    a group's interleaving, hence its ratios, is the serial sweep's). The driver appends
+    a group's rows to results.csv as soon as the group comes back, so a killed driver
+    loses no finished group and ``resume`` skips it; a killed worker's task is rerun by
+    the scheduler and its rows are written once, by the driver. Each worker's environment
+    goes into env.json under "workers"."""
+    os.makedirs(out_dir, exist_ok=True)
+    csv_path = os.path.join(out_dir, "results.csv")
+    done = {row_key(r) for r in read_rows(csv_path)} if resume else set()
+    if not resume and os.path.exists(csv_path):
+        os.remove(csv_path)
+    todo = []
+    for ds, workload, surface, r, names in groups(cfg):
+        label = dataset_label(ds)
+        missing = [n for n in names if (label, workload, surface, str(r), n) not in done]
+        if missing:
+            todo.append((ds, label, workload, surface, r, names, missing))
+    from dask.distributed import as_completed
+
+    client, cluster = _dask_client(address, echo)
+    env = dict(environment(), dask_address=address, workers={})
+    try:
+        futures = {}
+        for item in todo:
+            ds, label, workload, surface, r, names, missing = item
+            future = client.submit(measure_task, ds, label, workload, surface, r, names,
+                                   cfg.rays, cfg.repeats, cfg.seed, pure=False)
+            futures[future] = item
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(todo), unit="group", desc=f"{cfg.name} (dask)",
+                       dynamic_ncols=True)
+        start = time.perf_counter()
+        with RowWriter(csv_path, COLUMNS, append=resume) as writer:
+            for future in as_completed(futures):
+                ds, label, workload, surface, r, names, missing = futures[future]
+                rows, worker_env = future.result()
+                for row in rows:
+                    if row["algorithm"] in missing:
+                        writer.write(row)
+                worker = worker_env.get("hostname", "") + f" pid {worker_env.get('pid', '')}"
+                env["workers"].setdefault(worker, worker_env)
+                write_json(os.path.join(out_dir, "env.json"), env)
+                if bar is not None:
+                    bar.set_postfix_str(f"{label} {workload} {surface} r={r}")
+                    bar.update(1)
+        if bar is not None:
+            bar.close()
+        if echo and todo:
+            echo(f"{len(todo)} groups measured on {address} in {time.perf_counter() - start:.1f} s")
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    write_json(os.path.join(out_dir, "env.json"), env)
+    return read_rows(csv_path)
+
+
 def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=print):
     """Run (or resume) a sweep; returns every row of results.csv afterwards."""
     os.makedirs(out_dir, exist_ok=True)

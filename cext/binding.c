@@ -265,7 +265,18 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     b.cols = (int32_t)shape[1];
     shape[0] -= 1;
     shape[1] -= 1;
-    if (!get_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) return NULL;
+    if (o_cellmax == Py_None) {
+        /* the lean layout (algos.Field(lean=True)): runs_maxmip without cell culling is
+         * the one kernel that never reads the cell maxima */
+        if (kernel != HF_HIT_RUNS_MAXMIP || cull_cells || o_row != Py_None) {
+            PyErr_SetString(PyExc_ValueError,
+                            "cellmax: only runs_maxmip without cell or run culling runs without it");
+            return NULL;
+        }
+        b.cellmax = NULL;
+    } else if (!get_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) {
+        return NULL;
+    }
     b.hmin = hmin;
     b.hmax = hmax;
     b.surface = surface;
@@ -295,7 +306,12 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
             /* level k covers 2^k x 2^k cells: ceil division of the cell grid */
             ms[0] = (shape[0] + ((npy_intp)1 << k) - 1) >> k;
             ms[1] = (shape[1] + ((npy_intp)1 << k) - 1) >> k;
-            if (!get_f32(PyList_GET_ITEM(o_mip, k), "mip level", 2, ms, &b.mip[k])) return NULL;
+            if (PyList_GET_ITEM(o_mip, k) == Py_None && k < fine_level) {
+                /* levels below the floor level are never read (the lean layout) */
+                b.mip[k] = NULL;
+            } else if (!get_f32(PyList_GET_ITEM(o_mip, k), "mip level", 2, ms, &b.mip[k])) {
+                return NULL;
+            }
             b.mip_cols[k] = (int32_t)ms[1];
         }
         b.mip_levels = (int)levels;

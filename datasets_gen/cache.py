@@ -46,8 +46,19 @@ def entry_key(description: dict) -> str:
     return hashlib.sha256(canonical.encode()).hexdigest()[:32]
 
 
+#: entries at least this big are memory-mapped read-only instead of read into memory
+MMAP_BYTES = 256 << 20
+
+
 def _digest(array: np.ndarray) -> str:
-    return hashlib.sha256(np.ascontiguousarray(array).tobytes()).hexdigest()
+    """SHA-256 of the C-order bytes, hashed in bands (no full-size copy)."""
+    array = np.ascontiguousarray(array)
+    digest = hashlib.sha256()
+    flat = array.reshape(-1)
+    step = 1 << 22
+    for k in range(0, flat.size, step):
+        digest.update(memoryview(np.ascontiguousarray(flat[k:k + step])).cast("B"))
+    return digest.hexdigest()
 
 
 def _atomic_write(path: str, write: Callable) -> None:
@@ -73,7 +84,8 @@ def _read(directory: str, key: str):
     try:
         with open(meta_path) as f:
             meta = json.load(f)
-        array = np.load(data_path, allow_pickle=False)
+        big = os.path.getsize(data_path) >= MMAP_BYTES
+        array = np.load(data_path, allow_pickle=False, mmap_mode="r" if big else None)
         if _digest(array) != meta["sha256"]:
             raise ValueError("checksum mismatch")
         return array

@@ -24,7 +24,9 @@ __all__ = ["GENERATORS", "Generator", "generate", "det_sin", "det_cos", "MIN_SID
            "MAX_SIDE"]
 
 MIN_SIDE = 2
-MAX_SIDE = 8192
+MAX_SIDE = 32768
+#: samples per band of the banded generators (float64 temporaries of 1 MiB)
+BAND_SAMPLES = 1 << 17
 _TWO_PI = 6.283185307179586
 _PI = 3.141592653589793
 _HALF_PI = 1.5707963267948966
@@ -75,11 +77,13 @@ def _uniform(seed, n):
     return _unit(bits)
 
 
-def _gradient_noise(rows, cols, frequency, seed, octave):
+def _gradient_noise(rows, cols, frequency, seed, octave, row0=0):
     """2D gradient noise (Perlin-style, quintic fade, hashed gradients in [-1, 1]^2) at
-    grid points scaled by ``frequency``; values roughly in [-1, 1]."""
+    grid points scaled by ``frequency``; values roughly in [-1, 1]. Rows ``row0`` to
+    ``row0 + rows - 1`` of the field (each value depends on its own point only, so a
+    field computed in bands has the same bytes)."""
     x = np.arange(cols, dtype=np.float64) * frequency
-    y = np.arange(rows, dtype=np.float64) * frequency
+    y = np.arange(row0, row0 + rows, dtype=np.float64) * frequency
     ix = np.floor(x).astype(np.int64)
     iy = np.floor(y).astype(np.int64)
     fx, fy = x - ix, y - iy
@@ -118,12 +122,12 @@ def _gradient_noise(rows, cols, frequency, seed, octave):
     return d11
 
 
-def _fbm_sum(rows, cols, seed, scale, octaves, lacunarity, gain, ridged=False):
+def _fbm_sum(rows, cols, seed, scale, octaves, lacunarity, gain, ridged=False, row0=0):
     total = np.zeros((rows, cols))
     amplitude, frequency, norm = 1.0, 1.0 / scale, 0.0
     weight = np.ones((rows, cols)) if ridged else None
     for octave in range(int(octaves)):
-        n = _gradient_noise(rows, cols, frequency, seed, octave)
+        n = _gradient_noise(rows, cols, frequency, seed, octave, row0)
         if ridged:
             # ridged multifractal (Musgrave): sharp crests where the noise crosses zero,
             # each octave weighted by the previous one
@@ -171,17 +175,21 @@ def ridges(rows, cols, seed=0, wavelength=32.0, angle=30.0, amplitude=4.0):
 
 
 def fbm(rows, cols, seed=0, scale=128.0, octaves=6, lacunarity=2.0, gain=0.5,
-        amplitude=64.0):
+        amplitude=64.0, *, band=None):
     """Fractional Brownian motion: ``octaves`` of gradient noise, the first with lattice
     spacing ``scale`` cells, each next one ``lacunarity`` times finer and ``gain`` times
     weaker; normalised, then scaled to about ``[-amplitude, amplitude]``."""
-    return amplitude * _fbm_sum(rows, cols, seed, scale, octaves, lacunarity, gain)
+    row0, row1 = band or (0, rows)
+    return amplitude * _fbm_sum(row1 - row0, cols, seed, scale, octaves, lacunarity, gain,
+                                row0=row0)
 
 
 def ridged(rows, cols, seed=0, scale=128.0, octaves=6, lacunarity=2.0, gain=0.5,
-           amplitude=64.0):
+           amplitude=64.0, *, band=None):
     """Ridged multifractal: sharp crests from ``1 - |noise|``, heights in ``[0, amplitude]``."""
-    return amplitude * _fbm_sum(rows, cols, seed, scale, octaves, lacunarity, gain, ridged=True)
+    row0, row1 = band or (0, rows)
+    return amplitude * _fbm_sum(row1 - row0, cols, seed, scale, octaves, lacunarity, gain,
+                                ridged=True, row0=row0)
 
 
 def diamond_square(rows, cols, seed=0, roughness=0.5, amplitude=64.0):
@@ -224,9 +232,11 @@ def diamond_square(rows, cols, seed=0, roughness=0.5, amplitude=64.0):
     return h[:rows, :cols]
 
 
-def terraces(rows, cols, seed=0, levels=8, scale=128.0, octaves=5, amplitude=64.0):
+def terraces(rows, cols, seed=0, levels=8, scale=128.0, octaves=5, amplitude=64.0, *,
+             band=None):
     """Quantised fBm: ``levels`` flat steps, so many neighbouring heights are equal."""
-    base = _fbm_sum(rows, cols, seed, scale, octaves, 2.0, 0.5)  # about [-1, 1]
+    row0, row1 = band or (0, rows)
+    base = _fbm_sum(row1 - row0, cols, seed, scale, octaves, 2.0, 0.5, row0=row0)  # about [-1, 1]
     return amplitude * np.floor((base + 1.0) * 0.5 * levels) / levels
 
 
@@ -291,7 +301,15 @@ def _defaults(function):
     import inspect
 
     return {k: v.default for k, v in inspect.signature(function).parameters.items()
-            if k not in ("rows", "cols", "seed")}
+            if k not in ("rows", "cols", "seed", "band")}
+
+
+def _banded(function) -> bool:
+    """Whether the generator computes any band of rows on its own (``band=(row0, row1)``),
+    each value from its own point only: then bands run on every core, same bytes."""
+    import inspect
+
+    return "band" in inspect.signature(function).parameters
 
 
 GENERATORS: dict[str, Generator] = {
@@ -328,11 +346,14 @@ def _check_params(name, params):
         raise ValueError("low, high: uniform needs low < high")
 
 
-def generate(name, size=256, seed=0, **params) -> np.ndarray:
+def generate(name, size=256, seed=0, threads=None, **params) -> np.ndarray:
     """Height field ``name`` of ``size`` (int or ``(rows, cols)``), float32.
 
+    The noise generators (fbm, ridged, terraces) compute bands of rows on ``threads``
+    threads (default every core); the bytes do not depend on it.
+
     Raises ValueError naming the parameter for unknown names, sizes outside
-    ``[2, 8192]`` or parameters the generator does not take.
+    ``[2, MAX_SIDE]`` or parameters the generator does not take.
     """
     if name not in GENERATORS:
         raise ValueError(f"name: unknown generator {name!r}; valid names are "
@@ -351,6 +372,28 @@ def generate(name, size=256, seed=0, **params) -> np.ndarray:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected a non-negative integer, got {seed!r}")
     _check_params(name, params)
-    heights = np.asarray(gen.function(int(rows), int(cols), int(seed), **params), dtype=np.float64)
+    rows, cols, seed = int(rows), int(cols), int(seed)
+    if _banded(gen.function) and rows * cols >= 2 * BAND_SAMPLES:
+        return _generate_bands(gen.function, rows, cols, seed, params, threads)
+    heights = np.asarray(gen.function(rows, cols, seed, **params), dtype=np.float64)
     heights = np.broadcast_to(heights, (rows, cols))
     return np.ascontiguousarray(heights, dtype=np.float32)
+
+
+def _generate_bands(function, rows, cols, seed, params, threads):
+    """Bands of about ``BAND_SAMPLES`` samples (float64 temporaries that stay in cache),
+    computed on a thread pool (NumPy releases the GIL in its loops) straight into the
+    float32 result; the bytes are those of one whole-field call (tested)."""
+    from algos.parallel import resolve_threads, run_ranges
+
+    out = np.empty((rows, cols), dtype=np.float32)
+    band_rows = max(1, BAND_SAMPLES // cols)
+    n_bands = -(-rows // band_rows)
+
+    def work(a, b):
+        for k in range(a, b):
+            r0, r1 = k * band_rows, min(rows, (k + 1) * band_rows)
+            out[r0:r1] = function(rows, cols, seed, band=(r0, r1), **params)
+
+    run_ranges(n_bands, resolve_threads(threads), work, chunks_per_thread=4, min_chunk=1)
+    return out

@@ -97,12 +97,12 @@ def _apply_nodata(heights, path, nodata, policy, fill_value):
     return out
 
 
-def _read_tiff(path):
+def _read_tiff(path, read_data=True):
     import tifffile
 
     with tifffile.TiffFile(path) as tif:
         page = tif.pages[0]
-        data = page.asarray()
+        data = page.asarray() if read_data else None
         tags = page.tags
         spacing = nodata = None
         if _GEOTIFF_PIXEL_SCALE in tags:
@@ -153,6 +153,9 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
     if not os.path.isfile(path):
         raise ValueError(f"path: {path} does not exist or is not a file")
     ext = os.path.splitext(path)[1].lower()
+    mapped = _mapped(path, ext, spacing, vertical_scale, nodata, nodata_policy)
+    if mapped is not None:
+        return mapped
     file_spacing = file_nodata = None
     try:
         if ext == ".npy":
@@ -199,6 +202,42 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
     return HeightField(cells, os.path.basename(path), float(spacing), "file unit",
                        dict(path=path, spacing=spacing, vertical_scale=vertical_scale,
                             nodata=nodata, nodata_policy=nodata_policy))
+
+
+def _mapped(path, ext, spacing, vertical_scale, nodata, policy):
+    """The file's heights memory-mapped read-only, without a copy, where nothing needs
+    converting: a 2D C-ordered native float32 ``.npy`` or uncompressed GeoTIFF, no
+    nodata value, all finite, ``spacing`` (given or from the file) 1 and
+    ``vertical_scale`` 1 (heights already in cells, as ``hftrace`` writes them). Else
+    None: the general path reads and converts in memory."""
+    if ext not in (".npy", ".tif", ".tiff") or vertical_scale != 1.0 or nodata is not None:
+        return None
+    try:
+        if ext == ".npy":
+            data, file_spacing, file_nodata = np.load(path, mmap_mode="r", allow_pickle=False), None, None
+        else:
+            import tifffile
+
+            _, file_spacing, file_nodata = _read_tiff(path, read_data=False)
+            data = tifffile.memmap(path, mode="r")
+    except Exception:  # compressed, tiled or damaged: the general path says what is wrong
+        return None
+    use_spacing = spacing if spacing is not None else (file_spacing or 1.0)
+    if (data.ndim != 2 or data.dtype != np.dtype("=f4") or not data.flags.c_contiguous
+            or file_nodata is not None or use_spacing != 1.0 or min(data.shape) < 2):
+        return None
+    step = max(1, (1 << 20) // data.shape[1])
+    for r0 in range(0, data.shape[0], step):  # bounded temporaries
+        if not np.isfinite(data[r0:r0 + step]).all():
+            if policy != "error":
+                return None  # filling needs a copy: the general path
+            bad = ~np.isfinite(data[r0:r0 + step])
+            row, col = (int(v) for v in np.argwhere(bad)[0])
+            raise ValueError(f"{path}: non-finite sample at (row {row + r0}, col {col}) = "
+                             f"{data[row + r0, col]}; choose nodata_policy='fill-min' or 'fill'")
+    return HeightField(data, os.path.basename(path), 1.0, "file unit",
+                       dict(path=path, spacing=1.0, vertical_scale=1.0, nodata=None,
+                            nodata_policy=policy, memory_mapped=True))
 
 
 def resample_bilinear(heights: np.ndarray, rows: int, cols: int) -> np.ndarray:

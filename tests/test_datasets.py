@@ -78,11 +78,11 @@ def test_sines16_frequencies_follow_the_seed():
 
 
 def test_size_limits_and_bad_parameters():
-    assert fields.generate("uniform", (8192, 2), seed=0).shape == (8192, 2)
+    assert fields.generate("uniform", (fields.MAX_SIDE, 2), seed=0).shape == (fields.MAX_SIDE, 2)
     with pytest.raises(ValueError, match="size: rows = 1"):
         fields.generate("fbm", 1)
-    with pytest.raises(ValueError, match="size: cols = 8193"):
-        fields.generate("flat", (2, 8193))
+    with pytest.raises(ValueError, match="size: cols = 32769"):
+        fields.generate("flat", (2, fields.MAX_SIDE + 1))
     with pytest.raises(ValueError, match="name: unknown generator 'nope'"):
         fields.generate("nope")
     with pytest.raises(ValueError, match="oct: not a parameter of fbm"):
@@ -327,3 +327,15 @@ def test_cli_datasets(tmp_path, capsys):
     assert png.stat().st_size > 100
     assert main(["datasets", "show", "fbm", "--param", "octaves=0", "--no-cache"]) == 2
     assert "octaves" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["fbm", "ridged", "terraces"])
+def test_banded_generators_give_the_whole_field_bytes(name):
+    """Bands on every thread count give the bytes of one whole-field call."""
+    rows, cols = 700, 513  # several bands of BAND_SAMPLES, the last one short
+    whole = np.ascontiguousarray(np.asarray(
+        fields.GENERATORS[name].function(rows, cols, 3), dtype=np.float64), dtype=np.float32)
+    assert rows * cols >= 2 * fields.BAND_SAMPLES
+    for threads in (1, 2, 3):
+        banded = fields.generate(name, (rows, cols), seed=3, threads=threads)
+        assert sha(banded) == sha(whole), (name, threads)
