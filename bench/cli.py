@@ -98,11 +98,36 @@ def _load_terrain(args):
     return datasets_gen.load(source, size=args.size, seed=args.seed, **params)
 
 
+def _terrain_product_dask(args):
+    from . import terrain_dask
+
+    hf = terrain_dask.open_source(args.source, args.chunk, size=args.size, seed=args.seed,
+                                  params=dict(args.param or []))
+    kind = args.command
+    options = dict(max_distance=args.max_distance, algorithm=args.algorithm,
+                   worker_memory=args.worker_memory)
+    if kind == "horizon":
+        options["azimuths"] = [float(v) for v in (args.azimuths or "0").split(",")]
+    elif kind == "svf":
+        options.update(n_azimuths=args.n_azimuths, rational=args.rational)
+    elif kind == "shadows":
+        options.update(azimuth=args.azimuth, elevation=args.elevation)
+    else:
+        options.update(observers=[tuple(float(v) for v in o.split(",")) for o in args.observer],
+                       observer_height=args.observer_height, target_height=args.target_height,
+                       curvature=args.curvature, refraction=args.refraction)
+    terrain_dask.run_product(kind, hf, args.out, args.dask, **options)
+    return 0
+
+
 def _terrain_product(args):
     import numpy as np
     from tqdm import tqdm
 
     from . import terrain_bench
+
+    if args.dask:
+        return _terrain_product_dask(args)
 
     hf = _load_terrain(args)
     kind = args.command
@@ -404,6 +429,14 @@ def build_parser() -> argparse.ArgumentParser:
                        help="in the field's unit (metres for jacksboro)")
         p.add_argument("--out", default=kind, help="output path prefix")
         p.add_argument("--no-progress", action="store_true")
+        p.add_argument("--dask", default=None, metavar="ADDRESS",
+                       help="tile by tile on a Dask cluster (a scheduler address, or local:N "
+                            "for N single-threaded local workers); needs --max-distance; "
+                            "files are read window by window, so they may exceed memory")
+        p.add_argument("--chunk", type=_positive_int, default=2048,
+                       help="--dask: tile side in samples (default 2048)")
+        p.add_argument("--worker-memory", default=None, metavar="BYTES",
+                       help="--dask local:N: memory limit per worker, e.g. 600MiB")
         if kind == "horizon":
             p.add_argument("--azimuths", default=None, help="comma-separated degrees (default 0)")
         if kind == "svf":

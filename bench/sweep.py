@@ -285,9 +285,10 @@ def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed):
     return rows, dict(environment(), hostname=socket.gethostname(), pid=os.getpid())
 
 
-def _dask_client(address: str, echo=print):
+def _dask_client(address: str, memory_limit=None):
     """A distributed Client: ``local:N`` starts a LocalCluster of N single-threaded
-    worker processes; anything else is a scheduler address."""
+    worker processes (each limited to ``memory_limit``, e.g. "600MiB", when given);
+    anything else is a scheduler address."""
     from dask.distributed import Client, LocalCluster
 
     if address.startswith("local:"):
@@ -298,7 +299,8 @@ def _dask_client(address: str, echo=print):
         if n < 1:
             raise ValueError(f"--dask: expected local:N with N >= 1, got {address!r}")
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=None,
+                               **({"memory_limit": memory_limit} if memory_limit else {}))
         return Client(cluster), cluster
     return Client(address), None
 
@@ -324,7 +326,7 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
             todo.append((ds, label, workload, surface, r, names, missing))
     from dask.distributed import as_completed
 
-    client, cluster = _dask_client(address, echo)
+    client, cluster = _dask_client(address)
     env = dict(environment(), dask_address=address, workers={})
     try:
         futures = {}

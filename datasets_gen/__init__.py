@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from .cache import cache_dir, cached_array
 from .fields import GENERATORS, generate
-from .loaders import HeightField, jacksboro, load_file
+from .loaders import HeightField, jacksboro, load_file, open_lazy
 from .rays import RaySet
 
-__all__ = ["load", "catalogue", "GENERATORS", "generate", "HeightField", "load_file",
+__all__ = ["load", "catalogue", "GENERATORS", "generate", "HeightField", "load_file", "open_lazy",
            "jacksboro", "RaySet", "cache_dir", "EMBEDDED"]
 
 #: Real terrain shipped with (or through) the project: name -> (loader, parameters).

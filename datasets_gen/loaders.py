@@ -307,3 +307,74 @@ def jacksboro(size=None, vertical_scale=1.0, *, use_cache=True, cache_dir=None) 
                        dict(size=size, vertical_scale=vertical_scale, dx_m=dx_m, dy_m=dy_m,
                             north="+y",  # rows run north: the terrain products flip them
                             source="matplotlib sample data jacksboro_fault_dem.npz"))
+
+
+class LazyRaster:
+    """A raster file read window by window: what ``dask.array.from_array`` wraps so that
+    each task reads only its own chunk. Pickles as its path (workers open the file
+    themselves); heights come out as float32 in cells (times ``scale``)."""
+
+    def __init__(self, path, scale=1.0):
+        self.path = os.fspath(path)
+        self.scale = float(scale)
+        probe = self._open()
+        if probe.ndim != 2:
+            raise ValueError(f"{self.path}: expected a 2D height array, got shape {probe.shape}")
+        if probe.dtype.kind not in "fiu":
+            raise ValueError(f"{self.path}: heights must be real numbers, got dtype {probe.dtype}")
+        self.shape = tuple(probe.shape)
+        self.ndim = 2
+        self.dtype = np.dtype(np.float32)
+
+    def _open(self):
+        ext = os.path.splitext(self.path)[1].lower()
+        if ext == ".npy":
+            return np.load(self.path, mmap_mode="r", allow_pickle=False)
+        if ext in (".tif", ".tiff"):
+            import tifffile
+
+            try:
+                return tifffile.memmap(self.path, mode="r")
+            except Exception as exc:
+                raise ValueError(f"{self.path}: cannot be memory-mapped ({exc}); lazy reading "
+                                 "takes uncompressed, untiled GeoTIFF or .npy") from None
+        raise ValueError(f"path: {self.path}: lazy reading takes .npy or uncompressed GeoTIFF")
+
+    def __getitem__(self, key):
+        window = np.asarray(self._open()[key], dtype=np.float64) * self.scale
+        if not np.isfinite(window).all():
+            bad = np.argwhere(~np.isfinite(window))[0]
+            raise ValueError(f"{self.path}: non-finite sample in window {key} at offset "
+                             f"{tuple(int(v) for v in bad)}")
+        return window.astype(np.float32)
+
+    def __getstate__(self):
+        return {"path": self.path, "scale": self.scale, "shape": self.shape}
+
+    def __setstate__(self, state):
+        self.path, self.scale, self.shape = state["path"], state["scale"], state["shape"]
+        self.ndim, self.dtype = 2, np.dtype(np.float32)
+
+
+def open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0) -> HeightField:
+    """A HeightField whose heights are a lazy dask array over the file (``.npy`` or
+    uncompressed GeoTIFF), read chunk by chunk where it is computed: for fields larger
+    than memory (``algos.horizon`` and friends take it and work tile by tile)."""
+    import dask.array as da
+
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise ValueError(f"path: {path} does not exist or is not a file")
+    ext = os.path.splitext(path)[1].lower()
+    file_spacing = None
+    if ext in (".tif", ".tiff"):
+        _, file_spacing, _ = _read_tiff(path, read_data=False)
+    if spacing is None:
+        spacing = file_spacing if file_spacing is not None else 1.0
+    if not (math.isfinite(spacing) and spacing > 0):
+        raise ValueError(f"spacing: must be a positive finite number, got {spacing}")
+    raster = LazyRaster(path, scale=vertical_scale / spacing)
+    heights = da.from_array(raster, chunks=chunks, asarray=False, lock=False, fancy=False)
+    return HeightField(heights, os.path.basename(path), float(spacing), "file unit",
+                       dict(path=path, spacing=spacing, vertical_scale=vertical_scale,
+                            lazy=True, chunks=chunks))

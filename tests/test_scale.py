@@ -317,3 +317,37 @@ def test_dask_sweep_resumes_after_the_driver_is_killed(tmp_path):
     assert len(after) == expected == len(set(_keys(after)))
     # the rows written before the kill are kept as they were
     assert after[:len(before)] == before
+
+
+def test_cli_tiled_horizon_on_a_file_equals_the_in_memory_product(tmp_path):
+    import tifffile
+
+    h = datasets_gen.load("fbm", size=(300, 260), seed=3).heights
+    tifffile.imwrite(tmp_path / "f.tif", h)
+    out = tmp_path / "hz"
+    done = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "horizon", str(tmp_path / "f.tif"), "--dask",
+         "local:2", "--max-distance", "40", "--chunk", "128", "--worker-memory", "300MiB",
+         "--azimuths", "0,135", "--out", str(out)], cwd=ROOT, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    for a in (0, 135):
+        ref = np.degrees(algos.horizon(h.astype(np.float64), [a], 40.0)[0]).astype(np.float32)
+        got = tifffile.imread(f"{out}_horizon_az{a}.tif")
+        assert np.array_equal(got, ref), a
+        assert os.path.getsize(f"{out}_horizon_az{a}.png") > 0
+    no_distance = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "horizon", str(tmp_path / "f.tif"), "--dask",
+         "local:1"], cwd=ROOT, capture_output=True, text=True)
+    assert no_distance.returncode != 0 and "max-distance" in no_distance.stderr
+
+
+def test_lazy_raster_pickles_as_its_path(tmp_path):
+    import pickle
+
+    h = np.arange(30, dtype=np.float32).reshape(5, 6)
+    np.save(tmp_path / "a.npy", h)
+    hf = datasets_gen.open_lazy(tmp_path / "a.npy", chunks=3)
+    raster = pickle.loads(pickle.dumps(datasets_gen.loaders.LazyRaster(tmp_path / "a.npy")))
+    assert len(pickle.dumps(raster)) < 500
+    np.testing.assert_array_equal(raster[1:3, 2:5], h[1:3, 2:5])
+    np.testing.assert_array_equal(hf.heights.compute(), h)
