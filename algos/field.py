@@ -176,6 +176,8 @@ class Field:
             nbytes = sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
             if name.startswith("row_max"):  # shares `values` with cellmax
                 nbytes -= value[0].nbytes
+            if name.startswith("mip") and value[0] is not None:  # level 0 is cellmax
+                nbytes -= value[0].nbytes
             self._cache[name] = value
             self.build_stats[name] = {"seconds": seconds, "bytes": int(nbytes)}
         return self._cache[name]

@@ -44,10 +44,13 @@ def resolve_threads(threads) -> int:
     return int(threads)
 
 
-def split(n: int, threads: int, chunks_per_thread: int = CHUNKS_PER_THREAD,
+def split(n: int, threads: int, chunks_per_thread: int | None = None,
           min_chunk: int = MIN_RAYS_PER_CHUNK) -> list[tuple[int, int]]:
-    """Contiguous ranges covering ``[0, n)``: ``threads * chunks_per_thread`` of them, none
-    shorter than ``min_chunk`` (except a lone one), in order."""
+    """Contiguous ranges covering ``[0, n)``: ``threads * chunks_per_thread`` of them
+    (default ``CHUNKS_PER_THREAD``, read at call time), none shorter than ``min_chunk``
+    (except a lone one), in order."""
+    if chunks_per_thread is None:
+        chunks_per_thread = CHUNKS_PER_THREAD
     if n <= 0:
         return [(0, 0)]
     pieces = max(1, min(threads * chunks_per_thread, n // max(min_chunk, 1)))
@@ -57,7 +60,7 @@ def split(n: int, threads: int, chunks_per_thread: int = CHUNKS_PER_THREAD,
     return [(int(bounds[k]), int(bounds[k + 1])) for k in range(pieces)]
 
 
-def run_ranges(n: int, threads: int, call, chunks_per_thread: int = CHUNKS_PER_THREAD,
+def run_ranges(n: int, threads: int, call, chunks_per_thread: int | None = None,
                min_chunk: int = MIN_RAYS_PER_CHUNK) -> list:
     """``call(start, stop)`` over the ranges of :func:`split`; results in range order.
 

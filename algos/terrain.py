@@ -446,12 +446,16 @@ def _mipmap(h: np.ndarray):
 
 # ---- horizon ---------------------------------------------------------------------------
 
-def _sweep(hf, d: Direction, out):
-    """The rational sweep over the whole octant-frame field hf into out; returns ns."""
+def _sweep(hf, d: Direction, out, threads=1):
+    """The rational sweep over the whole octant-frame field hf into out, its lines split
+    over threads (each line writes its own vertices); returns ns (summed over threads)."""
     q, p = d.rational
     T, xa, ya, xb, yb, w = _pattern_arrays(_period_pattern(q, p, d.anti))
-    return _kernels.horizon_sweep(hf, q, p, T, xa, ya, xb, yb, w, np.maximum(xa, xb),
-                                  np.maximum(ya, yb), math.hypot(q, p), out)[0]
+    mx, my = np.maximum(xa, xb), np.maximum(ya, yb)
+    n_lines = q * (hf.shape[0] - 1) + p * (hf.shape[1] - 1) + 1
+    return sum(run_ranges(n_lines, threads, lambda a, b: _kernels.horizon_sweep(
+        hf, q, p, T, xa, ya, xb, yb, w, mx, my, math.hypot(q, p), a, b, out)[0],
+        chunks_per_thread=4, min_chunk=64))
 
 
 def _pattern_walk(hf, pat, zmax, start, stop, out):
@@ -470,7 +474,7 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
         fr, fc = hf.shape
         out = np.empty(fr * fc)
         if algorithm == "sweep":
-            stats.ns += _sweep(hf, d, out)
+            stats.ns += _sweep(hf, d, out, threads)
         else:
             pat = _shared_pattern(d, fr, fc, max_distance)
             zmax = float(hf.max())

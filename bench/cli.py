@@ -179,6 +179,14 @@ def _terrain_product(args):
     return 0
 
 
+def _scale(args):
+    from . import scale
+
+    scale.run(out_dir=args.out, parts=tuple(args.part or ("threads", "split", "growth", "big")),
+              resume=args.resume, quick=args.quick)
+    return 0
+
+
 def _terrain_bench(args):
     from . import terrain_bench
     from .intersect_bench import pin_to_one_cpu
@@ -455,6 +463,15 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--curvature", action="store_true")
             p.add_argument("--refraction", type=float, default=0.13)
         p.set_defaults(func=_terrain_product, command=kind)
+
+    p = sub.add_parser("scale", help="threads, growth with the grid side, and a 16384^2 field "
+                                     "(reports/scaling)")
+    p.add_argument("--part", action="append", choices=("threads", "split", "growth", "big"),
+                   default=None, help="repeatable; default all four")
+    p.add_argument("--out", default="reports/scaling")
+    p.add_argument("--resume", action="store_true", help="skip what the CSVs already hold")
+    p.add_argument("--quick", action="store_true", help="small sizes (a check that it runs)")
+    p.set_defaults(func=_scale)
 
     p = sub.add_parser("terrain-bench", help="the terrain products' targets against the peers")
     p.add_argument("--size", type=_positive_int, default=2048)

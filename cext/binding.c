@@ -601,13 +601,14 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
 }
 
 PyDoc_STRVAR(horizon_sweep_doc,
-             "horizon_sweep(heights, q, p, tfrac, dx_a, dy_a, dx_b, dy_b, w, mx, my, norm, out)\n"
-             "-> (ns, 0, 0)\n\nHorizon tangents of every vertex by the rational sweep\n"
-             "(octant frame). Private: use algos.horizon.");
+             "horizon_sweep(heights, q, p, tfrac, dx_a, dy_a, dx_b, dy_b, w, mx, my, norm,\n"
+             "              k_lo, k_hi, out) -> (ns, 0, 0)\n\nHorizon tangents of the vertices on\n"
+             "lines [k_lo, k_hi) by the rational sweep (octant frame). Private: use\n"
+             "algos.horizon.");
 
 static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_tf, *o_dxa, *o_dya, *o_dxb, *o_dyb, *o_w, *o_mx, *o_my, *o_out;
-    long long q, pp;
+    long long q, pp, k_lo, k_hi;
     double norm;
     const double *H, *tf, *w;
     const int64_t *dxa, *dya, *dxb, *dyb, *mx, *my;
@@ -618,12 +619,16 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     hf_hz_stats st = {0, 0};
     struct timespec t0, t1;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OLLOOOOOOOOdO", &o_h, &q, &pp, &o_tf, &o_dxa, &o_dya, &o_dxb,
-                          &o_dyb, &o_w, &o_mx, &o_my, &norm, &o_out))
+    if (!PyArg_ParseTuple(args, "OLLOOOOOOOOdLLO", &o_h, &q, &pp, &o_tf, &o_dxa, &o_dya, &o_dxb,
+                          &o_dyb, &o_w, &o_mx, &o_my, &norm, &k_lo, &k_hi, &o_out))
         return NULL;
     if (!get_heights(o_h, &H, &rows, &cols)) return NULL;
     if (q < 1 || pp < 0 || pp > q || q > HF_MAX_GRID_SIDE) {
         PyErr_SetString(PyExc_ValueError, "direction: need q >= p >= 0 and 1 <= q <= 2^24");
+        return NULL;
+    }
+    if (k_lo < 0 || k_hi < k_lo || k_hi > q * (rows - 1) + pp * (cols - 1) + 1) {
+        PyErr_SetString(PyExc_ValueError, "k_lo, k_hi: the line range is outside the field");
         return NULL;
     }
     if (!get_array(o_tf, "tfrac", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
@@ -655,7 +660,7 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     Py_BEGIN_ALLOW_THREADS
     clock_gettime(CLOCK_MONOTONIC, &t0);
     status = hf_horizon_sweep(H, rows, cols, q, pp, n, tf, dxa, dya, dxb, dyb, w, mx, my, norm,
-                              (double *)out);
+                              k_lo, k_hi, (double *)out);
     clock_gettime(CLOCK_MONOTONIC, &t1);
     Py_END_ALLOW_THREADS
     if (status) return PyErr_NoMemory();

@@ -131,7 +131,7 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
                      int64_t n_entries, const double *tfrac, const int64_t *dxa,
                      const int64_t *dya, const int64_t *dxb, const int64_t *dyb,
                      const double *w, const int64_t *mx, const int64_t *my, double norm,
-                     double *out) {
+                     int64_t k_lo, int64_t k_hi, double *out) {
     int64_t max_periods = (cols - 1) / q + 2;
     int64_t cap = 1 + max_periods * n_entries;
     int64_t c_min = -q * (rows - 1), c_max = p * (cols - 1), n_c = c_max - c_min + 1;
@@ -153,7 +153,9 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
         int64_t imax = j0 < p ? cols : (q < cols ? q : cols);
         for (int64_t i0 = 0; i0 < imax; i0++) first[p * i0 - q * j0 - c_min] = j0 * cols + i0;
     }
-    for (int64_t k = 0; k < n_c; k++) {
+    if (k_lo < 0) k_lo = 0;
+    if (k_hi > n_c) k_hi = n_c;
+    for (int64_t k = k_lo; k < k_hi; k++) {
         int64_t v = first[k];
         if (v < 0) continue;
         sweep_line(H, rows, cols, q, p, v % cols, v / cols, n_entries, tfrac, rel_a, rel_b, w,

@@ -47,12 +47,15 @@ void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz
  * period, from a vertex (exclusive) to the next vertex on its line (inclusive, last): their
  * parameters tfrac in (0, 1], the interpolation offsets (dxa, dya) and (dxb, dyb) relative to
  * the period's first vertex, the weight w, and (mx, my), the largest x and y offsets read.
- * norm = sqrt(q^2 + p^2). Returns 0, or -1 when memory runs out. */
+ * norm = sqrt(q^2 + p^2). Only the lines c = p x - q y with c - c_min in [k_lo, k_hi) are
+ * swept (c_min = -q (rows - 1); all lines: 0 and q (rows - 1) + p (cols - 1) + 1), so
+ * threads can share the field, each with its own range: lines write disjoint vertices.
+ * Returns 0, or -1 when memory runs out. */
 int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int64_t p,
                      int64_t n_entries, const double *tfrac, const int64_t *dxa,
                      const int64_t *dya, const int64_t *dxb, const int64_t *dyb,
                      const double *w, const int64_t *mx, const int64_t *my, double norm,
-                     double *out);
+                     int64_t k_lo, int64_t k_hi, double *out);
 
 /* A max-mipmap of the cell maxima: level k holds tiles of 2^k x 2^k cells. */
 typedef struct {

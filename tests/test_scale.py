@@ -20,6 +20,8 @@ from bench import sweep
 from bench.sweep import first_hit_rays
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+#: AddressSanitizer's shadow memory inflates every worker's resident memory: no limits there
+SANITIZED = "libasan" in os.environ.get("LD_PRELOAD", "")
 
 
 @pytest.fixture(scope="module")
@@ -210,7 +212,8 @@ distributed = pytest.importorskip("dask.distributed")
 @pytest.fixture(scope="module")
 def client():
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, memory_limit="1GiB")
+                                       dashboard_address=None,
+                                       memory_limit=None if SANITIZED else "1GiB")
     with distributed.Client(cluster) as c:
         yield c
     cluster.close()
@@ -327,8 +330,9 @@ def test_cli_tiled_horizon_on_a_file_equals_the_in_memory_product(tmp_path):
     out = tmp_path / "hz"
     done = subprocess.run(
         [sys.executable, "-m", "bench.cli", "horizon", str(tmp_path / "f.tif"), "--dask",
-         "local:2", "--max-distance", "40", "--chunk", "128", "--worker-memory", "300MiB",
-         "--azimuths", "0,135", "--out", str(out)], cwd=ROOT, capture_output=True, text=True)
+         "local:2", "--max-distance", "40", "--chunk", "128", "--azimuths", "0,135", "--out",
+         str(out)] + ([] if SANITIZED else ["--worker-memory", "300MiB"]),
+        cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-3000:]
     for a in (0, 135):
         ref = np.degrees(algos.horizon(h.astype(np.float64), [a], 40.0)[0]).astype(np.float32)
@@ -351,3 +355,13 @@ def test_lazy_raster_pickles_as_its_path(tmp_path):
     assert len(pickle.dumps(raster)) < 500
     np.testing.assert_array_equal(raster[1:3, 2:5], h[1:3, 2:5])
     np.testing.assert_array_equal(hf.heights.compute(), h)
+
+
+@pytest.mark.parametrize("algorithm", ["sweep", "pattern", "dda_maxmip", "dda"])
+def test_horizon_bit_identical_for_every_thread_count(algorithm):
+    h = datasets_gen.load("fbm", size=(97, 131), seed=5).heights.astype(np.float64)
+    md = None if algorithm == "sweep" else 40.0
+    az = algos.rational_azimuths(5)
+    one = algos.horizon(h, az, md, algorithm=algorithm, threads=1)
+    for threads in (2, 3):
+        assert np.array_equal(one, algos.horizon(h, az, md, algorithm=algorithm, threads=threads))

@@ -251,7 +251,11 @@ def test_kernel_rejects_a_pattern_reading_outside():
     with pytest.raises(ValueError, match="vertex range"):
         _kernels.horizon_walk(h, None, 1.0, 0.0, np.inf, 0, 17, out)
     with pytest.raises(ValueError, match="next vertex"):
-        _kernels.horizon_sweep(h, 2, 1, one, zero, zero, zero, zero, one, zero, zero, 1.0, out)
+        _kernels.horizon_sweep(h, 2, 1, one, zero, zero, zero, zero, one, zero, zero, 1.0, 0, 1,
+                               out)
+    with pytest.raises(ValueError, match="line range"):
+        _kernels.horizon_sweep(h, 2, 1, one, zero, zero, zero, zero, one, zero, zero, 1.0, 0,
+                               10**6, out)
 
 
 def test_public_names():
