@@ -213,7 +213,7 @@ def run_split(out_dir, side=2048, repeats=11, echo=print):
     cam, centre = default_camera(field.heights)
     ph = raysets.pinhole(cam, centre, 60.0, 400, 250)
     choices = (1, 2, 4, 8, 32)
-    lines = [f"# Work split (`hftrace scale --part split`)", "",
+    lines = ["# Work split (`hftrace scale --part split`)", "",
              f"Speedup on {nthreads} threads over 1 (median of {repeats} interleaved repeats) "
              f"against the number of ray ranges per thread, fbm {side}^2. The default is "
              f"{parallel.CHUNKS_PER_THREAD}: one static range per thread loses up to a third "

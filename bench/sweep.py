@@ -273,6 +273,41 @@ def read_rows(path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+def _pending(cfg, out_dir, resume):
+    """(results.csv path, the groups still to measure with their missing algorithms);
+    without ``resume`` an old results.csv is removed."""
+    os.makedirs(out_dir, exist_ok=True)
+    csv_path = os.path.join(out_dir, "results.csv")
+    done = {row_key(r) for r in read_rows(csv_path)} if resume else set()
+    if not resume and os.path.exists(csv_path):
+        os.remove(csv_path)
+    todo = []
+    for ds, workload, surface, r, names in groups(cfg):
+        label = dataset_label(ds)
+        missing = [n for n in names if (label, workload, surface, str(r), n) not in done]
+        if missing:
+            todo.append((ds, label, workload, surface, r, names, missing))
+    return csv_path, todo
+
+
+def _bar(progress, total, desc):
+    if not progress:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="group", desc=desc, dynamic_ncols=True)
+
+
+def _write_group(writer, rows, missing, bar, label):
+    """Append a finished group's rows (only the missing algorithms'), then tick the bar."""
+    for row in rows:
+        if row["algorithm"] in missing:
+            writer.write(row)
+    if bar is not None:
+        bar.set_postfix_str(label)
+        bar.update(1)
+
+
 def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed):
     """One group on a Dask worker: load the field there, measure, return the rows and the
     worker's environment. Module-level (importable) so any worker can run it."""
@@ -313,17 +348,7 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
     loses no finished group and ``resume`` skips it; a killed worker's task is rerun by
     the scheduler and its rows are written once, by the driver. Each worker's environment
     goes into env.json under "workers"."""
-    os.makedirs(out_dir, exist_ok=True)
-    csv_path = os.path.join(out_dir, "results.csv")
-    done = {row_key(r) for r in read_rows(csv_path)} if resume else set()
-    if not resume and os.path.exists(csv_path):
-        os.remove(csv_path)
-    todo = []
-    for ds, workload, surface, r, names in groups(cfg):
-        label = dataset_label(ds)
-        missing = [n for n in names if (label, workload, surface, str(r), n) not in done]
-        if missing:
-            todo.append((ds, label, workload, surface, r, names, missing))
+    csv_path, todo = _pending(cfg, out_dir, resume)
     from dask.distributed import as_completed
 
     client, cluster = _dask_client(address)
@@ -335,26 +360,16 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
             future = client.submit(measure_task, ds, label, workload, surface, r, names,
                                    cfg.rays, cfg.repeats, cfg.seed, pure=False)
             futures[future] = item
-        bar = None
-        if progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=len(todo), unit="group", desc=f"{cfg.name} (dask)",
-                       dynamic_ncols=True)
+        bar = _bar(progress, len(todo), f"{cfg.name} (dask)")
         start = time.perf_counter()
         with RowWriter(csv_path, COLUMNS, append=resume) as writer:
             for future in as_completed(futures):
                 ds, label, workload, surface, r, names, missing = futures[future]
                 rows, worker_env = future.result()
-                for row in rows:
-                    if row["algorithm"] in missing:
-                        writer.write(row)
                 worker = worker_env.get("hostname", "") + f" pid {worker_env.get('pid', '')}"
                 env["workers"].setdefault(worker, worker_env)
                 write_json(os.path.join(out_dir, "env.json"), env)
-                if bar is not None:
-                    bar.set_postfix_str(f"{label} {workload} {surface} r={r}")
-                    bar.update(1)
+                _write_group(writer, rows, missing, bar, f"{label} {workload} {surface} r={r}")
         if bar is not None:
             bar.close()
         if echo and todo:
@@ -369,23 +384,9 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
 
 def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=print):
     """Run (or resume) a sweep; returns every row of results.csv afterwards."""
-    os.makedirs(out_dir, exist_ok=True)
-    csv_path = os.path.join(out_dir, "results.csv")
-    done = {row_key(r) for r in read_rows(csv_path)} if resume else set()
-    if not resume and os.path.exists(csv_path):
-        os.remove(csv_path)
+    csv_path, todo = _pending(cfg, out_dir, resume)
     write_json(os.path.join(out_dir, "env.json"), environment())
-    todo = []
-    for ds, workload, surface, r, names in groups(cfg):
-        label = dataset_label(ds)
-        missing = [n for n in names if (label, workload, surface, str(r), n) not in done]
-        if missing:
-            todo.append((ds, label, workload, surface, r, names, missing))
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(todo), unit="group", desc=cfg.name, dynamic_ncols=True)
+    bar = _bar(progress, len(todo), cfg.name)
     fields_cache = {}
     start = time.perf_counter()
     with RowWriter(csv_path, COLUMNS, append=resume) as writer:
@@ -398,12 +399,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
             field_ = fields_cache[label]
             measured = measure_group(field_, label, workload, surface, r, names, cfg.rays,
                                      cfg.repeats, cfg.seed)
-            for row in measured:
-                if row["algorithm"] in missing:
-                    writer.write(row)
-            if bar is not None:
-                bar.set_postfix_str(f"{label} {workload} {surface} r={r}")
-                bar.update(1)
+            _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}")
     if bar is not None:
         bar.close()
     if echo and todo:
