@@ -365,3 +365,42 @@ def test_horizon_bit_identical_for_every_thread_count(algorithm):
     one = algos.horizon(h, az, md, algorithm=algorithm, threads=1)
     for threads in (2, 3):
         assert np.array_equal(one, algos.horizon(h, az, md, algorithm=algorithm, threads=threads))
+
+
+def test_dask_sweep_survives_a_killed_worker(tmp_path, monkeypatch):
+    """A worker killed mid-sweep: its task is rerun elsewhere, and every row is written
+    once (by the driver)."""
+    import threading
+
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
+    cfg = sweep.load_config({**DASK_TINY, "name": "wkill", "rays": 200,
+                             "run_lengths": [1, 2, 5, 25, 100, "random"],
+                             "datasets": [{"name": "fbm", "size": 160, "seed": 1},
+                                          {"name": "terraces", "size": 160, "seed": 1}]})
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
+    try:
+        with distributed.Client(cluster) as c:
+            pids = sorted(c.run(os.getpid).values())
+        results = tmp_path / "out" / "results.csv"
+        killed = []
+
+        def killer():
+            deadline = time.time() + 120
+            while time.time() < deadline:
+                if results.exists() and sum(1 for _ in open(results)) > 3:
+                    os.kill(pids[0], signal.SIGKILL)
+                    killed.append(pids[0])
+                    return
+                time.sleep(0.01)
+
+        thread = threading.Thread(target=killer, daemon=True)
+        thread.start()
+        rows = sweep.run_sweep_dask(cfg, str(tmp_path / "out"), cluster.scheduler_address,
+                                    progress=False, echo=None)
+        thread.join(timeout=10)
+    finally:
+        cluster.close()
+    assert killed, "the sweep finished before a worker could be killed"
+    expected = sum(len(g[4]) for g in sweep.groups(cfg))
+    assert len(rows) == expected == len(set(_keys(rows)))
