@@ -491,7 +491,9 @@ def _big_md(results, out_dir, side):
              "| item | seconds | builds (s) | peak RSS (GiB) | RSS growth (GiB) | structures (GiB) | "
              "extra / heights | ns/ray |",
              "|---|---|---|---|---|---|---|---|"]
-    for item, r in results.items():
+    order = [k for k in BIG_ITEMS if k in results] + [k for k in results if k not in BIG_ITEMS]
+    for item in order:
+        r = results[item]
         if "error" in r:
             lines.append(f"| {item} | failed: {r['error'][-200:]!r} | | | | | | |")
             continue
