@@ -229,19 +229,25 @@ class _Prepared:
                  float(opts.get("march_growth", 1.02)),
                  float(opts.get("march_first_fraction", 1 / 580)),
                  float(opts.get("march_min_step", 0.0)))
+        # (the positions of the per-ray arrays and the scratch are in _PER_RAY, _SCRATCH)
         self.args = (algorithm.kernel_id, SURFACES.index(surface), fld.heights, cellmax,
                      hmin, hmax, row_max, col_max, mip, o, d, lo, hi,
                      int(bool(opts.get("cull_cells", False))), q, pattern, march, fine_level,
                      self.t, self.cell, self.normal, self.stats)
 
+    #: positions in ``args`` of the per-ray arrays (o, d, tmin, tmax, t, cell, normal,
+    #: stats) and of the run-pattern scratch: what each thread's range gets its own of
+    _PER_RAY = (9, 10, 11, 12, 18, 19, 20, 21)
+    _SCRATCH = 15
+
     def _part(self, a, b):
         """Rays [a, b) in C (views of every per-ray array; a private pattern scratch)."""
         args = list(self.args)
-        for k in (9, 10, 11, 12, 18, 19, 20, 21):  # o, d, tmin, tmax, t, cell, normal, stats
+        for k in self._PER_RAY:
             if args[k] is not None:
                 args[k] = args[k][a:b]
-        if args[15] is not None:
-            args[15] = np.zeros_like(args[15])
+        if args[self._SCRATCH] is not None:
+            args[self._SCRATCH] = np.zeros_like(args[self._SCRATCH])
         try:
             return _kernels.intersect(*args)
         except RuntimeError as exc:
