@@ -32,8 +32,11 @@ marching                               0
 embree                                 measured: ``build_stats["embree"]``
 =====================================  =========================================
 
-Every structure is built in streaming passes over bands of ``BAND_SAMPLES`` samples,
-so the extra memory of a build is its result plus a few MiB.
+Validation, ``cellmax`` and every mipmap level are built in streaming passes over bands
+of ``BAND_SAMPLES`` samples, so the extra memory of those builds is their result plus a
+few MiB. The range-maximum tables of run culling are built whole (temporaries about as
+large as the tables): on a field near the memory limit, leave ``cull_runs`` off or use
+the lean layout.
 
 ``Field(heights, lean=True)`` is the layout for fields near the memory limit:
 ``runs_maxmip`` then runs without per-cell culling (measured about 5 % slower at fbm
@@ -138,15 +141,26 @@ def _range_max(lines: np.ndarray, shift: int):
     return (values, np.ascontiguousarray(prefix), np.ascontiguousarray(suffix), sparse, shift)
 
 
+def _halve(a: np.ndarray) -> np.ndarray:
+    """Maxima over 2 x 2 blocks (a side of odd length padded with -inf), in bands of
+    rows: the extra memory is a band, not a copy of ``a``."""
+    r, c = a.shape
+    rows_out, cols_out = -(-r // 2), -(-c // 2)
+    out = np.empty((rows_out, cols_out), dtype=a.dtype)
+    step = max(1, _band_rows(c) // 2)
+    for o0 in range(0, rows_out, step):
+        o1 = min(rows_out, o0 + step)
+        block = a[2 * o0:min(r, 2 * o1)]
+        padded = np.full((2 * (o1 - o0), 2 * cols_out), -np.inf, dtype=a.dtype)
+        padded[:block.shape[0], :c] = block
+        out[o0:o1] = padded.reshape(o1 - o0, 2, cols_out, 2).max(axis=(1, 3))
+    return out
+
+
 def _mipmap(cellmax: np.ndarray) -> list[np.ndarray]:
     levels = [cellmax]
     while max(levels[-1].shape) > 1:
-        a = levels[-1]
-        r, c = a.shape
-        padded = np.full((r + r % 2, c + c % 2), -np.inf, dtype=a.dtype)
-        padded[:r, :c] = a
-        levels.append(np.ascontiguousarray(
-            padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3))))
+        levels.append(_halve(levels[-1]))
     return levels
 
 

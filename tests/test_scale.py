@@ -404,3 +404,35 @@ def test_dask_sweep_survives_a_killed_worker(tmp_path, monkeypatch):
     assert killed, "the sweep finished before a worker could be killed"
     expected = sum(len(g[4]) for g in sweep.groups(cfg))
     assert len(rows) == expected == len(set(_keys(rows)))
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (5, 9), (300, 517), (1025, 3)])
+@pytest.mark.parametrize("band_samples", [7, 64, 1 << 20])
+def test_banded_mipmap_equals_the_whole_array_reduction(shape, band_samples, monkeypatch):
+    from algos import field as field_module
+
+    monkeypatch.setattr(field_module, "BAND_SAMPLES", band_samples)
+    a = np.random.default_rng(1).random(shape)
+    level = a
+    for got in _mipmap(a)[1:]:
+        r, c = level.shape
+        padded = np.full((r + r % 2, c + c % 2), -np.inf)
+        padded[:r, :c] = level
+        level = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3))
+        assert np.array_equal(got, level)
+    assert level.shape == (1, 1)
+
+
+def test_memory_mapped_geotiff_is_used_in_place(tmp_path, field):
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "f.tif", field.heights)
+    hf = datasets_gen.load_file(tmp_path / "f.tif")
+    assert isinstance(hf.heights, np.memmap) and hf.params["memory_mapped"]
+    assert np.shares_memory(algos.Field(hf.heights).heights, hf.heights)
+    np.testing.assert_array_equal(hf.heights, field.heights)
+    # a compressed file cannot be mapped: read into memory as before
+    tifffile.imwrite(tmp_path / "z.tif", field.heights, compression="zlib")
+    z = datasets_gen.load_file(tmp_path / "z.tif")
+    assert not isinstance(z.heights, np.memmap)
+    np.testing.assert_array_equal(z.heights, field.heights)
