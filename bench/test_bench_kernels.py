@@ -49,6 +49,17 @@ def test_first_hit_triangles(benchmark, name, field, rays3):
     benchmark(run)
 
 
+@pytest.mark.parametrize("threads", [1, None])
+@pytest.mark.parametrize("name", ["runs", "runs_maxmip", "embree"])
+def test_first_hit_threads(benchmark, name, threads, field):
+    """One thread against every core, on 16x the rays (ranges of 1024 rays or more)."""
+    from bench.sweep import first_hit_rays
+
+    o, d = first_hit_rays(field, R, 16 * N_RAYS, 5)
+    run, _ = prepare_timed_intersect(name, field, o, d, surface="triangles", threads=threads)
+    benchmark(run)
+
+
 @pytest.mark.parametrize("name", [n for n in algos.HORIZON_ALGORITHMS if n != "embree"])
 def test_horizon_one_azimuth(benchmark, name, field):
     """Every vertex's horizon along atan(2/5) (rational: the sweep applies); the per-vertex
