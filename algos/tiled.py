@@ -38,16 +38,15 @@ def halo_depth(max_distance_cells) -> int:
     return int(math.ceil(max_distance_cells)) + 1
 
 
-def _unwrap(heights, spacing):
-    """(dask array in north-up order, spacing or None) from a dask array or a HeightField."""
+def _unwrap(heights, spacing, north_up=True):
+    """(dask array, spacing or None, flipped) from a dask array or a HeightField; with
+    ``north_up`` a HeightField whose rows run north is flipped (``flipped`` says so)."""
     if hasattr(heights, "heights") and hasattr(heights, "spacing"):
         params = getattr(heights, "params", {}) or {}
         if spacing is None and getattr(heights, "unit", "cell") != "cell":
             spacing = float(heights.spacing)
-        arr = heights.heights
-        if params.get("north") == "+y":
-            arr = arr[::-1]
-        return arr, spacing, params.get("north") == "+y"
+        flip = north_up and params.get("north") == "+y"
+        return (heights.heights[::-1] if flip else heights.heights), spacing, flip
     return heights, spacing, False
 
 
@@ -81,11 +80,7 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
     (count) array."""
     import dask.array as da
 
-    if hasattr(heights, "heights") and hasattr(heights, "spacing"):
-        if spacing is None and getattr(heights, "unit", "cell") != "cell":
-            spacing = float(heights.spacing)
-        heights = heights.heights
-    arr = heights
+    arr, spacing, _ = _unwrap(heights, spacing, north_up=False)
     rows, cols = arr.shape
     md_cells = None if max_distance is None else (
         float(max_distance) / spacing if spacing else float(max_distance))

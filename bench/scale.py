@@ -33,15 +33,16 @@ import numpy as np
 
 import algos
 from algos import parallel
+from algos.embree_peer import _rss_bytes
 from algos.intersect import prepare_timed_intersect
 from datasets_gen import fields
 from datasets_gen import rays as raysets
 
 from .report import RowWriter
 from .sweep import _rays2, first_hit_rays, read_rows
-from .timing import environment, interleaved, median_ci, ratio_ci, write_json
+from .timing import cache_sizes, environment, interleaved, median_ci, ratio_ci, write_json
 
-__all__ = ["run", "run_threads", "run_growth", "run_big", "cache_sizes"]
+__all__ = ["run", "run_threads", "run_split", "run_growth", "run_big"]
 
 SIDES = (256, 512, 1024, 2048, 4096, 8192, 16384)
 GROWTH_R = 25
@@ -49,26 +50,6 @@ GROWTH_ELEVATION = 10.0
 #: Embree's scene for a 8192^2 field is about 134 M triangles (some 10 GB measured at
 #: 2048^2 x 16); the growth study stops it at this side by default
 EMBREE_MAX_SIDE = 4096
-
-
-def cache_sizes() -> dict:
-    """{"L1d", "L2", "L3"} bytes of this machine's data caches (sysfs), where readable."""
-    out = {}
-    base = "/sys/devices/system/cpu/cpu0/cache"
-    try:
-        for entry in sorted(os.listdir(base)):
-            def read(name):
-                with open(os.path.join(base, entry, name)) as f:
-                    return f.read().strip()
-            if read("type") == "Instruction":
-                continue
-            text = read("size").upper()
-            scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1:], 1)
-            level = read("level")
-            out[f"L{level}" + ("d" if level == "1" else "")] = int(text.rstrip("KMG")) * scale
-    except (OSError, ValueError):
-        pass
-    return out
 
 
 def _field(side, seed=1):
@@ -378,14 +359,9 @@ def _peak_rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def _rss_now() -> int:
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-
-
 def big_item(item, side, path):
     """One item of the big-field study, in this process; returns a dict (JSON)."""
-    out = dict(item=item, side=side, rss_before_bytes=_rss_now())
+    out = dict(item=item, side=side, rss_before_bytes=_rss_bytes())
     start = time.perf_counter()
     if item == "generate_4096":  # the generator target at 4096^2
         h = fields.generate("fbm", 4096, seed=1)

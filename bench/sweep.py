@@ -273,6 +273,12 @@ def read_rows(path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+def load_field(ds) -> algos.Field:
+    """The Field of one config dataset entry."""
+    return algos.Field(datasets_gen.load(ds["name"], size=ds.get("size"), seed=ds.get("seed", 0),
+                                         **ds.get("params", {})).heights)
+
+
 def _pending(cfg, out_dir, resume):
     """(results.csv path, the groups still to measure with their missing algorithms);
     without ``resume`` an old results.csv is removed."""
@@ -311,9 +317,7 @@ def _write_group(writer, rows, missing, bar, label):
 def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed):
     """One group on a Dask worker: load the field there, measure, return the rows and the
     worker's environment. Module-level (importable) so any worker can run it."""
-    heights = datasets_gen.load(ds["name"], size=ds.get("size"), seed=ds.get("seed", 0),
-                                **ds.get("params", {})).heights
-    rows = measure_group(algos.Field(heights), label, workload, surface, r, names, rays,
+    rows = measure_group(load_field(ds), label, workload, surface, r, names, rays,
                          repeats, seed)
     import socket
 
@@ -393,9 +397,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
         for ds, label, workload, surface, r, names, missing in todo:
             if label not in fields_cache:
                 fields_cache.clear()  # one field in memory at a time
-                heights = datasets_gen.load(ds["name"], size=ds.get("size"), seed=ds.get("seed", 0),
-                                            **ds.get("params", {})).heights
-                fields_cache[label] = algos.Field(heights)
+                fields_cache[label] = load_field(ds)
             field_ = fields_cache[label]
             measured = measure_group(field_, label, workload, surface, r, names, cfg.rays,
                                      cfg.repeats, cfg.seed)

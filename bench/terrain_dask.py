@@ -100,9 +100,7 @@ def run_product(kind, hf, out, address, *, max_distance, azimuths=(0.0,), n_azim
         products = {f"horizon_az{a:g}": (da.degrees(algos.horizon(hf, [a], max_distance, **common)[0]),
                                          "magma", None, None) for a in azimuths}
     elif kind == "svf":
-        az = (algos.rational_azimuths(n_azimuths) if rational
-              else np.arange(n_azimuths) * (360.0 / n_azimuths))
-        products = {"svf": (algos.sky_view_factor(hf, max_distance=max_distance, azimuths=az,
+        products = {"svf": (algos.sky_view_factor(hf, n_azimuths, max_distance, rational=rational,
                                                   **common), "cividis", 0.0, 1.0)}
     elif kind == "shadows":
         products = {"shadows": (algos.shadows(hf, azimuth, elevation, max_distance=max_distance,

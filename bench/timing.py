@@ -22,19 +22,29 @@ import numpy as np
 __all__ = ["interleaved", "median_ci", "ratio_ci", "environment"]
 
 
-def last_level_cache_bytes() -> int:
-    """The largest CPU cache of this machine (sysfs), or 32 MiB when it cannot be read."""
-    best = 0
+def cache_sizes() -> dict:
+    """{"L1d", "L2", "L3"} bytes of this machine's data caches (sysfs), where readable."""
+    out = {}
     base = "/sys/devices/system/cpu/cpu0/cache"
     try:
-        for entry in os.listdir(base):
-            with open(os.path.join(base, entry, "size")) as f:
-                text = f.read().strip().upper()
+        for entry in sorted(os.listdir(base)):
+            def read(name):
+                with open(os.path.join(base, entry, name)) as f:
+                    return f.read().strip()
+            if read("type") == "Instruction":
+                continue
+            text = read("size").upper()
             scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1:], 1)
-            best = max(best, int(text.rstrip("KMG")) * scale)
+            level = read("level")
+            out[f"L{level}" + ("d" if level == "1" else "")] = int(text.rstrip("KMG")) * scale
     except (OSError, ValueError):
         pass
-    return best or 32 << 20
+    return out
+
+
+def last_level_cache_bytes() -> int:
+    """The largest CPU data cache of this machine (sysfs), or 32 MiB when it cannot be read."""
+    return max(cache_sizes().values(), default=0) or 32 << 20
 
 
 _EVICT: dict = {}
