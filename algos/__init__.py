@@ -4,7 +4,7 @@
 >>> algos.reference_cells((0.5, 0.5), (2, 3), (4, 4))
 [(0, 0), (0, 1), (1, 1), (1, 2), (2, 2), (2, 3)]
 
-See CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the API.
+See docs/CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the API.
 """
 from .lattice import quantize
 from .reference import major_axis, reference_cells, reference_runs, runs_from_cells

@@ -153,7 +153,7 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
     lines += [f"Datasets: {', '.join(datasets)}. Rays per group: "
               f"{', '.join(map(str, sorted(set(df['rays']))))}; repeats: "
               f"{', '.join(map(str, sorted(set(df['repeats']))))}. Speedup = median time of dda / "
-              "median time of the algorithm on the same rays in the same process (reports/"
+              "median time of the algorithm on the same rays in the same process (docs/"
               "METHOD.md); tables aggregate datasets by the geometric mean.", ""]
     table = pivot(df, *PRIMARY)
     if not table.empty:

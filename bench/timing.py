@@ -1,6 +1,6 @@
 """Side-by-side timing: interleaved repeats, medians, bootstrap intervals, environment.
 
-Method (reports/METHOD.md): every algorithm in a comparison is timed on the same rays,
+Method (docs/METHOD.md): every algorithm in a comparison is timed on the same rays,
 in the same process, on one thread, interleaved A B C A B C ... with the starting
 algorithm rotated each repeat, after one untimed warm-up round, and with the caches
 flushed before every timed run (so no kernel inherits the cache lines its predecessor

@@ -4,7 +4,7 @@ Every generator takes an explicit ``seed`` and uses ``numpy.random.Generator(PCG
 so the same arguments give the same rays on any machine. Each returns a :class:`RaySet`
 that records its parameters.
 
-2D rays follow CONVENTIONS.md: ``origins`` and ``directions`` of shape ``(N, 2)``. With
+2D rays follow docs/CONVENTIONS.md: ``origins`` and ``directions`` of shape ``(N, 2)``. With
 ``elevation`` given, rays are 3D ``(N, 3)``: the ``(x, y)`` direction scaled to unit
 length and ``z = -tan(elevation)`` (looking down), origins at ``height`` above z = 0.
 """
@@ -75,7 +75,7 @@ def by_run_length(r, n, shape, seed, *, jitter=0.0, origins="inside", elevation=
                   height=1.0):
     """Rays whose 8-connected mean run length is ``r``.
 
-    The azimuth from the major axis is ``atan(1/r)`` (CONVENTIONS.md, "Mean run
+    The azimuth from the major axis is ``atan(1/r)`` (docs/CONVENTIONS.md, "Mean run
     length"); rays are spread evenly over the 8 octants (octant ``k % 8`` for ray k).
 
     Parameters

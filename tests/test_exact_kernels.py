@@ -1,4 +1,4 @@
-"""Every exact kernel equals the exact reference on every ray (CONVENTIONS.md, Exactness).
+"""Every exact kernel equals the exact reference on every ray (docs/CONVENTIONS.md, Exactness).
 
 The reference sequences of one seeded corpus (over 10^4 rays on grids from 1x1 to
 1024x1024, non-square ones included, float64 rays and coarse dyadic lattices where ties
