@@ -11,6 +11,7 @@ from .reference import major_axis, reference_cells, reference_runs, runs_from_ce
 from .brute import brute_force_hits
 from .field import Field
 from .intersect import HIT_OUTPUTS, STATS, Hits, intersect
+from .render import Rendering, render
 from .registry import (
     INTERSECTOR_REGISTRY,
     INTERSECTORS,
@@ -49,7 +50,7 @@ __all__ = [
     "traverse", "walk_timed", "prepare_timed", "CellPaths", "RunPaths", "PathCounts",
     "DEFAULT_MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
     "INTERSECTORS", "INTERSECTOR_REGISTRY", "Intersector", "get_intersector", "SURFACES",
-    "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "brute_force_hits",
+    "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "brute_force_hits", "render", "Rendering",
     "horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
     "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS",
 ]

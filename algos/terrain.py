@@ -542,7 +542,7 @@ def _check_surface(surface):
 
 
 def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="triangles",
-            spacing=None, threads=None, march_step=1.0, embree_tolerance=1e-4):
+            spacing=None, threads=None, march_step=1.0, embree_tolerance=1e-4, progress=None):
     """Horizon elevation angles (radians) seen from every vertex.
 
     For each azimuth, the horizon of vertex v is the supremum, over the surface points p on
@@ -566,6 +566,9 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     threads : None or int
         Vertices are split over threads; results are identical for every value.
     march_step, embree_tolerance : the baselines' step (cells) and angle tolerance (rad).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each azimuth (in memory only; a
+        command's progress bar).
 
     Returns
     -------
@@ -601,6 +604,8 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     out = np.empty((len(directions),) + h.shape)
     for k, d in enumerate(directions):
         out[k] = _horizon_one(h, d, name, md, nthreads, mip, stats, step, embree_tolerance)
+        if progress is not None:
+            progress(k + 1, len(directions))
     np.arctan(out, out=out)
     if flip:
         out = np.ascontiguousarray(out[:, ::-1])
@@ -632,11 +637,12 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
 
 def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False,
                     azimuths=None, algorithm=None, surface="triangles", spacing=None,
-                    threads=None):
+                    threads=None, progress=None):
     """Sky-view factor (Zaksek et al. 2011, as in RVT): 1 - mean_k sin(max(horizon_k, 0))
     over ``n_azimuths`` equally spaced azimuths starting at north. ``rational=True`` moves
     each to the nearest rational direction (:func:`rational_azimuths`), where the exact
-    sweep applies; ``azimuths`` gives them explicitly. Returns float64 (rows, cols)."""
+    sweep applies; ``azimuths`` gives them explicitly. ``progress(done, total)`` is called
+    after each azimuth (in memory only). Returns float64 (rows, cols)."""
     if azimuths is None:
         if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
             raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
@@ -647,7 +653,7 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
                              heights, max_distance, spacing, np.float64, algorithm=algorithm,
                              surface=surface, threads=threads)
     angles = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
-                     spacing=spacing, threads=threads)
+                     spacing=spacing, threads=threads, progress=progress)
     return 1.0 - np.mean(np.sin(np.maximum(angles, 0.0)), axis=0)
 
 
@@ -730,7 +736,7 @@ def _viewshed_one(h, ox, oy, oh, th, drop, algorithm, threads, mip, stats, scale
 
 def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_distance=None,
              curvature=False, refraction=0.13, *, algorithm=None, surface="triangles",
-             spacing=None, earth_radius=EARTH_RADIUS_M, threads=None):
+             spacing=None, earth_radius=EARTH_RADIUS_M, threads=None, progress=None):
     """Which vertices an observer sees.
 
     Vertex v is visible when the segment from (ox, oy, s(ox, oy) + observer_height) to
@@ -741,7 +747,7 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
 
     ``observer`` is (x, y) in grid coordinates, or an (N, 2) array. One observer gives a
     bool (rows, cols). Several give a uint16 (rows, cols) count of the observers that see
-    each vertex.
+    each vertex. ``progress(done, total)`` is called after each observer (in memory only).
 
     A dask array (or a HeightField holding one) gives a lazy result: each observer's
     window of ``max_distance`` (finite) is cut out and computed in memory
@@ -785,12 +791,14 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     count = np.zeros(h.shape, dtype=np.uint16)
     jj, ii = np.mgrid[0:h.shape[0], 0:h.shape[1]]
     scale = _rounding_scale(h)
-    for ox, oy in obs:
+    for k, (ox, oy) in enumerate(obs):
         seen = _viewshed_one(h, float(ox), float(oy), oh, th, drop, algorithm, nthreads, mip,
                              stats, scale)
         if md is not None:
             seen &= (ii - ox) ** 2 + (jj - oy) ** 2 <= md * md
         count += seen
+        if progress is not None:
+            progress(k + 1, len(obs))
     LAST_STATS.__dict__.update(stats.__dict__)
     result = count.astype(bool) if single else count
     return np.ascontiguousarray(result[::-1]) if flip else result

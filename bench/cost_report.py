@@ -7,7 +7,7 @@ triangles), written to ``counts.csv`` in the same directory, one row per kernel 
 counted (``--resume`` keeps them). The section replaces any earlier one at the end of the
 report's markdown file.
 
-    python -m bench.cost_report reports/bench_intersect [--markdown tables.md] [--resume]
+    python -m bench.cost_report results/bench-intersect [--markdown tables.md] [--resume]
 """
 from __future__ import annotations
 

@@ -18,21 +18,22 @@ import sys
 import tempfile
 
 
-__all__ = ["profile", "ENTRY", "callgrind_available"]
+__all__ = ["profile", "format_profile", "prepared_batch", "ENTRY", "callgrind_available"]
 
 #: The C entry each workload's batch runs in; only it is counted.
 ENTRY = {"first_hit": "hf_intersect_batch", "visit": "hf_walk_batch", "runs": "hf_walk_batch"}
 
 _CHILD = r"""
 import json, sys
-from bench.profile import _batch
+from bench.profile import prepared_batch
 spec = json.loads(sys.argv[1])
-run = _batch(spec)
+run = prepared_batch(spec)
 run()
 """
 
 
 def callgrind_available() -> bool:
+    """Whether ``valgrind`` is on PATH (callgrind comes with it)."""
     return shutil.which("valgrind") is not None
 
 
@@ -40,10 +41,10 @@ def _first_hit_rays(field, spec):
     """The spec's first-hit rays: the sweep's random-origin rays at run length r, or with
     ``parallel`` one batch of parallel rays of slope 1/r (orthographic, falling at 10
     degrees), the workload runs_periodic is built for."""
+    from bench.studies.terrain import orthographic_rays
     from bench.sweep import first_hit_rays
 
     if spec.get("parallel"):
-        from bench.terrain_bench import orthographic_rays
 
         h = field.heights
         return orthographic_rays((h.shape[1] - 1, h.shape[0] - 1), int(spec["r"]),
@@ -51,13 +52,13 @@ def _first_hit_rays(field, spec):
     return first_hit_rays(field, spec["r"], spec["rays"], spec["seed"])
 
 
-def _batch(spec: dict):
+def prepared_batch(spec: dict):
     """The prepared batch of ``spec`` (dataset, size, seed, r, rays, workload, surface,
     kernel); calling it runs the C loop once."""
     import algos
     import datasets_gen
     from algos.intersect import prepare_timed_intersect
-    from bench.sweep import _rays2
+    from bench.sweep import traversal_rays
 
     heights = datasets_gen.load(spec["dataset"], size=spec["size"], seed=1).heights
     workload = spec["workload"]
@@ -69,7 +70,7 @@ def _batch(spec: dict):
         return run
     rows, cols = heights.shape
     shape = (cols - 1, rows - 1)
-    o, d = _rays2(shape, spec["r"], spec["rays"], spec["seed"])
+    o, d = traversal_rays(shape, spec["r"], spec["rays"], spec["seed"])
     run, _ = algos.prepare_timed(spec["kernel"], o, d, shape,
                                  "visit" if workload == "visit" else "runs")
     return run
@@ -79,7 +80,7 @@ def _visited(spec: dict) -> tuple[float, float]:
     """Total cells and runs the batch visits (a native run of the same rays)."""
     import algos
     import datasets_gen
-    from bench.sweep import _rays2
+    from bench.sweep import traversal_rays
 
     heights = datasets_gen.load(spec["dataset"], size=spec["size"], seed=1).heights
     if spec["workload"] == "first_hit":
@@ -90,7 +91,7 @@ def _visited(spec: dict) -> tuple[float, float]:
         # model divides by the work every kernel must account for, not by what it skipped
         return float(ref.stats["cells_visited"].sum()), float(ref.stats["runs_visited"].sum())
     rows, cols = heights.shape
-    o, d = _rays2((cols - 1, rows - 1), spec["r"], spec["rays"], spec["seed"])
+    o, d = traversal_rays((cols - 1, rows - 1), spec["r"], spec["rays"], spec["seed"])
     counts = algos.traverse("midpoint", o, d, (cols - 1, rows - 1), output="count")
     return float(counts.cells.sum()), float(counts.runs.sum())
 
@@ -201,6 +202,8 @@ def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="tri
 
 
 def format_profile(p: dict) -> str:
+    """The text report of one :func:`profile` result: totals and per-ray, per-cell and
+    per-run counts, and the functions with the most instructions."""
     opts = "".join(f" {k}={v}" for k, v in p.get("options", {}).items())
     lines = [f"{p['kernel']}{opts} on {p['dataset']} {p['size']}^2, {p['workload']}"
              + (f" {p['surface']}" if p["workload"] == "first_hit" else "")

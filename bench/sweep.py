@@ -42,8 +42,9 @@ from datasets_gen import rays as raysets
 from .report import RowWriter
 from .timing import environment, interleaved, median_ci, ratio_ci, write_json
 
-__all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "COLUMNS", "row_key",
-           "WORKLOADS"]
+__all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "run_sweep_dask", "COLUMNS",
+           "row_key", "WORKLOADS", "first_hit_rays", "traversal_rays", "measure_group",
+           "dask_client"]
 
 WORKLOADS = ("visit", "runs", "first_hit")
 BASELINE = "dda"
@@ -185,22 +186,22 @@ def groups(cfg):
     return out
 
 
-def _rays2(shape, r, n, seed):
-    rs = raysets.by_run_length(r, n, shape, seed=seed, origins="inside")
-    order = np.argsort(np.arange(n) % 8, kind="stable")  # parallel rays together
-    return rs.origins[order], rs.directions[order]
+def traversal_rays(shape, r, n, seed):
+    """The 2D rays of a traversal group: ``datasets_gen.rays.by_run_length`` with origins
+    inside ``shape`` (nx, ny) and parallel rays consecutive; (origins, directions)."""
+    rs = raysets.by_run_length(r, n, shape, seed, origins="inside", order="octant")
+    return rs.origins, rs.directions
 
 
 def first_hit_rays(field, r, n, seed):
-    """First-hit rays: 5-20 degrees below the horizon, from one cell above the field."""
+    """First-hit rays: the traversal rays of ``field``'s grid, each falling at an elevation
+    drawn from 5 to 20 degrees, from one cell above the field's highest point;
+    (origins, directions) of shape (n, 3), unit directions."""
     rows, cols = field.heights.shape
-    o2, d2 = _rays2((cols - 1, rows - 1), r, n, seed)
-    rng = np.random.Generator(np.random.PCG64(seed + 1))
-    elevation = np.radians(rng.uniform(5.0, 20.0, n))
-    d2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
-    d = np.column_stack([d2 * np.cos(elevation)[:, None], -np.sin(elevation)])
-    o = np.column_stack([o2, np.full(n, float(field.heights.max()) + 1.0)])
-    return o, d
+    rs = raysets.by_run_length(r, n, (cols - 1, rows - 1), seed, origins="inside",
+                               order="octant", elevation=(5.0, 20.0),
+                               height=float(field.heights.max()) + 1.0)
+    return rs.origins, rs.directions
 
 
 def hit_agreement(t, reference, tolerance) -> float:
@@ -230,7 +231,7 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             jobs[name], outputs[name] = prepare_timed_intersect(name, field, o, d, surface=surface)
         reference = ref.t
     else:
-        o, d = _rays2(shape, r, rays, seed)
+        o, d = traversal_rays(shape, r, rays, seed)
         counts = algos.traverse("midpoint", o, d, shape, output="count")
         cells, runs = float(counts.cells.mean()), float(counts.runs.mean())
         mode = "visit" if workload == "visit" else "runs"
@@ -324,7 +325,7 @@ def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed):
     return rows, dict(environment(), hostname=socket.gethostname(), pid=os.getpid())
 
 
-def _dask_client(address: str, memory_limit=None):
+def dask_client(address: str, memory_limit=None):
     """A distributed Client: ``local:N`` starts a LocalCluster of N single-threaded
     worker processes (each limited to ``memory_limit``, e.g. "600MiB", when given);
     anything else is a scheduler address."""
@@ -355,7 +356,7 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
     csv_path, todo = _pending(cfg, out_dir, resume)
     from dask.distributed import as_completed
 
-    client, cluster = _dask_client(address)
+    client, cluster = dask_client(address)
     env = dict(environment(), dask_address=address, workers={})
     try:
         futures = {}

@@ -19,7 +19,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["interleaved", "median_ci", "ratio_ci", "environment"]
+__all__ = ["interleaved", "median_ci", "ratio_ci", "environment", "pin_to_one_cpu",
+           "flush_caches", "cache_sizes", "last_level_cache_bytes", "resident_bytes",
+           "write_json"]
 
 
 def cache_sizes() -> dict:
@@ -45,6 +47,27 @@ def cache_sizes() -> dict:
 def last_level_cache_bytes() -> int:
     """The largest CPU data cache of this machine (sysfs), or 32 MiB when it cannot be read."""
     return max(cache_sizes().values(), default=0) or 32 << 20
+
+
+def pin_to_one_cpu() -> int | None:
+    """Restrict this process to one CPU (the last in its affinity; Linux), so every
+    contender of a comparison runs single-threaded on the same core. Returns that CPU, or
+    None where affinity cannot be set."""
+    if hasattr(os, "sched_setaffinity"):
+        cpus = sorted(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {cpus[-1]})
+        return cpus[-1]
+    return None
+
+
+def resident_bytes() -> int:
+    """This process's resident memory now (``/proc/self/statm``), or 0 where unreadable."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+    except (OSError, ValueError, IndexError):
+        return 0
+    return pages * os.sysconf("SC_PAGE_SIZE")
 
 
 _EVICT: dict = {}
@@ -184,6 +207,8 @@ def _embree_info() -> dict:
 
 
 def write_json(path, data) -> None:
+    """Write ``data`` as indented, key-sorted JSON to ``path`` atomically (a temporary file
+    renamed over it), so a reader never sees half a file."""
     tmp = f"{path}.tmp"
     with open(tmp, "w") as f:
         json.dump(data, f, indent=2, sort_keys=True)

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["RaySet", "by_run_length", "uniform", "lattice", "octant_directions",
-           "mean_run_length"]
+__all__ = ["RaySet", "by_run_length", "uniform", "isotropic", "lattice", "octant_directions",
+           "mean_run_length", "pinhole", "parallel", "adversarial"]
 
 
 @dataclass(frozen=True)
@@ -71,8 +71,23 @@ def _lift(origins, directions, elevation, height):
     return o3, np.concatenate([d2, z], axis=1)
 
 
-def by_run_length(r, n, shape, seed, *, jitter=0.0, origins="inside", elevation=None,
-                  height=1.0):
+def _lift_range(origins, directions, elevation, height, seed):
+    """Make 3D rays with unit directions, each descending at its own elevation drawn
+    uniformly in degrees from ``elevation = (low, high)`` by a second stream
+    (``PCG64(seed + 1)``), so the 2D rays are those of the same seed without it."""
+    low, high = (float(v) for v in elevation)
+    if not 0.0 <= low <= high <= 90.0:
+        raise ValueError(f"elevation: expected degrees 0 <= low <= high <= 90, got {elevation}")
+    n = len(origins)
+    angle = np.radians(_rng(seed + 1).uniform(low, high, n))
+    d2 = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    d3 = np.column_stack([d2 * np.cos(angle)[:, None], -np.sin(angle)])
+    o3 = np.column_stack([origins, np.full(n, float(height))])
+    return o3, d3
+
+
+def by_run_length(r, n, shape, seed, *, jitter=0.0, origins="inside", order="index",
+                  elevation=None, height=1.0):
     """Rays whose 8-connected mean run length is ``r``.
 
     The azimuth from the major axis is ``atan(1/r)`` (docs/CONVENTIONS.md, "Mean run
@@ -89,9 +104,31 @@ def by_run_length(r, n, shape, seed, *, jitter=0.0, origins="inside", elevation=
     jitter : float
         Relative jitter of ``1/r`` (uniform in ``[-jitter, jitter]``).
     origins : {"inside", "around"}
-    elevation, height : float, optional
-        Degrees below the horizon and origin height, for 3D rays.
+    order : {"index", "octant"}
+        ``"index"``: ray k in octant ``k % 8``. ``"octant"``: the same rays stably sorted
+        by octant, so parallel rays are consecutive (the benchmarks' order).
+    elevation : float or (low, high), optional
+        Degrees below the horizon, for 3D rays. A float: every ray at that elevation,
+        unit ``(x, y)`` and ``z = -tan(elevation)``. A pair: each ray at an elevation
+        drawn uniformly from ``[low, high]`` by a second stream seeded ``seed + 1``, with
+        unit 3D directions (the first-hit rays of ``bench.sweep.first_hit_rays``).
+    height : float
+        Origin height of 3D rays (``z``, in cell units).
+
+    Returns
+    -------
+    RaySet
+        ``origins`` and ``directions`` float64 of shape ``(n, 2)``, or ``(n, 3)`` with
+        ``elevation``.
+
+    Raises
+    ------
+    ValueError
+        ``r`` below 1, ``seed`` None, an unknown ``origins`` or ``order``, an elevation
+        range outside ``0 <= low <= high <= 90``.
     """
+    if order not in ("index", "octant"):
+        raise ValueError(f"order: expected 'index' or 'octant', got {order!r}")
     rng = _rng(seed)
     n = int(n)
     if r == "random":
@@ -107,8 +144,14 @@ def by_run_length(r, n, shape, seed, *, jitter=0.0, origins="inside", elevation=
         d = octant_directions(alpha, np.arange(n) % 8)
     o = _origins(rng, n, shape, origins)
     params = dict(kind="by_run_length", r=r, n=n, shape=tuple(shape), seed=seed,
-                  jitter=jitter, origins=origins, elevation=elevation, height=height)
-    if elevation is not None:
+                  jitter=jitter, origins=origins, order=order, elevation=elevation,
+                  height=height)
+    if order == "octant":
+        by_octant = np.argsort(np.arange(n) % 8, kind="stable")
+        o, d = o[by_octant], d[by_octant]
+    if isinstance(elevation, (tuple, list)):
+        o, d = _lift_range(o, d, elevation, height, seed)
+    elif elevation is not None:
         o, d = _lift(o, d, elevation, height)
     return RaySet(o, d, params)
 
@@ -123,6 +166,27 @@ def uniform(n, shape, seed, *, origins="around", log_scale=(-3.0, 3.0)):
     d = np.stack([np.cos(phi), np.sin(phi)], axis=1) * length[:, None]
     return RaySet(o, d, dict(kind="uniform", n=n, shape=tuple(shape), seed=seed,
                              origins=origins, log_scale=log_scale))
+
+
+def isotropic(n, shape, seed, *, offset=0.0, snap=None):
+    """Rays with unit directions at azimuths uniform in [0, 2 pi) and origins uniform over
+    ``[offset, offset + nx) x [offset, offset + ny)``.
+
+    With ``snap`` (e.g. ``2**-16``, the exact kernels' lattice) origins and directions
+    are rounded to multiples of it, so the exact kernels take them without quantizing
+    (the accuracy and stress studies; ``offset = 2**16`` gives long rays far from the
+    origin). Returns a RaySet of float64 ``(n, 2)`` arrays.
+    """
+    rng = _rng(seed)
+    n = int(n)
+    o = offset + _origins(rng, n, shape, "inside")
+    phi = rng.uniform(0, 2 * np.pi, n)
+    d = np.stack([np.cos(phi), np.sin(phi)], 1)
+    if snap is not None:
+        o = np.round(o / snap) * snap
+        d = np.round(d / snap) * snap
+    return RaySet(o, d, dict(kind="isotropic", n=n, shape=tuple(shape), seed=seed,
+                             offset=offset, snap=snap))
 
 
 def lattice(n, shape, seed, *, origin_step=0.5, max_direction=4, direction_step=1.0):
@@ -187,15 +251,18 @@ def pinhole(position, look_at, fov, width, height, *, up=(0.0, 0.0, 1.0)):
 
 
 def parallel(n, shape, seed, *, direction=None, rational=None, octant=0, origins="inside",
-             height=None):
+             height=None, elevation=None):
     """``n`` parallel rays: one direction, many origins (orthographic cameras, sun and
     shadow rays, viewsheds), the batch ``runs_periodic`` is built for.
 
     Give either ``direction`` (a 2- or 3-vector) or ``rational=(p, q)``, ``0 <= p <= q``:
     the exact 2D direction ``(q, p)`` of slope p/q, mirrored into ``octant`` (see
     :func:`octant_directions`). ``height`` lifts the origins to 3D when the direction is
-    2D (the 3D direction then gets z = 0).
+    2D (the 3D direction then gets z = 0, or with ``elevation``, degrees below the
+    horizon, ``z = -|(dx, dy)| tan(elevation)``: the orthographic first-hit rays).
     """
+    if elevation is not None and height is None:
+        raise ValueError("elevation: needs height (the origins' z)")
     rng = _rng(seed)
     if (direction is None) == (rational is None):
         raise ValueError("direction, rational: give exactly one")
@@ -213,13 +280,16 @@ def parallel(n, shape, seed, *, direction=None, rational=None, octant=0, origins
     if height is not None:
         o = np.concatenate([o, np.full((len(o), 1), float(height))], axis=1)
         if d.shape == (2,):
-            d = np.append(d, 0.0)
+            z = 0.0 if elevation is None else \
+                -np.hypot(d[0], d[1]) * math.tan(math.radians(elevation))
+            d = np.append(d, z)
     elif d.shape == (3,):
         o = np.concatenate([o, np.zeros((len(o), 1))], axis=1)
     return RaySet(o, np.tile(d, (len(o), 1)),
                   dict(kind="parallel", n=n, shape=tuple(shape), seed=seed,
                        direction=None if direction is None else list(map(float, direction)),
-                       rational=rational, octant=octant, origins=origins, height=height))
+                       rational=rational, octant=octant, origins=origins, height=height,
+                       elevation=elevation))
 
 
 GOLDEN = (math.sqrt(5) - 1) / 2

@@ -1,4 +1,4 @@
-"""The fuzz harness (bench/fuzz.py) without a fuzzer: the committed corpus, every finding
+"""The fuzz harness (tests/fuzz/harness.py) without a fuzzer: the committed corpus, every finding
 the fuzzer ever wrote (tests/data/fuzz_corpus/crashes/) and a fixed random batch are
 replayed through the same invariant checks as in `make fuzz`."""
 import os
@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from bench import fuzz
+from tests.fuzz import harness as fuzz
 
 FILES = sorted(
     os.path.join(root, name)

@@ -1,6 +1,6 @@
 """The pytest-benchmark suite: every kernel at a fixed r on a fixed dataset.
 
-Run with ``pytest bench --benchmark-only`` (``make bench-ci``); compare runs with
+Run with ``pytest bench/benchmarks --benchmark-only`` (``make bench-ci``); compare runs with
 pytest-benchmark's ``--benchmark-autosave`` / ``--benchmark-compare``. Each benchmark
 times one whole batch walked in C; the rays and the field are seeded.
 """
@@ -67,7 +67,7 @@ def test_horizon_one_azimuth(benchmark, name, field):
     import numpy as np
 
     from algos.terrain import prepare_horizon_timed, rational_azimuths
-    from bench.terrain_bench import sample_ranges
+    from bench.studies.terrain import sample_ranges
 
     h = np.asarray(field.heights, dtype=np.float64)
     ranges = None if name == "sweep" else sample_ranges(*h.shape, 4096)

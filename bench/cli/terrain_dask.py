@@ -88,7 +88,7 @@ def run_product(kind, hf, out, address, *, max_distance, azimuths=(0.0,), n_azim
     (north-up) and ``out``.png. Returns the paths written."""
     import dask.array as da
 
-    from .sweep import _dask_client
+    from ..sweep import dask_client
 
     if max_distance is None:
         raise ValueError("--max-distance: a tiled (dask) product needs a finite distance "
@@ -111,7 +111,7 @@ def run_product(kind, hf, out, address, *, max_distance, azimuths=(0.0,), n_azim
         seen = algos.viewshed(hf, obs, observer_height, target_height, max_distance,
                               curvature=curvature, refraction=refraction, **common)
         products = {"viewshed": (seen, "Greens", 0.0, float(len(obs)))}
-    client, cluster = _dask_client(address, memory_limit=worker_memory)
+    client, cluster = dask_client(address, memory_limit=worker_memory)
     paths = []
     try:
         for name, (lazy, cmap, lo, hi) in products.items():

@@ -19,7 +19,10 @@ import subprocess
 import sys
 import tempfile
 
-from .profile import callgrind_available
+from ..profile import callgrind_available
+
+#: The committed baseline of the counts (``hftrace regress --metric instructions --update``)
+BASELINE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "instructions_baseline.json")
 
 DEFAULT_TOLERANCE = 0.01
 SIZE = 256
@@ -33,13 +36,13 @@ import json, sys
 import numpy as np
 import algos
 from algos.intersect import prepare_timed_intersect
-from bench.sweep import _rays2, first_hit_rays
+from bench.sweep import first_hit_rays, traversal_rays
 spec = json.loads(sys.argv[1])
 heights = np.load(spec["heights"])
 field = algos.Field(heights)
 shape = (heights.shape[1] - 1, heights.shape[0] - 1)
 o3, d3 = first_hit_rays(field, spec["r"], spec["first_hit_rays"], spec["seed"])
-o2, d2 = _rays2(shape, spec["r"], spec["traversal_rays"], spec["seed"])
+o2, d2 = traversal_rays(shape, spec["r"], spec["traversal_rays"], spec["seed"])
 runs = []
 for workload, surface, kernel in spec["cases"]:
     if workload == "first_hit":
@@ -70,6 +73,7 @@ def cases():
 
 
 def key(workload, surface, kernel) -> str:
+    """The name of one case in a baseline: ``workload/surface/kernel``."""
     return f"{workload}/{surface}/{kernel}"
 
 
@@ -154,7 +158,7 @@ def measure(echo=print, only=None) -> dict:
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
                    PYTHONHASHSEED="0")
         env.pop("LD_PRELOAD", None)
-        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
         env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
         echo(f"regress: counting {len(todo)} batches under callgrind ...")
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
@@ -210,7 +214,7 @@ def compare(baseline: dict, measured: dict, tolerance: float) -> list[dict]:
 
 
 def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
-    from .timing import environment, write_json
+    from ..timing import environment, write_json
 
     try:
         measured = measure(echo)

@@ -9,7 +9,9 @@ is significant *and* large: the one-sided upper confidence bound (default 99 %) 
 change lies below ``-tolerance`` (default 5 %). For each ratio it prints the smallest
 drop this run could have flagged, which the noise sets. Higher ratios never fail; refresh
 the baseline with ``--update`` after an intended speedup. Exact, load-independent counts
-are the other mode: ``bench.regress_counts``.
+are the other mode: ``bench.regress.instructions_gate``.
+
+The committed baseline is ``time_baseline.json`` next to this module (:data:`BASELINE`).
 """
 from __future__ import annotations
 
@@ -21,8 +23,11 @@ import numpy as np
 import algos
 import datasets_gen
 
-from .sweep import measure_group
-from .timing import environment, write_json
+from ..sweep import measure_group
+from ..timing import environment, pin_to_one_cpu, write_json
+
+#: The committed baseline of the ratios (``hftrace regress --update`` rewrites it)
+BASELINE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "time_baseline.json")
 
 #: What is measured: (workload, surface, run length, algorithms, rays). Field: fBm 512^2,
 #: seed 1. Ray counts make every batch last several milliseconds: shorter batches are at
@@ -40,6 +45,7 @@ DEFAULT_CONFIDENCE = 0.99
 
 
 def key(workload, surface, r, name) -> str:
+    """The name of one ratio in a baseline: ``workload/surface/r=R/algorithm``."""
     return f"{workload}/{surface}/r={r}/{name}"
 
 
@@ -99,6 +105,8 @@ def compare(baseline: dict, measured: dict, tolerance: float,
 
 
 def load_baseline(path) -> dict:
+    """The baseline JSON at ``path``; ValueError (naming the path) when it is missing or
+    holds no per-repeat ``samples``."""
     if not os.path.isfile(path):
         raise ValueError(f"baseline: {path} does not exist (create it with --update)")
     with open(path) as f:
@@ -112,8 +120,6 @@ def load_baseline(path) -> dict:
 def run(baseline_path, tolerance=None, update=False, echo=print,
         confidence=DEFAULT_CONFIDENCE) -> int:
     """Exit status: 0 when every ratio holds, 1 when any regressed."""
-    from .intersect_bench import pin_to_one_cpu
-
     pin_to_one_cpu()
     measured = measure()
     if update:
@@ -121,7 +127,7 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
             "ratios": {k: round(float(np.median(v)), 4) for k, v in measured.items()},
             "samples": measured, "tolerance": tolerance or DEFAULT_TOLERANCE,
             "confidence": confidence, "env": environment(),
-            "note": "paired per-repeat speedup ratios over dda; see bench/regress.py"})
+            "note": "paired per-repeat speedup ratios over dda; see bench/regress/time_gate.py"})
         echo(f"wrote {len(measured)} ratios to {baseline_path}")
         return 0
     base = load_baseline(baseline_path)
@@ -150,18 +156,17 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
     return 0
 
 
-def validate(baseline_path, runs=10, out="reports/regress_validation.md", echo=print) -> int:
+def validate(baseline_path, runs=10, out="results/regress/validation.md", echo=print) -> int:
     """False-alarm check of the time mode: ``runs`` consecutive measurements of an
     unchanged build against the baseline, each judged as ``hftrace regress`` would; writes
-    the count of false alarms and the detectable drop of each run to ``out``."""
-    from .intersect_bench import pin_to_one_cpu
-
+    the count of false alarms and the detectable drop of each run to ``out`` (the
+    committed one: ``reports/regress_validation.md``)."""
     pin_to_one_cpu()
     base = load_baseline(baseline_path)
     tol = base.get("tolerance", DEFAULT_TOLERANCE)
     conf = base.get("confidence", DEFAULT_CONFIDENCE)
     lines = ["# Time-mode regression check: false alarms on an unchanged build", "",
-             f"Written by `python -m bench.regress --validate {runs}` against `{baseline_path}` "
+             f"Written by `python -m bench.regress.time_gate --validate {runs}` against `{baseline_path}` "
              f"(tolerance {100 * tol:g} %, confidence {100 * conf:g} %). Each run re-measures "
              "all ratios in a fresh process state, exactly as `hftrace regress` does.", "",
              "| run | ratios flagged | largest drop measured | smallest detectable drop (worst ratio) |",
@@ -178,6 +183,7 @@ def validate(baseline_path, runs=10, out="reports/regress_validation.md", echo=p
         lines.append(f"| {k} | {len(failures)} | {100 * worst_drop:+.1f} % | {100 * detectable:.1f} % |")
         echo(lines[-1])
     lines += ["", f"False alarms: {alarms} of {runs} runs."]
+    os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
     with open(out, "w") as f:
         f.write("\n".join(lines) + "\n")
     return 1 if alarms else 0
@@ -188,7 +194,7 @@ if __name__ == "__main__":
 
     parser = argparse.ArgumentParser(description="time-mode regression check utilities")
     parser.add_argument("--validate", type=int, metavar="RUNS", required=True)
-    parser.add_argument("--baseline", default="reports/baseline.json")
-    parser.add_argument("--out", default="reports/regress_validation.md")
+    parser.add_argument("--baseline", default=BASELINE)
+    parser.add_argument("--out", default="results/regress/validation.md")
     args = parser.parse_args()
     raise SystemExit(validate(args.baseline, args.validate, args.out))

@@ -28,19 +28,19 @@ import numpy as np
 import algos
 import datasets_gen
 
-from .report import RowWriter
-from .timing import environment, write_json
+from datasets_gen import rays as raysets
+
+from ..report import RowWriter
+from ..timing import environment, write_json
 
 LATTICE = 2.0**-16
 
 
-def lattice_rays(n, side, seed, length_hint=None):
-    """Generic rays exactly on the 2^-16 lattice, from inside a side x side grid."""
-    rng = np.random.Generator(np.random.PCG64(seed))
-    o = np.round(rng.uniform(0, side, (n, 2)) / LATTICE) * LATTICE
-    phi = rng.uniform(0, 2 * np.pi, n)
-    d = np.round(np.stack([np.cos(phi), np.sin(phi)], 1) / LATTICE) * LATTICE
-    return o, d
+def lattice_rays(n, side, seed):
+    """Generic rays exactly on the 2^-16 lattice, from inside a side x side grid
+    (``datasets_gen.rays.isotropic``); (origins, directions) of shape (n, 2)."""
+    rs = raysets.isotropic(n, (side, side), seed, snap=LATTICE)
+    return rs.origins, rs.directions
 
 
 def _first_divergence(a, b):
@@ -243,7 +243,7 @@ def _md_table(rows, columns):
     return "\n".join(lines)
 
 
-def run(out_dir="reports/accuracy", full=False, echo=print):
+def run(out_dir="results/accuracy", full=False, echo=print):
     os.makedirs(out_dir, exist_ok=True)
     env = environment()
     write_json(os.path.join(out_dir, "env.json"), env)

@@ -14,8 +14,8 @@ import csv
 import algos
 import datasets_gen
 
-from .intersect_bench import pin_to_one_cpu
-from .sweep import measure_group
+from ..sweep import measure_group
+from ..timing import pin_to_one_cpu
 
 KERNELS = ("dda", "dda_f32", "midpoint", "runs", "runs_f64", "runs_periodic", "dda_maxmip",
            "runs_maxmip", "embree")
@@ -45,7 +45,7 @@ def main(argv=None):
                                  speedup_vs_dda=row["speedup"]))
                 print(rows[-1], flush=True)
     if args.counts:
-        from .profile import profile
+        from ..profile import profile
 
         for row in rows:
             if row["kernel"] == "embree" or row["r"] != 25:

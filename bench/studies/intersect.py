@@ -22,25 +22,16 @@ import numpy as np
 import algos
 import datasets_gen
 
-from .report import RowWriter, speedup_table
-from .sweep import COLUMNS as SWEEP_COLUMNS
-from .sweep import measure_group
-from .timing import environment, write_json
+from ..report import RowWriter, speedup_table
+from ..sweep import COLUMNS as SWEEP_COLUMNS
+from ..sweep import measure_group
+from ..timing import environment, pin_to_one_cpu, write_json
 
 BASELINE = "dda"
 REFERENCE = "runs"
 RUN_LENGTHS = (1, 2, 5, 25, 100)
 DATASETS = (("fbm", 1024), ("fbm", 2048), ("uniform", 1024))
 COLUMNS = SWEEP_COLUMNS
-
-
-def pin_to_one_cpu():
-    """Run on one CPU (Linux): single-threaded numbers for every contender."""
-    if hasattr(os, "sched_setaffinity"):
-        cpus = sorted(os.sched_getaffinity(0))
-        os.sched_setaffinity(0, {cpus[-1]})
-        return cpus[-1]
-    return None
 
 
 def measure(dataset, side, field, surface, r, n, repeats, seed, names):
@@ -111,7 +102,7 @@ def _targets(rows, fields_by_name):
     return out
 
 
-def run(out_dir="reports/bench_intersect", n=1000, repeats=7, seed=2008,
+def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
         datasets=DATASETS, run_lengths=RUN_LENGTHS, surfaces=("triangles",), names=None,
         echo=print):
     os.makedirs(out_dir, exist_ok=True)

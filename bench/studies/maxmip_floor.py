@@ -7,7 +7,9 @@ bench-intersect (interleaved repeats in one process, caches flushed before each 
 run, one pinned CPU), and counts
 instructions per ray with callgrind (fbm 1024^2, r = 25).
 
-    python -m bench.maxmip_floor [--out reports/tuning] [--no-counts]
+    python -m bench.studies.maxmip_floor [--out results/maxmip_floor] [--no-counts]
+
+(the committed reference: ``--out reports/tuning``, ``make reports``)
 """
 from __future__ import annotations
 
@@ -21,9 +23,8 @@ import algos
 import datasets_gen
 from algos.intersect import prepare_timed_intersect
 
-from .intersect_bench import pin_to_one_cpu
-from .sweep import first_hit_rays
-from .timing import interleaved
+from ..sweep import first_hit_rays
+from ..timing import interleaved, pin_to_one_cpu
 
 FLOORS = range(6)
 FIELDS = (("fbm", 1024), ("fbm", 2048))
@@ -107,7 +108,7 @@ def write(rows, out):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="reports/tuning")
+    parser.add_argument("--out", default="results/maxmip_floor")
     parser.add_argument("--rays", type=int, default=4000)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--no-counts", action="store_true")

@@ -10,7 +10,7 @@ Presets (both seeded; every field is generated or loaded from the embedded data)
 * full (``--full``): adds fBm 2048^2; r in {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus
   random; 3000 rays, 9 repeats (about 330 groups: an estimated 20-30 minutes here).
 
-Both presets end with the "parallel rays" part (``bench.terrain_bench.run_parallel``):
+Both presets end with the "parallel rays" part (``bench.studies.parallel_rays``):
 every vertex's horizon along azimuths of slope 1/r, and orthographic first hits, on the
 embedded Jacksboro DEM with every method and the peers: ``parallel.md``, ``parallel.csv``
 and ``products.png``.
@@ -19,8 +19,12 @@ from __future__ import annotations
 
 import os
 
-from . import analysis
-from .sweep import SweepConfig, run_sweep
+from .. import analysis
+from ..sweep import SweepConfig, run_sweep
+from ..timing import pin_to_one_cpu
+
+#: The repository's root: ``publish`` writes its ``reports/``
+REPOSITORY = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 DATASETS_QUICK = [
     {"name": "fbm", "size": 1024, "seed": 1},
@@ -31,6 +35,8 @@ DATASETS_QUICK = [
 
 
 def preset(full=False) -> SweepConfig:
+    """The sweep of the quick preset, or with ``full`` the paper-scale one (module
+    docstring)."""
     if full:
         return SweepConfig(
             name="reproduce-full", rays=3000, repeats=9, seed=2004,
@@ -45,23 +51,32 @@ def preset(full=False) -> SweepConfig:
         run_lengths=[1, 2, 5, 25, 100, "random"], datasets=list(DATASETS_QUICK))
 
 
-def run(full=False, out_dir=None, resume=False, progress=True, echo=print, counts=True):
-    cfg = preset(full)
-    out_dir = out_dir or os.path.join("reports", cfg.name)
-    from .intersect_bench import pin_to_one_cpu
+def run(full=False, out_dir=None, resume=False, progress=True, echo=print, counts=True,
+        publish=False):
+    """Run the study and write its reports; returns the paths of ``analysis.write_reports``.
 
+    ``out_dir`` defaults to ``results/<preset>`` under the current directory (untracked);
+    ``publish`` writes to the committed reference, ``reports/<preset>`` of the repository,
+    instead. ``counts``: also the instruction counts (callgrind, when valgrind exists);
+    ``resume``: keep the rows already measured."""
+    cfg = preset(full)
+    if publish and out_dir is not None:
+        raise ValueError("out_dir: give either an output directory or publish, not both")
+    if publish:
+        out_dir = os.path.join(REPOSITORY, "reports", cfg.name)
+    out_dir = out_dir or os.path.join("results", cfg.name)
     pin_to_one_cpu()
     run_sweep(cfg, out_dir, resume=resume, progress=progress, echo=echo)
     if counts:
         # the cost model's instruction counts (callgrind), next to the timings
-        from .counts import write_counts
+        from ..counts import write_counts
 
         df = analysis.load(os.path.join(out_dir, "results.csv"))
         kernels = list(dict.fromkeys(df.loc[df["workload"] == "first_hit", "algorithm"]))
         write_counts(os.path.join(out_dir, "counts.csv"), kernels, resume=resume, echo=echo)
     # parallel rays at work: horizons and orthographic first hits at slopes 1/r, with
-    # every method and the peers (bench/terrain_bench.py)
-    from .terrain_bench import run_parallel
+    # every method and the peers (bench/studies/parallel_rays.py)
+    from .parallel_rays import run_parallel
 
     run_parallel(out_dir=out_dir, resume=resume, echo=echo,
                  repeats=7 if full else 5, sample=40000 if full else 20000)

@@ -26,8 +26,8 @@ import algos
 import datasets_gen
 from datasets_gen import rays as raysets
 
-from .report import RowWriter
-from .timing import environment, write_json
+from ..report import RowWriter
+from ..timing import environment, write_json
 
 SIDE = 2**20
 LATTICE = 2.0**-16
@@ -50,11 +50,10 @@ def family_rows(shape, n, seed):
 
 
 def long_rays(n, seed):
-    rng = np.random.Generator(np.random.PCG64(seed))
-    o = np.round((2.0**16 + rng.uniform(0, 64, (n, 2))) / LATTICE) * LATTICE
-    phi = rng.uniform(0, 2 * np.pi, n)
-    d = np.round(np.stack([np.cos(phi), np.sin(phi)], 1) / LATTICE) * LATTICE
-    return o, d
+    """Rays on the 2^-16 lattice with origins in [2^16, 2^16 + 64)^2, far from the grid's
+    origin (``datasets_gen.rays.isotropic``); (origins, directions) of shape (n, 2)."""
+    rs = raysets.isotropic(n, (64, 64), seed, offset=2.0**16, snap=LATTICE)
+    return rs.origins, rs.directions
 
 
 def drift_rows(lengths, seed):
@@ -135,7 +134,7 @@ def first_hit_rows(seed):
     return out
 
 
-def run(out_dir="reports/stress", full=False, echo=print):
+def run(out_dir="results/stress", full=False, echo=print):
     os.makedirs(out_dir, exist_ok=True)
     env = environment()
     write_json(os.path.join(out_dir, "env.json"), env)

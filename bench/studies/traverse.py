@@ -18,10 +18,10 @@ import time
 import numpy as np
 
 import algos
-from datasets_gen import rays as raysets
 
-from .report import RowWriter, speedup_table
-from .timing import environment, interleaved, median_ci, ratio_ci, write_json
+from ..report import RowWriter, speedup_table
+from ..sweep import traversal_rays
+from ..timing import environment, interleaved, median_ci, ratio_ci, write_json
 
 RUN_LENGTHS = (1, 2, 5, 25, 100)
 BASELINE = "dda"
@@ -33,19 +33,12 @@ COLUMNS = ["workload", "run_length", "algorithm", "baseline", "grid", "rays",
            "speedup_ci_high", "agree", "repeats"]
 
 
-def ray_set(r, n, side, seed):
-    """The rays for one run length, grouped by direction (stable)."""
-    rs = raysets.by_run_length(r, n, (side, side), seed=seed, origins="inside")
-    order = np.argsort(np.arange(n) % 8, kind="stable")
-    return rs.origins[order], rs.directions[order]
-
-
 def measure(r, workload, n, side, repeats, seed, names=None):
     """Rows for one (r, workload): every kernel on the same rays."""
     names = list(names or algos.TRAVERSALS)
     if BASELINE not in names:
         names.insert(0, BASELINE)
-    o, d = ray_set(r, n, side, seed)
+    o, d = traversal_rays((side, side), r, n, seed)
     shape = (side, side)
     counts = algos.traverse(REFERENCE_KERNEL, o, d, shape, output="count")
     jobs, checksums = {}, {}
@@ -88,7 +81,7 @@ def format_table(rows, workload) -> str:
     return speedup_table(rows, footer=counts)
 
 
-def run(out_dir="reports/bench_traverse", n=2000, side=1024, repeats=9, seed=2004,
+def run(out_dir="results/bench-traverse", n=2000, side=1024, repeats=9, seed=2004,
         run_lengths=RUN_LENGTHS, names=None, echo=print):
     """Measure every (workload, r), print the tables and write results.csv, tables.md
     and env.json to ``out_dir``. Rows are appended and flushed as they are measured."""

@@ -20,7 +20,7 @@ it and asserts the invariants:
 The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
 
-    python -m bench.fuzz [--seconds 60] [--runs N] [--crashes DIR] [CORPUS_DIR ...]
+    python -m tests.fuzz.harness [--seconds 60] [--runs N] [--crashes DIR] [CORPUS_DIR ...]
 
 The first corpus directory receives the new inputs the fuzzer keeps; ``make fuzz`` works
 on a copy of the committed corpus and runs the sanitized build.
@@ -40,8 +40,8 @@ TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
 INTERSECTORS = tuple(n for n in algos.INTERSECTOR_REGISTRY if n != "embree")
 EXACT_TRAVERSALS = ("midpoint", "runs")
 EXACT_INTERSECTORS = ("midpoint", "runs", "runs_periodic", "runs_maxmip")
-CORPUS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                      "tests", "data", "fuzz_corpus")
+CORPUS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data",
+                      "fuzz_corpus")
 
 _SPECIAL = (0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 2.0, 3.0, 1e-300, 5e-324, -5e-324, 2.0 ** 30,
             -(2.0 ** 30), 2.0 ** 30 + 1, 2.0 ** 31, 1e308, -1e308, 2.0 ** 1000, 2.0 ** 1001,

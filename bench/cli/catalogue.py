@@ -1,0 +1,72 @@
+"""``hftrace list`` (the registered algorithms) and ``hftrace datasets list|show``."""
+from __future__ import annotations
+
+import algos
+
+from .args import param, positive_int
+
+
+def list_algorithms(args):
+    """Print every traversal and intersector of the registry with its properties."""
+    print("traversals (algos.traverse):")
+    for t in algos.TRAVERSAL_REGISTRY.values():
+        exact = "exact" if t.exact else (f"exact when {t.exact_when}" if t.exact_when else t.precision)
+        print(f"  {t.name:14s} {t.family:4s} {exact:50s} {t.summary} ({t.citation})")
+    print("intersectors (algos.intersect):")
+    for a in algos.INTERSECTOR_REGISTRY.values():
+        print(f"  {a.name:14s} {a.kind:9s} {a.accuracy:13s} {a.summary}")
+    return 0
+
+
+def list_datasets(args):
+    """Print every generator and embedded field with its parameters."""
+    import datasets_gen
+
+    for row in datasets_gen.catalogue():
+        params = ", ".join(f"{k}={v}" for k, v in row["params"].items())
+        print(f"{row['name']:15s} {row['kind']:9s} {row['summary']}")
+        print(f"{'':25s} params: {params}")
+    return 0
+
+
+def show_dataset(args):
+    """Print one field's shape, height range, spacing and checksum; optionally a preview."""
+    import datasets_gen
+    from datasets_gen.preview import write_png
+
+    params = dict(args.param or [])
+    field = datasets_gen.load(args.name, size=args.size, seed=args.seed,
+                              use_cache=not args.no_cache, cache_dir=args.cache_dir, **params)
+    h = field.heights
+    print(f"name      {field.name}")
+    print(f"shape     {h.shape[0]} rows x {h.shape[1]} cols ({h.shape[1] - 1} x {h.shape[0] - 1} cells)")
+    print(f"heights   [{float(h.min()):.4f}, {float(h.max()):.4f}] cells, mean {float(h.mean()):.4f}")
+    print(f"spacing   1 cell = {field.spacing:g} {field.unit}")
+    print(f"sha256    {field.checksum}")
+    if args.png:
+        write_png(args.png, h)
+        print(f"preview   {args.png}")
+    return 0
+
+
+def register(sub):
+    """Add ``list`` and ``datasets`` to the sub-parsers ``sub``."""
+    p = sub.add_parser("list", help="list the registered algorithms")
+    p.set_defaults(func=list_algorithms)
+
+    p = sub.add_parser("datasets", help="the catalogue of height fields")
+    dsub = p.add_subparsers(dest="datasets_command", required=True)
+    q = dsub.add_parser("list", help="every generator and embedded field with its parameters")
+    q.set_defaults(func=list_datasets)
+    q = dsub.add_parser("show", help="shape, range, spacing and checksum of one field")
+    q.add_argument("name")
+    q.add_argument("--size", type=positive_int, default=None,
+                   help="side in samples (generators: default 256; jacksboro: longer side)")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--param", type=param, action="append", metavar="NAME=VALUE",
+                   help="a generator parameter (repeatable)")
+    q.add_argument("--png", default=None, help="write a hillshaded preview here")
+    q.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    q.add_argument("--cache-dir", default=None, help="cache location (default: $HFTRACE_CACHE "
+                   "or ~/.cache/hftrace)")
+    q.set_defaults(func=show_dataset)

@@ -1,0 +1,30 @@
+"""``hftrace regress``: the CI gates (``bench.regress``) against their committed
+baselines, which sit next to them."""
+from __future__ import annotations
+
+
+def regress(args):
+    """Run the instruction-count gate or the time gate; its exit status."""
+    if args.metric == "instructions":
+        from ..regress import instructions_gate as gate
+    else:
+        from ..regress import time_gate as gate
+    return gate.run(args.baseline or gate.BASELINE, tolerance=args.tolerance,
+                    update=args.update)
+
+
+def register(sub):
+    """Add ``regress`` to the sub-parsers ``sub``."""
+    p = sub.add_parser("regress", help="CI check: instruction counts or speedup ratios against "
+                                       "a baseline")
+    p.add_argument("--metric", choices=("time", "instructions"), default="time",
+                   help="time: speedup ratios (noisy machines; statistics); instructions: "
+                        "callgrind counts per ray (exact; needs valgrind)")
+    p.add_argument("--baseline", default=None,
+                   help="default bench/regress/time_baseline.json (time) or "
+                        "bench/regress/instructions_baseline.json (instructions)")
+    p.add_argument("--tolerance", type=float, default=None,
+                   help="allowed fractional change (default: the baseline's; 0.01 for "
+                        "instructions)")
+    p.add_argument("--update", action="store_true", help="write a new baseline instead")
+    p.set_defaults(func=regress)

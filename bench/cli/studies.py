@@ -1,0 +1,137 @@
+"""The studies' commands: ``bench-traverse``, ``bench-intersect``, ``reproduce``, ``scale``,
+``terrain-bench``, ``accuracy`` and ``stress``. Each calls its module in
+``bench.studies`` and writes under ``results/<command>/`` unless ``--out`` says otherwise.
+"""
+from __future__ import annotations
+
+import algos
+
+from .args import add_bench_arguments, add_out, names, positive_int
+
+
+def bench_traverse(args):
+    """``hftrace bench-traverse``: bench.studies.traverse.run."""
+    from ..studies import traverse
+
+    traverse.run(out_dir=args.out, n=args.rays, side=args.grid, repeats=args.repeats,
+                 seed=args.seed, run_lengths=args.run_lengths,
+                 names=names(args.algorithms, algos.get_traversal))
+    return 0
+
+
+def bench_intersect(args):
+    """``hftrace bench-intersect``: bench.studies.intersect.run."""
+    from ..studies import intersect
+
+    chosen = names(args.algorithms, algos.get_intersector)
+    datasets = []
+    for item in args.datasets.split(","):
+        name, _, side = item.strip().partition(":")
+        datasets.append((name, int(side or 1024)))
+    surfaces = tuple(s.strip() for s in args.surfaces.split(","))
+    for surface in surfaces:
+        if surface not in algos.SURFACES:
+            raise ValueError(f"--surfaces: unknown surface {surface!r}; valid: {', '.join(algos.SURFACES)}")
+    intersect.run(out_dir=args.out, n=args.rays, repeats=args.repeats, seed=args.seed,
+                  datasets=datasets, run_lengths=args.run_lengths, surfaces=surfaces,
+                  names=chosen)
+    return 0
+
+
+def reproduce(args):
+    """``hftrace reproduce``: bench.studies.reproduce.run."""
+    from ..studies import reproduce as study
+
+    study.run(full=args.full, out_dir=args.out, resume=args.resume,
+              progress=not args.no_progress, counts=not args.no_counts, publish=args.publish)
+    return 0
+
+
+def scale(args):
+    """``hftrace scale``: bench.studies.scaling.run."""
+    from ..studies import scaling
+
+    scaling.run(out_dir=args.out, parts=tuple(args.part or ("threads", "split", "growth", "big")),
+                resume=args.resume, quick=args.quick)
+    return 0
+
+
+def terrain_bench(args):
+    """``hftrace terrain-bench``: bench.studies.terrain_targets.run_targets, pinned."""
+    from ..studies import terrain_targets
+    from ..timing import pin_to_one_cpu
+
+    pin_to_one_cpu()
+    terrain_targets.run_targets(out_dir=args.out, size=args.size, repeats=args.repeats)
+    return 0
+
+
+def accuracy(args):
+    """``hftrace accuracy``: bench.studies.accuracy.run."""
+    from ..studies import accuracy as study
+
+    study.run(out_dir=args.out, full=args.full)
+    return 0
+
+
+def stress(args):
+    """``hftrace stress``: bench.studies.stress.run."""
+    from ..studies import stress as study
+
+    study.run(out_dir=args.out, full=args.full)
+    return 0
+
+
+def register(sub):
+    """Add the studies' commands to the sub-parsers ``sub``."""
+    p = sub.add_parser("bench-traverse",
+                       help="time the visit and runs workloads of every kernel relative to dda")
+    add_bench_arguments(p, "bench-traverse")
+    p.set_defaults(func=bench_traverse)
+
+    p = sub.add_parser("bench-intersect",
+                       help="time first hits of every intersector relative to dda, and Embree")
+    add_bench_arguments(p, "bench-intersect")
+    p.set_defaults(rays=1000, repeats=7, seed=2008)
+    p.add_argument("--datasets", default="fbm:1024,fbm:2048,uniform:1024",
+                   help="comma-separated NAME:SIDE fields")
+    p.add_argument("--surfaces", default="triangles", help="comma-separated surfaces")
+    p.set_defaults(func=bench_intersect)
+
+    p = sub.add_parser("reproduce", help="the speedup-by-run-length study (quick preset; --full)")
+    p.add_argument("--full", action="store_true", help="the paper-scale sweep")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--out", default=None, help="output directory (default "
+                       "results/reproduce, or results/reproduce-full with --full)")
+    where.add_argument("--publish", action="store_true",
+                       help="write the committed reference instead: reports/reproduce "
+                            "(reports/reproduce-full with --full) of the repository")
+    p.add_argument("--resume", action="store_true", help="keep the rows already measured")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-counts", action="store_true",
+                   help="skip the instruction counts (callgrind, about 4 minutes)")
+    p.set_defaults(func=reproduce)
+
+    p = sub.add_parser("scale", help="threads, growth with the grid side, and a 16384^2 field")
+    p.add_argument("--part", action="append", choices=("threads", "split", "growth", "big"),
+                   default=None, help="repeatable; default all four")
+    add_out(p, "scale")
+    p.add_argument("--resume", action="store_true", help="skip what the CSVs already hold")
+    p.add_argument("--quick", action="store_true", help="small sizes (a check that it runs)")
+    p.set_defaults(func=scale)
+
+    p = sub.add_parser("terrain-bench", help="the terrain products' targets against the peers")
+    p.add_argument("--size", type=positive_int, default=2048)
+    p.add_argument("--repeats", type=positive_int, default=3)
+    add_out(p, "terrain-bench")
+    p.set_defaults(func=terrain_bench)
+
+    p = sub.add_parser("accuracy", help="run time against error for every algorithm")
+    p.add_argument("--full", action="store_true")
+    add_out(p, "accuracy")
+    p.set_defaults(func=accuracy)
+
+    p = sub.add_parser("stress", help="adversarial and very long rays: the drift table")
+    p.add_argument("--full", action="store_true")
+    add_out(p, "stress")
+    p.set_defaults(func=stress)
