@@ -2,7 +2,7 @@
 import numpy as np
 
 import algos
-from bench import accuracy, stress
+from bench.studies import accuracy, stress
 
 
 def test_lattice_rays_are_on_the_lattice():

@@ -11,7 +11,8 @@ import time
 import numpy as np
 import pytest
 
-from bench import analysis, regress, sweep
+from bench import analysis, sweep
+from bench.regress import time_gate as regress
 from bench.cli import main
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -183,7 +184,7 @@ def test_regress_exit_codes(tmp_path, monkeypatch, capsys):
 
 
 def test_committed_baseline_matches_the_checks():
-    data = regress.load_baseline(os.path.join(ROOT, "reports", "baseline.json"))
+    data = regress.load_baseline(regress.BASELINE)
     expected = {regress.key(w, s, r, n) for w, s, r, names, _ in regress.CHECKS for n in names}
     assert set(data["samples"]) == expected
     assert all(len(v) >= 30 for v in data["samples"].values())
@@ -193,11 +194,11 @@ def test_committed_baseline_matches_the_checks():
 def test_render_writes_exr_png_and_diff(tmp_path):
     import OpenEXR
 
-    from bench import render
+    from bench.cli import render
 
     prefix = str(tmp_path / "img")
-    paths = render.render("fbm", size=48, seed=2, algorithm="runs", width=24, height=16,
-                          fog=0.05, out=prefix, diff=("runs", "dda"), echo=lambda *_: None)
+    paths = render.render_files("fbm", size=48, seed=2, algorithm="runs", width=24, height=16,
+                                fog=0.05, out=prefix, diff=("runs", "dda"), echo=lambda *_: None)
     with OpenEXR.File(paths["exr"]) as f:
         channels = f.channels()
         assert set(channels) == {"Z", "N.x", "N.y", "N.z", "cellsVisited", "runsVisited"}

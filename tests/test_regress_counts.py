@@ -5,7 +5,7 @@ import shutil
 
 import pytest
 
-from bench import regress_counts as rc
+from bench.regress import instructions_gate as rc
 
 needs_valgrind = pytest.mark.skipif(
     shutil.which("valgrind") is None or "libasan" in os.environ.get("LD_PRELOAD", ""),
@@ -64,7 +64,7 @@ def test_clear_message_without_valgrind(monkeypatch, tmp_path):
 
 
 def test_committed_baseline_covers_every_case():
-    path = os.path.join(os.path.dirname(__file__), "..", "reports", "instructions_baseline.json")
+    path = rc.BASELINE
     with open(path) as f:
         base = json.load(f)
     assert base["metric"] == "instructions" and base["tolerance"] == rc.DEFAULT_TOLERANCE

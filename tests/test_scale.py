@@ -98,13 +98,13 @@ def test_embree_peer_on_threads_matches_one_thread(field):
 
 
 def test_render_is_the_same_image_on_every_thread_count(tmp_path):
-    from bench import render
+    from bench.cli import render
 
     paths = {}
     for threads in (1, 2):
         out = tmp_path / f"r{threads}"
-        render.render("fbm", size=96, width=48, height=32, out=str(out), threads=threads,
-                      echo=lambda *_: None)
+        render.render_files("fbm", size=96, width=48, height=32, out=str(out),
+                            threads=threads, echo=lambda *_: None)
         paths[threads] = out
     import OpenEXR
 

@@ -292,14 +292,14 @@ def test_cli_products_write_files(tmp_path):
 
 
 def test_parallel_section_writes_and_resumes(tmp_path):
-    from bench import terrain_bench
+    from bench.studies import parallel_rays
 
     out = str(tmp_path / "rep")
-    rows = terrain_bench.run_parallel(out_dir=out, size=40, run_lengths=(1, 5), repeats=1,
+    rows = parallel_rays.run_parallel(out_dir=out, size=40, run_lengths=(1, 5), repeats=1,
                                       sample=400, rays=40, echo=lambda *a: None, figure=True)
     algorithms = {r["algorithm"] for r in rows}
-    assert set(terrain_bench.HORIZON_METHODS) <= algorithms
-    assert set(terrain_bench.HIT_METHODS) <= algorithms
+    assert set(parallel_rays.HORIZON_METHODS) <= algorithms
+    assert set(parallel_rays.HIT_METHODS) <= algorithms
     exact = [r for r in rows if r["workload"] == "horizon" and
              T.HORIZON_ALGORITHMS[r["algorithm"]].exact]
     assert all(float(r["max_err_deg"]) < 1e-9 for r in exact)
@@ -307,14 +307,14 @@ def test_parallel_section_writes_and_resumes(tmp_path):
     assert "What the periodic patterns buy" in text and "`runs_periodic`" in text
     assert (tmp_path / "rep" / "products.png").stat().st_size > 0
     # a resumed run measures nothing again
-    again = terrain_bench.run_parallel(out_dir=out, size=40, run_lengths=(1, 5), repeats=1,
+    again = parallel_rays.run_parallel(out_dir=out, size=40, run_lengths=(1, 5), repeats=1,
                                        sample=400, rays=40, resume=True, echo=lambda *a: None,
                                        figure=False)
     assert len(again) == len(rows)
 
 
 def test_sample_ranges_spread_and_disjoint():
-    from bench.terrain_bench import sample_ranges
+    from bench.studies.terrain import sample_ranges
 
     ranges = sample_ranges(100, 50, 640)
     assert sum(b - a for a, b in ranges) == 640
