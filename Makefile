@@ -2,11 +2,14 @@
 #   make test       install into .venv and run the test suite
 #   make reproduce  install into .venv and run the main study (`hftrace reproduce`)
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
-#   make bench-ci   the pytest-benchmark suite (pytest bench --benchmark-only)
-#   make terrain-bench  the terrain products' targets against the peers (reports/terrain)
-#   make regress    re-measure the speedup ratios against reports/baseline.json
-#   make regress-counts  instruction counts (callgrind) against reports/instructions_baseline.json
+#   make bench-ci   the pytest-benchmark suite (pytest bench/benchmarks --benchmark-only)
+#   make terrain-bench  the terrain products' targets against the peers (results/terrain-bench)
+#   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
+#   make regress-counts  instruction counts (callgrind) against bench/regress/instructions_baseline.json
 #   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
+#   make reports    regenerate the committed reference reports in reports/ (hours; the only
+#                   step besides `hftrace reproduce --publish` that writes there)
+# Every other target writes under results/ (untracked), never into the source tree.
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -19,7 +22,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all install test reproduce terrain-bench bench-traverse bench-intersect bench-ci regress regress-counts sanitize fuzz clean
+.PHONY: all install test lint reproduce reports terrain-bench bench-traverse bench-intersect bench-ci regress regress-counts sanitize fuzz clean
 
 all: test
 
@@ -36,6 +39,10 @@ install: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
+# ruff's rules as configured in pyproject.toml (the C side has its own .clang-format)
+lint: $(STAMP)
+	$(BIN)/python -m ruff check .
+
 # the peers' optional extra (xarray-spatial) joins the figure and the viewshed comparison;
 # a machine where it cannot be installed still reproduces everything else
 PEERS_STAMP := $(VENV)/.hftrace-peers
@@ -47,6 +54,20 @@ $(PEERS_STAMP): $(STAMP)
 reproduce: $(PEERS_STAMP)
 	$(BIN)/hftrace reproduce
 
+# The committed reference reports, each regenerated into its folder of reports/ (tens of
+# minutes each; on a quiet machine only: the numbers are published). The 16384^2 images
+# of `scale --part big` are not committed: big.md says how to make them.
+reports: $(PEERS_STAMP)
+	$(BIN)/hftrace reproduce --publish
+	$(BIN)/hftrace bench-traverse --out reports/bench_traverse
+	$(BIN)/hftrace bench-intersect --out reports/bench_intersect
+	$(BIN)/hftrace terrain-bench --out reports/terrain
+	$(BIN)/hftrace accuracy --out reports/accuracy
+	$(BIN)/hftrace stress --out reports/stress
+	$(BIN)/hftrace scale --out reports/scaling
+	$(BIN)/python -m bench.studies.maxmip_floor --out reports/tuning
+	rm -f reports/scaling/*16384.png reports/scaling/*16384.exr
+
 terrain-bench: $(PEERS_STAMP)
 	$(BIN)/hftrace terrain-bench
 
@@ -57,10 +78,10 @@ bench-intersect: $(STAMP)
 	$(BIN)/hftrace bench-intersect
 
 bench-ci: $(STAMP)
-	$(BIN)/python -m pytest bench --benchmark-only -q
+	$(BIN)/python -m pytest bench/benchmarks --benchmark-only -q
 
 regress: $(STAMP)
-	$(BIN)/hftrace regress --baseline reports/baseline.json
+	$(BIN)/hftrace regress
 
 regress-counts: $(STAMP)
 	$(BIN)/hftrace regress --metric instructions
@@ -82,12 +103,12 @@ sanitize:
 clean:
 	rm -rf $(VENV) build *.egg-info algos/*.so
 
-# Fuzzing (bench/fuzz.py, atheris) in its own sanitized copy of the tree, like `sanitize`.
+# Fuzzing (tests/fuzz/harness.py, atheris) in its own sanitized copy of the tree, like `sanitize`.
 # It mutates a working copy of the committed corpus; a finding is written to
 # tests/data/fuzz_corpus/crashes/ (commit it: tests/test_fuzz.py replays it). Under the
 # preloaded ASan runtime atheris gets no coverage feedback (libasan supplies the coverage
 # callbacks), so the corpus is grown by a coverage-guided run without sanitizers:
-#   .venv/bin/python -m bench.fuzz --seconds 600 build/new-corpus tests/data/fuzz_corpus
+#   .venv/bin/python -m tests.fuzz.harness --seconds 600 build/new-corpus tests/data/fuzz_corpus
 FUZZ_TREE := build/fuzz
 FUZZ_SECONDS ?= 60
 FUZZ_RUNS ?= -1
@@ -99,5 +120,5 @@ fuzz:
 	mkdir -p $(FUZZ_TREE)/work-corpus && find tests/data/fuzz_corpus -maxdepth 1 -type f -exec cp {} $(FUZZ_TREE)/work-corpus/ \;
 	cd $(FUZZ_TREE) && LD_PRELOAD="$(ASAN_LIB) $(STDCXX_LIB)" ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
 		UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 PYTHONWARNINGS=ignore \
-		.venv/bin/python -m bench.fuzz --seconds $(FUZZ_SECONDS) --runs $(FUZZ_RUNS) \
+		.venv/bin/python -m tests.fuzz.harness --seconds $(FUZZ_SECONDS) --runs $(FUZZ_RUNS) \
 		--crashes $(CURDIR)/tests/data/fuzz_corpus/crashes work-corpus

@@ -229,8 +229,8 @@ def test_cli_smoke(tmp_path, capsys):
 
 
 def test_benchmark_suite_runs():
-    """`pytest bench --benchmark-only` works: here every benchmark runs once."""
-    done = subprocess.run([sys.executable, "-m", "pytest", "bench", "-q", "--benchmark-disable",
+    """`pytest bench/benchmarks --benchmark-only` works: here every benchmark runs once."""
+    done = subprocess.run([sys.executable, "-m", "pytest", "bench/benchmarks", "-q", "--benchmark-disable",
                            "-p", "no:cacheprovider"], cwd=ROOT, capture_output=True, text=True,
                           timeout=600)
     assert done.returncode == 0, done.stdout[-2000:]
