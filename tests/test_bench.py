@@ -255,3 +255,51 @@ def test_flush_caches_evicts(monkeypatch):
     assert (2 << 20) in timing._EVICT
     assert timing.last_level_cache_bytes() >= 1 << 20
     timing._EVICT.clear()
+
+
+# ---- results out of the source tree -------------------------------------------------------
+def _tree_state(folder):
+    """(path, size, mtime) of every file below ``folder``."""
+    return sorted((os.path.join(root, n), os.path.getsize(os.path.join(root, n)),
+                   os.path.getmtime(os.path.join(root, n)))
+                  for root, _, names in os.walk(folder) for n in names)
+
+
+def test_default_runs_write_under_results_and_never_under_reports(tmp_path, monkeypatch):
+    reports = os.path.join(ROOT, "reports")
+    before = _tree_state(reports)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
+    assert main(["bench-traverse", "--rays", "16", "--repeats", "3", "--grid", "32",
+                 "--run-lengths", "2", "--algorithms", "dda,runs"]) == 0
+    assert main(["render", "flat", "--size", "8", "--width", "4", "--height", "3"]) == 0
+    assert main(["shadows", "fbm", "--size", "16", "--no-progress"]) == 0
+    written = sorted(os.path.relpath(os.path.join(root, n), tmp_path)
+                     for root, _, names in os.walk(tmp_path) for n in names)
+    assert "results/bench-traverse/tables.md" in written, written
+    assert "results/render/render.exr" in written and "results/shadows/shadows.tif" in written
+    assert all(p.startswith("results" + os.sep) for p in written), written
+    assert _tree_state(reports) == before
+
+
+def test_every_output_option_defaults_under_results():
+    """No command's --out points into the source tree (reports/ changes only through
+    `hftrace reproduce --publish` and `make reports`)."""
+    import argparse
+
+    from bench.cli import build_parser
+
+    def commands(parser, prefix=()):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, sub in action.choices.items():
+                    yield from commands(sub, prefix + (name,))
+        yield prefix, parser
+
+    checked = 0
+    for name, parser in commands(build_parser()):
+        for action in parser._actions:
+            if "--out" in action.option_strings and action.default is not None:
+                assert action.default.startswith("results" + os.sep), (name, action.default)
+                checked += 1
+    assert checked >= 10

@@ -166,9 +166,11 @@ def _big_md(results, out_dir, side):
                   "hold. Dask's nanny restarts a worker that passes 95 % of its limit, and a "
                   "task that kills three workers fails the run; a first attempt with 2048 "
                   "tiles and 400 MiB per worker failed that way. The peak RSS above is the "
-                  f"driver's (it maps the output GeoTIFF). Preview: ![dask](dask{side}.png)"]
-    lines += ["", "Structures per item are in big.json (build seconds and bytes of each).",
-              f"![render](render{side}.png)"]
+                  f"driver's (it maps the output GeoTIFF). Its preview is `dask{side}.png`."]
+    lines += ["", "Structures per item are in big.json (build seconds and bytes of each).", "",
+              f"The images `render{side}.png`, `render{side}.exr` and `dask{side}.png` are "
+              "written next to this file by `hftrace scale --part big` and are not committed "
+              "(one-off, several MB each): run it to see them."]
     with open(os.path.join(out_dir, "big.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
 
