@@ -61,6 +61,8 @@ reports: $(PEERS_STAMP)
 	$(BIN)/hftrace reproduce --publish
 	$(BIN)/hftrace bench-traverse --out reports/bench_traverse
 	$(BIN)/hftrace bench-intersect --out reports/bench_intersect
+	$(BIN)/python -m bench.cost_report reports/bench_traverse
+	$(BIN)/python -m bench.cost_report reports/bench_intersect
 	$(BIN)/hftrace terrain-bench --out reports/terrain
 	$(BIN)/hftrace accuracy --out reports/accuracy
 	$(BIN)/hftrace stress --out reports/stress

@@ -6,12 +6,11 @@
 
 See docs/CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the API.
 """
-from .lattice import quantize
-from .reference import major_axis, reference_cells, reference_runs, runs_from_cells
 from .brute import brute_force_hits
 from .field import Field
 from .intersect import HIT_OUTPUTS, STATS, Hits, intersect
-from .render import Rendering, render
+from .lattice import quantize
+from .reference import major_axis, reference_cells, reference_runs, runs_from_cells
 from .registry import (
     INTERSECTOR_REGISTRY,
     INTERSECTORS,
@@ -23,6 +22,7 @@ from .registry import (
     get_intersector,
     get_traversal,
 )
+from .render import Rendering, render
 from .terrain import (
     HORIZON_ALGORITHMS,
     VIEWSHED_ALGORITHMS,

@@ -17,7 +17,6 @@ import subprocess
 import sys
 import tempfile
 
-
 __all__ = ["profile", "format_profile", "prepared_batch", "ENTRY", "callgrind_available"]
 
 #: The C entry each workload's batch runs in; only it is counted.

@@ -323,7 +323,8 @@ def adversarial(shape, seed, n=64):
     add("axis_parallel", np.where(np.arange(n)[:, None] % 2 == 0, centres, lines), axis)
     diag = np.array([[1, 1], [-1, 1], [1, -1], [-1, -1]], float)[np.arange(n) % 4]
     add("diagonals", lines, diag)
-    add("through_vertices", lines, rng.integers(-5, 6, (n, 2)).astype(float) + (np.arange(n) % 2 == 0)[:, None] * [[1, 0]])
+    add("through_vertices", lines,
+        rng.integers(-5, 6, (n, 2)).astype(float) + (np.arange(n) % 2 == 0)[:, None] * [[1, 0]])
     on_line = rng.uniform(0, (nx, ny), (n, 2))
     on_line[np.arange(n) % 2 == 0, 0] = np.floor(on_line[np.arange(n) % 2 == 0, 0])
     on_line[np.arange(n) % 2 == 1, 1] = np.floor(on_line[np.arange(n) % 2 == 1, 1])

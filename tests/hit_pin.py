@@ -15,8 +15,8 @@ import os
 import numpy as np
 
 import algos
-from datasets_gen import fields
 from bench.sweep import first_hit_rays
+from datasets_gen import fields
 
 PIN = os.path.join(os.path.dirname(__file__), "data", "hit_pin.npz")
 #: Every C intersector; the peer (Embree) is not ours to pin.

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from bench import analysis, sweep
-from bench.regress import time_gate as regress
 from bench.cli import main
+from bench.regress import time_gate as regress
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

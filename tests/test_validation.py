@@ -7,15 +7,15 @@ import pytest
 import algos
 
 ALL = list(algos.TRAVERSALS)
-O = np.array([[0.5, 0.5], [1.5, 0.25], [2.0, 3.0]])
-D = np.array([[1.0, 0.3], [-0.2, 1.0], [1.0, -1.0]])
+ORIGINS = np.array([[0.5, 0.5], [1.5, 0.25], [2.0, 3.0]])
+DIRECTIONS = np.array([[1.0, 0.3], [-0.2, 1.0], [1.0, -1.0]])
 
 
 @pytest.mark.parametrize("name", ALL)
 @pytest.mark.parametrize("argument,bad", [("origins", np.nan), ("origins", np.inf),
                                           ("directions", -np.inf), ("directions", np.nan)])
 def test_non_finite_rays(name, argument, bad):
-    o, d = O.copy(), D.copy()
+    o, d = ORIGINS.copy(), DIRECTIONS.copy()
     (o if argument == "origins" else d)[2, 1] = bad
     with pytest.raises(ValueError, match=rf"{argument}: ray 2 .*\[2, 1\]"):
         algos.traverse(name, o, d, (4, 4))
@@ -24,14 +24,15 @@ def test_non_finite_rays(name, argument, bad):
 @pytest.mark.parametrize("name", ALL)
 def test_nan_in_t_range(name):
     with pytest.raises(ValueError, match=r"tmin: ray 1 "):
-        algos.traverse(name, O, D, (4, 4), tmin=[0.0, np.nan, 0.0])
+        algos.traverse(name, ORIGINS, DIRECTIONS, (4, 4), tmin=[0.0, np.nan, 0.0])
     with pytest.raises(ValueError, match=r"tmax: ray 0 "):
-        algos.traverse(name, O, D, (4, 4), tmax=[np.nan, 1.0, 1.0])
+        algos.traverse(name, ORIGINS, DIRECTIONS, (4, 4), tmax=[np.nan, 1.0, 1.0])
     with pytest.raises(ValueError, match=r"tmax: expected a scalar or shape \(3,\)"):
-        algos.traverse(name, O, D, (4, 4), tmax=[1.0, 2.0])
+        algos.traverse(name, ORIGINS, DIRECTIONS, (4, 4), tmax=[1.0, 2.0])
 
 
-@pytest.mark.parametrize("shape", [(O[:, :1], D), (O, D[:2]), (O.ravel(), D), (O, D[:, None])])
+@pytest.mark.parametrize("shape", [(ORIGINS[:, :1], DIRECTIONS), (ORIGINS, DIRECTIONS[:2]),
+                                   (ORIGINS.ravel(), DIRECTIONS), (ORIGINS, DIRECTIONS[:, None])])
 def test_wrong_ray_shapes(shape):
     o, d = shape
     with pytest.raises(ValueError, match=r"origins|directions"):
@@ -43,7 +44,7 @@ def test_wrong_ray_shapes(shape):
                                         ((2**24 + 1, 4), ValueError), ("44", TypeError)])
 def test_bad_grids(grid, error):
     with pytest.raises(error, match="shape"):
-        algos.traverse("runs", O, D, grid)
+        algos.traverse("runs", ORIGINS, DIRECTIONS, grid)
 
 
 def test_limits():
@@ -58,15 +59,15 @@ def test_limits():
 
 def test_bad_types_and_names():
     with pytest.raises(TypeError, match="origins"):
-        algos.traverse("runs", [["a", "b"]], D[:1], (4, 4))
+        algos.traverse("runs", [["a", "b"]], DIRECTIONS[:1], (4, 4))
     with pytest.raises(TypeError, match="directions"):
-        algos.traverse("runs", O, D.astype(complex), (4, 4))
+        algos.traverse("runs", ORIGINS, DIRECTIONS.astype(complex), (4, 4))
     with pytest.raises(ValueError, match="unknown traversal 'nope'; valid names are dda"):
-        algos.traverse("nope", O, D, (4, 4))
+        algos.traverse("nope", ORIGINS, DIRECTIONS, (4, 4))
     with pytest.raises(ValueError, match="output"):
-        algos.traverse("runs", O, D, (4, 4), output="everything")
+        algos.traverse("runs", ORIGINS, DIRECTIONS, (4, 4), output="everything")
     with pytest.raises(ValueError, match="workload"):
-        algos.walk_timed("runs", O, D, (4, 4), workload="sleep")
+        algos.walk_timed("runs", ORIGINS, DIRECTIONS, (4, 4), workload="sleep")
 
 
 def test_reference_rejects_bad_input():

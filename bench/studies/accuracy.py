@@ -27,7 +27,6 @@ import numpy as np
 
 import algos
 import datasets_gen
-
 from datasets_gen import rays as raysets
 
 from ..report import RowWriter

@@ -18,9 +18,17 @@ import algos.terrain as T
 import datasets_gen
 
 from ..report import RowWriter
-from .terrain import (HIT_METHODS, HORIZON_METHODS, PARALLEL_COLUMNS, RUN_LENGTHS,
-                      azimuth_for_run_length, hit_group, horizon_group, observer_up,
-                      xrspatial_viewshed)
+from .terrain import (
+    HIT_METHODS,
+    HORIZON_METHODS,
+    PARALLEL_COLUMNS,
+    RUN_LENGTHS,
+    azimuth_for_run_length,
+    hit_group,
+    horizon_group,
+    observer_up,
+    xrspatial_viewshed,
+)
 
 __all__ = ["run_parallel", "products_figure"]
 

@@ -110,7 +110,8 @@ def first_hit_rows(seed):
     o = np.column_stack([rng.uniform(0, cols_ - 1, n), rng.uniform(0, rows_ - 1, n), np.full(n, hmax + 1)])
     fam["to_the_max_plane"] = (o, np.column_stack([rng.normal(size=(n, 2)), np.full(n, -0.05)]))
     # starting below the surface
-    o = np.column_stack([rng.uniform(0, cols_ - 1, n), rng.uniform(0, rows_ - 1, n), rng.uniform(-2, float(H.min()), n)])
+    o = np.column_stack([rng.uniform(0, cols_ - 1, n), rng.uniform(0, rows_ - 1, n),
+                         rng.uniform(-2, float(H.min()), n)])
     fam["start_below"] = (o, rng.normal(size=(n, 3)))
     # entering through the sides below the rim
     o = np.column_stack([np.full(n, -5.0), rng.uniform(0, rows_ - 1, n), rng.uniform(float(H.min()), hmax, n)])

@@ -16,9 +16,18 @@ import algos.terrain as T
 import datasets_gen
 
 from ..timing import environment, write_json
-from .terrain import (HORIZON_METHODS, PARALLEL_COLUMNS, RUN_LENGTHS, azimuth_for_run_length,
-                      gdal_viewshed, hit_group, horizon_group, los_margins, observer_up,
-                      xrspatial_viewshed)
+from .terrain import (
+    HORIZON_METHODS,
+    PARALLEL_COLUMNS,
+    RUN_LENGTHS,
+    azimuth_for_run_length,
+    gdal_viewshed,
+    hit_group,
+    horizon_group,
+    los_margins,
+    observer_up,
+    xrspatial_viewshed,
+)
 
 __all__ = ["run_targets"]
 

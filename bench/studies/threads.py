@@ -22,7 +22,7 @@ from datasets_gen import rays as raysets
 from ..report import RowWriter
 from ..sweep import first_hit_rays, read_rows, traversal_rays
 from ..timing import environment, interleaved, ratio_ci
-from .scaling import GROWTH_R, fbm_field
+from .scaling import EMBREE_MAX_SIDE, GROWTH_R, fbm_field
 
 __all__ = ["run_threads", "run_split"]
 
