@@ -19,6 +19,8 @@ PRIMARY = ("first_hit", "triangles")
 
 
 def load(path) -> pd.DataFrame:
+    """A results.csv as a DataFrame: run lengths kept as text ("random" among numbers),
+    the 2D workloads' empty surface as "-"."""
     df = pd.read_csv(path, dtype={"run_length": str, "surface": str})
     df["surface"] = df["surface"].fillna("-")
     return df
@@ -144,6 +146,9 @@ def fair_baseline(df, workload="first_hit", surface="triangles") -> pd.DataFrame
 
 
 def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> str:
+    """The Markdown report of a sweep's rows ``df``: the machine (``env``), the paper's
+    measure, one speedup table per workload and surface (geometric mean over datasets)
+    and, with ``counts`` (kernel -> counts.csv row), the cost model."""
     lines = [f"# {title}: speedup over `dda`", ""]
     if env:
         lines += [f"Machine: {env.get('cpu')} ({env.get('cores')} cores, one used), Python "
@@ -207,6 +212,8 @@ def _style(name):
 
 
 def plot_speedup(df, path, workload="first_hit", surface="triangles"):
+    """Speedup over dda against mean run length for one workload and surface, one line per
+    algorithm (geometric mean over datasets), saved as a PNG at ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -59,6 +59,8 @@ def count(report_dir, pairs, resume=False, rays=300, echo=print) -> dict:
 
 
 def section(df, counts) -> str:
+    """The cost-model section (Markdown): per (workload, algorithm) the median ns per
+    ray, cell and run of ``df`` next to ``counts``' instructions and branches per cell."""
     lines = [HEADING, "",
              "Medians over this report's groups (ns) and callgrind counts per cell (fbm "
              "1024^2, r = 25, 300 rays; first hits on triangles; each ray's setup included; "
@@ -77,6 +79,9 @@ def section(df, counts) -> str:
 
 
 def write(report_dir, markdown="tables.md", resume=False, echo=print):
+    """Count every (workload, kernel) of ``report_dir``/results.csv and put the cost
+    section at the end of ``report_dir``/``markdown``, replacing an earlier one; returns
+    the Markdown path."""
     df = pd.read_csv(os.path.join(report_dir, "results.csv"))
     if "workload" not in df:
         df["workload"] = "first_hit"
@@ -94,6 +99,7 @@ def write(report_dir, markdown="tables.md", resume=False, echo=print):
 
 
 def main(argv=None):
+    """``python -m bench.cost_report REPORT_DIR``: :func:`write`; exit status 0."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("report_dir")
     parser.add_argument("--markdown", default="tables.md")

@@ -20,11 +20,13 @@ class RowWriter:
             self._file.flush()
 
     def write(self, row: dict) -> None:
+        """Append ``row`` (extra keys ignored) and flush it to disk."""
         self._writer.writerow(row)
         self._file.flush()
         os.fsync(self._file.fileno())
 
     def close(self) -> None:
+        """Close the file; every written row is already on disk."""
         self._file.close()
 
     def __enter__(self):

@@ -63,6 +63,10 @@ class ConfigError(ValueError):
 
 @dataclass
 class SweepConfig:
+    """A sweep: the grid of groups (datasets x workloads x surfaces x run lengths) and how
+    each is measured (rays, interleaved repeats, seed, algorithms). Build it with
+    :func:`load_config`, which checks every key (module docstring)."""
+
     name: str = "sweep"
     rays: int = 2000
     repeats: int = 7
@@ -152,6 +156,8 @@ def load_config(source) -> SweepConfig:
 
 # ---- the groups ----------------------------------------------------------------------
 def dataset_label(ds) -> str:
+    """The dataset column of a config entry: name, size and sorted parameters, e.g.
+    ``fbm1024-octaves6``."""
     size = ds.get("size")
     extra = "".join(f"-{k}{v}" for k, v in sorted(ds.get("params", {}).items()))
     return f"{ds['name']}{size if size else ''}{extra}"
@@ -268,6 +274,7 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
 
 
 def read_rows(path) -> list[dict]:
+    """The rows of a CSV as dicts of strings; [] when ``path`` does not exist."""
     if not os.path.exists(path):
         return []
     with open(path, newline="") as f:

@@ -303,3 +303,24 @@ def test_every_output_option_defaults_under_results():
                 assert action.default.startswith("results" + os.sep), (name, action.default)
                 checked += 1
     assert checked >= 10
+
+
+def test_every_public_function_in_bench_has_a_docstring():
+    """A public function or class (no leading underscore) of bench/ states its contract."""
+    import ast
+    import pathlib
+
+    missing = []
+    for path in sorted(pathlib.Path(ROOT, "bench").rglob("*.py")):
+        if path.name.startswith("test_"):
+            continue
+        tree = ast.parse(path.read_text())
+        todo = [(node, "") for node in tree.body]
+        while todo:
+            node, owner = todo.pop()
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)) and not node.name.startswith("_"):
+                if ast.get_docstring(node) is None:
+                    missing.append(f"{path.relative_to(ROOT)}:{node.lineno} {owner}{node.name}")
+                if isinstance(node, ast.ClassDef):
+                    todo += [(child, node.name + ".") for child in node.body]
+    assert not missing, missing

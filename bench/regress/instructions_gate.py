@@ -214,6 +214,10 @@ def compare(baseline: dict, measured: dict, tolerance: float) -> list[dict]:
 
 
 def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
+    """Count every case and compare with the baseline at ``baseline_path`` (or, with
+    ``update``, write it). Exit status: 0 when every case is within ``tolerance`` (default
+    the baseline's, else 1 %), 1 when any grew or is missing, 2 when the baseline is
+    missing or not an instruction-count baseline or valgrind is absent."""
     from ..timing import environment, write_json
 
     try:
@@ -228,7 +232,7 @@ def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
                                                  first_hit_rays=FIRST_HIT_RAYS,
                                                  traversal_rays=TRAVERSAL_RAYS),
                                    "env": environment(),
-                                   "note": "callgrind counts per ray; see bench/regress_counts.py"})
+                                   "note": "callgrind counts per ray; see bench/regress/instructions_gate.py"})
         echo(f"wrote {len(measured)} cases to {baseline_path}")
         return 0
     if not os.path.isfile(baseline_path):

@@ -51,6 +51,11 @@ def _first_divergence(a, b):
 
 
 def traversal_rows(side, n_rays, lengths, seed, q_values):
+    """Traversal accuracy on ``n_rays`` lattice rays of a side x side grid: per kernel (and
+    ``runs_periodic`` per ``max_denominator`` in ``q_values``) and per prefix length in
+    ``lengths``, the fraction of rays whose first cells diverge from the exact ``midpoint``
+    walk, the median index of the first divergence, cells missed and extra per ray, and
+    ns per ray. AssertionError when the two exact kernels disagree."""
     o, d = lattice_rays(n_rays, side, seed)
     shape = (side, side)
     exact = algos.traverse("midpoint", o, d, shape)
@@ -146,6 +151,10 @@ def exact_triangle_hits(H, origins, directions):
 
 
 def first_hit_rows(side, n_rays, seed, n_exact, march_steps):
+    """First-hit accuracy on an fBm field of ``side``: per intersector (and the marchers per
+    step count in ``march_steps``) and surface, ns per ray and hit/miss and t disagreement
+    against the exact ``runs`` kernel, plus on triangles the disagreement with the
+    rational-arithmetic hits of the first ``n_exact`` rays."""
     H = datasets_gen.load("fbm", size=side, seed=seed, scale=side / 8, amplitude=side / 16).heights
     field = algos.Field(H)
     rng = np.random.Generator(np.random.PCG64(seed))
@@ -200,6 +209,9 @@ def pareto(points):
 
 
 def plot_time_vs_error(first_hit, path):
+    """The time-against-error figure of the ``first_hit`` rows (triangles): ns per ray
+    against the error (99th percentile |dt| plus the hit/miss disagreement, floored at
+    1e-17 for the log axis), the Pareto front marked; PNG at ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -243,6 +255,8 @@ def _md_table(rows, columns):
 
 
 def run(out_dir="results/accuracy", full=False, echo=print):
+    """Both tables and the figure (``full``: larger grids, more rays) into ``out_dir``:
+    traversal.csv, first_hit.csv, time_vs_error.png, accuracy.md and env.json."""
     os.makedirs(out_dir, exist_ok=True)
     env = environment()
     write_json(os.path.join(out_dir, "env.json"), env)

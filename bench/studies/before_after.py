@@ -4,7 +4,7 @@ imported from. Run it once per tree (e.g. a git worktree of the old commit) and 
 CSVs; times come from separate processes (medians of interleaved repeats within each),
 instruction counts are exact.
 
-    python -m bench.before_after OUT.csv [--label after] [--counts]
+    python -m bench.studies.before_after OUT.csv [--label after] [--counts]
 """
 from __future__ import annotations
 
@@ -24,6 +24,8 @@ RUN_LENGTHS = (1, 25, "random")
 
 
 def main(argv=None):
+    """``python -m bench.studies.before_after OUT.csv``: every kernel's rows on the fields
+    and run lengths above (``--counts``: with callgrind counts) into OUT.csv."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out")
     parser.add_argument("--label", default="after")

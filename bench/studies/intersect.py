@@ -105,6 +105,9 @@ def _targets(rows, fields_by_name):
 def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
         datasets=DATASETS, run_lengths=RUN_LENGTHS, surfaces=("triangles",), names=None,
         echo=print):
+    """Measure every (field, surface, r) group, write results.csv (rows flushed as
+    measured), tables.md (speedup tables, structures, the targets) and env.json to
+    ``out_dir``, print the tables; returns the rows. Pins this process to one CPU."""
     os.makedirs(out_dir, exist_ok=True)
     cpu = pin_to_one_cpu()
     env = dict(environment(), pinned_cpu=cpu)

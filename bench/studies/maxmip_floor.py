@@ -32,6 +32,8 @@ RUN_LENGTHS = (1, 25, "random")
 
 
 def configs():
+    """(kernel, options) of every configuration timed: ``dda``, both max-mipmap kernels at
+    every floor of :data:`FLOORS`, and Embree."""
     yield "dda", {}
     for k in ("dda_maxmip", "runs_maxmip"):
         for f in FLOORS:
@@ -40,10 +42,13 @@ def configs():
 
 
 def label(kernel, opts):
+    """The table label of one configuration, e.g. ``runs_maxmip floor 3``."""
     return kernel + (f" floor {opts['fine_level']}" if "fine_level" in opts else "")
 
 
 def measure(rays=4000, repeats=7, seed=2008):
+    """Rows of ns per ray and speedup over ``dda`` for every configuration, field and run
+    length, all configurations interleaved on the same first-hit rays."""
     rows = []
     for name, side in FIELDS:
         field = algos.Field(datasets_gen.load(name, size=side, seed=1).heights)
@@ -64,7 +69,9 @@ def measure(rays=4000, repeats=7, seed=2008):
 
 
 def counts(rows, rays=300):
-    from .profile import profile
+    """Add callgrind's instructions and branches per ray to the fbm1024, r = 25 rows
+    (in place; Embree excluded)."""
+    from ..profile import profile
 
     for row in rows:
         if row["dataset"] != "fbm1024" or row["r"] != 25 or row["kernel"] == "embree":
@@ -77,6 +84,7 @@ def counts(rows, rays=300):
 
 
 def write(rows, out):
+    """maxmip_floor.csv and maxmip_floor.md of ``rows`` into ``out``."""
     os.makedirs(out, exist_ok=True)
     keys = ["dataset", "r", "kernel", "floor", "ns_per_ray", "speedup_vs_dda",
             "instructions_per_ray", "branches_per_ray"]
@@ -85,7 +93,7 @@ def write(rows, out):
         w.writeheader()
         w.writerows(rows)
     lines = ["# Max-mipmap floor level", "",
-             "Written by `python -m bench.maxmip_floor`. ns per ray (median of interleaved "
+             "Written by `python -m bench.studies.maxmip_floor`. ns per ray (median of interleaved "
              "repeats, caches flushed before each, one pinned CPU), speedup over `dda` in the same process; "
              "instructions per ray from callgrind (fbm 1024^2, r = 25, 300 rays).", ""]
     groups = [(d, r) for d in dict.fromkeys(x["dataset"] for x in rows)
@@ -107,6 +115,7 @@ def write(rows, out):
 
 
 def main(argv=None):
+    """``python -m bench.studies.maxmip_floor``: measure on one pinned CPU, count, write."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="results/maxmip_floor")
     parser.add_argument("--rays", type=int, default=4000)
