@@ -280,7 +280,7 @@ def run(out_dir="results/accuracy", full=False, echo=print):
     plot_time_vs_error(hits, os.path.join(out_dir, "time_vs_error.png"))
     longest = max(lengths)
     text = ["# hftrace accuracy: time against error", "",
-            f"Machine: {env['cpu']}, commit `{env['git_commit']}`. Method: bench/accuracy.py.", "",
+            f"Machine: {env['cpu']}, commit `{env['git_commit']}`. Method: bench/studies/accuracy.py.", "",
             f"## Traversal: {n2} generic lattice rays on {side}x{side}, first N cells", "",
             _md_table([r for r in trav if r["cells"] == longest],
                       ["algorithm", "exact", "cells", "diverged_fraction", "first_divergence_median",

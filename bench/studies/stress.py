@@ -161,7 +161,7 @@ def run(out_dir="results/stress", full=False, echo=print):
                 w.write(r)
     names = list(algos.TRAVERSALS)
     lines = ["# hftrace stress", "", f"Machine: {env['cpu']}, commit `{env['git_commit']}`. "
-             "Method: bench/stress.py.", "",
+             "Method: bench/studies/stress.py.", "",
              "## Drift: % of rays whose first N cells differ from the exact walk "
              "(grid 2^20 per side, origins near 2^16)", "",
              "| N | " + " | ".join(names) + " | exact time / dda_f32 (midpoint, runs) |",
