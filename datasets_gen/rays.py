@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["RaySet", "by_run_length", "uniform", "isotropic", "lattice", "octant_directions",
-           "mean_run_length", "pinhole", "parallel", "adversarial"]
+           "mean_run_length", "pinhole", "parallel", "adversarial", "first_hit_hazards",
+           "HAZARD_FAMILIES"]
 
 
 @dataclass(frozen=True)
@@ -346,3 +347,67 @@ def adversarial(shape, seed, n=64):
     start[:, 1] = np.clip(start[:, 1], 0, ny)
     add("first_run_clipped", start, np.stack([np.ones(n), alpha], 1))
     return fam
+
+
+#: The families of :func:`first_hit_hazards`, in the order their rays come
+HAZARD_FAMILIES = ("grazing", "steep", "vertical", "start_low", "grid_aligned", "side_entry")
+
+
+def first_hit_hazards(shape, seed, per_family=40, families=HAZARD_FAMILIES[:5]):
+    """3D rays aimed at the first-hit kernels' hazards on a field of ``shape`` =
+    ``(rows, cols)`` samples whose heights lie roughly in [0, 8] (cell units):
+
+    ``grazing`` nearly horizontal (z slope in [-0.05, 0]), from inside and around the
+    footprint; ``steep`` falling from 6-20; ``vertical`` straight down, half of them on
+    grid vertices; ``start_low`` from z in [-3, 1] (often inside the solid), any
+    direction; ``grid_aligned`` horizontal-ish along the axes, a diagonal and a 1:3 slope,
+    half of them starting on grid lines; ``side_entry`` entering through the sides of the
+    footprint below the rim, towards its centre.
+
+    Every family is drawn, in the order of :data:`HAZARD_FAMILIES`, from one stream
+    seeded ``seed``; ``families`` selects which are returned (in that order), so a
+    subset's rays do not depend on the others. Returns a RaySet of float64 ``(n, 3)``
+    arrays (directions not normalized), ``n = per_family * len(families)``, with
+    ``params["family"]`` naming each ray's family.
+    """
+    unknown = [f for f in families if f not in HAZARD_FAMILIES]
+    if unknown:
+        raise ValueError(f"families: unknown family {unknown[0]!r}; valid: {', '.join(HAZARD_FAMILIES)}")
+    rng = _rng(seed)
+    rows, cols = shape
+    k = int(per_family)
+    uniform = rng.uniform
+    normal = rng.normal
+    o = {"grazing": np.column_stack([uniform(-5, cols + 5, k), uniform(-5, rows + 5, k),
+                                     uniform(0, 8, k)]),
+         "steep": np.column_stack([uniform(0, cols - 1, k), uniform(0, rows - 1, k),
+                                   uniform(6, 20, k)])}
+    d = {"grazing": np.column_stack([normal(size=k), normal(size=k), uniform(-0.05, 0.0, k)]),
+         "steep": np.column_stack([normal(size=k) * 0.2, normal(size=k) * 0.2, -np.ones(k)])}
+    xy = np.column_stack([uniform(0, cols - 1, k), uniform(0, rows - 1, k)])
+    xy[: k // 2] = np.round(xy[: k // 2])  # on grid vertices
+    o["vertical"] = np.column_stack([xy, uniform(-2, 20, k)])
+    d["vertical"] = np.tile([0.0, 0.0, -1.0], (k, 1))
+    o["start_low"] = np.column_stack([uniform(0, cols - 1, k), uniform(0, rows - 1, k),
+                                      uniform(-3, 1, k)])
+    d["start_low"] = np.column_stack([normal(size=k), normal(size=k), normal(size=k)])
+    slope = np.array([[1.0, 0.0], [0.0, -1.0], [1.0, 1.0], [-3.0, 1.0]])[rng.integers(0, 4, k)]
+    start = np.column_stack([rng.integers(0, cols - 1, k).astype(float),
+                             rng.integers(0, rows - 1, k).astype(float)])
+    start[::2] += uniform(0, 1, (len(start[::2]), 2))  # the others on grid lines
+    o["grid_aligned"] = np.column_stack([start, uniform(0, 8, k)])
+    d["grid_aligned"] = np.column_stack([slope, uniform(-0.2, 0.0, k)])
+    side = rng.integers(0, 4, k)
+    start = np.column_stack([uniform(0, cols - 1, k), uniform(0, rows - 1, k)])
+    start[side == 0, 0] = -3
+    start[side == 1, 0] = cols + 2
+    start[side == 2, 1] = -3
+    start[side == 3, 1] = rows + 2
+    towards = np.array([(cols - 1) / 2, (rows - 1) / 2]) + normal(size=(k, 2)) * 5 - start
+    o["side_entry"] = np.column_stack([start, uniform(-1, 9, k)])
+    d["side_entry"] = np.column_stack([towards, uniform(-0.3, 0.1, k)
+                                       * np.linalg.norm(towards, axis=1)])
+    chosen = list(families)
+    return RaySet(np.concatenate([o[f] for f in chosen]), np.concatenate([d[f] for f in chosen]),
+                  dict(kind="first_hit_hazards", shape=tuple(shape), seed=seed, per_family=k,
+                       families=tuple(chosen), family=np.repeat(chosen, k)))

@@ -17,37 +17,12 @@ import numpy as np
 import algos
 from bench.sweep import first_hit_rays
 from datasets_gen import fields
+from datasets_gen import rays as raysets
 
 PIN = os.path.join(os.path.dirname(__file__), "data", "hit_pin.npz")
 #: Every C intersector; the peer (Embree) is not ours to pin.
 KERNELS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.kind != "peer")
 EXACT = tuple(n for n in KERNELS if algos.INTERSECTOR_REGISTRY[n].accuracy == "exact")
-
-
-def _small_rays(shape, seed, n=200):
-    """Grazing, steep, vertical (some on grid lines), starting low, entering by the sides."""
-    rng = np.random.Generator(np.random.PCG64(seed))
-    rows, cols = shape
-    k = n // 5
-    o = [np.column_stack([rng.uniform(-5, cols + 5, k), rng.uniform(-5, rows + 5, k), rng.uniform(0, 8, k)]),
-         np.column_stack([rng.uniform(0, cols - 1, k), rng.uniform(0, rows - 1, k), rng.uniform(6, 20, k)])]
-    d = [np.column_stack([rng.normal(size=k), rng.normal(size=k), rng.uniform(-0.05, 0.0, k)]),
-         np.column_stack([rng.normal(size=k) * 0.2, rng.normal(size=k) * 0.2, -np.ones(k)])]
-    xy = np.column_stack([rng.uniform(0, cols - 1, k), rng.uniform(0, rows - 1, k)])
-    xy[: k // 2] = np.round(xy[: k // 2])
-    o.append(np.column_stack([xy, rng.uniform(-2, 20, k)]))
-    d.append(np.tile([0.0, 0.0, -1.0], (k, 1)))
-    o.append(np.column_stack([rng.uniform(0, cols - 1, k), rng.uniform(0, rows - 1, k), rng.uniform(-3, 1, k)]))
-    d.append(np.column_stack([rng.normal(size=k), rng.normal(size=k), rng.normal(size=k)]))
-    # axis-aligned and diagonal horizontal-ish rays, some along grid lines
-    a = rng.integers(0, 4, k)
-    dirs = np.array([[1.0, 0.0], [0.0, -1.0], [1.0, 1.0], [-3.0, 1.0]])[a]
-    start = np.column_stack([rng.integers(0, cols - 1, k).astype(float),
-                             rng.integers(0, rows - 1, k).astype(float)])
-    start[::2] += rng.uniform(0, 1, (len(start[::2]), 2))
-    o.append(np.column_stack([start, rng.uniform(0, 8, k)]))
-    d.append(np.column_stack([dirs, rng.uniform(-0.2, 0.0, k)]))
-    return np.concatenate(o), np.concatenate(d)
 
 
 def cases():
@@ -61,7 +36,8 @@ def cases():
         "flat": fields.generate("flat", shape, height=2.0),
         "tilted": fields.generate("tilted_plane", shape, slope_x=0.1, slope_y=-0.05, height=1.0),
     }
-    o, d = _small_rays(shape, 29)
+    rs = raysets.first_hit_hazards(shape, 29, per_family=40)
+    o, d = rs.origins, rs.directions
     out = [(name, H, o, d) for name, H in small.items()]
     # bench-like rays on a field big enough for several mip levels and long runs
     H = fields.generate("fbm", (257, 300), seed=7, amplitude=40.0, scale=64.0)
