@@ -54,3 +54,18 @@ def assert_paths_equal(name, got_paths, expected, origins, directions, shape, tm
             + f"\n expected {expected[k][:12]}{' ...' if len(expected[k]) > 12 else ''}"
             + f"\n got      {as_tuples(got_paths[k])[:12]}"
         )
+
+
+def first_hit_fields(shape):
+    """The six small fields of the first-hit tests (heights roughly in [0, 8]), by name:
+    fBm, terraces, uniform random, a spike, flat and a tilted plane, all seeded."""
+    from datasets_gen import fields
+
+    return {
+        "fbm": fields.generate("fbm", shape, seed=3, amplitude=6.0, scale=16.0),
+        "terraces": fields.generate("terraces", shape, seed=4, amplitude=6.0, scale=16.0),
+        "uniform": fields.generate("uniform", shape, seed=5, high=6.0),
+        "spike": fields.generate("spike", shape, height=8.0, radius=9.0),
+        "flat": fields.generate("flat", shape, height=2.0),
+        "tilted": fields.generate("tilted_plane", shape, slope_x=0.1, slope_y=-0.05, height=1.0),
+    }

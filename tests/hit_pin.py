@@ -19,6 +19,8 @@ from bench.sweep import first_hit_rays
 from datasets_gen import fields
 from datasets_gen import rays as raysets
 
+from .helpers import first_hit_fields
+
 PIN = os.path.join(os.path.dirname(__file__), "data", "hit_pin.npz")
 #: Every C intersector; the peer (Embree) is not ours to pin.
 KERNELS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.kind != "peer")
@@ -28,14 +30,7 @@ EXACT = tuple(n for n in KERNELS if algos.INTERSECTOR_REGISTRY[n].accuracy == "e
 def cases():
     """(label, heights, origins, directions) of every pinned group."""
     shape = (33, 41)
-    small = {
-        "fbm": fields.generate("fbm", shape, seed=3, amplitude=6.0, scale=16.0),
-        "terraces": fields.generate("terraces", shape, seed=4, amplitude=6.0, scale=16.0),
-        "uniform": fields.generate("uniform", shape, seed=5, high=6.0),
-        "spike": fields.generate("spike", shape, height=8.0, radius=9.0),
-        "flat": fields.generate("flat", shape, height=2.0),
-        "tilted": fields.generate("tilted_plane", shape, slope_x=0.1, slope_y=-0.05, height=1.0),
-    }
+    small = first_hit_fields(shape)
     rs = raysets.first_hit_hazards(shape, 29, per_family=40)
     o, d = rs.origins, rs.directions
     out = [(name, H, o, d) for name, H in small.items()]

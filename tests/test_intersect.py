@@ -9,19 +9,10 @@ import algos
 from algos.registry import INTERSECTOR_REGISTRY
 from datasets_gen import fields
 
+from .helpers import first_hit_fields
+
 STRICT = [n for n, a in INTERSECTOR_REGISTRY.items() if a.accuracy in ("exact", "float64")]
 SHAPE = (33, 41)  # rows, cols: not square
-
-
-def _fields():
-    return {
-        "fbm": fields.generate("fbm", SHAPE, seed=3, amplitude=6.0, scale=16.0),
-        "terraces": fields.generate("terraces", SHAPE, seed=4, amplitude=6.0, scale=16.0),
-        "uniform": fields.generate("uniform", SHAPE, seed=5, high=6.0),
-        "spike": fields.generate("spike", SHAPE, height=8.0, radius=9.0),
-        "flat": fields.generate("flat", SHAPE, height=2.0),
-        "tilted": fields.generate("tilted_plane", SHAPE, slope_x=0.1, slope_y=-0.05, height=1.0),
-    }
 
 
 def _rays(seed, n=160):
@@ -62,7 +53,7 @@ def _rays(seed, n=160):
 def cases():
     out = {}
     o, d = _rays(17)
-    for fname, H in _fields().items():
+    for fname, H in first_hit_fields(SHAPE).items():
         fld = algos.Field(H)
         for surface in algos.SURFACES:
             t, cell = algos.brute_force_hits(H, o, d, surface)
