@@ -9,7 +9,8 @@ See CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the 
 from .lattice import quantize
 from .reference import major_axis, reference_cells, reference_runs, runs_from_cells
 from .brute import brute_force_hits
-from .field import Field
+from .field import Field, HeightField, as_field
+from .georef import IUGG_MEAN_EARTH_RADIUS_M, WGS84_SEMI_MAJOR_AXIS_M
 from .intersect import HIT_OUTPUTS, STATS, Hits, intersect
 from .registry import (
     INTERSECTOR_REGISTRY,
@@ -23,6 +24,7 @@ from .registry import (
     get_traversal,
 )
 from .terrain import (
+    DEFAULT_REFRACTION,
     HORIZON_ALGORITHMS,
     VIEWSHED_ALGORITHMS,
     horizon,
@@ -49,7 +51,9 @@ __all__ = [
     "traverse", "walk_timed", "prepare_timed", "CellPaths", "RunPaths", "PathCounts",
     "DEFAULT_MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
     "INTERSECTORS", "INTERSECTOR_REGISTRY", "Intersector", "get_intersector", "SURFACES",
-    "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "brute_force_hits",
+    "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "HeightField", "as_field",
+    "brute_force_hits", "WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M",
+    "DEFAULT_REFRACTION",
     "horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
     "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS",
 ]
