@@ -290,7 +290,11 @@ class HeightField:
                                  f"{heights.shape}")
             self.heights = heights
         else:
-            self.heights = check_heights(heights, finite=False)
+            h = check_heights(heights, finite=False)
+            if isinstance(heights, np.memmap) and h.dtype == heights.dtype and \
+                    heights.flags.c_contiguous and np.shares_memory(h, heights):
+                h = heights  # a memory-mapped file stays a np.memmap: used in place
+            self.heights = h
         self.rows, self.cols = (int(v) for v in self.heights.shape)
         self.nodata_mask = self._mask(nodata_mask)
         self.build_stats: dict[str, dict] = {}

@@ -362,7 +362,8 @@ def open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) ->
             raise ValueError(f"spacing: {path} is georeferenced; its geotransform gives the "
                              "spacing, so leave spacing out")
         check_axis_aligned(ds.transform, f"{path}: transform")
-        unit = check_crs(ds.crs, path, bounds=ds.bounds)
+        unit = check_crs(ds.crs, path, bounds=ds.bounds,
+                         pixel=(ds.transform.a, ds.transform.e))
         params["unit_metres"] = float(ds.crs.linear_units_factor[1]) if ds.crs else 1.0
         params["nodata"] = ds.nodatavals[band - 1]
         return HeightField(heights, name, unit=unit, crs=ds.crs, transform=ds.transform,

@@ -16,7 +16,7 @@ orientation (``north="+y"``) and the products return their results on the same g
 Rotated or sheared geotransforms are refused. A geographic CRS (degrees) is refused
 with the exact ``gdalwarp`` command that fixes the file, or reprojected on request
 (``reproject="utm"``: to the WGS 84 UTM zone of the centre, bilinear, at the ground size
-of the pixel at the centre, through ``rasterio.warp``). A file without georeferencing
+of the pixel at the centre, through ``rasterio.warp``; see :func:`_to_utm`). A file without georeferencing
 gets ``spacing`` (default 1: cell units).
 
 Writing (:func:`write_product`, :func:`create_product`, :func:`write_window`)
@@ -43,7 +43,7 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import check_axis_aligned, utm_epsg
+from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, check_axis_aligned, utm_epsg
 
 __all__ = ["read_raster", "check_crs", "write_product", "create_product", "write_window",
            "product_nodata", "LazyRaster", "REPROJECT"]
@@ -56,26 +56,37 @@ BOOL_NODATA = 255
 COUNT_NODATA = 65535
 
 
-def _gdalwarp_fix(path, crs, bounds) -> str:
+def _ground_size(pixel, latitude):
+    """East-west and north-south ground lengths (m) of a pixel of ``pixel`` = (dlon,
+    dlat) degrees at ``latitude``, on the IUGG mean sphere."""
+    metres_per_degree = math.pi / 180.0 * IUGG_MEAN_EARTH_RADIUS_M
+    return (abs(pixel[0]) * metres_per_degree * math.cos(math.radians(latitude)),
+            abs(pixel[1]) * metres_per_degree)
+
+
+def _gdalwarp_fix(path, pixel, bounds) -> str:
     """The command that reprojects a geographic raster to the UTM zone of its centre."""
     lon = (bounds.left + bounds.right) / 2
     lat = (bounds.bottom + bounds.top) / 2
     epsg = utm_epsg(lon, lat)
+    dx, dy = _ground_size(pixel, lat)
     stem, _ = os.path.splitext(os.fspath(path))
-    return (f"gdalwarp -t_srs EPSG:{epsg} -r bilinear {path} {stem}_utm.tif "
+    return (f"gdalwarp -t_srs EPSG:{epsg} -tr {dx:.6g} {dy:.6g} -r bilinear {path} "
+            f"{stem}_utm.tif "
             f"(or read it with reproject='utm'; the CLI option is --reproject utm)")
 
 
-def check_crs(crs, what, *, bounds=None) -> str:
+def check_crs(crs, what, *, bounds=None, pixel=(1.0, 1.0)) -> str:
     """The linear unit name of a CRS (None: no CRS, returns "map unit"). A geographic CRS
-    raises ValueError naming ``what`` and, with ``bounds``, the exact fix."""
+    raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size
+    in degrees), the exact ``gdalwarp`` command that fixes the file."""
     from rasterio.crs import CRS
 
     if crs is None:
         return "map unit"
     crs = CRS.from_user_input(crs)
     if crs.is_geographic:
-        fix = _gdalwarp_fix(what, crs, bounds) if bounds is not None else \
+        fix = _gdalwarp_fix(what, pixel, bounds) if bounds is not None else \
             "gdalwarp -t_srs EPSG:<UTM zone> IN.tif OUT.tif"
         raise ValueError(f"{what}: its CRS ({crs.to_string()}) is geographic: pixel sizes in "
                          f"degrees are not lengths, and heights in metres over degrees give "
@@ -185,7 +196,7 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
         geographic = crs is not None and crs.is_geographic
         if geographic:
             if reproject is None:
-                check_crs(crs, path, bounds=ds.bounds)
+                check_crs(crs, path, bounds=ds.bounds, pixel=(ds.transform.a, ds.transform.e))
             raw, mask, transform, crs = _to_utm(ds, raw, mask, band)
         unit = check_crs(crs, path) if georef else ("cell" if spacing is None else "map unit")
     heights, mask = _scaled(raw, mask, scale, offset, vertical_scale)
@@ -202,16 +213,18 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
 
 def _to_utm(ds, raw, mask, band):
     """``(raw, mask, transform, crs)`` reprojected from a geographic CRS to the UTM zone
-    of the centre: bilinear for heights, nearest for the mask, at the ground size of the
-    centre pixel (rasterio.warp)."""
+    of the centre (rasterio.warp, bilinear; voids stay voids), with pixels of the ground
+    size of the centre pixel: east-west and north-south lengths of its sides on the
+    IUGG mean sphere, so rectangular in general (3" at 46 N: 64.4 m x 92.7 m)."""
     from rasterio.crs import CRS
     from rasterio.warp import Resampling, calculate_default_transform, reproject
 
     lon = (ds.bounds.left + ds.bounds.right) / 2
     lat = (ds.bounds.bottom + ds.bounds.top) / 2
     dst_crs = CRS.from_epsg(utm_epsg(lon, lat))
+    ground = _ground_size((ds.transform.a, ds.transform.e), lat)
     transform, width, height = calculate_default_transform(
-        ds.crs, dst_crs, ds.width, ds.height, *ds.bounds)
+        ds.crs, dst_crs, ds.width, ds.height, *ds.bounds, resolution=ground)
     data = raw.astype(np.float64)
     data[mask] = np.nan
     out = np.full((height, width), np.nan)
