@@ -387,8 +387,9 @@ class HeightField:
         if self.transform is None:
             raise ValueError(f"{self.name}: not georeferenced (no transform); give grid "
                              "coordinates (col, row) instead")
-        x, y = self.transform * (float(col) + 0.5, float(row) + 0.5)
-        return x, y
+        t = self.transform
+        c, r = float(col) + 0.5, float(row) + 0.5  # vertices are pixel centres
+        return t.a * c + t.b * r + t.c, t.d * c + t.e * r + t.f
 
     def map_to_grid(self, x, y, *, what=None):
         """Grid ``(col, row)`` (floats, vertex units, stored orientation) of the map point
@@ -404,8 +405,8 @@ class HeightField:
             raise TypeError(f"observer {typed}: expected two numbers") from None
         if not (math.isfinite(x) and math.isfinite(y)):
             raise ValueError(f"observer {typed}: not a finite position")
-        col, row = ~self.transform * (x, y)
-        col, row = col - 0.5, row - 0.5
+        t = self.transform  # axis-aligned (checked on construction)
+        col, row = (x - t.c) / t.a - 0.5, (y - t.f) / t.e - 0.5
         # exact at vertices: (x, y) computed from a vertex comes back to it
         col = round(col) if abs(col - round(col)) < 1e-9 else col
         row = round(row) if abs(row - round(row)) < 1e-9 else row

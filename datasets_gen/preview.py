@@ -98,8 +98,7 @@ def product_png(path, array, field=None, *, product, units, params=None, observe
         extent = (min(xs), max(xs), min(ys), max(ys))
     else:
         extent = (-0.5, cols - 0.5, rows - 0.5, -0.5)
-    colours = matplotlib.colormaps[cmap].copy()
-    colours.set_bad("0.75")
+    colours = matplotlib.colormaps[cmap].with_extremes(bad="0.75")
     aspect = "equal" if georef or field is None or field.dx == field.dy else field.dy / field.dx
     fig, ax = plt.subplots(figsize=(7.5, 6.5), constrained_layout=True)
     image = ax.imshow(shown, cmap=colours, vmin=vmin, vmax=vmax, extent=extent,
