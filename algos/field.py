@@ -1,6 +1,9 @@
-"""A height field prepared for first hits: validated heights plus acceleration
-structures, each built on first use and kept (build once per field, build only what the
-requested kernels use).
+"""The height-field type every public function takes (:class:`HeightField`, also
+``algos.Field`` and ``datasets_gen.HeightField``): heights, their spacing, unit, CRS,
+geotransform, orientation and nodata mask, plus the acceleration structures of first
+hits, each built on first use and kept (build once per field, build only what the
+requested kernels use). First hits and renders read :attr:`HeightField.cell_heights`,
+the heights in cell units.
 
 Structures (all float32; ``nx = cols - 1``, ``ny = rows - 1`` cells):
 

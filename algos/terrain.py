@@ -36,10 +36,45 @@ north-up rasters. An azimuth within 1e-9 degrees of a direction with slope p/q,
 q <= :data:`MAX_SNAP_DENOMINATOR`, is taken as exactly that direction by every method.
 :func:`rational_azimuths` yields such azimuths, so that the exact sweep applies.
 
-Units: heights are in cell units (CONVENTIONS.md). ``spacing`` (the length of a cell, e.g.
-in metres, or a HeightField's own) makes ``max_distance``, ``observer_height`` and
-``target_height`` lengths in that unit, and enables curvature. Without it they are in
-cells.
+Units
+-----
+Heights are in the same linear unit as the pixel size ``spacing = (dx, dy)`` (or one
+number for square pixels): metres over a metre grid. A raw array without ``spacing`` is
+in cell units (``spacing=1``); a :class:`~algos.field.HeightField` or a DataArray carries
+its own. ``max_distance``, ``observer_height`` and ``target_height`` are lengths in that
+unit; angles come back in radians.
+
+The kernels work in cell space: x = X / dx, y = Y / dy, z = Z / dx for map coordinates
+(X east, Y along the rows, Z up). On square pixels this is one uniform scale, which
+changes no angle. On rectangular pixels, a map azimuth A (map unit direction
+e = (sin A, -cos A)) maps to the fixed cell-space direction c = (e_x / dx, e_y / dy) / |.|,
+and a point at cell-space distance t along c lies at map distance m t, with the constant
+m = hypot(c_x dx, c_y dy). So the map horizon tangent (Z(p) - Z(v)) / (m t) is the
+cell-space one (z(p) - z(v)) / t times dx / m, the same constant for every point of the
+ray: the supremum is attained at the same breakpoint, and every exact method stays exact
+(max_distance D becomes D / m cells). A line of sight is unchanged by scaling x, y and z,
+so the viewshed needs only the heights in cells; curvature, which depends on the map
+distance, needs square pixels. ``tests/test_georef.py`` checks rectangular pixels against
+a brute-force horizon written in map space.
+
+Orientation: a field whose rows run north (a south-up raster, the embedded DEM) is
+flipped to north-up by :meth:`HeightField.to_north_up`, the one place that does it, and
+every result is flipped back: outputs are on the input's grid and orientation.
+
+Voids
+-----
+A void vertex (NaN in a raw array, ``nodata_mask`` in a HeightField) is nodata in every
+output: NaN in horizons and sky-view factors, False in shadows and single viewsheds, 0 in
+viewshed counts (their writers store nodata there: :mod:`datasets_gen.raster`).
+For the rays, **a void blocks nothing**: it is an infinitely deep pit. Every point of a
+cell touching a void vertex lies below anything a ray could see, except the edges between
+two valid vertices, which keep their heights (they belong to the neighbouring valid
+cells as well). It is computed as a pit :data:`VOID_HEIGHT` (-1e28 cells) deep, whose
+breakpoints lose to every valid one. So no valid vertex that does not touch a void sees
+a different value than on the same DEM with the void replaced by a much lower height
+(tested), and no void raises what is behind it, unlike a fill. An observer standing on a
+cell that touches a void is refused (its ground height is unknown). Filling stays
+available and explicit (``HeightField.filled``, ``load_file(nodata_policy=...)``).
 """
 from __future__ import annotations
 

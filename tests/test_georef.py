@@ -455,9 +455,9 @@ def test_product_png_is_readable(tmp_path):
 
 def test_viewshed_agrees_with_xarray_spatial_on_a_projected_dem(tmp_path):
     xrspatial = pytest.importorskip("xrspatial")
-    dem = (fields.generate("fbm", (80, 90), seed=15) * 120).astype(np.float32)
+    dem = (fields.generate("fbm", (50, 60), seed=15) * 120).astype(np.float32)
     field = datasets_gen.load_file(write_tif(tmp_path / "p.tif", dem))
-    x, y = field.grid_to_map(45, 40)
+    x, y = field.grid_to_map(31, 22)
     col, row = field.map_to_grid(x, y)
     ours = algos.viewshed(field, (col, row), observer_height=1.75)
     da = _dataarray(dem.astype(np.float64))
@@ -466,4 +466,5 @@ def test_viewshed_agrees_with_xarray_spatial_on_a_projected_dem(tmp_path):
         theirs = xrspatial.viewshed(da, x=x, y=y, observer_elev=1.75).values > -1
     agree = float(np.mean(ours == theirs))
     # the peer models cells, not two triangles: they differ only near the decision margin
-    assert agree > 0.97, agree
+    print(f"agreement with xarray-spatial: {agree:.5f}")
+    assert agree > 0.99, agree
