@@ -100,12 +100,12 @@ def embree_scene(field, robust=ROBUST):
         grown = max(_rss_bytes() - before, 0)
         return scene, mesh, seconds, grown
 
-    if key not in field._cache:
+    if field.stored(key) is None:
         scene, mesh, seconds, grown = build()
-        field._cache[key] = (scene, mesh)
-        field.build_stats[key] = {"seconds": seconds, "bytes": int(grown), "robust": robust,
-                                  "bytes_note": "resident-memory growth during the build"}
-    return field._cache[key][0]
+        field.store(key, (scene, mesh), {"seconds": seconds, "bytes": int(grown),
+                                         "robust": robust,
+                                         "bytes_note": "resident-memory growth during the build"})
+    return field.stored(key)[0]
 
 
 def far_bounds(field, origins, directions):

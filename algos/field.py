@@ -326,31 +326,46 @@ class HeightField:
     @classmethod
     def from_dataarray(cls, array, name=None, *, spacing=None, unit=None):
         """A HeightField from a 2D ``xarray.DataArray``: its values (a dask-backed one stays
-        lazy), and with rioxarray its CRS, transform and nodata (``rio.nodata``, or NaN).
-        Without a transform, ``spacing`` (default 1) describes the pixels. The CRS must
-        be projected (see :func:`datasets_gen.raster.check_crs`)."""
+        lazy), its CRS, transform and nodata through rioxarray (``rio.crs``,
+        ``rio.transform()``, ``rio.nodata``; NaN is a void too). Without rioxarray, or
+        without spatial coordinates, ``spacing`` (default 1: cell units) describes the
+        pixels. A geographic CRS is refused (:func:`datasets_gen.raster.check_crs`)."""
+        if array.ndim != 2:
+            raise ValueError(f"heights: expected a 2D DataArray, got dims {array.dims}")
         data = array.data
         crs = transform = nodata = None
-        rio = getattr(array, "rio", None)
+        try:
+            import rioxarray  # noqa: F401  (registers the .rio accessor)
+        except ImportError:
+            rio = None
+        else:
+            rio = array.rio
         if rio is not None:
             try:
                 crs = rio.crs
-                transform = rio.transform() if crs is not None or spacing is None else None
+                transform = rio.transform(recalc=True)
                 nodata = rio.nodata if rio.nodata is not None else rio.encoded_nodata
-            except Exception:  # no spatial dims: a plain array
+            except Exception:  # no spatial dimensions: a plain array
                 crs = transform = None
-        if transform is not None and tuple(transform)[:6] == (1.0, 0.0, 0.0, 0.0, 1.0, 0.0) \
-                and crs is None:
-            transform = None  # rioxarray's default for plain coordinates
+        if transform is not None and crs is None and tuple(transform)[:6] == \
+                (1.0, 0.0, 0.0, 0.0, 1.0, 0.0):
+            transform = None  # rioxarray's answer for an array without coordinates
+        if transform is not None and spacing is not None:
+            raise ValueError("spacing: the DataArray's coordinates give the pixel size; "
+                             "leave spacing out")
         if crs is not None:
             from datasets_gen.raster import check_crs  # the CRS rules live with the readers
 
-            unit = check_crs(crs, getattr(array, "name", None) or "DataArray")
+            unit = check_crs(crs, f"DataArray {array.name!r}")
         mask = None
         if nodata is not None and not (isinstance(nodata, float) and math.isnan(nodata)):
             mask = data == nodata
-            data = np.where(mask, np.nan, data) if not is_dask(data) else \
-                __import__("dask.array").array.where(mask, np.nan, data)
+            if is_dask(data):
+                import dask.array as da
+
+                data = da.where(mask, np.nan, data)
+            else:
+                data = np.where(mask, np.nan, data)
         return cls(data, name if name is not None else str(array.name or "DataArray"),
                    spacing=None if transform is not None else spacing, unit=unit, crs=crs,
                    transform=transform, nodata_mask=mask,
@@ -509,6 +524,16 @@ class HeightField:
             self._cache[name] = value
             self.build_stats[name] = {"seconds": seconds, "bytes": int(nbytes)}
         return self._cache[name]
+
+    def store(self, name: str, value, stats: dict) -> None:
+        """Keep a structure built outside this module (the Embree scene) with its build
+        statistics (``{"seconds", "bytes", ...}``, reported in :attr:`build_stats`)."""
+        self._cache[name] = value
+        self.build_stats[name] = dict(stats)
+
+    def stored(self, name: str):
+        """A structure kept by :meth:`store` (or built here), or None."""
+        return self._cache.get(name)
 
     @staticmethod
     def _key(name, kind):

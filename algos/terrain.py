@@ -551,7 +551,7 @@ def _shared_pattern(d: Direction, rows: int, cols: int, max_distance):
 
 def _mipmap(h: np.ndarray):
     """(data, offset, rows, cols): the max-mipmap of the cell maxima in float64 (the
-    levels of :func:`algos.field._mipmap`, concatenated for the C walks)."""
+    levels of :func:`algos.field.max_mipmap`, concatenated for the C walks)."""
     cell = np.maximum(np.maximum(h[:-1, :-1], h[:-1, 1:]), np.maximum(h[1:, :-1], h[1:, 1:]))
     levels = max_mipmap(cell)
     offset = np.cumsum([0] + [lv.size for lv in levels[:-1]]).astype(np.int64)
