@@ -468,3 +468,31 @@ def test_viewshed_agrees_with_xarray_spatial_on_a_projected_dem(tmp_path):
     # the peer models cells, not two triangles: they differ only near the decision margin
     print(f"agreement with xarray-spatial: {agree:.5f}")
     assert agree > 0.99, agree
+
+
+def test_observers_as_typed(tmp_path):
+    from datasets_gen.observers import parse_observer, read_observers_csv
+
+    dem = np.zeros((10, 12), np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "m.tif", dem))
+    x, y = field.grid_to_map(3, 4)
+    assert parse_observer(f"{x},{y}", field) == (3.0, 4.0, None)
+    assert parse_observer(f"{x},{y},2.5", field) == (3.0, 4.0, 2.5)
+    with pytest.raises(ValueError, match=r"--observer '1,2,3,4': expected X,Y or X,Y,HEIGHT"):
+        parse_observer("1,2,3,4", field)
+    with pytest.raises(ValueError, match=r"observer 1,2: outside m.tif"):
+        parse_observer("1,2", field)
+    # pixels count rows from the north on every input, the embedded DEM's too
+    jacks = datasets_gen.load("jacksboro", size=64)
+    assert jacks.north == "+y"
+    assert parse_observer("5,0", jacks, pixel=True)[:2] == (5.0, jacks.shape[0] - 1.0)
+    assert parse_observer("5,0", field, pixel=True)[:2] == (5.0, 0.0)
+    with pytest.raises(ValueError, match=r"observer pixel 5,99: outside"):
+        parse_observer("5,99", field, pixel=True)
+    with pytest.raises(ValueError, match="not georeferenced.*--observer-pixel"):
+        parse_observer("5,9", jacks)
+    (tmp_path / "obs.csv").write_text(f"x,y,height\n{x},{y}\n{x + 30},{y},10\n")
+    assert read_observers_csv(tmp_path / "obs.csv", field) == [(3.0, 4.0, None), (4.0, 4.0, 10.0)]
+    (tmp_path / "bad.csv").write_text(f"{x},{y}\nfoo,bar\n")
+    with pytest.raises(ValueError, match=r"bad.csv, line 2: --observer 'foo,bar'"):
+        read_observers_csv(tmp_path / "bad.csv", field)
