@@ -453,7 +453,8 @@ class HeightField:
                                  f"{self.heights[row, col]} (nodata); first hits need every "
                                  "sample: fill the voids first (HeightField.filled)")
             if self.height_unit == "cell" or (self.dx == 1.0 and self.dy == 1.0):
-                h = check_heights(self.heights)
+                # no void mask means every sample was found finite on construction
+                h = check_heights(self.heights, finite=False)
             elif self.dx == self.dy:
                 h = check_heights(np.asarray(self.heights, dtype=np.float64) / self.dx)
             else:

@@ -349,12 +349,13 @@ def create_product(path, field, *, dtype, product, units, params=None, count=1,
     return path
 
 
-def write_window(path, array, row_off, col_off, *, band=1, lock=None) -> None:
+def write_window(path, array, row_off, col_off, *, band=1, mask=None, lock=None) -> None:
     """Write ``array`` (rows, cols) into the GeoTIFF at ``path`` (made by
     :func:`create_product` or :func:`write_product`) at window (``row_off``,
-    ``col_off``) of the file's grid, converted to the file's dtype with NaN (float) or
-    the file's nodata where ``array`` is NaN or masked. ``lock`` (a context manager) is
-    held around the write: writes of one file must not overlap in time."""
+    ``col_off``) of the file's grid, converted to the file's dtype, with the file's
+    nodata where ``array`` is NaN or ``mask`` (a bool window, True at voids) is set.
+    ``lock`` (a context manager) is held around the write: writes of one file must not
+    overlap in time."""
     import contextlib
 
     import rasterio
@@ -372,6 +373,8 @@ def write_window(path, array, row_off, col_off, *, band=1, lock=None) -> None:
             dtype = np.dtype(dst.dtypes[band - 1])
             data = values.astype(dtype) if values.dtype.kind != "f" or dtype.kind == "f" else \
                 np.where(np.isnan(values), dst.nodata, values).astype(dtype)
+            if mask is not None:
+                data[np.asarray(mask, dtype=bool)] = dst.nodata
             dst.write(data, band, window=Window(col_off, row_off, cols, rows))
 
 
