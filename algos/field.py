@@ -217,11 +217,18 @@ class HeightField:
     lean : bool
         The lean first-hit layout of ``runs_maxmip`` (module docstring).
 
+    Attributes
+    ----------
+    spacing : float or (dx, dy)
+        One number for square pixels, else the pair; :attr:`dx` and :attr:`dy` always.
+    rows, cols, shape : the grid's size in samples.
+    cell_heights : float32 heights in cell units (first hits and renders).
+
     Raises
     ------
     TypeError
         Heights that are not real numbers, or the old positional form
-        ``HeightField(heights, name, spacing, unit)``.
+        ``HeightField(heights, name, spacing, unit)``, whose heights were in cell units.
     ValueError
         A shape outside [2, 2**24] per side, a bad spacing, unit or transform.
     """

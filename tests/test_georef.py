@@ -496,3 +496,32 @@ def test_observers_as_typed(tmp_path):
     (tmp_path / "bad.csv").write_text(f"{x},{y}\nfoo,bar\n")
     with pytest.raises(ValueError, match=r"bad.csv, line 2: --observer 'foo,bar'"):
         read_observers_csv(tmp_path / "bad.csv", field)
+
+
+def test_lazy_raster_reads_nodata_as_voids(tmp_path):
+    """The Dask path reads windows through rasterio: -9999 is a void, not a height."""
+    dem = (fields.generate("fbm", (40, 44), seed=16) * 100).astype(np.float32)
+    dem[20:22, 10:13] = -9999.0
+    path = write_tif(tmp_path / "v.tif", dem, nodata=-9999.0, tiled=True, blockxsize=16,
+                     blockysize=16, compress="zstd")
+    lazy = datasets_gen.open_lazy(path, chunks=16)
+    heights = lazy.heights.compute()
+    assert np.isnan(heights[20:22, 10:13]).all() and np.isfinite(heights).sum() == 40 * 44 - 6
+    whole = algos.horizon(datasets_gen.load_file(path), [30.0, 210.0], 200.0)
+    tiled = algos.horizon(lazy, [30.0, 210.0], 200.0).compute()
+    np.testing.assert_allclose(tiled, whole, rtol=0, atol=1e-12)
+    assert np.isnan(tiled[:, 20:22, 10:13]).all()
+
+
+def test_horizon_bands_are_written_with_their_azimuths(tmp_path):
+    dem = (fields.generate("fbm", (20, 24), seed=17) * 100).astype(np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "in.tif", dem))
+    az = [0.0, 135.0]
+    angles = np.degrees(algos.horizon(field, az))
+    path = raster.write_product(tmp_path / "h.tif", angles, field, product="horizon",
+                                units="degrees", params={"azimuths": az},
+                                band_names=[f"azimuth {a:g}" for a in az])
+    with rasterio.open(path) as b:
+        assert b.count == 2 and b.descriptions == ("azimuth 0", "azimuth 135")
+        assert b.tags(2)["units"] == "degrees"
+        np.testing.assert_allclose(b.read(2), angles[1], rtol=1e-6)
