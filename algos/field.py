@@ -406,6 +406,11 @@ class HeightField:
             return array
         return array[..., ::-1, :]
 
+    def north_up_row(self, row):
+        """The row index (a number or an array, fractions allowed) of the same point
+        counted north-up; its own inverse. The point version of :meth:`to_north_up`."""
+        return row if self.north_up else (self.rows - 1) - row
+
     def grid_to_map(self, col, row):
         """Map coordinates ``(x, y)`` of the grid point ``(col, row)`` (vertex ``(i, j)``
         is ``H[j, i]``, fractions allowed); vertices are pixel centres."""

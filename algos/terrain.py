@@ -1072,8 +1072,8 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     rows = h.shape[0]
     given = np.asarray(observer, dtype=np.float64) if np.ndim(observer) else observer
     obs, single = _observers(given, h)
-    if grid.field is not None and not grid.field.north_up:
-        obs = obs * [1, -1] + [0, rows - 1]  # stored rows -> north-up rows
+    if grid.field is not None:
+        obs = np.column_stack([obs[:, 0], grid.field.north_up_row(obs[:, 1])])
     if grid.void is not None:
         for k, (x, y) in enumerate(obs):
             if _touches_void(grid.void, x, y):

@@ -39,18 +39,20 @@ def halo_depth(max_distance_cells) -> int:
 
 
 def _unwrap(heights, spacing, north_up=True):
-    """``(dask array, wrap, (dx, dy) or None, flipped)`` of a dask array or a HeightField
-    holding one. ``wrap(block)`` makes a product's input of a NumPy block (a HeightField
-    with the field's units, or the block itself); ``(dx, dy)`` is the pixel size that
-    turns ``max_distance`` into cells (None: cell units). With ``north_up`` a field whose
-    rows run north is flipped (``flipped`` says so; the result is flipped back)."""
+    """``(dask array, wrap, (dx, dy) or None, back, extra)`` of a dask array or a
+    HeightField holding one. ``wrap(block)`` makes a product's input of a NumPy block (a
+    HeightField with the field's units, or the block itself); ``(dx, dy)`` is the pixel
+    size that turns ``max_distance`` into cells (None: cell units). With ``north_up`` a
+    field whose rows run north is flipped (:meth:`HeightField.to_north_up`), and ``back``
+    is that flip, for the result (None: nothing to undo); ``extra`` holds the keywords a
+    raw block needs (its ``spacing``)."""
     if isinstance(heights, HeightField):
         field = heights
         if spacing is not None and check_spacing(spacing) != (field.dx, field.dy):
             raise ValueError(f"spacing: {spacing!r}, but {field.name} carries its own pixel "
                              f"size ({field.dx:g}, {field.dy:g}); leave spacing out")
         flip = north_up and not field.north_up
-        arr = field.to_north_up(field.heights) if flip else field.heights
+        arr = field.to_north_up(field.heights) if north_up else field.heights
 
         def wrap(block):
             return HeightField(block, field.name, spacing=field.spacing, unit=field.unit,
@@ -58,16 +60,16 @@ def _unwrap(heights, spacing, north_up=True):
                                north="-y" if (flip or field.north_up) else "+y")
 
         pixel = (field.dx, field.dy) if field.unit != "cell" else None
-        return arr, wrap, pixel, flip, {}
+        return arr, wrap, pixel, (field.to_north_up if flip else None), {}
     pixel = check_spacing(spacing) if spacing is not None else None
-    return heights, (lambda block: block), pixel, False, {"spacing": spacing}
+    return heights, (lambda block: block), pixel, None, {"spacing": spacing}
 
 
 def tiled_product(product, heights, max_distance, spacing, dtype, **kwargs):
     """``product(block, max_distance=..., **kwargs)`` (a 2D in-memory terrain product)
     over a dask array's chunks with a halo of ``max_distance`` (a length in the field's
     unit). Returns a lazy dask array shaped like ``heights``."""
-    arr, wrap, pixel, flipped, extra = _unwrap(heights, spacing)
+    arr, wrap, pixel, back, extra = _unwrap(heights, spacing)
     if arr.ndim != 2:
         raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {arr.shape}")
     if max_distance is None:
@@ -83,7 +85,7 @@ def tiled_product(product, heights, max_distance, spacing, dtype, **kwargs):
         return product(wrap(np.asarray(h)), max_distance=max_distance, **extra, **kwargs)
 
     out = arr.map_overlap(block, depth=depth, boundary="none", trim=True, dtype=dtype)
-    return out[::-1] if flipped else out
+    return out if back is None else back(out)
 
 
 def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs):

@@ -27,7 +27,7 @@ def pixel_to_grid(field, col, row, *, what=None):
     if not (0 <= col <= cols - 1 and 0 <= row <= rows - 1):
         raise ValueError(f"observer pixel {typed}: outside {field.name}, whose columns are "
                          f"0..{cols - 1} and rows 0..{rows - 1} (row 0 north)")
-    return float(col), float(row if field.north_up else rows - 1 - row)
+    return float(col), float(field.north_up_row(row))
 
 
 def parse_observer(text, field, *, pixel=False):

@@ -78,7 +78,8 @@ def product_png(path, array, field=None, *, product, units, params=None, observe
         mask |= np.isclose(values, border, rtol=0, atol=1e-12)
     rows, cols = values.shape
     flip = field is not None and not field.north_up
-    shown = np.ma.masked_array(values[::-1] if flip else values, mask[::-1] if flip else mask)
+    up = field.to_north_up if field is not None else (lambda a: a)
+    shown = np.ma.masked_array(up(values), up(mask))
     valid = shown.compressed()
     if np.asarray(array).dtype == bool:
         vmin, vmax = 0.0, 1.0
@@ -110,7 +111,7 @@ def product_png(path, array, field=None, *, product, units, params=None, observe
             if georef:
                 x, y = field.grid_to_map(col, row)
             else:
-                x, y = col, (rows - 1 - row) if flip else row
+                x, y = col, field.north_up_row(row) if field is not None else row
             ax.plot([x], [y], marker="x", color="red", markersize=10, mew=2)
     text = ", ".join(f"{k}={_short(v)}" for k, v in (params or {}).items())
     name = field.name if field is not None else ""

@@ -320,7 +320,7 @@ def write_product(path, array, field, *, product, units, params=None, band_names
         data[:, np.asarray(field.nodata_mask)] = nodata
     _, _, flip = _grid_of(field)
     if flip:
-        data = data[:, ::-1]
+        data = field.to_north_up(data)
     profile = _profile(field, len(data), dtype, nodata, compress=compress)
     with rasterio.open(path, "w", **profile) as dst:
         dst.write(data)
