@@ -46,7 +46,7 @@ from algos.field import HeightField
 from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, check_axis_aligned, utm_epsg
 
 __all__ = ["read_raster", "check_crs", "write_product", "create_product", "write_window",
-           "product_nodata", "LazyRaster", "REPROJECT"]
+           "product_nodata", "save_product", "LazyRaster", "REPROJECT"]
 
 #: What ``reproject=`` accepts: None (refuse a geographic CRS) or "utm".
 REPROJECT = (None, "utm")
@@ -445,3 +445,22 @@ class LazyRaster:
         self.path, self.scale, self.shape = state["path"], state["scale"], state["shape"]
         self.band = state.get("band", 1)
         self.ndim, self.dtype = 2, np.dtype(np.float32)
+
+
+def save_product(prefix, array, field, *, product, units, params=None, band_names=None,
+                 observers=None, cmap="viridis", border=None) -> list[str]:
+    """What a command writes for one product: ``prefix.tif`` (:func:`write_product`) and
+    ``prefix.png`` (:func:`datasets_gen.preview.product_png`, the first band for a
+    multi-band array). Returns the two paths."""
+    from .preview import product_png
+
+    tif = write_product(f"{prefix}.tif", array, field, product=product, units=units,
+                        params=params, band_names=band_names)
+    first = np.asarray(array)
+    first = first[0] if first.ndim == 3 else first
+    shown = dict(params or {})
+    if band_names is not None and np.asarray(array).ndim == 3:
+        shown["band"] = band_names[0]
+    png = product_png(f"{prefix}.png", first, field, product=product, units=units,
+                      params=shown, observers=observers, cmap=cmap, border=border)
+    return [tif, png]

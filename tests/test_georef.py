@@ -525,3 +525,17 @@ def test_horizon_bands_are_written_with_their_azimuths(tmp_path):
         assert b.count == 2 and b.descriptions == ("azimuth 0", "azimuth 135")
         assert b.tags(2)["units"] == "degrees"
         np.testing.assert_allclose(b.read(2), angles[1], rtol=1e-6)
+
+
+def test_save_product_writes_the_geotiff_and_the_picture(tmp_path):
+    dem = (fields.generate("fbm", (24, 30), seed=18) * 100).astype(np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "in.tif", dem))
+    seen = algos.viewshed(field, (12, 10))
+    tif, png = datasets_gen.save_product(tmp_path / "vs", seen, field, product="viewshed",
+                                         units="1 visible, 0 not",
+                                         params={"observer_height": 1.75},
+                                         observers=[(12, 10)], cmap="Greens")
+    with rasterio.open(tif) as b:
+        assert b.crs == field.crs and b.tags()["observer_height"] == "1.75"
+        np.testing.assert_array_equal(b.read(1), seen.astype(np.uint8))
+    assert (tmp_path / "vs.png").stat().st_size > 1000 and png.endswith("vs.png")
