@@ -113,7 +113,10 @@ def product_png(path, array, field=None, *, product, units, params=None, observe
             else:
                 x, y = col, field.north_up_row(row) if field is not None else row
             ax.plot([x], [y], marker="x", color="red", markersize=10, mew=2)
-    text = ", ".join(f"{k}={_short(v)}" for k, v in (params or {}).items())
+    lengths = ("max_distance", "observer_height", "target_height")
+    unit = f" {field.unit}" if field is not None and field.unit != "cell" else ""
+    text = ", ".join(f"{k}={_short(v)}{unit if k in lengths and v is not None else ''}"
+                     for k, v in (params or {}).items())
     name = field.name if field is not None else ""
     ax.set_title(f"{product}{' of ' + name if name else ''}" + (f"\n{text}" if text else ""),
                  fontsize=10)
