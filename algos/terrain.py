@@ -1069,7 +1069,6 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     _check_surface(surface)
     grid = _prepare(heights, spacing)
     h = grid.h
-    rows = h.shape[0]
     given = np.asarray(observer, dtype=np.float64) if np.ndim(observer) else observer
     obs, single = _observers(given, h)
     if grid.field is not None:
