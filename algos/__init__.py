@@ -7,7 +7,8 @@
 See docs/CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the API.
 """
 from .brute import brute_force_hits
-from .field import Field
+from .field import Field, HeightField, as_field
+from .georef import IUGG_MEAN_EARTH_RADIUS_M, WGS84_SEMI_MAJOR_AXIS_M
 from .intersect import HIT_OUTPUTS, STATS, Hits, intersect
 from .lattice import quantize
 from .reference import major_axis, reference_cells, reference_runs, runs_from_cells
@@ -24,6 +25,7 @@ from .registry import (
 )
 from .render import Rendering, render
 from .terrain import (
+    DEFAULT_REFRACTION,
     HORIZON_ALGORITHMS,
     VIEWSHED_ALGORITHMS,
     horizon,
@@ -50,7 +52,9 @@ __all__ = [
     "traverse", "walk_timed", "prepare_timed", "CellPaths", "RunPaths", "PathCounts",
     "DEFAULT_MAX_DENOMINATOR", "OUTPUTS", "WORKLOADS",
     "INTERSECTORS", "INTERSECTOR_REGISTRY", "Intersector", "get_intersector", "SURFACES",
-    "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "brute_force_hits", "render", "Rendering",
+    "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "HeightField", "as_field",
+    "brute_force_hits", "WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M",
+    "DEFAULT_REFRACTION", "render", "Rendering",
     "horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
     "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS",
 ]

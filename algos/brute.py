@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .field import HeightField
+
 __all__ = ["brute_force_hits"]
 
 
@@ -155,9 +157,11 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
 def brute_force_hits(heights, origins, directions, surface="triangles", tmin=None, tmax=None):
     """(t, cell) of the first hit of every ray, testing every cell; t = inf on a miss.
 
-    Same conventions as ``algos.intersect`` (CONVENTIONS.md, "The first hit").
+    Same conventions as ``algos.intersect`` (CONVENTIONS.md, "The first hit"); a
+    :class:`algos.HeightField` gives its cell heights.
     """
-    H = np.asarray(heights, dtype=np.float32)
+    H = heights.cell_heights if isinstance(heights, HeightField) else \
+        np.asarray(heights, dtype=np.float32)
     o = np.asarray(origins, dtype=np.float64)
     d = np.asarray(directions, dtype=np.float64)
     n = len(o)

@@ -90,7 +90,7 @@ def embree_scene(field, robust=ROBUST):
         from embreex import rtcore_scene as rtcs
         from embreex.mesh_construction import TriangleMesh
 
-        vertices, indices = triangles(field.heights)
+        vertices, indices = triangles(field.cell_heights)
         before = _rss_bytes()
         start = time.perf_counter()
         scene = rtcs.EmbreeScene(robust=robust)
@@ -100,12 +100,12 @@ def embree_scene(field, robust=ROBUST):
         grown = max(_rss_bytes() - before, 0)
         return scene, mesh, seconds, grown
 
-    if key not in field._cache:
+    if field.stored(key) is None:
         scene, mesh, seconds, grown = build()
-        field._cache[key] = (scene, mesh)
-        field.build_stats[key] = {"seconds": seconds, "bytes": int(grown), "robust": robust,
-                                  "bytes_note": "resident-memory growth during the build"}
-    return field._cache[key][0]
+        field.store(key, (scene, mesh), {"seconds": seconds, "bytes": int(grown),
+                                         "robust": robust,
+                                         "bytes_note": "resident-memory growth during the build"})
+    return field.stored(key)[0]
 
 
 def far_bounds(field, origins, directions):
@@ -113,8 +113,8 @@ def far_bounds(field, origins, directions):
     box [0, cols-1] x [0, rows-1] x (-inf, hmax], or reaches the lowest height going
     down (from there on it is inside the solid). Widened by a hair for float32."""
     o, d = np.asarray(origins, float), np.asarray(directions, float)
-    rows, cols = field.heights.shape
-    hmin, hmax = float(field.heights.min()), float(field.heights.max())
+    rows, cols = field.shape
+    hmin, hmax = field.hmin, field.hmax
     far = np.full(len(o), np.inf)
     with np.errstate(divide="ignore", invalid="ignore"):
         for k, top in ((0, cols - 1.0), (1, rows - 1.0)):

@@ -1,6 +1,9 @@
-"""A height field prepared for first hits: validated heights plus acceleration
-structures, each built on first use and kept (build once per field, build only what the
-requested kernels use).
+"""The height-field type every public function takes (:class:`HeightField`, also
+``algos.Field`` and ``datasets_gen.HeightField``): heights, their spacing, unit, CRS,
+geotransform, orientation and nodata mask, plus the acceleration structures of first
+hits, each built on first use and kept (build once per field, build only what the
+requested kernels use). First hits and renders read :attr:`HeightField.cell_heights`,
+the heights in cell units.
 
 Structures (all float32; ``nx = cols - 1``, ``ny = rows - 1`` cells):
 
@@ -45,37 +48,20 @@ directly; the other intersectors build what they need as usual.
 """
 from __future__ import annotations
 
+import hashlib
+import math
 import time
+from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
-from .lattice import MAX_GRID_SIDE
-from .traverse import _as_float_array
+from .georef import pixel_size
+from .validate import as_float_array, check_heights, check_spacing
 
-__all__ = ["Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind"]
+__all__ = ["HeightField", "Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind", "max_mipmap",
+           "is_dask", "is_dataarray", "BAND_SAMPLES"]
 
 RMQ_BLOCK_SHIFT = 3
-
-
-def _validate_heights(heights) -> np.ndarray:
-    h = _as_float_array(heights, "heights")
-    if h.ndim != 2:
-        raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {h.shape}")
-    if h.shape[0] < 2 or h.shape[1] < 2:
-        raise ValueError(f"heights: a height field needs at least 2 x 2 samples, got {h.shape}")
-    if max(h.shape) > MAX_GRID_SIDE:
-        raise ValueError(f"heights: shape {h.shape} exceeds the limit of 2**24 samples per side")
-    # no copy when it already is C-contiguous native float32 (a memory-mapped .npy too)
-    h = np.require(h, dtype=np.float32, requirements=["C", "A"])
-    step = _band_rows(h.shape[1])
-    for r0 in range(0, h.shape[0], step):  # bounded temporaries
-        bad = ~np.isfinite(h[r0:r0 + step])
-        if bad.any():
-            row, col = (int(v) for v in np.argwhere(bad)[0])
-            row += r0
-            raise ValueError(f"heights: sample (row {row}, col {col}) is {h[row, col]}; heights "
-                             "must be finite (datasets_gen.load_file has an explicit nodata policy)")
-    return h
 
 
 #: samples per band of the streaming passes (their temporaries stay this small)
@@ -157,30 +143,386 @@ def _halve(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def _mipmap(cellmax: np.ndarray) -> list[np.ndarray]:
+def max_mipmap(cellmax: np.ndarray) -> list[np.ndarray]:
+    """The levels of the maximum mipmap of ``cellmax``: level 0 is ``cellmax``, level k+1
+    the maxima over 2 x 2 blocks of level k (odd sides padded with -inf), down to 1 x 1."""
     levels = [cellmax]
     while max(levels[-1].shape) > 1:
         levels.append(_halve(levels[-1]))
     return levels
 
 
-class Field:
-    """Heights (float32, validated) and their lazily built acceleration structures.
 
-    Structures are built per *bound kind* (:func:`bound_kind` of the surface) on first
-    use; ``build_stats`` maps each one built so far (``"cellmax"``,
-    ``"cellmax/plane3"``, ...) to ``{"seconds", "bytes"}``.
+
+def is_dask(x) -> bool:
+    """A dask array (or a HeightField or DataArray holding one)."""
+    x = getattr(x, "heights", x)
+    x = getattr(x, "data", x) if is_dataarray(x) else x
+    return type(x).__module__.split(".")[0] == "dask" and hasattr(x, "map_overlap")
+
+
+def is_dataarray(x) -> bool:
+    """An ``xarray.DataArray`` (checked without importing xarray)."""
+    return type(x).__name__ == "DataArray" and type(x).__module__.split(".")[0] == "xarray"
+
+
+_LEGACY = ("HeightField(heights, name, spacing, unit, params) with positional spacing and "
+           "unit held heights in cell units; that form is gone. Heights are now in the unit "
+           "of the pixel size: HeightField(heights_in_metres, name, spacing=30.0, unit='m'), "
+           "or, for heights already in cells, HeightField(cells, name, spacing=30.0, "
+           "unit='m', height_unit='cell')")
+
+
+@dataclass(eq=False, init=False)
+class HeightField:
+    """A height field: heights on a regular grid, where it lies, what is missing, and its
+    acceleration structures for first hits (built on first use and kept).
+
+    The one type every public function takes: :func:`algos.traverse` (as its grid),
+    :func:`algos.intersect`, the terrain products and the renderer.
+    ``datasets_gen.HeightField`` and ``algos.Field`` are this class.
+
+    Parameters
+    ----------
+    heights : array_like (rows, cols) or dask array
+        ``heights[j, i]`` is the height of vertex ``(x=i, y=j)``. NumPy input is kept as
+        C-contiguous float32 (not copied when it already is, so a memory-mapped file stays
+        mapped); a dask array stays lazy. NaN marks a void unless ``nodata_mask`` is given.
+    name : str
+    spacing : float or (dx, dy)
+        Pixel size, positive lengths in ``unit`` (x along columns, y along rows). 1 means
+        cell units.
+    unit : str, optional
+        The linear unit of ``spacing`` and of every length a product takes
+        (``max_distance``, ``observer_height``, ``target_height``). Default ``"cell"``
+        for spacing 1, else ``"map unit"``. A geographic CRS is never a linear unit.
+    height_unit : str, optional
+        The unit of ``heights``: ``unit`` (the default: heights in the same linear unit as
+        the pixel size, as in a DEM) or ``"cell"`` (heights in multiples of the pixel size,
+        the kernels' own unit, square pixels only: how generated fields and the embedded
+        DEM are stored, so that the kernels' studies read them unchanged).
+    crs : rasterio CRS, WKT or EPSG string, optional
+    transform : affine.Affine, optional
+        The geotransform of the stored array (pixel corners); when given, ``spacing`` and
+        ``north`` come from it. Rotated or sheared transforms are refused.
+    nodata_mask : bool array (rows, cols), optional
+        True at void vertices (nodata). Default: where the heights are not finite.
+    north : {"-y", "+y"}
+        Where north is in the stored array: ``"-y"`` (row 0 is the northern edge, as in a
+        north-up raster) or ``"+y"`` (rows run north: a south-up raster, or the embedded
+        DEM). The terrain products work north-up and return arrays in the stored
+        orientation; :meth:`to_north_up` is the one place that flips.
+    params : dict
+        Where the field came from (generator parameters, file path, ...).
+    lean : bool
+        The lean first-hit layout of ``runs_maxmip`` (module docstring).
+
+    Attributes
+    ----------
+    spacing : float or (dx, dy)
+        One number for square pixels, else the pair; :attr:`dx` and :attr:`dy` always.
+    rows, cols, shape : the grid's size in samples.
+    cell_heights : float32 heights in cell units (first hits and renders).
+
+    Raises
+    ------
+    TypeError
+        Heights that are not real numbers, or the old positional form
+        ``HeightField(heights, name, spacing, unit)``, whose heights were in cell units.
+    ValueError
+        A shape outside [2, 2**24] per side, a bad spacing, unit or transform.
     """
 
-    def __init__(self, heights, *, lean=False):
-        self.heights = _validate_heights(heights)
+    heights: object
+    name: str = "heights"
+    spacing: object = 1.0
+    unit: str = "cell"
+    height_unit: str = "cell"
+    crs: object = None
+    transform: object = None
+    nodata_mask: object = None
+    north: str = "-y"
+    params: dict = dc_field(default_factory=dict)
+    lean: bool = False
+
+    def __init__(self, heights, name="heights", *legacy, spacing=None, unit=None,
+                 height_unit=None, crs=None, transform=None, nodata_mask=None, north=None,
+                 params=None, lean=False):
+        if legacy:
+            raise TypeError(f"HeightField: {_LEGACY}")
+        if isinstance(heights, HeightField):
+            raise TypeError("heights: already a HeightField (use dataclasses.replace to "
+                            "change it)")
+        if is_dataarray(heights):
+            raise TypeError("heights: an xarray.DataArray; use HeightField.from_dataarray")
+        self.name = str(name)
+        self.params = dict(params or {})
         self.lean = bool(lean)
-        self.rows, self.cols = self.heights.shape
-        self.hmin = float(self.heights.min())
-        self.hmax = float(self.heights.max())
+        self.crs = crs
+        self.transform = transform
+        if transform is not None:
+            dx, dy, north_up = pixel_size(transform)
+            if spacing is not None and check_spacing(spacing) != (dx, dy):
+                raise ValueError(f"spacing: {spacing!r} disagrees with the transform's pixel "
+                                 f"size ({dx:g}, {dy:g})")
+            given_north = "-y" if north_up else "+y"
+            if north is not None and north != given_north:
+                raise ValueError(f"north: {north!r} disagrees with the transform (north is "
+                                 f"{given_north})")
+            north = given_north
+        else:
+            dx, dy = check_spacing(1.0 if spacing is None else spacing)
+        self.spacing = dx if dx == dy else (dx, dy)
+        if north is None:
+            north = self.params.get("north", "-y")
+        if north not in ("-y", "+y"):
+            raise ValueError(f"north: expected '-y' (row 0 is north) or '+y' (rows run "
+                             f"north), got {north!r}")
+        self.north = north
+        # params["north"] mirrors it for scripts written before the field had it
+        if north == "+y":
+            self.params["north"] = "+y"
+        else:
+            self.params.pop("north", None)
+        if unit is None:
+            unit = "cell" if (dx, dy) == (1.0, 1.0) and crs is None else "map unit"
+        self.unit = str(unit)
+        self.height_unit = self.unit if height_unit is None else str(height_unit)
+        if self.height_unit not in (self.unit, "cell"):
+            raise ValueError(f"height_unit: expected {self.unit!r} (the pixel size's unit) or "
+                             f"'cell', got {height_unit!r}")
+        if self.height_unit == "cell" and dx != dy:
+            raise ValueError(f"height_unit: 'cell' needs square pixels, got spacing "
+                             f"({dx:g}, {dy:g}); give the heights in {self.unit!r}")
+        if is_dask(heights):
+            if heights.ndim != 2:
+                raise ValueError(f"heights: expected a 2D array (rows, cols), got shape "
+                                 f"{heights.shape}")
+            self.heights = heights
+        else:
+            h = check_heights(heights, finite=False)
+            if isinstance(heights, np.memmap) and h.dtype == heights.dtype and \
+                    heights.flags.c_contiguous and np.shares_memory(h, heights):
+                h = heights  # a memory-mapped file stays a np.memmap: used in place
+            self.heights = h
+        self.rows, self.cols = (int(v) for v in self.heights.shape)
+        self.nodata_mask = self._mask(nodata_mask)
         self.build_stats: dict[str, dict] = {}
         self._cache: dict[str, object] = {}
 
+    def _mask(self, given):
+        """The void mask: given, else where numpy heights are not finite (None: none)."""
+        if given is not None:
+            if is_dask(given):
+                return given
+            mask = np.asarray(given)
+            if mask.shape != self.heights.shape or mask.dtype != bool:
+                raise ValueError(f"nodata_mask: expected a bool array of shape "
+                                 f"{self.heights.shape}, got {mask.dtype} {mask.shape}")
+            return mask if mask.any() else None
+        if is_dask(self.heights):
+            return None
+        step = _band_rows(self.cols)
+        bands = [(r0, ~np.isfinite(self.heights[r0:r0 + step]))
+                 for r0 in range(0, self.rows, step)]
+        if not any(b.any() for _, b in bands):
+            return None
+        return np.concatenate([b for _, b in bands])
+
+    # ---- construction -----------------------------------------------------------------
+    @classmethod
+    def from_dataarray(cls, array, name=None, *, spacing=None, unit=None):
+        """A HeightField from a 2D ``xarray.DataArray``: its values (a dask-backed one stays
+        lazy), its CRS, transform and nodata through rioxarray (``rio.crs``,
+        ``rio.transform()``, ``rio.nodata``; NaN is a void too). Without rioxarray, or
+        without spatial coordinates, ``spacing`` (default 1: cell units) describes the
+        pixels. A geographic CRS is refused (:func:`datasets_gen.raster.check_crs`)."""
+        if array.ndim != 2:
+            raise ValueError(f"heights: expected a 2D DataArray, got dims {array.dims}")
+        data = array.data
+        crs = transform = nodata = None
+        try:
+            import rioxarray  # noqa: F401  (registers the .rio accessor)
+        except ImportError:
+            rio = None
+        else:
+            rio = array.rio
+        if rio is not None:
+            try:
+                crs = rio.crs
+                transform = rio.transform(recalc=True)
+                nodata = rio.nodata if rio.nodata is not None else rio.encoded_nodata
+            except Exception:  # no spatial dimensions: a plain array
+                crs = transform = None
+        if transform is not None and crs is None and tuple(transform)[:6] == \
+                (1.0, 0.0, 0.0, 0.0, 1.0, 0.0):
+            transform = None  # rioxarray's answer for an array without coordinates
+        if transform is not None and spacing is not None:
+            raise ValueError("spacing: the DataArray's coordinates give the pixel size; "
+                             "leave spacing out")
+        if crs is not None:
+            from datasets_gen.raster import check_crs  # the CRS rules live with the readers
+
+            unit = check_crs(crs, f"DataArray {array.name!r}")
+        mask = None
+        if nodata is not None and not (isinstance(nodata, float) and math.isnan(nodata)):
+            mask = data == nodata
+            if is_dask(data):
+                import dask.array as da
+
+                data = da.where(mask, np.nan, data)
+            else:
+                data = np.where(mask, np.nan, data)
+        return cls(data, name if name is not None else str(array.name or "DataArray"),
+                   spacing=None if transform is not None else spacing, unit=unit, crs=crs,
+                   transform=transform, nodata_mask=mask,
+                   params=dict(source="xarray.DataArray"))
+
+    # ---- units and orientation ----------------------------------------------------------
+    @property
+    def shape(self):
+        return (self.rows, self.cols)
+
+    @property
+    def dx(self) -> float:
+        """Pixel size along x (columns), in ``unit``."""
+        return self.spacing[0] if isinstance(self.spacing, tuple) else self.spacing
+
+    @property
+    def dy(self) -> float:
+        """Pixel size along y (rows), in ``unit``."""
+        return self.spacing[1] if isinstance(self.spacing, tuple) else self.spacing
+
+    @property
+    def north_up(self) -> bool:
+        """Row 0 is the northern edge."""
+        return self.north == "-y"
+
+    def to_north_up(self, array):
+        """``array`` (rows, cols, or (K, rows, cols)) in the stored orientation, flipped to
+        north-up when the rows run north; its own inverse (outputs go back the same way).
+        The one place where orientation is handled."""
+        if self.north_up:
+            return array
+        return array[..., ::-1, :]
+
+    def north_up_row(self, row):
+        """The row index (a number or an array, fractions allowed) of the same point
+        counted north-up; its own inverse. The point version of :meth:`to_north_up`."""
+        return row if self.north_up else (self.rows - 1) - row
+
+    def grid_to_map(self, col, row):
+        """Map coordinates ``(x, y)`` of the grid point ``(col, row)`` (vertex ``(i, j)``
+        is ``H[j, i]``, fractions allowed); vertices are pixel centres."""
+        if self.transform is None:
+            raise ValueError(f"{self.name}: not georeferenced (no transform); give grid "
+                             "coordinates (col, row) instead")
+        t = self.transform
+        c, r = float(col) + 0.5, float(row) + 0.5  # vertices are pixel centres
+        return t.a * c + t.b * r + t.c, t.d * c + t.e * r + t.f
+
+    def map_to_grid(self, x, y, *, what=None):
+        """Grid ``(col, row)`` (floats, vertex units, stored orientation) of the map point
+        ``(x, y)``; raises ValueError, echoing ``what`` (default the typed pair) when the
+        point lies outside the footprint ``[0, cols-1] x [0, rows-1]``."""
+        typed = what if what is not None else f"({x}, {y})"
+        if self.transform is None:
+            raise ValueError(f"observer {typed}: {self.name} is not georeferenced (no "
+                             "transform); give grid coordinates (col, row) instead")
+        try:
+            x, y = float(x), float(y)
+        except (TypeError, ValueError):
+            raise TypeError(f"observer {typed}: expected two numbers") from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError(f"observer {typed}: not a finite position")
+        t = self.transform  # axis-aligned (checked on construction)
+        col, row = (x - t.c) / t.a - 0.5, (y - t.f) / t.e - 0.5
+        # exact at vertices: (x, y) computed from a vertex comes back to it
+        col = round(col) if abs(col - round(col)) < 1e-9 else col
+        row = round(row) if abs(row - round(row)) < 1e-9 else row
+        if not (0 <= col <= self.cols - 1 and 0 <= row <= self.rows - 1):
+            lo_x, lo_y = self.grid_to_map(0, 0)
+            hi_x, hi_y = self.grid_to_map(self.cols - 1, self.rows - 1)
+            raise ValueError(
+                f"observer {typed}: outside {self.name}, whose vertices span x "
+                f"{min(lo_x, hi_x):.10g}..{max(lo_x, hi_x):.10g} and y "
+                f"{min(lo_y, hi_y):.10g}..{max(lo_y, hi_y):.10g} (CRS {self.crs})")
+        return float(col), float(row)
+
+    # ---- the kernels' view ----------------------------------------------------------------
+    @property
+    def cell_heights(self) -> np.ndarray:
+        """The heights in cell units (the kernels' unit), C-contiguous float32, finite:
+        ``heights`` itself when they already are in cells, else ``heights / spacing``.
+        Needs square pixels and no voids; computed once."""
+        if "cell_heights" not in self._cache:
+            if is_dask(self.heights):
+                raise TypeError(f"heights: {self.name} holds a dask array; first hits need it "
+                                "in memory (the terrain products take it tiled)")
+            if self.nodata_mask is not None:
+                row, col = (int(v) for v in np.argwhere(self.nodata_mask)[0])
+                raise ValueError(f"heights: sample (row {row}, col {col}) is "
+                                 f"{self.heights[row, col]} (nodata); first hits need every "
+                                 "sample: fill the voids first (HeightField.filled)")
+            if self.height_unit == "cell" or (self.dx == 1.0 and self.dy == 1.0):
+                # no void mask means every sample was found finite on construction
+                h = check_heights(self.heights, finite=False)
+            elif self.dx == self.dy:
+                h = check_heights(np.asarray(self.heights, dtype=np.float64) / self.dx)
+            else:
+                raise ValueError(f"heights: {self.name} has rectangular pixels "
+                                 f"({self.dx:g} x {self.dy:g} {self.unit}); first hits and "
+                                 "renders work in cell units and need square pixels")
+            self._cache["cell_heights"] = h
+        return self._cache["cell_heights"]
+
+    @property
+    def hmin(self) -> float:
+        """Lowest cell height."""
+        if "hmin" not in self._cache:
+            self._cache["hmin"] = float(self.cell_heights.min())
+        return self._cache["hmin"]
+
+    @property
+    def hmax(self) -> float:
+        """Highest cell height."""
+        if "hmax" not in self._cache:
+            self._cache["hmax"] = float(self.cell_heights.max())
+        return self._cache["hmax"]
+
+    @property
+    def checksum(self) -> str:
+        """SHA-256 of the heights' float32 bytes (C order, little-endian)."""
+        data = np.ascontiguousarray(self.heights, dtype="<f4")
+        return hashlib.sha256(data.tobytes()).hexdigest()
+
+    def filled(self, policy="min", value=None) -> "HeightField":
+        """A copy whose void vertices hold a height, an explicit policy: ``"min"`` the
+        lowest valid height, ``"value"`` the given ``value``. The products do not need
+        it (voids are handled, see :mod:`algos.terrain`); first hits do."""
+        if self.nodata_mask is None:
+            return self
+        h = np.array(self.heights, dtype=np.float32)
+        if policy == "min":
+            valid = h[~self.nodata_mask]
+            if valid.size == 0:
+                raise ValueError(f"{self.name}: every sample is nodata; nothing to fill with")
+            fill = valid.min()
+        elif policy == "value":
+            if value is None or not math.isfinite(float(value)):
+                raise ValueError(f"value: policy='value' needs a finite value, got {value!r}")
+            fill = float(value)
+        else:
+            raise ValueError(f"policy: expected 'min' or 'value', got {policy!r}")
+        h[self.nodata_mask] = fill
+        params = dict(self.params, filled=policy if policy == "min" else float(fill))
+        return HeightField(h, self.name, spacing=self.spacing, unit=self.unit,
+                           height_unit=self.height_unit, crs=self.crs, transform=self.transform,
+                           north=None if self.transform is not None else self.north,
+                           params=params, lean=self.lean,
+                           nodata_mask=np.zeros(self.shape, dtype=bool))
+
+    # ---- acceleration structures (first hits) ----------------------------------------------
     def _build(self, name, make):
         if name not in self._cache:
             start = time.perf_counter()
@@ -196,12 +538,22 @@ class Field:
             self.build_stats[name] = {"seconds": seconds, "bytes": int(nbytes)}
         return self._cache[name]
 
+    def store(self, name: str, value, stats: dict) -> None:
+        """Keep a structure built outside this module (the Embree scene) with its build
+        statistics (``{"seconds", "bytes", ...}``, reported in :attr:`build_stats`)."""
+        self._cache[name] = value
+        self.build_stats[name] = dict(stats)
+
+    def stored(self, name: str):
+        """A structure kept by :meth:`store` (or built here), or None."""
+        return self._cache.get(name)
+
     @staticmethod
     def _key(name, kind):
         return name if kind == "corners" else f"{name}/{kind}"
 
     def cellmax_for(self, kind="corners") -> np.ndarray:
-        h = self.heights
+        h = self.cell_heights
 
         def make():  # in bands: the only full-size array is the result
             out = np.empty((self.rows - 1, self.cols - 1), dtype=np.float32)
@@ -217,7 +569,7 @@ class Field:
         """Lowest and highest surface height over the field, for the box clip."""
         if kind == "corners":
             return self.hmin, self.hmax
-        h = self.heights.astype(np.float64)
+        h = self.cell_heights.astype(np.float64)
         fourth = h[:-1, 1:] + h[1:, :-1] - h[:-1, :-1]
         return min(self.hmin, float(fourth.min())), max(self.hmax, float(fourth.max()))
 
@@ -234,10 +586,11 @@ class Field:
         it are ``None`` and the rest are built from the heights in bands, without the
         full-size cell maxima."""
         if from_level <= 0:
-            return self._build(self._key("mip", kind), lambda: _mipmap(self.cellmax_for(kind)))
+            return self._build(self._key("mip", kind), lambda: max_mipmap(self.cellmax_for(kind)))
 
         def make():
-            return [None] * from_level + _mipmap(_tile_max_rows(self.heights, kind, from_level))
+            return [None] * from_level + max_mipmap(
+                _tile_max_rows(self.cell_heights, kind, from_level))
 
         return self._build(self._key(f"mip{from_level}", kind), make)
 
@@ -254,11 +607,32 @@ class Field:
                                          if isinstance(s.get("bytes"), int))
 
 
+#: The same class under its first-hit name (kept: outside scripts import it).
+Field = HeightField
+
+
 def bound_kind(surface: str) -> str:
     """Which surface bounds a surface needs: "plane3" for plane3, else "corners"."""
     return "plane3" if surface == "plane3" else "corners"
 
 
-def as_field(heights) -> Field:
-    """A :class:`Field` for ``heights`` (returned as is when it already is one)."""
-    return heights if isinstance(heights, Field) else Field(heights)
+def as_field(heights, name: str = "heights") -> HeightField:
+    """A :class:`HeightField` for ``heights``: returned as is when it already is one, a
+    2D array of real numbers wrapped (cell units), a DataArray through
+    :meth:`HeightField.from_dataarray`. Anything else raises TypeError naming ``name``
+    and what is accepted."""
+    if isinstance(heights, HeightField):
+        return heights
+    if is_dataarray(heights):
+        return HeightField.from_dataarray(heights)
+    if isinstance(heights, (str, bytes, dict)) or heights is None:
+        raise TypeError(f"{name}: expected a 2D array of real numbers, an algos.HeightField "
+                        f"(datasets_gen.HeightField is the same class) or an xarray.DataArray, "
+                        f"got {type(heights).__name__}")
+    try:
+        as_float_array(heights, name)
+    except TypeError as exc:
+        raise TypeError(f"{exc}; {name} takes a 2D array of real numbers, an "
+                        f"algos.HeightField or an xarray.DataArray (got "
+                        f"{type(heights).__name__})") from None
+    return HeightField(heights)

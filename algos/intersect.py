@@ -11,12 +11,11 @@ from dataclasses import dataclass, field as dc_field
 import numpy as np
 
 from . import _kernels
-from .field import Field, as_field, bound_kind
+from .field import HeightField, as_field, bound_kind
 from .parallel import resolve_threads, run_ranges, split
 from .registry import SURFACES, get_intersector
-from .traverse import (DEFAULT_MAX_DENOMINATOR, MAX_DENOMINATOR, _as_float_array, _check_t,
-                       _first_bad)
-from .lattice import MAX_ORIGIN
+from .traverse import DEFAULT_MAX_DENOMINATOR, MAX_DENOMINATOR
+from .validate import check_rays3, check_t
 
 __all__ = ["Hits", "intersect", "HIT_OUTPUTS", "STATS"]
 
@@ -51,32 +50,6 @@ class Hits:
         if self.t is None:
             raise ValueError("hit: ask for the 't' output")
         return np.isfinite(self.t)
-
-
-def _check_rays3(origins, directions):
-    arrays = []
-    for name, value in (("origins", origins), ("directions", directions)):
-        array = _as_float_array(value, name)
-        if array.ndim != 2 or array.shape[1] != 3:
-            raise ValueError(f"{name}: expected shape (N, 3), got {array.shape}")
-        array = np.ascontiguousarray(array, dtype=np.float64)
-        bad = ~np.isfinite(array)
-        if bad.any():
-            k, c = _first_bad(bad)
-            raise ValueError(f"{name}: ray {k} has a non-finite component {name}[{k}, {c}] = {array[k, c]}")
-        arrays.append(array)
-    o, d = arrays
-    if len(o) != len(d):
-        raise ValueError(f"origins and directions: {len(o)} origins but {len(d)} directions")
-    zero = np.all(d == 0, axis=1)
-    if zero.any():
-        k = int(np.argmax(zero))
-        raise ValueError(f"directions: ray {k} is the zero vector")
-    far = np.abs(o) > MAX_ORIGIN
-    if far.any():
-        k, c = _first_bad(far)
-        raise ValueError(f"origins: ray {k} has |origins[{k}, {c}]| = {abs(o[k, c])} > 2**30")
-    return o, d
 
 
 def _options(algorithm, given: dict) -> dict:
@@ -121,9 +94,13 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     ----------
     name : str
         A name in ``algos.INTERSECTORS``.
-    heights : array_like (rows, cols) or algos.Field
-        ``H[j, i]`` is the height at ``(x=i, y=j)``; at least 2 x 2, finite. Pass an
-        :class:`algos.Field` to build acceleration structures once and reuse them.
+    heights : array_like (rows, cols), algos.HeightField or xarray.DataArray
+        ``H[j, i]`` is the height at ``(x=i, y=j)`` in cell units; at least 2 x 2, finite.
+        Pass an :class:`algos.HeightField` (``algos.Field`` and ``datasets_gen.HeightField``
+        are the same class) to build acceleration structures once and reuse them; its
+        :attr:`~algos.HeightField.cell_heights` are used (heights in a map unit are divided
+        by the square pixel size; rectangular pixels and voids are refused). Anything else
+        raises TypeError naming ``heights`` and what is accepted.
     origins, directions : array_like, shape (N, 3)
         Rays in (x, y, z); any real dtype and layout. Directions must not be zero.
     surface : {"flat", "plane3", "triangles", "bilinear"}
@@ -164,10 +141,10 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
             raise ValueError(f"outputs: unknown output {out!r}; valid outputs are {', '.join(HIT_OUTPUTS)}")
     opts = _options(algorithm, options)
     fld = as_field(heights)
-    o, d = _check_rays3(origins, directions)
+    o, d = check_rays3(origins, directions)
     n = len(o)
-    lo = _check_t(tmin, "tmin", n)
-    hi = _check_t(tmax, "tmax", n)
+    lo = check_t(tmin, "tmin", n)
+    hi = check_t(tmax, "tmax", n)
     hits = Hits(name, surface)
     nthreads = resolve_threads(threads)
 
@@ -194,7 +171,7 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
 class _Prepared:
     """One validated call, ready to run (and re-run, for timing) in C."""
 
-    def __init__(self, algorithm, fld: Field, surface, o, d, lo, hi, outputs, opts, threads=1):
+    def __init__(self, algorithm, fld: HeightField, surface, o, d, lo, hi, outputs, opts, threads=1):
         n = len(o)
         self.n, self.threads = n, threads
         self.t = np.empty(n) if "t" in outputs else None
@@ -230,7 +207,7 @@ class _Prepared:
                  float(opts.get("march_first_fraction", 1 / 580)),
                  float(opts.get("march_min_step", 0.0)))
         # (the positions of the per-ray arrays and the scratch are in _PER_RAY, _SCRATCH)
-        self.args = (algorithm.kernel_id, SURFACES.index(surface), fld.heights, cellmax,
+        self.args = (algorithm.kernel_id, SURFACES.index(surface), fld.cell_heights, cellmax,
                      hmin, hmax, row_max, col_max, mip, o, d, lo, hi,
                      int(bool(opts.get("cull_cells", False))), q, pattern, march, fine_level,
                      self.t, self.cell, self.normal, self.stats)
@@ -287,7 +264,7 @@ def prepare_timed_intersect(name, heights, origins, directions, surface="triangl
     Acceleration structures are built here, not in ``run``."""
     algorithm = get_intersector(name)
     fld = as_field(heights)
-    o, d = _check_rays3(origins, directions)
+    o, d = check_rays3(origins, directions)
     if algorithm.kind == "peer":
         from .embree_peer import embree_timed
 

@@ -85,8 +85,8 @@ def reference_cells(origin, direction, shape, tmin=0.0, tmax=float("inf")):
     origin, direction : pair of float or Fraction
         ``(x, y)``; every float is taken at its exact binary value. ``direction`` need
         not be normalised; ``(0, 0)`` is a vertical ray and visits at most one cell.
-    shape : (nx, ny)
-        Grid size in cells, in (x, y) order.
+    shape : (nx, ny) or HeightField
+        Grid size in cells, in (x, y) order (a HeightField: ``(cols - 1, rows - 1)``).
     tmin, tmax : float or Fraction
         The parameter range; ``-inf``/``inf`` are allowed.
 
@@ -100,6 +100,8 @@ def reference_cells(origin, direction, shape, tmin=0.0, tmax=float("inf")):
         change at once; consecutive cells share an edge (or a vertex only at a vertex
         crossing); no cell repeats.
     """
+    if hasattr(shape, "cell_heights"):  # a HeightField: its grid of cells
+        shape = (shape.cols - 1, shape.rows - 1)
     nx, ny = (int(s) for s in shape)
     if nx < 1 or ny < 1:
         raise ValueError(f"shape must be positive, got {shape!r}")

@@ -36,10 +36,45 @@ north-up rasters. An azimuth within 1e-9 degrees of a direction with slope p/q,
 q <= :data:`MAX_SNAP_DENOMINATOR`, is taken as exactly that direction by every method.
 :func:`rational_azimuths` yields such azimuths, so that the exact sweep applies.
 
-Units: heights are in cell units (CONVENTIONS.md). ``spacing`` (the length of a cell, e.g.
-in metres, or a HeightField's own) makes ``max_distance``, ``observer_height`` and
-``target_height`` lengths in that unit, and enables curvature. Without it they are in
-cells.
+Units
+-----
+Heights are in the same linear unit as the pixel size ``spacing = (dx, dy)`` (or one
+number for square pixels): metres over a metre grid. A raw array without ``spacing`` is
+in cell units (``spacing=1``); a :class:`~algos.field.HeightField` or a DataArray carries
+its own. ``max_distance``, ``observer_height`` and ``target_height`` are lengths in that
+unit; angles come back in radians.
+
+The kernels work in cell space: x = X / dx, y = Y / dy, z = Z / dx for map coordinates
+(X east, Y along the rows, Z up). On square pixels this is one uniform scale, which
+changes no angle. On rectangular pixels, a map azimuth A (map unit direction
+e = (sin A, -cos A)) maps to the fixed cell-space direction c = (e_x / dx, e_y / dy) / |.|,
+and a point at cell-space distance t along c lies at map distance m t, with the constant
+m = hypot(c_x dx, c_y dy). So the map horizon tangent (Z(p) - Z(v)) / (m t) is the
+cell-space one (z(p) - z(v)) / t times dx / m, the same constant for every point of the
+ray: the supremum is attained at the same breakpoint, and every exact method stays exact
+(max_distance D becomes D / m cells). A line of sight is unchanged by scaling x, y and z,
+so the viewshed needs only the heights in cells; curvature, which depends on the map
+distance, needs square pixels. ``tests/test_georef.py`` checks rectangular pixels against
+a brute-force horizon written in map space.
+
+Orientation: a field whose rows run north (a south-up raster, the embedded DEM) is
+flipped to north-up by :meth:`HeightField.to_north_up`, the one place that does it, and
+every result is flipped back: outputs are on the input's grid and orientation.
+
+Voids
+-----
+A void vertex (NaN in a raw array, ``nodata_mask`` in a HeightField) is nodata in every
+output: NaN in horizons and sky-view factors, False in shadows and single viewsheds, 0 in
+viewshed counts (their writers store nodata there: :mod:`datasets_gen.raster`).
+For the rays, **a void blocks nothing**: it is an infinitely deep pit. Every point of a
+cell touching a void vertex lies below anything a ray could see, except the edges between
+two valid vertices, which keep their heights (they belong to the neighbouring valid
+cells as well). It is computed as a pit :data:`VOID_HEIGHT` (-1e28 cells) deep, whose
+breakpoints lose to every valid one. So no valid vertex that does not touch a void sees
+a different value than on the same DEM with the void replaced by a much lower height
+(tested), and no void raises what is behind it, unlike a fill. An observer standing on a
+cell that touches a void is refused (its ground height is unknown). Filling stays
+available and explicit (``HeightField.filled``, ``load_file(nodata_policy=...)``).
 """
 from __future__ import annotations
 
@@ -51,20 +86,23 @@ from fractions import Fraction
 import numpy as np
 
 from . import _kernels
-from .field import _mipmap as field_mipmap
+from .field import HeightField, is_dask, is_dataarray, max_mipmap
+from .georef import WGS84_SEMI_MAJOR_AXIS_M
+from .validate import check_length, check_spacing
 from .parallel import resolve_threads, run_ranges
-from .tiled import is_dask, tiled_product, tiled_viewshed
+from .tiled import tiled_product, tiled_viewshed
 from .terrain_ref import line_of_sight_exact, surface_exact
 
 __all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
            "azimuth_direction", "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "TerrainAlgorithm",
-           "MAX_SNAP_DENOMINATOR", "EARTH_RADIUS_M", "TerrainStats"]
+           "MAX_SNAP_DENOMINATOR", "DEFAULT_REFRACTION", "TerrainStats", "Grid",
+           "VOID_HEIGHT"]
 
 #: Azimuths this close to a small rational slope are taken as exactly that slope.
 MAX_SNAP_DENOMINATOR = 128
 SNAP_TOLERANCE_DEG = 1e-9
-#: The Earth radius GDAL's viewshed uses by default (metres).
-EARTH_RADIUS_M = 6378137.0
+#: The default refraction coefficient of curvature, as in GDAL and GRASS (1/7).
+DEFAULT_REFRACTION = 1.0 / 7.0
 #: Breakpoints between early-stop checks in the pattern walk.
 PATTERN_STOP_EVERY = 32
 #: Heights (in cells) beyond this magnitude are refused: slopes between them stay finite.
@@ -135,62 +173,140 @@ LAST_STATS = TerrainStats()
 
 # ---- inputs --------------------------------------------------------------------------
 
-def _field(heights, spacing):
-    """(float64 C-contiguous heights in north-up order, spacing or None, flip_rows)."""
-    flip = False
-    field_spacing = None
-    if hasattr(heights, "heights") and hasattr(heights, "spacing"):  # a HeightField
-        params = getattr(heights, "params", {}) or {}
-        flip = params.get("north") == "+y"
-        field_spacing = float(heights.spacing) if getattr(heights, "unit", "cell") != "cell" else None
-        heights = heights.heights
-    if isinstance(heights, np.ndarray) and heights.dtype.kind not in "fiub":
-        raise TypeError(f"heights: expected a real numeric array, got dtype {heights.dtype}")
-    h = np.asarray(heights)
+@dataclass
+class Grid:
+    """A terrain product's view of its input: the kernels' heights and how map units
+    relate to them.
+
+    ``h``: float64 C-contiguous heights in *cell units*, north-up (row 0 north), voids
+    replaced by :data:`VOID_HEIGHT`. ``dx, dy``: the pixel size in ``unit``; ``z_scale``:
+    map units per cell height unit (``h = heights / z_scale``; ``dx`` unless the heights
+    already are in cells). ``has_unit``: lengths are in a real unit (a spacing was given
+    or carried), so curvature applies. ``void``: north-up bool mask or None.
+    ``field``: the HeightField (orientation, georeferencing), or None for a raw array.
+    """
+
+    h: np.ndarray
+    dx: float
+    dy: float
+    z_scale: float
+    has_unit: bool
+    void: np.ndarray | None
+    field: object
+    unit_metres: float = 1.0
+
+    @property
+    def square(self) -> bool:
+        return self.dx == self.dy
+
+    def to_north_up(self, array):
+        """Stored orientation <-> north-up (the field's own rule; raw arrays are north-up)."""
+        return array if self.field is None else self.field.to_north_up(array)
+
+    def cell_azimuth(self, azimuth: float) -> float:
+        """The azimuth, in cell space, of the map azimuth ``azimuth`` (degrees): the
+        direction (sin A / dx, -cos A / dy). The identity on square pixels."""
+        if self.square:
+            return azimuth
+        a = math.radians(azimuth)
+        return math.degrees(math.atan2(math.sin(a) / self.dx, math.cos(a) / self.dy)) % 360.0
+
+    def map_azimuth(self, cell_azimuth: float) -> float:
+        """The inverse of :meth:`cell_azimuth`."""
+        if self.square:
+            return cell_azimuth
+        a = math.radians(cell_azimuth)
+        return math.degrees(math.atan2(math.sin(a) * self.dx, math.cos(a) * self.dy)) % 360.0
+
+    def stretch(self, d: "Direction") -> float:
+        """Map length per unit of cell-space distance along the direction ``d``:
+        ``hypot(ux dx, uy dy)`` for the unit cell direction (ux, uy); ``dx`` on square
+        pixels."""
+        return self.dx if self.square else math.hypot(d.dx * self.dx, d.dy * self.dy)
+
+    def voids_to(self, out, value):
+        """Set the void vertices (north-up) of ``out`` (..., rows, cols) to ``value``."""
+        if self.void is not None:
+            out[..., self.void] = value
+        return out
+
+
+#: What a void vertex becomes in the kernels' heights (cell units): a pit so deep that
+#: every point of a cell touching it, except the edges between two valid vertices, lies
+#: below anything a ray could see. That is the limit of an infinitely deep pit, to
+#: rounding: "a void blocks nothing" (module docstring, "Voids").
+VOID_HEIGHT = -1e28
+#: Valid heights (cell units) must stay within this when a field has voids.
+VOID_HEIGHT_LIMIT = 1e18
+
+
+def _prepare(heights, spacing, *, name="heights") -> Grid:
+    """The :class:`Grid` of a raw array (north-up; ``spacing``: None for cell units, or
+    the pixel size in the heights' unit) or of a HeightField (its own spacing, units,
+    orientation and voids; ``spacing`` must then be left out or agree)."""
+    field = None
+    if is_dataarray(heights):
+        heights = HeightField.from_dataarray(heights)
+    if isinstance(heights, HeightField):
+        field = heights
+        if spacing is not None and check_spacing(spacing) != (field.dx, field.dy):
+            raise ValueError(f"spacing: {spacing!r}, but {field.name} carries its own pixel "
+                             f"size ({field.dx:g}, {field.dy:g}) {field.unit}; leave spacing out")
+        dx, dy = field.dx, field.dy
+        has_unit = field.unit != "cell"
+        z_scale = dx
+        divisor = 1.0 if field.height_unit == "cell" else dx
+        raw = field.heights
+        void = field.nodata_mask
+        unit_metres = float(field.params.get("unit_metres", 1.0))
+    else:
+        if isinstance(heights, (str, bytes, dict)) or heights is None:
+            raise TypeError(f"{name}: expected a 2D array of real numbers, an algos.HeightField "
+                            f"or an xarray.DataArray, got {type(heights).__name__}")
+        has_unit = spacing is not None
+        dx, dy = check_spacing(spacing) if has_unit else (1.0, 1.0)
+        z_scale = divisor = dx
+        raw = heights
+        void = None
+        unit_metres = 1.0
+    if isinstance(raw, np.ndarray) and raw.dtype.kind not in "fiub":
+        raise TypeError(f"{name}: expected a real numeric array, got dtype {raw.dtype}")
+    h = np.asarray(raw)
     if h.dtype.kind not in "fiub":
-        raise TypeError(f"heights: expected a real numeric array, got dtype {h.dtype}")
+        raise TypeError(f"{name}: expected a real numeric array, got dtype {h.dtype}")
     if h.ndim != 2:
-        raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {h.shape}")
+        raise ValueError(f"{name}: expected a 2D array (rows, cols), got shape {h.shape}")
     if h.shape[0] < 2 or h.shape[1] < 2 or max(h.shape) > _kernels.MAX_GRID_SIDE:
-        raise ValueError(f"heights: each side must be in [2, {_kernels.MAX_GRID_SIDE}], got {h.shape}")
+        raise ValueError(f"{name}: each side must be in [2, {_kernels.MAX_GRID_SIDE}], got {h.shape}")
     # aligned too: buffers from elsewhere (a Dask worker's deserialised block) need not be
     h = np.require(h, dtype=np.float64, requirements=["C", "A"])
-    bad = ~np.isfinite(h)
+    if divisor != 1.0:
+        h = h / divisor
+    nan = np.isnan(h)
+    if void is None and nan.any():
+        void = nan  # a raw array's NaN is a void
+    elif void is not None:
+        void = np.asarray(void, dtype=bool)
+    check = h if void is None else np.where(void, 0.0, h)
+    bad = ~np.isfinite(check)
     if bad.any():
         row, col = (int(v) for v in np.argwhere(bad)[0])
-        raise ValueError(f"heights: non-finite value {h[row, col]} at (row {row}, col {col})")
-    bad = np.abs(h) > HEIGHT_LIMIT
+        raise ValueError(f"{name}: non-finite value {h[row, col]} at (row {row}, col {col})")
+    limit = HEIGHT_LIMIT if void is None else VOID_HEIGHT_LIMIT
+    bad = np.abs(check) > limit
     if bad.any():
         row, col = (int(v) for v in np.argwhere(bad)[0])
-        raise ValueError(f"heights: {h[row, col]} at (row {row}, col {col}) exceeds the "
-                         f"documented limit |h| <= {HEIGHT_LIMIT:g} (differences and slopes "
+        raise ValueError(f"{name}: {h[row, col]} at (row {row}, col {col}) exceeds the "
+                         f"documented limit |h| <= {limit:g} cells (differences and slopes "
                          "must not overflow)")
-    if flip:
-        h = np.ascontiguousarray(h[::-1])
-    if spacing is None:
-        spacing = field_spacing
-    if spacing is not None:
-        spacing = float(spacing)
-        if not (math.isfinite(spacing) and spacing > 0):
-            raise ValueError(f"spacing: expected a positive finite length, got {spacing}")
-    return h, spacing, flip
-
-
-def _length(value, name, spacing, allow_none=True, allow_zero=True):
-    if value is None:
-        if allow_none:
-            return None
-        raise ValueError(f"{name}: a number is required")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name}: expected a number, got {value!r}") from None
-    if math.isnan(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} "
-                         f"length, got {value!r}")
-    if math.isinf(v):
-        return None if allow_none else v
-    return v / spacing if spacing else v
+    if void is not None:
+        if void.all():
+            raise ValueError(f"{name}: every sample is nodata")
+        h = np.where(void, VOID_HEIGHT, h)
+    if field is not None and not field.north_up:
+        h = np.ascontiguousarray(field.to_north_up(h))
+        void = None if void is None else np.ascontiguousarray(field.to_north_up(void))
+    return Grid(h, dx, dy, z_scale, has_unit, void, field, unit_metres)
 
 
 def _run_ranges(n, threads, call):
@@ -435,9 +551,9 @@ def _shared_pattern(d: Direction, rows: int, cols: int, max_distance):
 
 def _mipmap(h: np.ndarray):
     """(data, offset, rows, cols): the max-mipmap of the cell maxima in float64 (the
-    levels of :func:`algos.field._mipmap`, concatenated for the C walks)."""
+    levels of :func:`algos.field.max_mipmap`, concatenated for the C walks)."""
     cell = np.maximum(np.maximum(h[:-1, :-1], h[:-1, 1:]), np.maximum(h[1:, :-1], h[1:, 1:]))
-    levels = field_mipmap(cell)
+    levels = max_mipmap(cell)
     offset = np.cumsum([0] + [lv.size for lv in levels[:-1]]).astype(np.int64)
     return (np.ascontiguousarray(np.concatenate([lv.ravel() for lv in levels])), offset,
             np.array([lv.shape[0] for lv in levels], dtype=np.int64),
@@ -541,28 +657,56 @@ def _check_surface(surface):
                          f"default), got {surface!r}")
 
 
+def _azimuth_list(azimuths):
+    scalar = np.ndim(azimuths) == 0
+    az = np.atleast_1d(np.asarray(azimuths, dtype=object if scalar else None))
+    if az.ndim != 1 or len(az) == 0:
+        raise ValueError(f"azimuths: expected a number or a non-empty 1D sequence, got shape {az.shape}")
+    out = []
+    for k, a in enumerate(az):
+        if isinstance(a, (bool, np.bool_)):
+            raise TypeError(f"azimuths[{k}]: expected a number of degrees, got {a!r}")
+        try:
+            a = float(a)
+        except (TypeError, ValueError):
+            raise TypeError(f"azimuths[{k}]: azimuth: expected a number, got {a!r}") from None
+        if not math.isfinite(a):
+            raise ValueError(f"azimuths[{k}]: azimuth: expected a finite number of degrees, "
+                             f"got {a!r}")
+        out.append(a)
+    return out
+
+
 def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="triangles",
             spacing=None, threads=None, march_step=1.0, embree_tolerance=1e-4, progress=None):
     """Horizon elevation angles (radians) seen from every vertex.
 
     For each azimuth, the horizon of vertex v is the supremum, over the surface points p on
     the horizontal ray from v with 0 < dist(p, v) <= max_distance inside the footprint
-    [0, cols-1] x [0, rows-1], of atan2(s(p) - H(v), dist); -pi/2 where there is none.
-    On the two triangles the supremum is attained at a breakpoint of the ray (an edge or
-    diagonal crossing, or the far end), or is the slope limit at dist -> 0+, which equals
-    the ratio at the first breakpoint (module docstring). It is computed exactly, up to
-    float64 rounding, by every exact algorithm.
+    [0, cols-1] x [0, rows-1], of atan2(s(p) - H(v), dist), with heights and distances in
+    the same linear unit; -pi/2 where there is none. On the two triangles the supremum is
+    attained at a breakpoint of the ray (an edge or diagonal crossing, or the far end), or
+    is the slope limit at dist -> 0+, which equals the ratio at the first breakpoint
+    (module docstring). It is computed exactly, up to float64 rounding, by every exact
+    algorithm, on square and rectangular pixels alike (module docstring, "Units").
 
     Parameters
     ----------
-    heights : (rows, cols) array or HeightField
-    azimuths : float or sequence of floats, degrees clockwise from north (-y).
+    heights : (rows, cols) array, HeightField or xarray.DataArray
+        A raw array is north-up (row 0 north) and in the unit of ``spacing``; NaN marks a
+        void. A HeightField or DataArray carries its own spacing, CRS, orientation and
+        voids.
+    azimuths : float or sequence of floats
+        Degrees clockwise from north (north is row 0 of a north-up array).
     max_distance : float, optional
-        In cells, or in the unit of ``spacing``. None: unlimited.
+        A length in the field's unit (cells when there is no spacing). None: unlimited.
     algorithm : str, optional
         A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
-        rational and the distance unlimited, else "pattern" for max_distance <= 384 cells
-        and "dda_maxmip" beyond (chosen by measurement).
+        rational in cell space and the distance unlimited, else "pattern" for
+        max_distance <= 384 cells and "dda_maxmip" beyond (chosen by measurement).
+    spacing : float or (dx, dy), optional
+        The pixel size of a raw array, in the unit of its heights; None means cell units.
+        A HeightField carries its own (giving a different one raises).
     threads : None or int
         Vertices are split over threads; results are identical for every value.
     march_step, embree_tolerance : the baselines' step (cells) and angle tolerance (rad).
@@ -572,52 +716,90 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
 
     Returns
     -------
-    float64 array (len(azimuths), rows, cols).
+    float64 array (len(azimuths), rows, cols)
+        Radians in [-pi/2, pi/2], in the input's orientation; NaN at void vertices. A
+        DataArray gives a DataArray with an ``azimuth`` dimension, the input's coords, CRS
+        and attrs, ``units="radians"``.
 
-    A dask array (or a HeightField holding one) gives a lazy dask array, computed tile by
-    tile with a halo of ``max_distance`` (which must be finite): :mod:`algos.tiled`.
+    Raises
+    ------
+    ValueError, TypeError
+        Naming the argument: bad heights (a non-finite value other than a NaN void, too
+        large, too small), azimuths, lengths, algorithm, surface or threads.
+
+    A dask array (or a HeightField or DataArray holding one) gives a lazy dask array,
+    computed tile by tile with a halo of ``max_distance`` (which must be finite):
+    :mod:`algos.tiled`.
     """
+    if is_dataarray(heights):
+        az = _azimuth_list(azimuths)
+        return _to_dataarray(heights, lambda f: horizon(
+            f, az, max_distance, algorithm=algorithm, surface=surface, threads=threads,
+            march_step=march_step, embree_tolerance=embree_tolerance), "horizon",
+            dict(units="radians", max_distance=_attr(max_distance)), ("azimuth", az))
     if is_dask(heights):
         return _tiled_horizon(heights, azimuths, max_distance, spacing, dict(
             algorithm=algorithm, surface=surface, threads=threads, march_step=march_step,
             embree_tolerance=embree_tolerance))
     _check_surface(surface)
-    h, spacing, flip = _field(heights, spacing)
-    scalar = np.ndim(azimuths) == 0
-    az = np.atleast_1d(np.asarray(azimuths, dtype=object if scalar else None))
-    if az.ndim != 1 or len(az) == 0:
-        raise ValueError(f"azimuths: expected a number or a non-empty 1D sequence, got shape {az.shape}")
+    grid = _prepare(heights, spacing)
+    h = grid.h
     directions = []
-    for k, a in enumerate(az):
-        try:
-            directions.append(azimuth_direction(a))
-        except (TypeError, ValueError) as exc:
-            raise type(exc)(f"azimuths[{k}]: {exc}") from None
-    md = _length(max_distance, "max_distance", spacing)
+    for k, a in enumerate(_azimuth_list(azimuths)):
+        directions.append(azimuth_direction(grid.cell_azimuth(a)))
+    md = check_length(max_distance, "max_distance")
+    # per direction: the distance limit in cells and the factor from cell-space tangents
+    # (cell heights over cell distance) to map tangents (module docstring, "Units")
+    limits, factors = [], []
+    for d in directions:
+        stretch = grid.stretch(d)
+        limits.append(None if md is None else md / stretch)
+        factors.append(1.0 if grid.square else grid.z_scale / stretch)
     step = float(march_step)
     if not (math.isfinite(step) and step > 0):
         raise ValueError(f"march_step: expected a positive number of cells, got {march_step!r}")
-    name = _pick_horizon_algorithm(algorithm, directions, md)
+    name = _pick_horizon_algorithm(algorithm, directions,
+                                   None if md is None else max(limits))
     nthreads = resolve_threads(threads)
     stats = TerrainStats(name)
     mip = _mipmap(h) if name == "dda_maxmip" else None
     out = np.empty((len(directions),) + h.shape)
     for k, d in enumerate(directions):
-        out[k] = _horizon_one(h, d, name, md, nthreads, mip, stats, step, embree_tolerance)
+        out[k] = _horizon_one(h, d, name, limits[k], nthreads, mip, stats, step, embree_tolerance)
+        if factors[k] != 1.0:
+            out[k] *= factors[k]
         if progress is not None:
             progress(k + 1, len(directions))
     np.arctan(out, out=out)
-    if flip:
-        out = np.ascontiguousarray(out[:, ::-1])
+    grid.voids_to(out, np.nan)
+    out = np.ascontiguousarray(grid.to_north_up(out))
     LAST_STATS.__dict__.update(stats.__dict__)
     return out
 
 
 def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
             surface="triangles", spacing=None, threads=None):
-    """Cast shadows: True where the vertex is in shadow, i.e. where its horizon along the
-    sun's ``azimuth`` (degrees) is strictly above the sun's ``elevation`` (degrees); a tie
-    is lit. Returns bool (rows, cols)."""
+    """Cast shadows under a sun at ``azimuth`` and ``elevation`` (degrees).
+
+    A vertex is in shadow when its horizon along the sun's azimuth (:func:`horizon`) is
+    strictly above the sun's elevation; a tie is lit.
+
+    Parameters
+    ----------
+    heights, max_distance, algorithm, surface, spacing, threads
+        As in :func:`horizon` (``max_distance`` a length in the field's unit).
+    azimuth : float
+        Degrees clockwise from north.
+    elevation : float
+        Degrees above the horizontal, in [-90, 90].
+
+    Returns
+    -------
+    bool array (rows, cols)
+        True in shadow, in the input's orientation. A void vertex is False (its own
+        value is unknown: the field's ``nodata_mask`` marks it; writers store it as
+        nodata). A DataArray gives a DataArray (input's coords, CRS and attrs).
+    """
     try:
         el = float(elevation)
     except (TypeError, ValueError):
@@ -626,28 +808,59 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
         raise ValueError(f"elevation: expected degrees in [-90, 90], got {elevation!r}")
     if np.ndim(azimuth) != 0:
         raise ValueError("azimuth: expected one number (the sun's azimuth)")
+    if is_dataarray(heights):
+        return _to_dataarray(heights, lambda f: shadows(
+            f, azimuth, el, max_distance=max_distance, algorithm=algorithm, surface=surface,
+            threads=threads), "shadows", dict(units="1 in shadow, 0 lit", azimuth=float(azimuth),
+                                             elevation=el, max_distance=_attr(max_distance)))
     if is_dask(heights):
         return tiled_product(lambda b, **kw: shadows(b, azimuth, el, **kw), heights,
                              max_distance, spacing, bool, algorithm=algorithm,
                              surface=surface, threads=threads)
     angles = horizon(heights, azimuth, max_distance, algorithm=algorithm, surface=surface,
                      spacing=spacing, threads=threads)[0]
-    return angles > math.radians(el)
+    with np.errstate(invalid="ignore"):
+        return angles > math.radians(el)  # NaN (a void) compares False
 
 
 def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False,
                     azimuths=None, algorithm=None, surface="triangles", spacing=None,
                     threads=None, progress=None):
-    """Sky-view factor (Zaksek et al. 2011, as in RVT): 1 - mean_k sin(max(horizon_k, 0))
-    over ``n_azimuths`` equally spaced azimuths starting at north. ``rational=True`` moves
-    each to the nearest rational direction (:func:`rational_azimuths`), where the exact
-    sweep applies; ``azimuths`` gives them explicitly. ``progress(done, total)`` is called
-    after each azimuth (in memory only). Returns float64 (rows, cols)."""
+    """Sky-view factor (Zaksek et al. 2011, as in RVT): 1 - mean_k sin(max(horizon_k, 0)).
+
+    Parameters
+    ----------
+    heights, max_distance, algorithm, surface, spacing, threads
+        As in :func:`horizon` (``max_distance`` a length in the field's unit).
+    n_azimuths : int
+        Equally spaced azimuths starting at north.
+    rational : bool
+        Move each azimuth to the nearest direction whose slope *in cell space* is p/q with
+        q <= 5 (:func:`rational_azimuths`), where the exact sweep applies. On rectangular
+        pixels the map azimuths are then those directions' images.
+    azimuths : sequence of float, optional
+        Explicit azimuths (degrees), instead of ``n_azimuths``.
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each azimuth (in memory only).
+
+    Returns
+    -------
+    float64 array (rows, cols)
+        Dimensionless, in [0, 1]; NaN at void vertices; the input's orientation. A
+        DataArray gives a DataArray (input's coords, CRS and attrs).
+    """
     if azimuths is None:
         if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
             raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
-        azimuths = (rational_azimuths(n_azimuths) if rational
-                    else np.arange(n_azimuths) * (360.0 / n_azimuths))
+        azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)
+        if rational:
+            azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
+    if is_dataarray(heights):
+        az = _azimuth_list(azimuths)
+        return _to_dataarray(heights, lambda f: sky_view_factor(
+            f, azimuths=az, max_distance=max_distance, algorithm=algorithm, surface=surface,
+            threads=threads), "sky_view_factor",
+            dict(units="1", n_azimuths=len(az), max_distance=_attr(max_distance)))
     if is_dask(heights):
         return tiled_product(lambda b, **kw: sky_view_factor(b, azimuths=azimuths, **kw),
                              heights, max_distance, spacing, np.float64, algorithm=algorithm,
@@ -655,6 +868,28 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
     angles = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
                      spacing=spacing, threads=threads, progress=progress)
     return 1.0 - np.mean(np.sin(np.maximum(angles, 0.0)), axis=0)
+
+
+def _rational_map_azimuths(heights, spacing, n):
+    """:func:`rational_azimuths` taken in cell space: on square pixels they are the map
+    azimuths; on rectangular ones, each equally spaced map azimuth goes to cell space, to
+    the nearest rational cell direction (q <= 5) and back."""
+    field = heights if isinstance(heights, HeightField) else None
+    if field is None and is_dataarray(heights):
+        field = HeightField.from_dataarray(heights)
+    dx, dy = (field.dx, field.dy) if field is not None else (
+        check_spacing(spacing) if spacing is not None else (1.0, 1.0))
+    if dx == dy:
+        return rational_azimuths(n)
+    grid = Grid(np.zeros((2, 2)), dx, dy, dx, True, None, None)
+    candidates = rational_azimuths(8 * 5 * 6 * 4, 5)  # every slope p/q, q <= 5, in all octants
+    candidates = np.unique(np.round(candidates, 12))
+    out = []
+    for k in range(n):
+        cell = grid.cell_azimuth(360.0 * k / n)
+        gap = np.abs((candidates - cell + 180.0) % 360.0 - 180.0)
+        out.append(grid.map_azimuth(float(candidates[int(np.argmin(gap))])))
+    return np.array(out)
 
 
 def _tiled_horizon(heights, azimuths, max_distance, spacing, options):
@@ -665,6 +900,32 @@ def _tiled_horizon(heights, azimuths, max_distance, spacing, options):
     layers = [tiled_product(lambda b, a=a, **kw: horizon(b, [a], **kw)[0], heights,
                             max_distance, spacing, np.float64, **options) for a in az]
     return da.stack(layers)
+
+
+def _attr(value):
+    """A parameter as a file/DataArray attribute (None as 'none')."""
+    return "none" if value is None else value
+
+
+def _to_dataarray(template, compute, product, attrs, extra_dim=None):
+    """Run ``compute(HeightField)`` on a DataArray's field and wrap the result like the
+    input: same dims, coords, attrs and CRS (rioxarray), plus ``attrs`` (units and the
+    product's parameters). A dask-backed input gives a dask-backed (lazy) output."""
+    import xarray as xr
+
+    field = HeightField.from_dataarray(template)
+    values = compute(field)
+    dims, coords = template.dims, dict(template.coords)
+    if extra_dim is not None:
+        dims = (extra_dim[0],) + tuple(dims)
+        coords[extra_dim[0]] = np.asarray(extra_dim[1], dtype=float)
+    out = xr.DataArray(values, dims=dims, coords=coords, name=product,
+                       attrs={**template.attrs, "product": product,
+                              **{k: v for k, v in attrs.items()}})
+    crs = getattr(getattr(template, "rio", None), "crs", None) if hasattr(template, "rio") else None
+    if crs is not None:
+        out = out.rio.write_crs(crs)
+    return out
 
 
 # ---- viewshed --------------------------------------------------------------------------
@@ -734,25 +995,80 @@ def _viewshed_one(h, ox, oy, oh, th, drop, algorithm, threads, mip, stats, scale
     return (out == 0).reshape(rows, cols)
 
 
+def _touches_void(void, x, y):
+    """Whether the grid point (x, y) lies in a cell one of whose corners is a void."""
+    rows, cols = void.shape
+    i0, j0 = int(math.floor(x)), int(math.floor(y))
+    i_lo, i_hi = max(0, i0 - (x == i0)), min(cols - 1, i0 + 1)
+    j_lo, j_hi = max(0, j0 - (y == j0)), min(rows - 1, j0 + 1)
+    if x == i0 and y == j0:
+        return bool(void[j0, i0])  # on a vertex: its own height is the observer's ground
+    return bool(void[j_lo:j_hi + 1, i_lo:i_hi + 1].any())
+
+
 def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_distance=None,
-             curvature=False, refraction=0.13, *, algorithm=None, surface="triangles",
-             spacing=None, earth_radius=EARTH_RADIUS_M, threads=None, progress=None):
+             curvature=False, refraction=DEFAULT_REFRACTION, *, algorithm=None,
+             surface="triangles", spacing=None, earth_radius=WGS84_SEMI_MAJOR_AXIS_M,
+             threads=None, progress=None):
     """Which vertices an observer sees.
 
     Vertex v is visible when the segment from (ox, oy, s(ox, oy) + observer_height) to
     (i, j, H[j, i] + target_height) never passes strictly below the surface, and, with
-    ``max_distance``, when v lies within that horizontal distance. ``curvature`` lowers the
-    surface by (1 - refraction) d^2 / (2 R), as GDAL's viewshed does. It is applied at the
-    breakpoints, and needs ``spacing`` (R = earth_radius / spacing cells).
+    ``max_distance``, when v lies within that horizontal distance. A line of sight is
+    unchanged by scaling x, y and z, so rectangular pixels are exact too.
 
-    ``observer`` is (x, y) in grid coordinates, or an (N, 2) array. One observer gives a
-    bool (rows, cols). Several give a uint16 (rows, cols) count of the observers that see
-    each vertex. ``progress(done, total)`` is called after each observer (in memory only).
+    Parameters
+    ----------
+    heights, spacing, algorithm, surface, threads
+        As in :func:`horizon`.
+    observer : (x, y) or (N, 2) array
+        Grid coordinates (column, row; fractions allowed) of the stored array, counted the
+        same way on every input; a georeferenced field converts map coordinates with
+        :meth:`HeightField.map_to_grid`.
+    observer_height, target_height : float
+        Lengths above the surface, in the field's unit (metres for a metre DEM).
+    max_distance : float, optional
+        Horizontal length in the field's unit; None: unlimited.
+    curvature : bool
+        Lower the surface at map distance d by (1 - refraction) d^2 / (2 R), as GDAL's
+        and GRASS's viewsheds do, applied at the breakpoints. Needs a real unit (spacing
+        given or carried) and square pixels.
+    refraction : float
+        The refraction coefficient in [0, 1); default 1/7, as GDAL (``gdal_viewshed``
+        ``-cc 0.85714``) and GRASS (``r.viewshed refraction_coeff=0.14286``).
+    earth_radius : float
+        R in metres (default the WGS 84 semi-major axis, as GDAL;
+        :data:`algos.georef.WGS84_SEMI_MAJOR_AXIS_M`), converted to the field's unit with
+        its ``params["unit_metres"]`` (1 for a raw array: spacing in metres).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each observer (in memory only).
+
+    Returns
+    -------
+    bool (rows, cols) for one observer, else uint16 (rows, cols)
+        Visible (or the count of observers that see the vertex), in the input's
+        orientation. A void vertex is False (0): the field's ``nodata_mask`` marks it, and
+        writers store it as nodata. A DataArray gives a DataArray.
+
+    Raises
+    ------
+    ValueError
+        An observer outside the footprint or on a cell touching a void (its ground
+        height is unknown), and every bad argument, named.
 
     A dask array (or a HeightField holding one) gives a lazy result: each observer's
     window of ``max_distance`` (finite) is cut out and computed in memory
     (:func:`algos.tiled.tiled_viewshed`).
     """
+    if is_dataarray(heights):
+        return _to_dataarray(heights, lambda f: viewshed(
+            f, observer, observer_height, target_height, max_distance, curvature, refraction,
+            algorithm=algorithm, surface=surface, earth_radius=earth_radius, threads=threads),
+            "viewshed", dict(units="1 visible, 0 not" if np.ndim(observer) == 1
+                             else "observers that see the vertex",
+                             observer_height=observer_height, target_height=target_height,
+                             max_distance=_attr(max_distance), curvature=int(bool(curvature)),
+                             refraction=float(refraction)))
     if is_dask(heights):
         return tiled_viewshed(viewshed, heights, observer, max_distance, spacing,
                               observer_height=observer_height, target_height=target_height,
@@ -760,26 +1076,39 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
                               refraction=refraction, earth_radius=earth_radius,
                               threads=threads)
     _check_surface(surface)
-    h, spacing, flip = _field(heights, spacing)
-    rows = h.shape[0]
-    obs, single = _observers(observer, h) if not flip else _observers(
-        np.asarray(observer, dtype=np.float64) * [1, -1] + [0, rows - 1], h)
-    oh = _length(observer_height, "observer_height", spacing, allow_none=False)
-    th = _length(target_height, "target_height", spacing, allow_none=False)
-    md = _length(max_distance, "max_distance", spacing)
+    grid = _prepare(heights, spacing)
+    h = grid.h
+    given = np.asarray(observer, dtype=np.float64) if np.ndim(observer) else observer
+    obs, single = _observers(given, h)
+    if grid.field is not None:
+        obs = np.column_stack([obs[:, 0], grid.field.north_up_row(obs[:, 1])])
+    if grid.void is not None:
+        for k, (x, y) in enumerate(obs):
+            if _touches_void(grid.void, x, y):
+                raise ValueError(f"observer[{k}]: ({np.atleast_2d(given)[k][0]:g}, "
+                                 f"{np.atleast_2d(given)[k][1]:g}) stands on a cell touching a "
+                                 "void (nodata) vertex: its ground height is unknown")
+    oh = check_length(observer_height, "observer_height", allow_none=False) / grid.z_scale
+    th = check_length(target_height, "target_height", allow_none=False) / grid.z_scale
+    md = check_length(max_distance, "max_distance")
     if not isinstance(curvature, (bool, np.bool_)):
         raise TypeError(f"curvature: expected a bool, got {curvature!r}")
     drop = 0.0
     if curvature:
-        if spacing is None:
-            raise ValueError("curvature: needs spacing (the cell length in the unit of earth_radius)")
+        if not grid.has_unit:
+            raise ValueError("curvature: needs spacing (the pixel size in metres, or a field "
+                             "that carries its unit)")
+        if not grid.square:
+            raise ValueError(f"curvature: needs square pixels, got {grid.dx:g} x {grid.dy:g}; "
+                             "resample first (e.g. gdalwarp -tr D D)")
         r = float(refraction)
         if not (math.isfinite(r) and 0 <= r < 1):
             raise ValueError(f"refraction: expected a coefficient in [0, 1), got {refraction!r}")
         radius = float(earth_radius)
         if not (math.isfinite(radius) and radius > 0):
             raise ValueError(f"earth_radius: expected a positive length, got {earth_radius!r}")
-        drop = (1.0 - r) / (2.0 * radius / spacing)
+        radius /= grid.unit_metres
+        drop = (1.0 - r) / (2.0 * radius / grid.dx)
     if algorithm is None or algorithm == "auto":
         algorithm = "dda_maxmip"
     if algorithm not in VIEWSHED_ALGORITHMS:
@@ -790,18 +1119,24 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
     mip = _mipmap(h) if algorithm == "dda_maxmip" else None
     count = np.zeros(h.shape, dtype=np.uint16)
     jj, ii = np.mgrid[0:h.shape[0], 0:h.shape[1]]
-    scale = _rounding_scale(h)
+    valid = h if grid.void is None else np.where(grid.void, h[~grid.void].min(), h)
+    scale = _rounding_scale(valid)
     for k, (ox, oy) in enumerate(obs):
         seen = _viewshed_one(h, float(ox), float(oy), oh, th, drop, algorithm, nthreads, mip,
                              stats, scale)
         if md is not None:
-            seen &= (ii - ox) ** 2 + (jj - oy) ** 2 <= md * md
+            if grid.square:
+                mdc = md / grid.dx
+                seen &= (ii - ox) ** 2 + (jj - oy) ** 2 <= mdc * mdc
+            else:
+                seen &= ((ii - ox) * grid.dx) ** 2 + ((jj - oy) * grid.dy) ** 2 <= md * md
         count += seen
         if progress is not None:
             progress(k + 1, len(obs))
+    grid.voids_to(count, 0)
     LAST_STATS.__dict__.update(stats.__dict__)
     result = count.astype(bool) if single else count
-    return np.ascontiguousarray(result[::-1]) if flip else result
+    return np.ascontiguousarray(grid.to_north_up(result))
 
 
 # ---- timing entry for the benchmarks ------------------------------------------------------
@@ -815,7 +1150,7 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
     vertices computed. ``ranges``: [(start, stop), ...] of C-order vertex indices, a
     sample for the per-vertex methods; the sweep always covers every vertex (it is one
     pass over shared lines), and n_vertices says how many were computed."""
-    h, _, _ = _field(heights, None)
+    h = _prepare(heights, None).h
     d = azimuth_direction(azimuth)
     name = _pick_horizon_algorithm(algorithm, [d], max_distance)
     rows, cols = h.shape

@@ -2,14 +2,17 @@
 clusters larger than one machine.
 
 A vertex's horizon (and so its shadow and sky-view factor) with a finite
-``max_distance`` D depends only on the surface within D of it, which lies in the cells
-whose corners are within ``ceil(D) + 1`` samples of the vertex along each axis. So
-:func:`tiled_product` maps the in-memory product over the chunks with
-``dask.array.map_overlap``, a halo of that depth and no padding at the field's edges
-(``boundary="none"``): every tile sees exactly what the whole field would show its
-vertices, and the result equals the in-memory one (to the last bits of the C walks'
-float coordinates, which are relative to each tile; the tests bound the difference at
-1e-12 rad). Unlimited distances cannot be tiled and raise.
+``max_distance`` D (a length in the field's unit) depends only on the surface within D
+of it, which lies in the cells whose corners are within ``ceil(D / dy) + 1`` rows and
+``ceil(D / dx) + 1`` columns of the vertex. So :func:`tiled_product` maps the in-memory
+product over the chunks with ``dask.array.map_overlap``, a halo of that depth per axis
+and no padding at the field's edges (``boundary="none"``): every tile sees exactly what
+the whole field would show its vertices, and the result equals the in-memory one (to
+the last bits of the C walks' float coordinates, which are relative to each tile; the
+tests bound the difference at 1e-12 rad). Unlimited distances cannot be tiled and raise.
+
+Voids in a lazy field are NaN heights (:func:`datasets_gen.open_lazy` reads nodata as
+NaN); each tile finds its own.
 
 A viewshed is not a tile-local product: it needs the observer's window, ``D + 1``
 samples around the observer, which is cut from the lazy array and computed in memory;
@@ -21,13 +24,10 @@ import math
 
 import numpy as np
 
+from .field import HeightField, is_dask
+from .validate import check_spacing
+
 __all__ = ["is_dask", "tiled_product", "halo_depth", "tiled_viewshed"]
-
-
-def is_dask(x) -> bool:
-    """A dask array (or a HeightField holding one)."""
-    x = getattr(x, "heights", x)
-    return type(x).__module__.split(".")[0] == "dask" and hasattr(x, "map_overlap")
 
 
 def halo_depth(max_distance_cells) -> int:
@@ -39,38 +39,53 @@ def halo_depth(max_distance_cells) -> int:
 
 
 def _unwrap(heights, spacing, north_up=True):
-    """(dask array, spacing or None, flipped) from a dask array or a HeightField; with
-    ``north_up`` a HeightField whose rows run north is flipped (``flipped`` says so)."""
-    if hasattr(heights, "heights") and hasattr(heights, "spacing"):
-        params = getattr(heights, "params", {}) or {}
-        if spacing is None and getattr(heights, "unit", "cell") != "cell":
-            spacing = float(heights.spacing)
-        flip = north_up and params.get("north") == "+y"
-        return (heights.heights[::-1] if flip else heights.heights), spacing, flip
-    return heights, spacing, False
+    """``(dask array, wrap, (dx, dy) or None, back, extra)`` of a dask array or a
+    HeightField holding one. ``wrap(block)`` makes a product's input of a NumPy block (a
+    HeightField with the field's units, or the block itself); ``(dx, dy)`` is the pixel
+    size that turns ``max_distance`` into cells (None: cell units). With ``north_up`` a
+    field whose rows run north is flipped (:meth:`HeightField.to_north_up`), and ``back``
+    is that flip, for the result (None: nothing to undo); ``extra`` holds the keywords a
+    raw block needs (its ``spacing``)."""
+    if isinstance(heights, HeightField):
+        field = heights
+        if spacing is not None and check_spacing(spacing) != (field.dx, field.dy):
+            raise ValueError(f"spacing: {spacing!r}, but {field.name} carries its own pixel "
+                             f"size ({field.dx:g}, {field.dy:g}); leave spacing out")
+        flip = north_up and not field.north_up
+        arr = field.to_north_up(field.heights) if north_up else field.heights
+
+        def wrap(block):
+            return HeightField(block, field.name, spacing=field.spacing, unit=field.unit,
+                               height_unit=field.height_unit, params=field.params,
+                               north="-y" if (flip or field.north_up) else "+y")
+
+        pixel = (field.dx, field.dy) if field.unit != "cell" else None
+        return arr, wrap, pixel, (field.to_north_up if flip else None), {}
+    pixel = check_spacing(spacing) if spacing is not None else None
+    return heights, (lambda block: block), pixel, None, {"spacing": spacing}
 
 
 def tiled_product(product, heights, max_distance, spacing, dtype, **kwargs):
-    """``product(block, max_distance=..., spacing=..., **kwargs)`` (a 2D in-memory terrain
-    product) over a dask array's chunks with a halo of ``max_distance``. Returns a lazy
-    dask array shaped like ``heights``."""
-    arr, spacing, flipped = _unwrap(heights, spacing)
+    """``product(block, max_distance=..., **kwargs)`` (a 2D in-memory terrain product)
+    over a dask array's chunks with a halo of ``max_distance`` (a length in the field's
+    unit). Returns a lazy dask array shaped like ``heights``."""
+    arr, wrap, pixel, back, extra = _unwrap(heights, spacing)
     if arr.ndim != 2:
         raise ValueError(f"heights: expected a 2D array (rows, cols), got shape {arr.shape}")
     if max_distance is None:
         halo_depth(None)
-    md_cells = float(max_distance) / spacing if spacing else float(max_distance)
-    depth = halo_depth(md_cells)
+    md = float(max_distance)
+    dx, dy = pixel if pixel is not None else (1.0, 1.0)
+    depth = {0: halo_depth(md / dy), 1: halo_depth(md / dx)}
     # every chunk at least as deep as the halo (map_overlap takes neighbours only)
-    chunks = tuple(max(depth, max(c)) for c in arr.chunks)
-    if any(max(c) < depth for c in arr.chunks):
-        arr = arr.rechunk(chunks)
+    if any(max(c) < depth[axis] for axis, c in enumerate(arr.chunks)):
+        arr = arr.rechunk(tuple(max(depth[axis], max(c)) for axis, c in enumerate(arr.chunks)))
 
     def block(h):
-        return product(np.asarray(h), max_distance=max_distance, spacing=spacing, **kwargs)
+        return product(wrap(np.asarray(h)), max_distance=max_distance, **extra, **kwargs)
 
     out = arr.map_overlap(block, depth=depth, boundary="none", trim=True, dtype=dtype)
-    return out[::-1] if flipped else out
+    return out if back is None else back(out)
 
 
 def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs):
@@ -80,11 +95,12 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
     (count) array."""
     import dask.array as da
 
-    arr, spacing, _ = _unwrap(heights, spacing, north_up=False)
+    arr, wrap, pixel, _, extra = _unwrap(heights, spacing, north_up=False)
     rows, cols = arr.shape
-    md_cells = None if max_distance is None else (
-        float(max_distance) / spacing if spacing else float(max_distance))
-    depth = halo_depth(md_cells)
+    dx, dy = pixel if pixel is not None else (1.0, 1.0)
+    md = None if max_distance is None else float(max_distance)
+    depth_y = halo_depth(None if md is None else md / dy)
+    depth_x = halo_depth(md / dx)
     single = np.asarray(observer).ndim == 1
     obs = np.atleast_2d(np.asarray(observer, dtype=np.float64))
     total = da.zeros((rows, cols), dtype=np.uint16, chunks=arr.chunks)
@@ -92,10 +108,10 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
         if not (math.isfinite(x) and math.isfinite(y) and 0 <= x <= cols - 1 and 0 <= y <= rows - 1):
             raise ValueError(f"observer[{k}]: ({x}, {y}) outside the footprint "
                              f"[0, {cols - 1}] x [0, {rows - 1}]")
-        c0, c1 = max(0, int(math.floor(x)) - depth), min(cols, int(math.ceil(x)) + depth + 1)
-        r0, r1 = max(0, int(math.floor(y)) - depth), min(rows, int(math.ceil(y)) + depth + 1)
+        c0, c1 = max(0, int(math.floor(x)) - depth_x), min(cols, int(math.ceil(x)) + depth_x + 1)
+        r0, r1 = max(0, int(math.floor(y)) - depth_y), min(rows, int(math.ceil(y)) + depth_y + 1)
         window = np.ascontiguousarray(arr[r0:r1, c0:c1].compute())
-        seen = viewshed(window, (x - c0, y - r0), max_distance=max_distance, spacing=spacing,
+        seen = viewshed(wrap(window), (x - c0, y - r0), max_distance=max_distance, **extra,
                         **kwargs).astype(np.uint16)
         patch = da.pad(da.from_array(seen, chunks=seen.shape),
                        ((r0, rows - r1), (c0, cols - c1)), mode="constant")

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _kernels
-from .lattice import MAX_DIRECTION, MAX_GRID_SIDE, MAX_ORIGIN, quantize
+from .lattice import quantize
 from .parallel import resolve_threads, run_ranges, split
 from .registry import Traversal, get_traversal
+from .field import HeightField
+from .validate import check_rays, check_shape, check_t
 
 __all__ = [
     "CellPaths", "RunPaths", "PathCounts", "traverse", "walk_timed", "prepare_timed",
@@ -91,91 +93,7 @@ class PathCounts:
     algorithm: str
 
 
-# ---- validation ----------------------------------------------------------------------
-def _as_float_array(value, name: str) -> np.ndarray:
-    try:
-        array = np.asarray(value)
-    except Exception as exc:  # e.g. ragged nested lists
-        raise TypeError(f"{name}: cannot be read as an array ({exc})") from None
-    if array.dtype.kind not in "fiu":
-        raise TypeError(f"{name}: expected real numbers, got dtype {array.dtype}")
-    return array
-
-
-def _first_bad(mask: np.ndarray):
-    index = np.argwhere(mask)[0]
-    return tuple(int(v) for v in index)
-
-
-def _check_rays(origins, directions, width: int):
-    """Validated, C-contiguous native float64 copies of (N, width) ray arrays."""
-    arrays = []
-    for name, value in (("origins", origins), ("directions", directions)):
-        array = _as_float_array(value, name)
-        if array.ndim != 2 or array.shape[1] != width:
-            raise ValueError(f"{name}: expected shape (N, {width}), got {array.shape}")
-        array = np.ascontiguousarray(array, dtype=np.float64)
-        bad = ~np.isfinite(array)
-        if bad.any():
-            k, c = _first_bad(bad)
-            raise ValueError(
-                f"{name}: ray {k} has a non-finite component {name}[{k}, {c}] = {array[k, c]}"
-            )
-        arrays.append(array)
-    o, d = arrays
-    if len(o) != len(d):
-        raise ValueError(f"origins and directions: {len(o)} origins but {len(d)} directions")
-    huge = np.abs(d) > MAX_DIRECTION
-    if huge.any():
-        k, c = _first_bad(huge)
-        raise ValueError(
-            f"directions: ray {k} has |directions[{k}, {c}]| = {abs(d[k, c])} > 2**1000, "
-            "the documented limit (scale the direction and t together)"
-        )
-    far = np.abs(o[:, :2]) > MAX_ORIGIN
-    if far.any():
-        k, c = _first_bad(far)
-        raise ValueError(
-            f"origins: ray {k} has |origins[{k}, {c}]| = {abs(o[k, c])} > 2**30, the "
-            "documented limit (move the origin along the ray toward the grid)"
-        )
-    return o, d
-
-
-def _check_t(value, name: str, n: int):
-    if value is None:
-        return None
-    array = _as_float_array(value, name)
-    if array.ndim == 0:
-        array = np.full(n, float(array))
-    if array.shape != (n,):
-        raise ValueError(f"{name}: expected a scalar or shape ({n},), got {array.shape}")
-    array = np.ascontiguousarray(array, dtype=np.float64)
-    bad = np.isnan(array)
-    if bad.any():
-        k = _first_bad(bad)[0]
-        raise ValueError(f"{name}: ray {k} has {name}[{k}] = nan")
-    return array
-
-
-def _check_shape(shape) -> tuple[int, int]:
-    try:
-        nx, ny = shape
-    except (TypeError, ValueError):
-        raise ValueError(f"shape: expected (nx, ny), got {shape!r}") from None
-    sides = []
-    for axis, side in (("nx", nx), ("ny", ny)):
-        if isinstance(side, bool) or not isinstance(side, numbers.Integral):
-            raise TypeError(f"shape: {axis} must be an integer, got {side!r}")
-        side = int(side)
-        if side < 1:
-            raise ValueError(f"shape: {axis} = {side}; a grid needs at least one cell")
-        if side > MAX_GRID_SIDE:
-            raise ValueError(f"shape: {axis} = {side} exceeds the limit 2**24 = {MAX_GRID_SIDE}")
-        sides.append(side)
-    return sides[0], sides[1]
-
-
+# ---- validation (the shared validators live in algos.validate) ---------------------
 def _check_max_denominator(value, algorithm: Traversal) -> int:
     if value is None:
         return DEFAULT_MAX_DENOMINATOR if algorithm.shared_direction else 0
@@ -193,11 +111,13 @@ class _Batch:
 
     def __init__(self, name, origins, directions, shape, tmin, tmax, max_denominator):
         self.algorithm = get_traversal(name)
-        self.origins, self.directions = _check_rays(origins, directions, 2)
+        self.origins, self.directions = check_rays(origins, directions, 2)
         self.n = len(self.origins)
-        self.nx, self.ny = _check_shape(shape)
-        self.tmin = _check_t(tmin, "tmin", self.n)
-        self.tmax = _check_t(tmax, "tmax", self.n)
+        if isinstance(shape, HeightField):  # its grid of cells
+            shape = (shape.cols - 1, shape.rows - 1)
+        self.nx, self.ny = check_shape(shape)
+        self.tmin = check_t(tmin, "tmin", self.n)
+        self.tmax = check_t(tmax, "tmax", self.n)
         self.max_denominator = _check_max_denominator(max_denominator, self.algorithm)
         self.pattern = (
             np.zeros(self.max_denominator + 1, dtype=np.int32)
@@ -264,8 +184,9 @@ def traverse(name, origins, directions, shape, tmin=None, tmax=None, *, output="
         float64). Components must be finite, ``|origins| <= 2**30`` and
         ``|directions| <= 2**1000``. A zero direction
         is a vertical ray and visits at most the cell under the origin.
-    shape : (nx, ny)
-        Grid size in cells, (x, y) order; each side in ``[1, 2**24]``.
+    shape : (nx, ny) or HeightField
+        Grid size in cells, (x, y) order; each side in ``[1, 2**24]``. A
+        :class:`algos.HeightField` gives its grid of cells, ``(cols - 1, rows - 1)``.
     tmin, tmax : None, float or array_like of shape (N,)
         Parameter range ``[tmin, tmax)``; default ``[0, inf)``; ``+-inf`` allowed.
     output : {"cells", "runs", "count"}

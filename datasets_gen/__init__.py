@@ -10,10 +10,12 @@ from __future__ import annotations
 from .cache import cache_dir, cached_array
 from .fields import GENERATORS, generate
 from .loaders import HeightField, jacksboro, load_file, open_lazy
+from .raster import create_product, read_raster, save_product, write_product, write_window
 from .rays import RaySet
 
 __all__ = ["load", "catalogue", "GENERATORS", "generate", "HeightField", "load_file", "open_lazy",
-           "jacksboro", "RaySet", "cache_dir", "EMBEDDED"]
+           "jacksboro", "RaySet", "cache_dir", "EMBEDDED", "read_raster", "write_product",
+           "create_product", "write_window", "save_product"]
 
 #: Real terrain shipped with (or through) the project: name -> (loader, parameters).
 EMBEDDED = {
@@ -57,4 +59,4 @@ def load(name, *, size=None, seed=0, use_cache=True, cache_dir=None, **params) -
                        params={**gen.defaults, **params})
     heights = cached_array(description, lambda: generate(name, size, seed, **params),
                            use_cache=use_cache, directory=cache_dir)
-    return HeightField(heights, name, 1.0, "cell", dict(size=size, seed=seed, **params))
+    return HeightField(heights, name, params=dict(size=size, seed=seed, **params))

@@ -1,22 +1,22 @@
 """Height fields from files, and the embedded real terrain.
 
-Units. hftrace grids have samples one unit apart and heights in the same unit
-(CONVENTIONS.md). A file holds heights in some unit with a horizontal sample spacing in
-that same unit (metres, say); the loaders convert:
-
-    H_cells = heights_file * vertical_scale / spacing
-
-* ``spacing``: the horizontal distance between samples, in the unit of the (scaled)
-  heights. Default: from the file when it says (GeoTIFF ``ModelPixelScaleTag``),
-  otherwise 1, meaning the heights already are in cell units.
-* ``vertical_scale``: a factor applied to the file's heights first (exaggeration, or a
-  unit change such as 0.3048 for feet to metres). Default 1.
+Units. A height field's heights are in the same linear unit as its pixel size
+(CONVENTIONS.md, "Grid and heights"). Georeferenced rasters (GeoTIFF, VRT and every
+other format GDAL reads, through :mod:`datasets_gen.raster`) carry their pixel size,
+CRS, orientation and nodata; the other files (``.npy``, ``.npz``, PNG, JPEG, OpenEXR)
+take ``spacing`` (default 1: cell units) and their heights as they are, times
+``vertical_scale`` (a unit change such as 0.3048 for feet over a metre grid, or an
+exaggeration). Before this version the loaders divided heights by the spacing (cell
+units); they no longer do: the products convert (see README, "Terrain products").
 
 Nodata. The policy is explicit (``nodata_policy``):
 
-* ``"error"`` (default): a NaN, an infinity or a sample equal to ``nodata`` (or to the
-  GeoTIFF's GDAL_NODATA tag) raises ValueError naming the file and the first (row, col);
-* ``"fill-min"``: such samples become the lowest valid height;
+* ``"void"`` (default): NaN, infinities and samples equal to ``nodata`` (or to the
+  raster's own nodata, or masked by it) are voids: NaN in the heights, True in the
+  field's ``nodata_mask``. The terrain products accept them (:mod:`algos.terrain`,
+  "Voids"); first hits need a filled field.
+* ``"error"``: a void raises ValueError naming the file and the first (row, col);
+* ``"fill-min"``: voids become the lowest valid height;
 * ``"fill"``: they become ``fill_value``.
 
 Images. 8- and 16-bit grayscale PNG and JPEG (Pillow) are read as integer heights 0..255
@@ -25,24 +25,28 @@ one channel, or name it with ``channel``.
 """
 from __future__ import annotations
 
-import hashlib
 import math
 import os
-from dataclasses import dataclass, field
+import warnings
 
 import numpy as np
 
+from algos.field import HeightField
+from algos.georef import IUGG_MEAN_EARTH_RADIUS_M
+from algos.validate import check_spacing
+
 from .cache import cached_array
 from .fields import det_cos
+from .raster import LazyRaster, check_crs, read_raster
 
-__all__ = ["HeightField", "LoaderError", "load_file", "jacksboro", "resample_bilinear", "EARTH_RADIUS_M",
-           "NODATA_POLICIES"]
+__all__ = ["HeightField", "LoaderError", "load_file", "jacksboro", "resample_bilinear",
+           "NODATA_POLICIES", "open_lazy", "LazyRaster", "RASTER_EXTENSIONS"]
 
-#: IUGG mean Earth radius, for degrees -> metres.
-EARTH_RADIUS_M = 6371008.8
-NODATA_POLICIES = ("error", "fill-min", "fill")
-_GEOTIFF_PIXEL_SCALE = 33550
-_GDAL_NODATA = 42113
+NODATA_POLICIES = ("void", "error", "fill-min", "fill")
+#: Extensions read through rasterio (GDAL); any other GDAL format can be read with
+#: :func:`datasets_gen.raster.read_raster` directly.
+RASTER_EXTENSIONS = (".tif", ".tiff", ".vrt", ".img", ".asc", ".hgt", ".nc", ".bil", ".dt0",
+                     ".dt1", ".dt2", ".jp2")
 
 
 class LoaderError(ValueError):
@@ -50,71 +54,37 @@ class LoaderError(ValueError):
     parameter."""
 
 
-@dataclass
-class HeightField:
-    """Heights in cell units plus what they are and where they came from."""
-
-    heights: np.ndarray  # float32, (rows, cols)
-    name: str
-    spacing: float = 1.0  # real distance per cell, in `unit`
-    unit: str = "cell"
-    params: dict = field(default_factory=dict)
-
-    @property
-    def shape(self):
-        return self.heights.shape
-
-    @property
-    def checksum(self) -> str:
-        """SHA-256 of the float32 bytes (C order, little-endian)."""
-        data = np.ascontiguousarray(self.heights, dtype="<f4")
-        return hashlib.sha256(data.tobytes()).hexdigest()
-
-
-def _apply_nodata(heights, path, nodata, policy, fill_value):
+def _apply_nodata(heights, path, mask, policy, fill_value):
+    """(heights, mask) after the nodata policy: voids NaN and masked ("void"), an error,
+    or filled (mask None)."""
     if policy not in NODATA_POLICIES:
         raise ValueError(f"nodata_policy: expected one of {NODATA_POLICIES}, got {policy!r}")
-    bad = ~np.isfinite(heights)
-    if nodata is not None:
-        bad |= heights == nodata
-    if not bad.any():
-        return heights
+    if mask is None or not mask.any():
+        return heights, None
+    if policy == "void":
+        if mask.all():
+            raise ValueError(f"{path}: every sample is nodata")
+        out = heights if heights.dtype.kind == "f" else heights.astype(np.float32)
+        out = np.array(out, copy=True)
+        out[mask] = np.nan
+        return out, mask
     if policy == "error":
-        row, col = (int(v) for v in np.argwhere(bad)[0])
+        row, col = (int(v) for v in np.argwhere(mask)[0])
         raise ValueError(
-            f"{path}: {int(bad.sum())} nodata/non-finite samples, the first at (row {row}, "
-            f"col {col}) = {heights[row, col]}; choose nodata_policy='fill-min' or 'fill'")
+            f"{path}: {int(mask.sum())} nodata/non-finite samples, the first at (row {row}, "
+            f"col {col}) = {heights[row, col]}; choose nodata_policy='void' (the default), "
+            "'fill-min' or 'fill'")
     if policy == "fill-min":
-        if bad.all():
+        if mask.all():
             raise ValueError(f"{path}: every sample is nodata; nothing to fill with")
-        value = heights[~bad].min()
+        value = heights[~mask].min()
     else:
         if fill_value is None or not math.isfinite(fill_value):
             raise ValueError("fill_value: nodata_policy='fill' needs a finite fill_value")
         value = fill_value
-    out = heights.copy()
-    out[bad] = value
-    return out
-
-
-def _read_tiff(path, read_data=True):
-    import tifffile
-
-    with tifffile.TiffFile(path) as tif:
-        page = tif.pages[0]
-        data = page.asarray() if read_data else None
-        tags = page.tags
-        spacing = nodata = None
-        if _GEOTIFF_PIXEL_SCALE in tags:
-            sx, sy = tags[_GEOTIFF_PIXEL_SCALE].value[:2]
-            if not math.isclose(sx, sy, rel_tol=1e-6):
-                raise LoaderError(f"{path}: pixel scale {sx} x {sy} is not square; resample it "
-                                 "first or pass spacing explicitly")
-            spacing = float(sx)
-        if _GDAL_NODATA in tags:
-            text = str(tags[_GDAL_NODATA].value).strip().strip("\x00")
-            nodata = float(text) if text else None
-    return data, spacing, nodata
+    out = np.array(heights, dtype=np.float32 if heights.dtype != np.float64 else np.float64)
+    out[mask] = value
+    return out, None
 
 
 def _read_image(path):
@@ -141,22 +111,75 @@ def _read_exr(path, channel):
         return np.array(channels[channel].pixels)
 
 
-def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_policy="error",
-              fill_value=None, key=None, channel=None) -> HeightField:
-    """Read a height field from ``.npy``, ``.npz``, GeoTIFF (``.tif``/``.tiff``),
-    8/16-bit grayscale ``.png``/``.jpg``/``.jpeg`` or single-channel ``.exr``.
+def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_policy="void",
+              fill_value=None, key=None, channel=None, band=1, reproject=None) -> HeightField:
+    """Read a height field from a raster GDAL reads (``.tif``/``.tiff``/``.vrt`` and the
+    other :data:`RASTER_EXTENSIONS`, through :func:`datasets_gen.raster.read_raster`),
+    ``.npy``, ``.npz``, 8/16-bit grayscale ``.png``/``.jpg``/``.jpeg`` or single-channel
+    ``.exr``.
 
-    See the module docstring for units and the nodata policy. Raises ValueError naming
-    the file (or the parameter) for unreadable files, wrong shapes and bad samples.
+    Parameters
+    ----------
+    path : str or path-like
+    spacing : float or (dx, dy), optional
+        Pixel size of a file without georeferencing, in the unit of its heights (default
+        1: cell units). A georeferenced raster's own pixel size is used (giving one
+        raises).
+    vertical_scale : float
+        Factor on the heights (a unit change, or exaggeration).
+    nodata : float, optional
+        A nodata value (in place of a raster's own).
+    nodata_policy : {"void", "error", "fill-min", "fill"}
+        See the module docstring; default "void".
+    fill_value : float, optional
+        For ``nodata_policy="fill"``.
+    key, channel : str, optional
+        The array of an ``.npz``, the channel of an ``.exr``.
+    band : int
+        1-based band of a raster.
+    reproject : None or "utm"
+        A geographic raster is refused (None) or reprojected to UTM.
+
+    Returns
+    -------
+    HeightField
+        Heights in the unit of the pixel size, float32 (a ``.npy`` of C-ordered float32
+        that needs no conversion is memory-mapped read-only, not copied).
+
+    Raises
+    ------
+    ValueError
+        Naming the file or the parameter: unreadable files, wrong shapes, voids under
+        ``nodata_policy="error"``, geographic or rotated rasters.
     """
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise ValueError(f"path: {path} does not exist or is not a file")
+    if nodata_policy not in NODATA_POLICIES:
+        raise ValueError(f"nodata_policy: expected one of {NODATA_POLICIES}, got {nodata_policy!r}")
+    if not (math.isfinite(vertical_scale) and vertical_scale != 0):
+        raise ValueError(f"vertical_scale: must be a non-zero finite number, got {vertical_scale}")
+    if spacing is not None:
+        check_spacing(spacing)
     ext = os.path.splitext(path)[1].lower()
+    if ext in RASTER_EXTENSIONS:
+        field = read_raster(path, band=band, spacing=spacing, vertical_scale=vertical_scale,
+                            nodata=nodata, reproject=reproject)
+        if nodata_policy != "void" and field.nodata_mask is not None:
+            heights, _ = _apply_nodata(field.heights, path, field.nodata_mask, nodata_policy,
+                                       fill_value)
+            field = HeightField(heights, field.name, spacing=None if field.transform is not None
+                                else field.spacing, unit=field.unit, crs=field.crs,
+                                transform=field.transform,
+                                north=None if field.transform is not None else field.north,
+                                nodata_mask=np.zeros(field.shape, dtype=bool),
+                                params=dict(field.params, nodata_policy=nodata_policy))
+        else:
+            field.params["nodata_policy"] = nodata_policy
+        return field
     mapped = _mapped(path, ext, spacing, vertical_scale, nodata, nodata_policy)
     if mapped is not None:
         return mapped
-    file_spacing = file_nodata = None
     try:
         if ext == ".npy":
             data = np.load(path, allow_pickle=False)
@@ -169,15 +192,13 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
                 if key not in names:
                     raise LoaderError(f"key: {path} holds {', '.join(names)}; name one with key=")
                 data = archive[key]
-        elif ext in (".tif", ".tiff"):
-            data, file_spacing, file_nodata = _read_tiff(path)
         elif ext in (".png", ".jpg", ".jpeg"):
             data = _read_image(path)
         elif ext == ".exr":
             data = _read_exr(path, channel)
         else:
             raise LoaderError(f"path: unknown extension {ext!r} of {path}; expected .npy, .npz, "
-                             ".tif, .tiff, .png, .jpg, .jpeg or .exr")
+                             f"{', '.join(RASTER_EXTENSIONS)}, .png, .jpg, .jpeg or .exr")
     except LoaderError:
         raise
     except Exception as exc:  # a damaged file: say which one and what the reader said
@@ -189,55 +210,48 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
         raise ValueError(f"{path}: a height field needs at least 2 x 2 samples, got {data.shape}")
     if data.dtype.kind not in "fiu":
         raise ValueError(f"{path}: heights must be real numbers, got dtype {data.dtype}")
-    heights = _apply_nodata(data.astype(np.float64), path,
-                            nodata if nodata is not None else file_nodata, nodata_policy,
-                            fill_value)
-    if spacing is None:
-        spacing = file_spacing if file_spacing is not None else 1.0
-    if not (math.isfinite(spacing) and spacing > 0):
-        raise ValueError(f"spacing: must be a positive finite number, got {spacing}")
-    if not (math.isfinite(vertical_scale) and vertical_scale != 0):
-        raise ValueError(f"vertical_scale: must be a non-zero finite number, got {vertical_scale}")
-    cells = np.ascontiguousarray(heights * vertical_scale / spacing, dtype=np.float32)
-    return HeightField(cells, os.path.basename(path), float(spacing), "file unit",
-                       dict(path=path, spacing=spacing, vertical_scale=vertical_scale,
-                            nodata=nodata, nodata_policy=nodata_policy))
+    heights = data.astype(np.float64) * vertical_scale
+    mask = ~np.isfinite(heights)
+    if nodata is not None:
+        mask |= data == nodata
+    heights, mask = _apply_nodata(heights, path, mask, nodata_policy, fill_value)
+    return HeightField(heights, os.path.basename(path), spacing=spacing,
+                       nodata_mask=mask,
+                       params=dict(path=path, spacing=spacing, vertical_scale=vertical_scale,
+                                   nodata=nodata, nodata_policy=nodata_policy))
 
 
 def _mapped(path, ext, spacing, vertical_scale, nodata, policy):
-    """The file's heights memory-mapped read-only, without a copy, where nothing needs
-    converting: a 2D C-ordered native float32 ``.npy`` or uncompressed GeoTIFF, no
-    nodata value, all finite, ``spacing`` (given or from the file) 1 and
-    ``vertical_scale`` 1 (heights already in cells, as ``hftrace`` writes them). Else
-    None: the general path reads and converts in memory."""
-    if ext not in (".npy", ".tif", ".tiff") or vertical_scale != 1.0 or nodata is not None:
+    """A ``.npy``'s heights memory-mapped read-only, without a copy, where nothing needs
+    converting: 2D C-ordered native float32, no nodata value, ``vertical_scale`` 1, and
+    no non-finite sample unless the policy keeps voids. Else None: the general path
+    reads and converts in memory."""
+    if ext != ".npy" or vertical_scale != 1.0 or nodata is not None:
         return None
     try:
-        if ext == ".npy":
-            data, file_spacing, file_nodata = np.load(path, mmap_mode="r", allow_pickle=False), None, None
-        else:
-            import tifffile
-
-            _, file_spacing, file_nodata = _read_tiff(path, read_data=False)
-            data = tifffile.memmap(path, mode="r")
-    except Exception:  # compressed, tiled or damaged: the general path says what is wrong
+        data = np.load(path, mmap_mode="r", allow_pickle=False)
+    except Exception:  # damaged: the general path says what is wrong
         return None
-    use_spacing = spacing if spacing is not None else (file_spacing or 1.0)
     if (data.ndim != 2 or data.dtype != np.dtype("=f4") or not data.flags.c_contiguous
-            or file_nodata is not None or use_spacing != 1.0 or min(data.shape) < 2):
+            or min(data.shape) < 2):
         return None
     step = max(1, (1 << 20) // data.shape[1])
+    voids = False
     for r0 in range(0, data.shape[0], step):  # bounded temporaries
-        if not np.isfinite(data[r0:r0 + step]).all():
+        bad = ~np.isfinite(data[r0:r0 + step])
+        if bad.any():
+            if policy == "void":
+                voids = True
+                continue
             if policy != "error":
                 return None  # filling needs a copy: the general path
-            bad = ~np.isfinite(data[r0:r0 + step])
             row, col = (int(v) for v in np.argwhere(bad)[0])
             raise ValueError(f"{path}: non-finite sample at (row {row + r0}, col {col}) = "
-                             f"{data[row + r0, col]}; choose nodata_policy='fill-min' or 'fill'")
-    return HeightField(data, os.path.basename(path), 1.0, "file unit",
-                       dict(path=path, spacing=1.0, vertical_scale=1.0, nodata=None,
-                            nodata_policy=policy, memory_mapped=True))
+                             f"{data[row + r0, col]}; choose nodata_policy='void' (the "
+                             "default), 'fill-min' or 'fill'")
+    return HeightField(data, os.path.basename(path), spacing=spacing,
+                       params=dict(path=path, spacing=spacing, vertical_scale=1.0, nodata=None,
+                                   nodata_policy=policy, memory_mapped=True, voids=voids))
 
 
 def resample_bilinear(heights: np.ndarray, rows: int, cols: int) -> np.ndarray:
@@ -263,8 +277,9 @@ def jacksboro(size=None, vertical_scale=1.0, *, use_cache=True, cache_dir=None) 
     344 x 403 int16 elevations in metres, 3 arc-second spacing, about 36.45-36.73 N,
     84.08-84.41 W).
 
-    Conversion: the spacing in degrees becomes metres on a sphere of radius
-    6,371,008.8 m, the east-west spacing scaled by cos(latitude) at the centre (about
+    Conversion: the spacing in degrees becomes metres on a sphere of the IUGG mean
+    radius (:data:`algos.georef.IUGG_MEAN_EARTH_RADIUS_M`, 6,371,008.8 m), the east-west
+    spacing scaled by cos(latitude) at the centre (about
     74.4 m east-west, 92.7 m north-south). The field is then resampled bilinearly onto
     square cells: by default at the east-west spacing (about 403 x 428 samples); with
     ``size`` given, the longer side gets ``size`` samples. Rows are flipped so that y
@@ -281,7 +296,7 @@ def jacksboro(size=None, vertical_scale=1.0, *, use_cache=True, cache_dir=None) 
     if north_first:
         elevation = elevation[::-1]
     lat_centre = (lat_a + lat_b) / 2
-    metres_per_degree = math.pi / 180 * EARTH_RADIUS_M
+    metres_per_degree = math.pi / 180 * IUGG_MEAN_EARTH_RADIUS_M
     dy_m = dy_deg * metres_per_degree
     dx_m = dx_deg * metres_per_degree * float(det_cos(lat_centre * math.pi / 180))
     rows0, cols0 = elevation.shape
@@ -303,78 +318,53 @@ def jacksboro(size=None, vertical_scale=1.0, *, use_cache=True, cache_dir=None) 
     description = dict(kind="embedded", name="jacksboro", size=size,
                        vertical_scale=vertical_scale, version=1)
     heights = cached_array(description, build, use_cache=use_cache, directory=cache_dir)
-    return HeightField(heights, "jacksboro", cell, "m",
-                       dict(size=size, vertical_scale=vertical_scale, dx_m=dx_m, dy_m=dy_m,
-                            north="+y",  # rows run north: the terrain products flip them
-                            source="matplotlib sample data jacksboro_fault_dem.npz"))
+    # heights in cells (as the kernels' studies have always read them), rows running north
+    return HeightField(heights, "jacksboro", spacing=cell, unit="m", height_unit="cell",
+                       north="+y", crs=None,
+                       params=dict(size=size, vertical_scale=vertical_scale, dx_m=dx_m,
+                                   dy_m=dy_m, unit_metres=1.0,
+                                   source="matplotlib sample data jacksboro_fault_dem.npz"))
 
 
-class LazyRaster:
-    """A raster file read window by window: what ``dask.array.from_array`` wraps so that
-    each task reads only its own chunk. Pickles as its path (workers open the file
-    themselves); heights come out as float32 in cells (times ``scale``)."""
-
-    def __init__(self, path, scale=1.0):
-        self.path = os.fspath(path)
-        self.scale = float(scale)
-        probe = self._open()
-        if probe.ndim != 2:
-            raise ValueError(f"{self.path}: expected a 2D height array, got shape {probe.shape}")
-        if probe.dtype.kind not in "fiu":
-            raise ValueError(f"{self.path}: heights must be real numbers, got dtype {probe.dtype}")
-        self.shape = tuple(probe.shape)
-        self.ndim = 2
-        self.dtype = np.dtype(np.float32)
-
-    def _open(self):
-        ext = os.path.splitext(self.path)[1].lower()
-        if ext == ".npy":
-            return np.load(self.path, mmap_mode="r", allow_pickle=False)
-        if ext in (".tif", ".tiff"):
-            import tifffile
-
-            try:
-                return tifffile.memmap(self.path, mode="r")
-            except Exception as exc:
-                raise ValueError(f"{self.path}: cannot be memory-mapped ({exc}); lazy reading "
-                                 "takes uncompressed, untiled GeoTIFF or .npy") from None
-        raise ValueError(f"path: {self.path}: lazy reading takes .npy or uncompressed GeoTIFF")
-
-    def __getitem__(self, key):
-        window = np.asarray(self._open()[key], dtype=np.float64) * self.scale
-        if not np.isfinite(window).all():
-            bad = np.argwhere(~np.isfinite(window))[0]
-            raise ValueError(f"{self.path}: non-finite sample in window {key} at offset "
-                             f"{tuple(int(v) for v in bad)}")
-        return window.astype(np.float32)
-
-    def __getstate__(self):
-        return {"path": self.path, "scale": self.scale, "shape": self.shape}
-
-    def __setstate__(self, state):
-        self.path, self.scale, self.shape = state["path"], state["scale"], state["shape"]
-        self.ndim, self.dtype = 2, np.dtype(np.float32)
-
-
-def open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0) -> HeightField:
-    """A HeightField whose heights are a lazy dask array over the file (``.npy`` or
-    uncompressed GeoTIFF), read chunk by chunk where it is computed: for fields larger
-    than memory (``algos.horizon`` and friends take it and work tile by tile)."""
+def open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -> HeightField:
+    """A HeightField whose heights are a lazy dask array over the file (any raster GDAL
+    reads, through rasterio windows, or a memory-mapped ``.npy``), read chunk by chunk
+    where it is computed: for fields larger than memory (``algos.horizon`` and friends
+    take it and work tile by tile). Heights are in the file's unit (scale, offset and
+    ``vertical_scale`` applied), NaN at voids; a raster's CRS, transform and orientation
+    are carried (a geographic or rotated raster is refused, as by ``load_file``)."""
     import dask.array as da
 
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise ValueError(f"path: {path} does not exist or is not a file")
-    ext = os.path.splitext(path)[1].lower()
-    file_spacing = None
-    if ext in (".tif", ".tiff"):
-        _, file_spacing, _ = _read_tiff(path, read_data=False)
-    if spacing is None:
-        spacing = file_spacing if file_spacing is not None else 1.0
-    if not (math.isfinite(spacing) and spacing > 0):
-        raise ValueError(f"spacing: must be a positive finite number, got {spacing}")
-    raster = LazyRaster(path, scale=vertical_scale / spacing)
+    if not (math.isfinite(vertical_scale) and vertical_scale != 0):
+        raise ValueError(f"vertical_scale: must be a non-zero finite number, got {vertical_scale}")
+    raster = LazyRaster(path, scale=vertical_scale, band=band)
     heights = da.from_array(raster, chunks=chunks, asarray=False, lock=False, fancy=False)
-    return HeightField(heights, os.path.basename(path), float(spacing), "file unit",
-                       dict(path=path, spacing=spacing, vertical_scale=vertical_scale,
-                            lazy=True, chunks=chunks))
+    params = dict(path=path, spacing=spacing, vertical_scale=vertical_scale, lazy=True,
+                  chunks=chunks, band=band)
+    name = os.path.basename(path)
+    if os.path.splitext(path)[1].lower() == ".npy":
+        return HeightField(heights, name, spacing=spacing, params=params)
+    import rasterio
+
+    from algos.georef import check_axis_aligned
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        ds = rasterio.open(path)
+    with ds:
+        georef = ds.crs is not None or not ds.transform.is_identity
+        if not georef:
+            return HeightField(heights, name, spacing=spacing, params=params)
+        if spacing is not None:
+            raise ValueError(f"spacing: {path} is georeferenced; its geotransform gives the "
+                             "spacing, so leave spacing out")
+        check_axis_aligned(ds.transform, f"{path}: transform")
+        unit = check_crs(ds.crs, path, bounds=ds.bounds,
+                         pixel=(ds.transform.a, ds.transform.e))
+        params["unit_metres"] = float(ds.crs.linear_units_factor[1]) if ds.crs else 1.0
+        params["nodata"] = ds.nodatavals[band - 1]
+        return HeightField(heights, name, unit=unit, crs=ds.crs, transform=ds.transform,
+                           params=params)

@@ -154,7 +154,8 @@ def terrain():
 def test_npy_npz_round_trip(tmp_path, terrain):
     np.save(tmp_path / "a.npy", terrain)
     f = loaders.load_file(tmp_path / "a.npy", spacing=2.0, vertical_scale=3.0)
-    assert np.allclose(f.heights, terrain * 3.0 / 2.0, rtol=1e-6)
+    # heights stay in the unit of the spacing (issue 19; they used to become cells)
+    assert np.allclose(f.heights, terrain * 3.0, rtol=1e-6) and f.spacing == 2.0
     np.savez(tmp_path / "b.npz", other=terrain[:2], heights=terrain)
     assert np.allclose(loaders.load_file(tmp_path / "b.npz").heights, terrain, rtol=1e-6)
     np.savez(tmp_path / "c.npz", x=terrain, y=terrain)
@@ -164,20 +165,26 @@ def test_npy_npz_round_trip(tmp_path, terrain):
 
 
 def test_geotiff_round_trip_with_tags(tmp_path, terrain):
-    import tifffile
+    """(Updated with issue 19: written with rasterio; voids are the default policy and
+    heights stay in metres.)"""
+    import rasterio
+    from affine import Affine
 
     data = terrain.astype(np.float32)
     data[3, 4] = -9999.0
-    tifffile.imwrite(tmp_path / "dem.tif", data,
-                     extratags=[(33550, "d", 3, (30.0, 30.0, 0.0), False),
-                                (42113, "s", 0, "-9999", False)])
+    with rasterio.open(tmp_path / "dem.tif", "w", driver="GTiff", height=20, width=30,
+                       count=1, dtype="float32", crs="EPSG:32617", nodata=-9999.0,
+                       transform=Affine(30.0, 0, 500000.0, 0, -30.0, 4000000.0)) as dst:
+        dst.write(data, 1)
     with pytest.raises(ValueError, match=r"dem.tif: 1 nodata.*\(row 3, col 4\)"):
-        loaders.load_file(tmp_path / "dem.tif")
+        loaders.load_file(tmp_path / "dem.tif", nodata_policy="error")
+    voids = loaders.load_file(tmp_path / "dem.tif")
+    assert np.isnan(voids.heights[3, 4]) and voids.nodata_mask.sum() == 1
     f = loaders.load_file(tmp_path / "dem.tif", nodata_policy="fill-min")
-    assert f.spacing == 30.0
+    assert f.spacing == 30.0 and f.unit == "m"
     expected = data.astype(np.float64)
     expected[3, 4] = np.delete(expected.ravel(), 3 * 30 + 4).min()
-    assert np.allclose(f.heights, expected / 30.0, rtol=1e-6)
+    assert np.allclose(f.heights, expected, rtol=1e-6)
     f = loaders.load_file(tmp_path / "dem.tif", nodata_policy="fill", fill_value=0.0)
     assert f.heights[3, 4] == 0.0
 
@@ -242,7 +249,9 @@ def test_bad_files(tmp_path):
     bad[2, 1] = np.nan
     np.save(tmp_path / "nan.npy", bad)
     with pytest.raises(ValueError, match=r"nan.npy: .*\(row 2, col 1\)"):
-        loaders.load_file(tmp_path / "nan.npy")
+        loaders.load_file(tmp_path / "nan.npy", nodata_policy="error")
+    # the default keeps it as a void (issue 19)
+    assert loaders.load_file(tmp_path / "nan.npy").nodata_mask[2, 1]
     np.save(tmp_path / "ok.npy", np.ones((4, 4)))
     with pytest.raises(ValueError, match="spacing"):
         loaders.load_file(tmp_path / "ok.npy", spacing=0.0)

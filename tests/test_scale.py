@@ -15,7 +15,7 @@ import pytest
 import algos
 import datasets_gen
 from algos import parallel
-from algos.field import _mipmap, _tile_max_rows
+from algos.field import _tile_max_rows, max_mipmap as _mipmap
 from bench import sweep
 from bench.sweep import first_hit_rays
 
@@ -133,8 +133,10 @@ def test_memory_mapped_npy_is_used_in_place(tmp_path, field):
     assert np.shares_memory(f.heights, hf.heights)  # no copy
     o, d = first_hit_rays(field, 5, 2000, 2)
     assert np.array_equal(algos.intersect("runs", f, o, d).t, algos.intersect("runs", field, o, d).t)
-    # a file that needs converting (another spacing) takes the general path, in memory
-    converted = datasets_gen.load_file(path, spacing=2.0)
+    # a spacing converts nothing (heights are in its unit): still mapped (issue 19)
+    assert isinstance(datasets_gen.load_file(path, spacing=2.0).heights, np.memmap)
+    # a file that needs converting (a vertical scale) takes the general path, in memory
+    converted = datasets_gen.load_file(path, vertical_scale=0.5)
     assert not isinstance(converted.heights, np.memmap)
     np.testing.assert_array_equal(converted.heights, field.heights / 2)
 
@@ -144,7 +146,10 @@ def test_memory_mapped_file_with_nan_names_the_sample(tmp_path):
     h[3, 4] = np.nan
     np.save(tmp_path / "bad.npy", h)
     with pytest.raises(ValueError, match=r"row 3, col 4"):
-        datasets_gen.load_file(tmp_path / "bad.npy")
+        datasets_gen.load_file(tmp_path / "bad.npy", nodata_policy="error")
+    # the default policy keeps the void, and the map (issue 19)
+    voids = datasets_gen.load_file(tmp_path / "bad.npy")
+    assert isinstance(voids.heights, np.memmap) and voids.nodata_mask[3, 4]
 
 
 def test_streaming_structures_equal_the_whole_field_ones(field):
@@ -423,16 +428,15 @@ def test_banded_mipmap_equals_the_whole_array_reduction(shape, band_samples, mon
     assert level.shape == (1, 1)
 
 
-def test_memory_mapped_geotiff_is_used_in_place(tmp_path, field):
+def test_geotiff_is_read_through_rasterio(tmp_path, field):
+    """GeoTIFF goes through rasterio (GDAL), which decodes blocks into memory: the
+    memory-mapped path of earlier versions is kept for .npy only (issue 19)."""
     import tifffile
 
     tifffile.imwrite(tmp_path / "f.tif", field.heights)
     hf = datasets_gen.load_file(tmp_path / "f.tif")
-    assert isinstance(hf.heights, np.memmap) and hf.params["memory_mapped"]
-    assert np.shares_memory(algos.Field(hf.heights).heights, hf.heights)
+    assert not isinstance(hf.heights, np.memmap)
     np.testing.assert_array_equal(hf.heights, field.heights)
-    # a compressed file cannot be mapped: read into memory as before
     tifffile.imwrite(tmp_path / "z.tif", field.heights, compression="zlib")
     z = datasets_gen.load_file(tmp_path / "z.tif")
-    assert not isinstance(z.heights, np.memmap)
     np.testing.assert_array_equal(z.heights, field.heights)

@@ -178,7 +178,7 @@ def test_viewshed_curvature_and_many_observers():
     plain = T.viewshed(h, (5, 4), 3.0, spacing=1.0)
     curved = T.viewshed(h, (5, 4), 3.0, curvature=True, spacing=1.0, earth_radius=20.0)
     assert np.all(curved <= plain) and curved.sum() < plain.sum()  # the bulge hides
-    ref = np.array(viewshed_reference(h, (5, 4), 3.0, 0.0, drop=(1 - 0.13) / 40.0))
+    ref = np.array(viewshed_reference(h, (5, 4), 3.0, 0.0, drop=(1 - 1 / 7) / 40.0))
     np.testing.assert_array_equal(curved, ref)
     near = T.viewshed(h, (5, 4), 0.5, max_distance=2.0)
     jj, ii = np.mgrid[0:9, 0:11]
@@ -197,22 +197,26 @@ def test_threads_bit_identical():
 
 
 def test_heightfield_units_and_north():
-    """A HeightField's spacing turns lengths into metres; fields whose rows run north
-    (params north='+y', as jacksboro) are flipped so that azimuths stay geographic."""
+    """A HeightField's spacing makes heights and lengths metres; fields whose rows run
+    north (north='+y', as jacksboro) are flipped so that azimuths stay geographic.
+    (Updated with issue 19: heights are now in the unit of the spacing; heights in cells
+    say so with height_unit='cell'.)"""
     rng = np.random.default_rng(5)
     h = rng.integers(0, 5, size=(8, 9)).astype(np.float32)
-    field = HeightField(h, "t", spacing=30.0, unit="m", params={"north": "+y"})
-    got = T.horizon(field, [0.0, 90.0], max_distance=90.0)  # 3 cells
     want = T.horizon(h[::-1], [0.0, 90.0], max_distance=3.0)[:, ::-1]
-    np.testing.assert_allclose(got, want, atol=0)
-    v = T.viewshed(field, (2, 1), observer_height=30.0)
-    np.testing.assert_array_equal(v, T.viewshed(h[::-1], (2, 6), observer_height=1.0)[::-1])
+    for field in (HeightField(h * 32, "t", spacing=32.0, unit="m", north="+y"),
+                  HeightField(h, "t", spacing=32.0, unit="m", height_unit="cell",
+                              params={"north": "+y"})):
+        got = T.horizon(field, [0.0, 90.0], max_distance=96.0)  # 3 cells
+        np.testing.assert_allclose(got, want, atol=0)
+        v = T.viewshed(field, (2, 1), observer_height=32.0)
+        np.testing.assert_array_equal(v, T.viewshed(h[::-1], (2, 6), observer_height=1.0)[::-1])
 
 
 @pytest.mark.parametrize("call, match", [
     (lambda: T.horizon(np.zeros(5), 0), "heights: expected a 2D"),
     (lambda: T.horizon(np.zeros((1, 5)), 0), "heights: each side"),
-    (lambda: T.horizon(np.array([[0, 1], [np.nan, 2]]), 0), r"heights: non-finite .*row 1, col 0"),
+    (lambda: T.horizon(np.array([[0, 1], [np.inf, 2]]), 0), r"heights: non-finite .*row 1, col 0"),
     (lambda: T.horizon(np.zeros((3, 3)), [0, np.inf]), r"azimuths\[1\]"),
     (lambda: T.horizon(np.array([[0, 1], [2, 1e300]]), 0), r"row 1, col 1\) exceeds"),
     (lambda: T.horizon(np.zeros((3, 3)), 0, max_distance=-1), "max_distance"),

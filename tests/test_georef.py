@@ -1,0 +1,541 @@
+"""Terrain products a GIS user can trust (issue 19): each row of the issue's table, a
+GeoTIFF round trip, rectangular pixels against a brute-force reference, voids, observers
+in map coordinates, xarray in and out, pictures, and a peer on a projected DEM.
+
+Every GeoTIFF is made here with rasterio."""
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import algos
+import datasets_gen
+from algos import HeightField
+from datasets_gen import fields, raster
+
+rasterio = pytest.importorskip("rasterio")
+from affine import Affine  # noqa: E402  (rasterio's dependency)
+
+UTM17 = "EPSG:32617"
+
+
+def write_tif(path, data, *, crs=UTM17, transform=None, nodata=None, dtype=None, **options):
+    data = np.asarray(data)
+    rows, cols = data.shape
+    transform = transform or Affine(30.0, 0.0, 500000.0, 0.0, -30.0, 4000000.0)
+    with rasterio.open(path, "w", driver="GTiff", height=rows, width=cols, count=1,
+                       dtype=dtype or data.dtype.name, crs=crs, transform=transform,
+                       nodata=nodata, **options) as dst:
+        dst.write(data.astype(dtype or data.dtype), 1)
+    return path
+
+
+def deg(x):
+    return float(np.degrees(x))
+
+
+# ---- the table of issue 19 ---------------------------------------------------------------
+
+def test_metres_with_spacing_give_45_degrees():
+    H = np.zeros((5, 5))
+    H[:, 3:] = 30
+    assert deg(algos.horizon(H, [90], spacing=30)[0, 2, 2]) == pytest.approx(45.0, abs=1e-12)
+    # cell units are spacing 1: the same array is a 30-cell cliff one cell away
+    assert deg(algos.horizon(H, [90])[0, 2, 2]) == pytest.approx(math.degrees(math.atan(30)))
+
+
+def test_geographic_raster_is_refused_with_the_fix_or_reprojected(tmp_path):
+    """EPSG:4326, 3" pixels, a 92.6 m cliff running north-south at 46 N: looking east from
+    its foot, the rise is 92.6 m over one pixel of 64.4 m, atan(92.6 / 64.4) = 55.2 deg."""
+    lat = 46.0
+    dem = np.zeros((40, 40), np.float32)
+    dem[:, 20:] = 92.6
+    path = write_tif(tmp_path / "geo.tif", dem, crs="EPSG:4326",
+                     transform=Affine(1 / 1200, 0, -84.0, 0, -1 / 1200, lat + 20 / 1200))
+    with pytest.raises(ValueError, match=r"geo.tif: its CRS \(EPSG:4326\) is geographic.*"
+                                         r"gdalwarp -t_srs EPSG:32617 -tr 64\.\d+ 92\.\d+"):
+        datasets_gen.load_file(path)
+    field = datasets_gen.load_file(path, reproject="utm")
+    assert field.crs.to_epsg() == 32617 and field.unit == "m"
+    assert field.dx == pytest.approx(64.37, abs=0.01) and field.dy == pytest.approx(92.66, abs=0.01)
+    east = np.degrees(algos.horizon(field, [90])[0])
+    right = math.degrees(math.atan(92.6 / field.dx))
+    assert right == pytest.approx(55.2, abs=0.05)
+    # bilinear resampling onto the UTM grid smears the cliff by part of a pixel
+    assert np.nanmax(east[5:-5, 5:-5]) == pytest.approx(right, abs=1.0)
+
+
+def test_south_up_raster_keeps_north(tmp_path):
+    north_up = np.zeros((6, 7), np.float32)
+    north_up[:2] = 30  # a wall along the northern edge
+    path = write_tif(tmp_path / "south.tif", north_up[::-1],
+                     transform=Affine(30.0, 0, 500000.0, 0, 30.0, 4000000.0))
+    field = datasets_gen.load_file(path)
+    assert field.north == "+y" and field.spacing == 30.0
+    stored_row = 5 - 2  # north-up row 2, stored from the south
+    assert deg(algos.horizon(field, [0])[0, stored_row, 3]) == pytest.approx(45.0, abs=1e-12)
+    assert deg(algos.horizon(field, [180])[0, stored_row, 3]) <= 0.0
+    # the result is on the input's grid: the same as the north-up file's, flipped
+    up = datasets_gen.load_file(write_tif(tmp_path / "north.tif", north_up))
+    np.testing.assert_array_equal(algos.horizon(field, [0, 90, 200])[:, ::-1],
+                                  algos.horizon(up, [0, 90, 200]))
+
+
+def test_rotated_geotransform_is_refused(tmp_path):
+    path = write_tif(tmp_path / "rot.tif", np.zeros((6, 7), np.float32),
+                     transform=Affine(30.0, 5.0, 500000.0, 5.0, -30.0, 4000000.0))
+    with pytest.raises(ValueError, match="rot.tif: transform: the geotransform is rotated or "
+                                         "sheared .*b = 5, d = 5"):
+        datasets_gen.load_file(path)
+
+
+def test_int16_scale_and_offset_are_applied(tmp_path):
+    raw = np.zeros((5, 5), np.int16)
+    raw[:, 3:] = 60
+    path = tmp_path / "i16.tif"
+    with rasterio.open(path, "w", driver="GTiff", height=5, width=5, count=1, dtype="int16",
+                       crs=UTM17, transform=Affine(30.0, 0, 500000.0, 0, -30.0, 4000000.0),
+                       compress="lzw") as dst:
+        dst.write(raw, 1)
+        dst.scales, dst.offsets = (0.5,), (100.0,)
+    field = datasets_gen.load_file(path)
+    np.testing.assert_array_equal(field.heights[0], [100, 100, 100, 130, 130])
+    assert deg(algos.horizon(field, [90])[0, 2, 2]) == pytest.approx(45.0, abs=1e-9)
+
+
+def test_rectangular_pixels_10_by_20_metres(tmp_path):
+    H = np.zeros((5, 5), np.float32)
+    H[:, 3:] = 10
+    path = write_tif(tmp_path / "rect.tif", H,
+                     transform=Affine(10.0, 0, 500000.0, 0, -20.0, 4000000.0))
+    field = datasets_gen.load_file(path)
+    assert (field.dx, field.dy) == (10.0, 20.0) and field.spacing == (10.0, 20.0)
+    assert deg(algos.horizon(field, [90])[0, 2, 2]) == pytest.approx(45.0, abs=1e-12)
+    wall = np.zeros((5, 5))
+    wall[:2] = 20  # to the north, one 20 m row away
+    assert deg(algos.horizon(wall, [0], spacing=(10, 20))[0, 2, 2]) == pytest.approx(45.0, abs=1e-12)
+    # every product takes them
+    assert algos.shadows(field, 90, 44)[2, 2] and not algos.shadows(field, 90, 46)[2, 2]
+    svf = algos.sky_view_factor(field, 8)
+    assert svf.shape == (5, 5) and np.all((svf > 0) & (svf <= 1))
+    assert algos.viewshed(field, (0, 2), observer_height=1.0).shape == (5, 5)
+
+
+@pytest.mark.parametrize("compress, predictor", [("lzw", 2), ("zstd", 2), ("zstd", 3),
+                                                 ("deflate", 3)])
+def test_compressed_tiled_bigtiff_is_read(tmp_path, compress, predictor):
+    dem = (fields.generate("fbm", (40, 48), seed=2) * 50).astype(np.float32)
+    path = write_tif(tmp_path / "c.tif", dem, compress=compress, predictor=predictor,
+                     tiled=True, blockxsize=16, blockysize=16, BIGTIFF="YES")
+    np.testing.assert_array_equal(datasets_gen.load_file(path).heights, dem)
+
+
+def test_vrt_and_band_number(tmp_path):
+    dem = (fields.generate("fbm", (20, 24), seed=3) * 50).astype(np.float32)
+    path = tmp_path / "two.tif"
+    with rasterio.open(path, "w", driver="GTiff", height=20, width=24, count=2,
+                       dtype="float32", crs=UTM17,
+                       transform=Affine(30.0, 0, 0, 0, -30.0, 0)) as dst:
+        dst.write(dem, 1)
+        dst.write(dem * 2, 2)
+    np.testing.assert_array_equal(datasets_gen.load_file(path, band=2).heights, dem * 2)
+    with pytest.raises(ValueError, match="band: 3 is not a band of .*two.tif, which has 2 bands"):
+        datasets_gen.load_file(path, band=3)
+    from rasterio.shutil import copy as rio_copy
+
+    rio_copy(path, tmp_path / "two.vrt", driver="VRT")
+    np.testing.assert_array_equal(datasets_gen.load_file(tmp_path / "two.vrt").heights, dem)
+
+
+def test_nodata_dem_gives_nodata_products_without_options(tmp_path):
+    dem = (fields.generate("fbm", (30, 36), seed=4) * 80).astype(np.float32)
+    dem[10:13, 14:16] = -9999.0
+    field = datasets_gen.load_file(write_tif(tmp_path / "void.tif", dem, nodata=-9999.0))
+    assert field.nodata_mask.sum() == 6 and np.isnan(field.heights[11, 15])
+    svf = algos.sky_view_factor(field, 8)
+    assert np.isnan(svf[field.nodata_mask]).all() and np.isfinite(svf[~field.nodata_mask]).all()
+    assert not algos.shadows(field, 135, 20)[field.nodata_mask].any()
+    seen = algos.viewshed(field, (2, 2))
+    assert not seen[field.nodata_mask].any()
+
+
+# ---- voids: "a void blocks nothing" ----------------------------------------------------------
+
+def _touching(mask):
+    """Vertices that share a cell with a void vertex."""
+    near = mask.copy()
+    for dj in (-1, 0, 1):
+        for di in (-1, 0, 1):
+            near |= np.roll(np.roll(mask, dj, 0), di, 1)
+    return near
+
+
+def test_no_valid_pixel_away_from_a_void_changes():
+    """The products of a DEM with voids equal, on every vertex that does not touch a void,
+    those of the same DEM where the voids are a much lower (finite) value: a void blocks
+    nothing that an infinitely deep pit would not."""
+    dem = fields.generate("fbm", (40, 46), seed=6, amplitude=60.0, scale=20.0).astype(np.float64)
+    void = np.zeros(dem.shape, bool)
+    void[12:15, 20:23] = True
+    void[30, 5] = True
+    holes = np.where(void, np.nan, dem)
+    deep = np.where(void, -1e7, dem)
+    away = ~_touching(void)
+    az = [0.0, 37.0, 90.0, 200.0, 315.0]
+    a = algos.horizon(holes, az, spacing=10.0)
+    b = algos.horizon(deep, az, spacing=10.0)
+    assert np.isnan(a[:, void]).all()
+    np.testing.assert_allclose(a[:, away], b[:, away], rtol=0, atol=1e-6)
+    for md in (80.0, 250.0):
+        np.testing.assert_allclose(algos.horizon(holes, az, md, spacing=10.0)[:, away],
+                                   algos.horizon(deep, az, md, spacing=10.0)[:, away],
+                                   rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(algos.shadows(holes, 120, 15, spacing=10.0)[away],
+                                  algos.shadows(deep, 120, 15, spacing=10.0)[away])
+    np.testing.assert_array_equal(algos.viewshed(holes, (3, 4), spacing=10.0)[away],
+                                  algos.viewshed(deep, (3, 4), spacing=10.0)[away])
+    # and the void really takes away what stood there: a peak hid the vertex behind it
+    peak = dem.copy()
+    peak[13, 21] = dem.max() + 500
+    hidden = algos.viewshed(peak, (21, 2), 1.0, spacing=10.0)
+    opened = algos.viewshed(np.where(void, np.nan, peak), (21, 2), 1.0, spacing=10.0)
+    assert (opened & ~hidden & away).any()
+
+
+def test_observer_on_a_void_is_refused():
+    dem = np.zeros((8, 8))
+    dem[3, 3] = np.nan
+    with pytest.raises(ValueError, match=r"observer\[0\]: \(3.5, 2.5\) stands on a cell "
+                                         r"touching a void"):
+        algos.viewshed(dem, (3.5, 2.5))
+
+
+def test_fill_policy_stays_explicit(tmp_path):
+    dem = np.full((6, 6), 50.0, np.float32)
+    dem[2, 2] = -9999
+    path = write_tif(tmp_path / "f.tif", dem, nodata=-9999.0)
+    filled = datasets_gen.load_file(path, nodata_policy="fill-min")
+    assert filled.nodata_mask is None and filled.heights[2, 2] == 50
+    field = datasets_gen.load_file(path)
+    assert field.filled("value", 7.0).heights[2, 2] == 7.0
+    with pytest.raises(ValueError, match=r"heights: sample \(row 2, col 2\) is nan \(nodata\)"):
+        algos.intersect("runs", field, [[1, 1, 90]], [[1, 1, -1]])
+
+
+# ---- rectangular pixels against a brute-force reference -------------------------------------
+
+def _surface(H, x, y):
+    rows, cols = H.shape
+    i, j = min(int(math.floor(x)), cols - 2), min(int(math.floor(y)), rows - 2)
+    u, v = x - i, y - j
+    h00, h10, h01, h11 = H[j, i], H[j, i + 1], H[j + 1, i], H[j + 1, i + 1]
+    if u >= v:
+        return h00 + (h10 - h00) * u + (h11 - h10) * v
+    return h00 + (h11 - h01) * u + (h01 - h00) * v
+
+
+def brute_horizon(H, dx, dy, i, j, azimuth, max_distance=math.inf):
+    """Every crossing of the map-space ray with a grid line or a cell diagonal, in map
+    distance t, written independently of the product's cell-space derivation."""
+    rows, cols = H.shape
+    a = math.radians(azimuth)
+    cx, cy = math.sin(a) / dx, -math.cos(a) / dy  # cells per metre
+    ends = []
+    for c, p, n in ((cx, i, cols), (cy, j, rows)):
+        if c > 1e-15:
+            ends.append((n - 1 - p) / c)
+        elif c < -1e-15:
+            ends.append(-p / c)
+    t_end = min(ends + [max_distance])
+    ts = {t_end} if t_end > 0 else set()
+    for c, p in ((cx, i), (cy, j), (cx - cy, i - j)):
+        if abs(c) > 1e-15:
+            for k in range(-2 * (rows + cols), 2 * (rows + cols)):
+                t = (k - p) / c
+                if 0 < t <= t_end:
+                    ts.add(t)
+    best = -math.inf
+    for t in ts:
+        x, y = i + t * cx, j + t * cy
+        x, y = min(max(x, 0.0), cols - 1.0), min(max(y, 0.0), rows - 1.0)
+        best = max(best, (_surface(H, x, y) - H[j, i]) / t)
+    return -math.pi / 2 if best == -math.inf else math.atan(best)
+
+
+@pytest.mark.parametrize("spacing", [(10.0, 20.0), (30.0, 7.5), (25.0, 25.0)])
+def test_rectangular_pixels_match_the_brute_force_horizon(spacing):
+    rng = np.random.default_rng(11)
+    H = np.round(rng.uniform(0, 60, size=(7, 9)), 1)
+    dx, dy = spacing
+    for azimuth in (0.0, 17.3, 45.0, 90.0, 123.0, 200.0, 251.7, 333.0):
+        for md in (None, 47.0):
+            got = algos.horizon(H, [azimuth], md, spacing=spacing)[0]
+            for j in range(7):
+                for i in range(9):
+                    want = brute_horizon(H, dx, dy, i, j, azimuth,
+                                         math.inf if md is None else md)
+                    assert got[j, i] == pytest.approx(want, abs=1e-9), (spacing, azimuth, md, i, j)
+
+
+def test_rectangular_max_distance_is_in_map_units():
+    H = np.zeros((9, 9))
+    seen = algos.viewshed(H, (4, 4), 1.0, max_distance=35.0, spacing=(10.0, 20.0))
+    jj, ii = np.mgrid[0:9, 0:9]
+    np.testing.assert_array_equal(seen, ((ii - 4) * 10.0) ** 2 + ((jj - 4) * 20.0) ** 2 <= 35 ** 2)
+
+
+def test_old_spacing_calls_fail_loudly():
+    with pytest.raises(TypeError, match="positional spacing and unit held heights in cell units"):
+        HeightField(np.zeros((3, 3)), "t", 30.0, "m")
+    field = HeightField(np.zeros((3, 3)), "t", spacing=30.0, unit="m")
+    with pytest.raises(ValueError, match="spacing: 10.0, but t carries its own pixel size"):
+        algos.horizon(field, [0], spacing=10.0)
+    with pytest.raises(ValueError, match="curvature: needs spacing"):
+        algos.viewshed(np.zeros((3, 3)), (1, 1), curvature=True)
+    with pytest.raises(ValueError, match="curvature: needs square pixels"):
+        algos.viewshed(np.zeros((3, 3)), (1, 1), curvature=True, spacing=(1, 2))
+    with pytest.raises(ValueError, match="spacing: dx = -1"):
+        algos.horizon(np.zeros((3, 3)), [0], spacing=(-1, 2))
+
+
+# ---- one type everywhere -------------------------------------------------------------------
+
+def test_one_height_field_type_everywhere():
+    assert algos.Field is algos.HeightField is datasets_gen.HeightField
+    hf = datasets_gen.load("fbm", size=33, seed=1)
+    o, d = [[3.0, 4.0, 20.0]], [[1.0, 0.5, -0.3]]
+    np.testing.assert_array_equal(algos.intersect("runs", hf, o, d).t,
+                                  algos.intersect("runs", hf.heights, o, d).t)
+    np.testing.assert_array_equal(algos.horizon(hf, [30]), algos.horizon(hf.heights, [30]))
+    assert len(algos.traverse("runs", [[0.5, 0.5]], [[1.0, 0.3]], hf)[0]) > 0
+    for bad in ("fbm", {"heights": 1}, None):
+        with pytest.raises(TypeError, match="heights: expected a 2D array of real numbers, an "
+                                            "algos.HeightField"):
+            algos.horizon(bad, [0])
+    with pytest.raises(TypeError, match="heights: .*algos.HeightField"):
+        algos.intersect("runs", "fbm", o, d)
+
+
+def test_refraction_default_is_one_seventh():
+    import inspect
+
+    assert inspect.signature(algos.viewshed).parameters["refraction"].default == 1 / 7
+    assert algos.DEFAULT_REFRACTION == 1 / 7 and "1/7" in algos.viewshed.__doc__
+    assert algos.WGS84_SEMI_MAJOR_AXIS_M == 6378137.0
+    assert algos.IUGG_MEAN_EARTH_RADIUS_M == 6371008.8
+
+
+# ---- observers in map coordinates -------------------------------------------------------------
+
+def test_map_coordinates_to_grid_and_back(tmp_path):
+    dem = np.zeros((10, 12), np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "m.tif", dem))
+    x, y = field.grid_to_map(3, 4)
+    assert (x, y) == (500000.0 + 3.5 * 30, 4000000.0 - 4.5 * 30)
+    assert field.map_to_grid(x, y) == (3.0, 4.0)
+    assert field.map_to_grid(x + 15, y - 15) == (3.5, 4.5)
+    with pytest.raises(ValueError, match=r"observer 400000,4000000: outside m.tif, whose "
+                                         r"vertices span x 500015..500345"):
+        field.map_to_grid(400000, 4000000, what="400000,4000000")
+    south = datasets_gen.load_file(write_tif(
+        tmp_path / "s.tif", dem, transform=Affine(30.0, 0, 500000.0, 0, 30.0, 4000000.0)))
+    assert south.map_to_grid(*south.grid_to_map(5, 2)) == (5.0, 2.0)
+    plain = HeightField(dem)
+    with pytest.raises(ValueError, match="not georeferenced"):
+        plain.map_to_grid(1, 2)
+
+
+# ---- GeoTIFF in, product, GeoTIFF out ------------------------------------------------------------
+
+@pytest.mark.parametrize("south_up", [False, True])
+def test_round_trip_keeps_crs_transform_and_nodata(tmp_path, south_up):
+    dem = (fields.generate("fbm", (40, 50), seed=8) * 100).astype(np.float32)
+    dem[5, 7] = -32768
+    transform = Affine(20.0, 0, 600000.0, 0, 20.0 if south_up else -20.0, 4100000.0)
+    src = write_tif(tmp_path / "in.tif", dem, transform=transform, nodata=-32768,
+                    compress="lzw")
+    field = datasets_gen.load_file(src)
+    svf = algos.sky_view_factor(field, 8)
+    out = raster.write_product(tmp_path / "svf.tif", svf, field, product="sky_view_factor",
+                               units="1", params={"n_azimuths": 8, "max_distance": None})
+    lit = algos.shadows(field, 135, 25)
+    out2 = raster.write_product(tmp_path / "shadows.tif", lit, field, product="shadows",
+                                units="1 in shadow, 0 lit", params={"azimuth": 135})
+    with rasterio.open(src) as a, rasterio.open(out) as b, rasterio.open(out2) as c:
+        assert b.crs == a.crs and b.transform == a.transform and c.transform == a.transform
+        assert b.profile["tiled"] and b.compression is not None
+        assert math.isnan(b.nodata) and c.nodata == 255 and c.dtypes[0] == "uint8"
+        assert b.tags()["units"] == "1" and b.tags()["n_azimuths"] == "8"
+        assert b.tags()["max_distance"] == "none" and b.tags()["product"] == "sky_view_factor"
+        back = b.read(1)
+        assert np.isnan(back[5, 7]) and c.read(1)[5, 7] == 255
+        np.testing.assert_allclose(back[~field.nodata_mask], svf[~field.nodata_mask], rtol=1e-6)
+        assert set(np.unique(c.read(1))) <= {0, 1, 255}
+
+
+def test_windows_of_a_created_product(tmp_path):
+    dem = (fields.generate("fbm", (40, 50), seed=9) * 100).astype(np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "in.tif", dem))
+    whole = algos.horizon(field, [45.0], 300.0)[0]
+    path = raster.create_product(tmp_path / "h.tif", field, dtype=np.float64,
+                                 product="horizon", units="radians", params={"azimuth": 45})
+    for r0 in range(0, 40, 16):
+        for c0 in range(0, 50, 16):
+            raster.write_window(path, whole[r0:r0 + 16, c0:c0 + 16], r0, c0)
+    with rasterio.open(path) as b:
+        np.testing.assert_allclose(b.read(1), whole, rtol=1e-6)
+        assert b.transform == field.transform
+    lazy = datasets_gen.open_lazy(tmp_path / "in.tif", chunks=16)
+    assert lazy.transform == field.transform and lazy.crs == field.crs
+    np.testing.assert_array_equal(lazy.heights.compute(), dem)
+    np.testing.assert_allclose(algos.horizon(lazy, [45.0], 300.0)[0].compute(), whole,
+                               rtol=0, atol=1e-12)
+
+
+# ---- xarray -----------------------------------------------------------------------------------------
+
+def _dataarray(dem, step=30.0):
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("rioxarray")
+    rows, cols = dem.shape
+    da = xr.DataArray(dem, dims=("y", "x"), name="elevation",
+                      coords={"y": 4000000.0 - (np.arange(rows) + 0.5) * step,
+                              "x": 500000.0 + (np.arange(cols) + 0.5) * step},
+                      attrs={"long_name": "elevation", "source": "test"})
+    return da.rio.write_crs(UTM17)
+
+
+def test_dataarray_in_dataarray_out():
+    dem = fields.generate("fbm", (30, 40), seed=12, amplitude=50.0).astype(np.float64)
+    da = _dataarray(dem)
+    out = algos.sky_view_factor(da, 8)
+    assert type(out).__name__ == "DataArray" and out.dims == da.dims
+    np.testing.assert_array_equal(out.x, da.x)
+    np.testing.assert_array_equal(out.y, da.y)
+    assert out.rio.crs == da.rio.crs and out.attrs["long_name"] == "elevation"
+    assert out.attrs["units"] == "1"
+    np.testing.assert_allclose(out.values, algos.sky_view_factor(dem, 8, spacing=30.0),
+                               rtol=0, atol=1e-15)
+    h = algos.horizon(da, [0, 90])
+    assert h.dims == ("azimuth", "y", "x") and list(h.azimuth.values) == [0.0, 90.0]
+    assert h.attrs["units"] == "radians"
+
+
+def test_chunked_dataarray_stays_lazy():
+    dem = fields.generate("fbm", (40, 40), seed=13, amplitude=50.0).astype(np.float64)
+    da = _dataarray(dem).chunk(16)
+    out = algos.sky_view_factor(da, 4, max_distance=200.0)
+    assert type(out.data).__module__.startswith("dask")
+    np.testing.assert_allclose(out.compute().values,
+                               algos.sky_view_factor(dem, 4, 200.0, spacing=30.0),
+                               rtol=0, atol=1e-12)
+
+
+# ---- pictures -----------------------------------------------------------------------------------------
+
+def test_product_png_is_readable(tmp_path):
+    from PIL import Image
+
+    from datasets_gen.preview import product_png
+
+    dem = (fields.generate("fbm", (30, 40), seed=14) * 100).astype(np.float32)
+    dem[4, 4] = np.nan
+    field = HeightField(dem, "dem", spacing=30.0, unit="m",
+                        transform=None)
+    h = np.degrees(algos.horizon(field, [90])[0])
+    path = product_png(tmp_path / "h.png", h, field, product="horizon",
+                       units="degrees above the horizontal", params={"azimuth": 90},
+                       observers=[(10, 12)], cmap="magma", border=-90.0)
+    with Image.open(path) as image:
+        assert image.size[0] > 300 and image.size[1] > 300
+
+
+# ---- a peer on a projected DEM ---------------------------------------------------------------------
+
+def test_viewshed_agrees_with_xarray_spatial_on_a_projected_dem(tmp_path):
+    xrspatial = pytest.importorskip("xrspatial")
+    dem = (fields.generate("fbm", (50, 60), seed=15) * 120).astype(np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "p.tif", dem))
+    x, y = field.grid_to_map(31, 22)
+    col, row = field.map_to_grid(x, y)
+    ours = algos.viewshed(field, (col, row), observer_height=1.75)
+    da = _dataarray(dem.astype(np.float64))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        theirs = xrspatial.viewshed(da, x=x, y=y, observer_elev=1.75).values > -1
+    agree = float(np.mean(ours == theirs))
+    # the peer models cells, not two triangles: they differ only near the decision margin
+    print(f"agreement with xarray-spatial: {agree:.5f}")
+    assert agree > 0.99, agree
+
+
+def test_observers_as_typed(tmp_path):
+    from datasets_gen.observers import parse_observer, read_observers_csv
+
+    dem = np.zeros((10, 12), np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "m.tif", dem))
+    x, y = field.grid_to_map(3, 4)
+    assert parse_observer(f"{x},{y}", field) == (3.0, 4.0, None)
+    assert parse_observer(f"{x},{y},2.5", field) == (3.0, 4.0, 2.5)
+    with pytest.raises(ValueError, match=r"--observer '1,2,3,4': expected X,Y or X,Y,HEIGHT"):
+        parse_observer("1,2,3,4", field)
+    with pytest.raises(ValueError, match=r"observer 1,2: outside m.tif"):
+        parse_observer("1,2", field)
+    # pixels count rows from the north on every input, the embedded DEM's too
+    jacks = datasets_gen.load("jacksboro", size=64)
+    assert jacks.north == "+y"
+    assert parse_observer("5,0", jacks, pixel=True)[:2] == (5.0, jacks.shape[0] - 1.0)
+    assert parse_observer("5,0", field, pixel=True)[:2] == (5.0, 0.0)
+    with pytest.raises(ValueError, match=r"observer pixel 5,99: outside"):
+        parse_observer("5,99", field, pixel=True)
+    with pytest.raises(ValueError, match="not georeferenced.*--observer-pixel"):
+        parse_observer("5,9", jacks)
+    (tmp_path / "obs.csv").write_text(f"x,y,height\n{x},{y}\n{x + 30},{y},10\n")
+    assert read_observers_csv(tmp_path / "obs.csv", field) == [(3.0, 4.0, None), (4.0, 4.0, 10.0)]
+    (tmp_path / "bad.csv").write_text(f"{x},{y}\nfoo,bar\n")
+    with pytest.raises(ValueError, match=r"bad.csv, line 2: --observer 'foo,bar'"):
+        read_observers_csv(tmp_path / "bad.csv", field)
+
+
+def test_lazy_raster_reads_nodata_as_voids(tmp_path):
+    """The Dask path reads windows through rasterio: -9999 is a void, not a height."""
+    dem = (fields.generate("fbm", (40, 44), seed=16) * 100).astype(np.float32)
+    dem[20:22, 10:13] = -9999.0
+    path = write_tif(tmp_path / "v.tif", dem, nodata=-9999.0, tiled=True, blockxsize=16,
+                     blockysize=16, compress="zstd")
+    lazy = datasets_gen.open_lazy(path, chunks=16)
+    heights = lazy.heights.compute()
+    assert np.isnan(heights[20:22, 10:13]).all() and np.isfinite(heights).sum() == 40 * 44 - 6
+    whole = algos.horizon(datasets_gen.load_file(path), [30.0, 210.0], 200.0)
+    tiled = algos.horizon(lazy, [30.0, 210.0], 200.0).compute()
+    np.testing.assert_allclose(tiled, whole, rtol=0, atol=1e-12)
+    assert np.isnan(tiled[:, 20:22, 10:13]).all()
+
+
+def test_horizon_bands_are_written_with_their_azimuths(tmp_path):
+    dem = (fields.generate("fbm", (20, 24), seed=17) * 100).astype(np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "in.tif", dem))
+    az = [0.0, 135.0]
+    angles = np.degrees(algos.horizon(field, az))
+    path = raster.write_product(tmp_path / "h.tif", angles, field, product="horizon",
+                                units="degrees", params={"azimuths": az},
+                                band_names=[f"azimuth {a:g}" for a in az])
+    with rasterio.open(path) as b:
+        assert b.count == 2 and b.descriptions == ("azimuth 0", "azimuth 135")
+        assert b.tags(2)["units"] == "degrees"
+        np.testing.assert_allclose(b.read(2), angles[1], rtol=1e-6)
+
+
+def test_save_product_writes_the_geotiff_and_the_picture(tmp_path):
+    dem = (fields.generate("fbm", (24, 30), seed=18) * 100).astype(np.float32)
+    field = datasets_gen.load_file(write_tif(tmp_path / "in.tif", dem))
+    seen = algos.viewshed(field, (12, 10))
+    tif, png = datasets_gen.save_product(tmp_path / "vs", seen, field, product="viewshed",
+                                         units="1 visible, 0 not",
+                                         params={"observer_height": 1.75},
+                                         observers=[(12, 10)], cmap="Greens")
+    with rasterio.open(tif) as b:
+        assert b.crs == field.crs and b.tags()["observer_height"] == "1.75"
+        np.testing.assert_array_equal(b.read(1), seen.astype(np.uint8))
+    assert (tmp_path / "vs.png").stat().st_size > 1000 and png.endswith("vs.png")
