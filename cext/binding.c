@@ -53,6 +53,57 @@ static int get_array(PyObject *object, const char *name, int type, npy_intp size
     return 1;
 }
 
+/* ---- shared pieces of every entry point ------------------------------------------- */
+
+/* A kernel call without the GIL, timed with the monotonic clock: timed_begin releases
+ * the GIL and starts the clock, timed_end stops it, takes the GIL back and returns the
+ * elapsed nanoseconds. Nothing between the two may touch a Python object. */
+typedef struct {
+    PyThreadState *thread;
+    struct timespec start;
+} timed_section;
+
+static void timed_begin(timed_section *section) {
+    section->thread = PyEval_SaveThread();
+    clock_gettime(CLOCK_MONOTONIC, &section->start);
+}
+
+static long long timed_end(timed_section *section) {
+    struct timespec stop;
+    clock_gettime(CLOCK_MONOTONIC, &stop);
+    PyEval_RestoreThread(section->thread);
+    return (long long)(stop.tv_sec - section->start.tv_sec) * 1000000000LL +
+           (long long)(stop.tv_nsec - section->start.tv_nsec);
+}
+
+/* The rays of a batch: origins and directions of shape (N, dim), float64, and the
+ * optional ranges tmin, tmax (None, or N float64). */
+typedef struct {
+    npy_intp n;
+    const double *origins, *directions, *tmin, *tmax;
+} ray_arrays;
+
+static int get_rays(PyObject *o_origins, PyObject *o_directions, PyObject *o_tmin,
+                    PyObject *o_tmax, int dim, ray_arrays *rays) {
+    npy_intp size;
+    void *p;
+    if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &size)) return 0;
+    if (size % dim != 0) {
+        PyErr_Format(PyExc_ValueError, "origins: expected shape (N, %d)", dim);
+        return 0;
+    }
+    rays->n = size / dim;
+    rays->origins = (const double *)p;
+    if (!get_array(o_directions, "directions", NPY_FLOAT64, dim * rays->n, 0, 0, &p, NULL))
+        return 0;
+    rays->directions = (const double *)p;
+    if (!get_array(o_tmin, "tmin", NPY_FLOAT64, rays->n, 0, 1, &p, NULL)) return 0;
+    rays->tmin = (const double *)p;
+    if (!get_array(o_tmax, "tmax", NPY_FLOAT64, rays->n, 0, 1, &p, NULL)) return 0;
+    rays->tmax = (const double *)p;
+    return 1;
+}
+
 static const char *status_text(int status) {
     switch (status) {
     case HF_ERR_CAPACITY: return "an output buffer does not match the counting pass";
@@ -76,9 +127,11 @@ static PyObject *walk(PyObject *self, PyObject *args) {
     PyObject *o_origins, *o_directions, *o_tmin, *o_tmax, *o_pattern, *o_n_cells,
         *o_n_runs, *o_offsets, *o_out, *o_checksums;
     hf_batch batch;
-    npy_intp n2, n, out_len, pattern_len;
+    ray_arrays rays;
+    npy_intp n, out_len, pattern_len;
     void *p;
-    struct timespec start, stop;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "iiOOOOllLOOOOOO", &kernel, &mode, &o_origins,
                           &o_directions, &o_tmin, &o_tmax, &nx, &ny, &max_denominator,
@@ -95,21 +148,13 @@ static PyObject *walk(PyObject *self, PyObject *args) {
         return NULL;
     }
     memset(&batch, 0, sizeof batch);
-    if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &n2)) return NULL;
-    batch.origins = (const double *)p;
-    if (n2 % 2 != 0) {
-        PyErr_SetString(PyExc_ValueError, "origins: expected shape (N, 2)");
-        return NULL;
-    }
-    n = n2 / 2;
+    if (!get_rays(o_origins, o_directions, o_tmin, o_tmax, 2, &rays)) return NULL;
+    n = rays.n;
     batch.n_rays = n;
-    if (!get_array(o_directions, "directions", NPY_FLOAT64, 2 * n, 0, 0, &p, NULL))
-        return NULL;
-    batch.directions = (const double *)p;
-    if (!get_array(o_tmin, "tmin", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    batch.tmin = (const double *)p;
-    if (!get_array(o_tmax, "tmax", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    batch.tmax = (const double *)p;
+    batch.origins = rays.origins;
+    batch.directions = rays.directions;
+    batch.tmin = rays.tmin;
+    batch.tmax = rays.tmax;
     batch.nx = (int32_t)nx;
     batch.ny = (int32_t)ny;
     batch.max_denominator = max_denominator;
@@ -146,19 +191,16 @@ static PyObject *walk(PyObject *self, PyObject *args) {
         batch.checksums = (uint64_t *)p;
     }
 
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &start);
+    timed_begin(&section);
     status = hf_walk_batch(kernel, mode, &batch);
-    clock_gettime(CLOCK_MONOTONIC, &stop);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
 
     if (status != HF_OK) {
         PyErr_Format(PyExc_RuntimeError, "kernel %d failed on ray %lld: %s", kernel,
                      (long long)batch.bad_ray, status_text(status));
         return NULL;
     }
-    return PyLong_FromLongLong((long long)(stop.tv_sec - start.tv_sec) * 1000000000LL +
-                               (long long)(stop.tv_nsec - start.tv_nsec));
+    return PyLong_FromLongLong(elapsed_ns);
 }
 
 
@@ -235,9 +277,11 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         *o_tmin, *o_tmax, *o_pattern, *o_march, *o_t, *o_cell, *o_normal, *o_stats;
     hf_hit_batch b;
     PyArrayObject *ha;
-    npy_intp n3, n, shape[2], plen;
+    ray_arrays rays;
+    npy_intp n, shape[2], plen;
     void *p;
-    struct timespec start, stop;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights,
                           &o_cellmax, &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins,
@@ -316,20 +360,13 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         }
         b.mip_levels = (int)levels;
     }
-    if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &n3)) return NULL;
-    if (n3 % 3 != 0) {
-        PyErr_SetString(PyExc_ValueError, "origins: expected shape (N, 3)");
-        return NULL;
-    }
-    n = n3 / 3;
+    if (!get_rays(o_origins, o_directions, o_tmin, o_tmax, 3, &rays)) return NULL;
+    n = rays.n;
     b.n_rays = n;
-    b.origins = (const double *)p;
-    if (!get_array(o_directions, "directions", NPY_FLOAT64, 3 * n, 0, 0, &p, NULL)) return NULL;
-    b.directions = (const double *)p;
-    if (!get_array(o_tmin, "tmin", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    b.tmin = (const double *)p;
-    if (!get_array(o_tmax, "tmax", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    b.tmax = (const double *)p;
+    b.origins = rays.origins;
+    b.directions = rays.directions;
+    b.tmin = rays.tmin;
+    b.tmax = rays.tmax;
     b.max_denominator = max_denominator;
     if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return NULL;
     b.pattern = (int32_t *)p;
@@ -364,19 +401,16 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     if (!get_array(o_stats, "stats", NPY_INT64, 5 * n, 1, 1, &p, NULL)) return NULL;
     b.stats = (int64_t *)p;
 
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &start);
+    timed_begin(&section);
     status = hf_intersect_batch(kernel, &b);
-    clock_gettime(CLOCK_MONOTONIC, &stop);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
 
     if (status != HF_OK) {
         PyErr_Format(PyExc_RuntimeError, "intersector %d failed on ray %lld: %s", kernel,
                      (long long)b.bad_ray, status_text(status));
         return NULL;
     }
-    return PyLong_FromLongLong((long long)(stop.tv_sec - start.tv_sec) * 1000000000LL +
-                               (long long)(stop.tv_nsec - start.tv_nsec));
+    return PyLong_FromLongLong(elapsed_ns);
 }
 
 PyDoc_STRVAR(quantize_doc,
@@ -481,10 +515,8 @@ static int get_mip(PyObject *o_mip, int64_t rows, int64_t cols, hf_hz_mip *mip, 
     return 1;
 }
 
-static PyObject *stats_tuple(const hf_hz_stats *s, const struct timespec *a,
-                             const struct timespec *b) {
-    long long ns = (long long)(b->tv_sec - a->tv_sec) * 1000000000LL + (b->tv_nsec - a->tv_nsec);
-    return Py_BuildValue("LLL", ns, (long long)s->cells, (long long)s->skips);
+static PyObject *stats_tuple(const hf_hz_stats *s, long long elapsed_ns) {
+    return Py_BuildValue("LLL", elapsed_ns, (long long)s->cells, (long long)s->skips);
 }
 
 /* A pattern's interpolation arrays: dx_a, dy_a, dx_b, dy_b (int64) and w (float64), n
@@ -519,7 +551,8 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     void *p;
     hf_hz_pattern pat;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     int64_t reach = 0;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb,
@@ -590,14 +623,12 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     pat.end_k = end_k;
     pat.end_f = end_f;
     pat.end_inv_t = end_inv_t;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     hf_horizon_pattern(H, rows, cols, &pat, zmax, stop_every, start, stop, (double *)p);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
     free(off_a);
     free(off_b);
-    return stats_tuple(&st, &t0, &t1);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(horizon_sweep_doc,
@@ -617,7 +648,8 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     void *p, *out;
     int status;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OLLOOOOOOOOdLLO", &o_h, &q, &pp, &o_tf, &o_dxa, &o_dya, &o_dxb,
                           &o_dyb, &o_w, &o_mx, &o_my, &norm, &k_lo, &k_hi, &o_out))
@@ -657,14 +689,12 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
             return NULL;
         }
     }
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     status = hf_horizon_sweep(H, rows, cols, q, pp, n, tf, dxa, dya, dxb, dyb, w, mx, my, norm,
                               k_lo, k_hi, (double *)out);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
     if (status) return PyErr_NoMemory();
-    return stats_tuple(&st, &t0, &t1);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(horizon_walk_doc,
@@ -682,7 +712,8 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     int has_mip;
     void *out;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOdddLLO", &o_h, &o_mip, &dx, &dy, &max_distance, &start,
                           &stop, &o_out))
@@ -695,13 +726,11 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
         return NULL;
     }
     if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     hf_horizon_walk(H, rows, cols, has_mip ? &mip : NULL, dx, dy, max_distance, start, stop,
                     (double *)out, &st);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
-    return stats_tuple(&st, &t0, &t1);
+    elapsed_ns = timed_end(&section);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(viewshed_doc,
@@ -719,7 +748,8 @@ static PyObject *viewshed(PyObject *self, PyObject *args) {
     int has_mip;
     void *out;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOddddddLLO", &o_h, &o_mip, &ox, &oy, &z0, &th, &drop, &eps,
                           &start, &stop, &o_out))
@@ -733,13 +763,11 @@ static PyObject *viewshed(PyObject *self, PyObject *args) {
         return NULL;
     }
     if (!get_array(o_out, "out", NPY_UINT8, rows * cols, 1, 0, &out, NULL)) return NULL;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     hf_viewshed(H, rows, cols, has_mip ? &mip : NULL, ox, oy, z0, th, drop, eps, start, stop,
                 (uint8_t *)out, &st);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
-    return stats_tuple(&st, &t0, &t1);
+    elapsed_ns = timed_end(&section);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(horizon_march_doc,
@@ -755,7 +783,8 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
     int64_t rows, cols;
     void *out;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OdddddLLO", &o_h, &dx, &dy, &step, &max_distance, &zmax,
                           &start, &stop, &o_out))
@@ -768,13 +797,11 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
         return NULL;
     }
     if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, start, stop,
                      (double *)out, &st);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
-    return stats_tuple(&st, &t0, &t1);
+    elapsed_ns = timed_end(&section);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 static PyMethodDef methods[] = {
