@@ -14,8 +14,8 @@
 
 /* An optional array argument: None, or a C-contiguous, aligned array of `type` with
  * exactly `size` elements (size < 0: at least one). */
-static int get_array(PyObject *object, const char *name, int type, npy_intp size,
-                     int writable, int optional, void **data, npy_intp *length) {
+static int get_array(PyObject *object, const char *name, int type, npy_intp size, int writable,
+                     int optional, void **data, npy_intp *length) {
     PyArrayObject *array;
     *data = NULL;
     if (length) *length = 0;
@@ -36,16 +36,16 @@ static int get_array(PyObject *object, const char *name, int type, npy_intp size
                      "%s: expected a C-contiguous, aligned, native-order%s array of dtype "
                      "%s",
                      name, writable ? ", writable" : "",
-                     type == NPY_FLOAT64 ? "float64"
+                     type == NPY_FLOAT64   ? "float64"
                      : type == NPY_FLOAT32 ? "float32"
-                     : type == NPY_INT64 ? "int64"
-                     : type == NPY_INT32 ? "int32"
-                                         : "uint64");
+                     : type == NPY_INT64   ? "int64"
+                     : type == NPY_INT32   ? "int32"
+                                           : "uint64");
         return 0;
     }
     if (size >= 0 && PyArray_SIZE(array) != size) {
-        PyErr_Format(PyExc_ValueError, "%s: expected %zd elements, got %zd", name,
-                     (Py_ssize_t)size, (Py_ssize_t)PyArray_SIZE(array));
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd elements, got %zd", name, (Py_ssize_t)size,
+                     (Py_ssize_t)PyArray_SIZE(array));
         return 0;
     }
     *data = PyArray_DATA(array);
@@ -83,8 +83,8 @@ typedef struct {
     const double *origins, *directions, *tmin, *tmax;
 } ray_arrays;
 
-static int get_rays(PyObject *o_origins, PyObject *o_directions, PyObject *o_tmin,
-                    PyObject *o_tmax, int dim, ray_arrays *rays) {
+static int get_rays(PyObject *o_origins, PyObject *o_directions, PyObject *o_tmin, PyObject *o_tmax,
+                    int dim, ray_arrays *rays) {
     npy_intp size;
     void *p;
     if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &size)) return 0;
@@ -124,8 +124,8 @@ static PyObject *walk(PyObject *self, PyObject *args) {
     int kernel, mode, status;
     long nx, ny;
     long long max_denominator;
-    PyObject *o_origins, *o_directions, *o_tmin, *o_tmax, *o_pattern, *o_n_cells,
-        *o_n_runs, *o_offsets, *o_out, *o_checksums;
+    PyObject *o_origins, *o_directions, *o_tmin, *o_tmax, *o_pattern, *o_n_cells, *o_n_runs,
+        *o_offsets, *o_out, *o_checksums;
     hf_batch batch;
     ray_arrays rays;
     npy_intp n, out_len, pattern_len;
@@ -133,10 +133,9 @@ static PyObject *walk(PyObject *self, PyObject *args) {
     timed_section section;
     long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "iiOOOOllLOOOOOO", &kernel, &mode, &o_origins,
-                          &o_directions, &o_tmin, &o_tmax, &nx, &ny, &max_denominator,
-                          &o_pattern, &o_n_cells, &o_n_runs, &o_offsets, &o_out,
-                          &o_checksums))
+    if (!PyArg_ParseTuple(args, "iiOOOOllLOOOOOO", &kernel, &mode, &o_origins, &o_directions,
+                          &o_tmin, &o_tmax, &nx, &ny, &max_denominator, &o_pattern, &o_n_cells,
+                          &o_n_runs, &o_offsets, &o_out, &o_checksums))
         return NULL;
     if (kernel < 0 || kernel >= HF_N_KERNELS || mode < 0 || mode >= HF_N_MODES) {
         PyErr_Format(PyExc_ValueError, "kernel %d or mode %d out of range", kernel, mode);
@@ -158,12 +157,11 @@ static PyObject *walk(PyObject *self, PyObject *args) {
     batch.nx = (int32_t)nx;
     batch.ny = (int32_t)ny;
     batch.max_denominator = max_denominator;
-    if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &pattern_len))
-        return NULL;
+    if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &pattern_len)) return NULL;
     batch.pattern = (int32_t *)p;
     if (kernel == HF_RUNS_PERIODIC &&
-        (max_denominator < 1 || max_denominator > HF_MAX_DENOMINATOR ||
-         batch.pattern == NULL || pattern_len < max_denominator + 1)) {
+        (max_denominator < 1 || max_denominator > HF_MAX_DENOMINATOR || batch.pattern == NULL ||
+         pattern_len < max_denominator + 1)) {
         PyErr_SetString(PyExc_ValueError,
                         "runs_periodic needs 1 <= max_denominator <= 2^24 and a pattern "
                         "workspace of max_denominator + 1 int32");
@@ -186,8 +184,7 @@ static PyObject *walk(PyObject *self, PyObject *args) {
         batch.out = (int32_t *)p;
         batch.out_rows = out_len / width;
     } else {
-        if (!get_array(o_checksums, "checksums", NPY_UINT64, n, 1, 0, &p, NULL))
-            return NULL;
+        if (!get_array(o_checksums, "checksums", NPY_UINT64, n, 1, 0, &p, NULL)) return NULL;
         batch.checksums = (uint64_t *)p;
     }
 
@@ -202,7 +199,6 @@ static PyObject *walk(PyObject *self, PyObject *args) {
     }
     return PyLong_FromLongLong(elapsed_ns);
 }
-
 
 /* A float32 C-contiguous array of exactly this shape (ndim given by the shape length). */
 static int get_f32(PyObject *object, const char *name, int ndim, const npy_intp *shape,
@@ -232,8 +228,7 @@ static int get_f32(PyObject *object, const char *name, int ndim, const npy_intp 
 }
 
 /* (values, prefix, suffix, sparse, block_shift) for lines of `length` cells */
-static int get_rmq(PyObject *object, const char *name, npy_intp lines, npy_intp length,
-                   hf_rmq *q) {
+static int get_rmq(PyObject *object, const char *name, npy_intp lines, npy_intp length, hf_rmq *q) {
     PyObject *values, *prefix, *suffix, *sparse;
     int block_shift;
     npy_intp shape[3];
@@ -273,8 +268,8 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     int kernel, surface, cull_cells, fine_level, status, k;
     double hmin, hmax;
     long long max_denominator;
-    PyObject *o_heights, *o_cellmax, *o_row, *o_col, *o_mip, *o_origins, *o_directions,
-        *o_tmin, *o_tmax, *o_pattern, *o_march, *o_t, *o_cell, *o_normal, *o_stats;
+    PyObject *o_heights, *o_cellmax, *o_row, *o_col, *o_mip, *o_origins, *o_directions, *o_tmin,
+        *o_tmax, *o_pattern, *o_march, *o_t, *o_cell, *o_normal, *o_stats;
     hf_hit_batch b;
     PyArrayObject *ha;
     ray_arrays rays;
@@ -283,10 +278,10 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     timed_section section;
     long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights,
-                          &o_cellmax, &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins,
-                          &o_directions, &o_tmin, &o_tmax, &cull_cells, &max_denominator,
-                          &o_pattern, &o_march, &fine_level, &o_t, &o_cell, &o_normal, &o_stats))
+    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights, &o_cellmax,
+                          &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins, &o_directions, &o_tmin,
+                          &o_tmax, &cull_cells, &max_denominator, &o_pattern, &o_march, &fine_level,
+                          &o_t, &o_cell, &o_normal, &o_stats))
         return NULL;
     memset(&b, 0, sizeof b);
     if (kernel < 0 || kernel >= HF_N_HIT_KERNELS || surface < 0 || surface > HF_BILINEAR) {
@@ -300,7 +295,8 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     ha = (PyArrayObject *)o_heights;
     shape[0] = PyArray_DIM(ha, 0);
     shape[1] = PyArray_DIM(ha, 1);
-    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE || shape[1] > HF_MAX_GRID_SIDE) {
+    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE ||
+        shape[1] > HF_MAX_GRID_SIDE) {
         PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
         return NULL;
     }
@@ -313,8 +309,9 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         /* the lean layout (algos.Field(lean=True)): runs_maxmip without cell culling is
          * the one kernel that never reads the cell maxima */
         if (kernel != HF_HIT_RUNS_MAXMIP || cull_cells || o_row != Py_None) {
-            PyErr_SetString(PyExc_ValueError,
-                            "cellmax: only runs_maxmip without cell or run culling runs without it");
+            PyErr_SetString(
+                PyExc_ValueError,
+                "cellmax: only runs_maxmip without cell or run culling runs without it");
             return NULL;
         }
         b.cellmax = NULL;
@@ -370,8 +367,9 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     b.max_denominator = max_denominator;
     if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return NULL;
     b.pattern = (int32_t *)p;
-    if (kernel == HF_RUNS_PERIODIC && (b.pattern == NULL || max_denominator < 1 ||
-                                       max_denominator > HF_MAX_DENOMINATOR || plen < max_denominator + 1)) {
+    if (kernel == HF_RUNS_PERIODIC &&
+        (b.pattern == NULL || max_denominator < 1 || max_denominator > HF_MAX_DENOMINATOR ||
+         plen < max_denominator + 1)) {
         PyErr_SetString(PyExc_ValueError, "runs_periodic needs a pattern of max_denominator + 1");
         return NULL;
     }
@@ -413,25 +411,21 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     return PyLong_FromLongLong(elapsed_ns);
 }
 
-PyDoc_STRVAR(quantize_doc,
-             "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
-             "The ray the exact kernels walk: the origin rounded to 2^-16 cell, the\n"
-             "direction scaled by a power of two and rounded (see algos.lattice).");
+PyDoc_STRVAR(quantize_doc, "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
+                           "The ray the exact kernels walk: the origin rounded to 2^-16 cell, the\n"
+                           "direction scaled by a power of two and rounded (see algos.lattice).");
 
 static PyObject *quantize_ray(PyObject *self, PyObject *args) {
     double origin[2], direction[2], origin_out[2], direction_out[2];
     (void)self;
-    if (!PyArg_ParseTuple(args, "dddd", &origin[0], &origin[1], &direction[0],
-                          &direction[1]))
+    if (!PyArg_ParseTuple(args, "dddd", &origin[0], &origin[1], &direction[0], &direction[1]))
         return NULL;
     hf_quantize_ray(origin, direction, origin_out, direction_out);
-    return Py_BuildValue("dddd", origin_out[0], origin_out[1], direction_out[0],
-                         direction_out[1]);
+    return Py_BuildValue("dddd", origin_out[0], origin_out[1], direction_out[0], direction_out[1]);
 }
 
-PyDoc_STRVAR(best_rational_doc,
-             "best_rational(num, den, max_den) -> (p, q)\n\n"
-             "The C best rational approximation used by runs_periodic.");
+PyDoc_STRVAR(best_rational_doc, "best_rational(num, den, max_den) -> (p, q)\n\n"
+                                "The C best rational approximation used by runs_periodic.");
 
 static PyObject *best_rational(PyObject *self, PyObject *args) {
     long long num, den, max_den;
@@ -470,8 +464,8 @@ static int get_heights(PyObject *object, const double **data, int64_t *rows, int
 
 static int vertex_range(long long start, long long stop, int64_t rows, int64_t cols) {
     if (start < 0 || stop < start || stop > (long long)(rows * cols)) {
-        PyErr_Format(PyExc_ValueError, "vertex range [%lld, %lld) outside [0, %lld]", start,
-                     stop, (long long)(rows * cols));
+        PyErr_Format(PyExc_ValueError, "vertex range [%lld, %lld) outside [0, %lld]", start, stop,
+                     (long long)(rows * cols));
         return 0;
     }
     return 1;
@@ -555,9 +549,9 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     long long elapsed_ns;
     int64_t reach = 0;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb,
-                          &o_dyb, &o_w, &o_lx, &o_ly, &end_k, &end_f, &end_inv_t, &zmax,
-                          &stop_every, &start, &stop, &o_out))
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb, &o_dyb,
+                          &o_w, &o_lx, &o_ly, &end_k, &end_f, &end_inv_t, &zmax, &stop_every,
+                          &start, &stop, &o_out))
         return NULL;
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
     if (!get_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
@@ -566,7 +560,10 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
         PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
         const int64_t *ints[4];
         if (!get_lerp_arrays(lerp, n, ints, &pat.w)) return NULL;
-        dxa = ints[0]; dya = ints[1]; dxb = ints[2]; dyb = ints[3];
+        dxa = ints[0];
+        dya = ints[1];
+        dxb = ints[2];
+        dyb = ints[3];
     }
     if (!get_array(o_lx, "limit_x", NPY_INT64, cols, 0, 0, &p, NULL)) return NULL;
     lx = (const int64_t *)p;
@@ -608,7 +605,8 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     off_a = malloc((size_t)(n ? n : 1) * sizeof *off_a);
     off_b = malloc((size_t)(n ? n : 1) * sizeof *off_b);
     if (!off_a || !off_b) {
-        free(off_a); free(off_b);
+        free(off_a);
+        free(off_b);
         return PyErr_NoMemory();
     }
     for (npy_intp e = 0; e < n; e++) {
@@ -669,7 +667,10 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
         PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
         const int64_t *ints[4];
         if (!get_lerp_arrays(lerp, n, ints, &w)) return NULL;
-        dxa = ints[0]; dya = ints[1]; dxb = ints[2]; dyb = ints[3];
+        dxa = ints[0];
+        dya = ints[1];
+        dxb = ints[2];
+        dyb = ints[3];
     }
     if (!get_array(o_mx, "mx", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     mx = (const int64_t *)p;
@@ -715,8 +716,8 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     timed_section section;
     long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOdddLLO", &o_h, &o_mip, &dx, &dy, &max_distance, &start,
-                          &stop, &o_out))
+    if (!PyArg_ParseTuple(args, "OOdddLLO", &o_h, &o_mip, &dx, &dy, &max_distance, &start, &stop,
+                          &o_out))
         return NULL;
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
         !get_mip(o_mip, rows, cols, &mip, &has_mip))
@@ -786,20 +787,19 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
     timed_section section;
     long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OdddddLLO", &o_h, &dx, &dy, &step, &max_distance, &zmax,
-                          &start, &stop, &o_out))
+    if (!PyArg_ParseTuple(args, "OdddddLLO", &o_h, &dx, &dy, &step, &max_distance, &zmax, &start,
+                          &stop, &o_out))
         return NULL;
-    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols))
-        return NULL;
-    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || !(step > 0) ||
-        !isfinite(step) || isnan(max_distance) || isnan(zmax)) {
+    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
+    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || !(step > 0) || !isfinite(step) ||
+        isnan(max_distance) || isnan(zmax)) {
         PyErr_SetString(PyExc_ValueError, "direction, step or max_distance invalid");
         return NULL;
     }
     if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
     timed_begin(&section);
-    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, start, stop,
-                     (double *)out, &st);
+    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, start, stop, (double *)out,
+                     &st);
     elapsed_ns = timed_end(&section);
     return stats_tuple(&st, elapsed_ns);
 }
@@ -816,9 +816,15 @@ static PyMethodDef methods[] = {
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "algos._kernels",
-                                    "hftrace C kernels (private; see algos).", -1, methods,
-                                    NULL, NULL, NULL, NULL};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,
+                                    "algos._kernels",
+                                    "hftrace C kernels (private; see algos).",
+                                    -1,
+                                    methods,
+                                    NULL,
+                                    NULL,
+                                    NULL,
+                                    NULL};
 
 PyMODINIT_FUNC PyInit__kernels(void) {
     PyObject *m;
