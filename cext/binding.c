@@ -11,6 +11,7 @@
 #include "hftrace.h"
 #include "hitbatch.h"
 #include "terrain.h"
+#include "raster.h"
 
 /* An optional array argument: None, or a C-contiguous, aligned array of `type` with
  * exactly `size` elements (size < 0: at least one). */
@@ -804,6 +805,125 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
     return stats_tuple(&st, elapsed_ns);
 }
 
+/* ---- rasterisers -------------------------------------------------------------------- */
+
+PyDoc_STRVAR(raster_doc,
+             "raster(algorithm, heights, hmin, hmax, camera, sx, sy, near, z_bottom, step,\n"
+             "       t, cell, normal, coverage, counts) -> int\n\n"
+             "Render one image with a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon);\n"
+             "camera is float64 (position, forward, right, up, half_w, half_h). Returns the\n"
+             "elapsed nanoseconds of the C loop. Private: use algos.raster.");
+
+static PyObject *raster(PyObject *self, PyObject *args) {
+    int algorithm, status;
+    double hmin, hmax, near, z_bottom, step;
+    PyObject *o_heights, *o_camera, *o_sx, *o_sy, *o_t, *o_cell, *o_normal, *o_coverage, *o_counts;
+    hf_raster r;
+    npy_intp shape[2], width, height, pixels;
+    const double *camera;
+    int64_t *counts;
+    void *p;
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "iOddOOOdddOOOOO", &algorithm, &o_heights, &hmin, &hmax, &o_camera,
+                          &o_sx, &o_sy, &near, &z_bottom, &step, &o_t, &o_cell, &o_normal,
+                          &o_coverage, &o_counts))
+        return NULL;
+    memset(&r, 0, sizeof r);
+    if (algorithm < 0 || algorithm >= HF_N_RASTER) {
+        PyErr_Format(PyExc_ValueError, "algorithm: %d is not a rasteriser id", algorithm);
+        return NULL;
+    }
+    if (!PyArray_Check(o_heights) || PyArray_NDIM((PyArrayObject *)o_heights) != 2) {
+        PyErr_SetString(PyExc_TypeError, "heights: expected a 2D numpy array");
+        return NULL;
+    }
+    shape[0] = PyArray_DIM((PyArrayObject *)o_heights, 0);
+    shape[1] = PyArray_DIM((PyArrayObject *)o_heights, 1);
+    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE ||
+        shape[1] > HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
+        return NULL;
+    }
+    if (!get_f32(o_heights, "heights", 2, shape, &r.heights)) return NULL;
+    r.rows = (int32_t)shape[0];
+    r.cols = (int32_t)shape[1];
+    if (!get_array(o_camera, "camera", NPY_FLOAT64, 14, 0, 0, &p, NULL)) return NULL;
+    camera = (const double *)p;
+    if (!get_array(o_sx, "sx", NPY_FLOAT64, -1, 0, 0, &p, &width)) return NULL;
+    r.sx = (const double *)p;
+    if (!get_array(o_sy, "sy", NPY_FLOAT64, -1, 0, 0, &p, &height)) return NULL;
+    r.sy = (const double *)p;
+    /* sizes: each side fits int32, every pixel index fits int64 and the workspace size_t */
+    if (width < 1 || height < 1 || width > HF_MAX_GRID_SIDE || height > HF_MAX_GRID_SIDE) {
+        PyErr_Format(PyExc_ValueError, "image: %zd x %zd pixels, each side must be in [1, 2^24]",
+                     (Py_ssize_t)width, (Py_ssize_t)height);
+        return NULL;
+    }
+    pixels = width * height;
+    for (int k = 0; k < 14; ++k) {
+        if (!isfinite(camera[k])) {
+            PyErr_Format(PyExc_ValueError, "camera: element %d is not finite", k);
+            return NULL;
+        }
+    }
+    if (!(camera[12] > 0) || !(camera[13] > 0) || !(near > 0) || !isfinite(near) ||
+        !isfinite(z_bottom) || !(step > 0) || !isfinite(step) || !isfinite(hmin) ||
+        !isfinite(hmax)) {
+        PyErr_SetString(PyExc_ValueError,
+                        "camera: half_w, half_h, near and step must be positive and finite");
+        return NULL;
+    }
+    memcpy(r.position, camera, sizeof r.position);
+    memcpy(r.forward, camera + 3, sizeof r.forward);
+    memcpy(r.right, camera + 6, sizeof r.right);
+    memcpy(r.up, camera + 9, sizeof r.up);
+    r.half_w = camera[12];
+    r.half_h = camera[13];
+    r.width = (int32_t)width;
+    r.height = (int32_t)height;
+    r.hmin = hmin;
+    r.hmax = hmax;
+    r.near = near;
+    r.z_bottom = z_bottom;
+    r.step = step;
+    if (!get_array(o_t, "t", NPY_FLOAT64, pixels, 1, 0, &p, NULL)) return NULL;
+    r.t = (double *)p;
+    if (!get_array(o_cell, "cell", NPY_INT32, 2 * pixels, 1, 0, &p, NULL)) return NULL;
+    r.cell = (int32_t *)p;
+    if (!get_array(o_normal, "normal", NPY_FLOAT64, 3 * pixels, 1, 1, &p, NULL)) return NULL;
+    r.normal = (double *)p;
+    if (!get_array(o_coverage, "coverage", NPY_INT32, pixels, 1, 1, &p, NULL)) return NULL;
+    r.coverage = (int32_t *)p;
+    if (!get_array(o_counts, "counts", NPY_INT64, HF_N_COUNTS, 1, 0, &p, NULL)) return NULL;
+    counts = (int64_t *)p;
+    /* the workspace, allocated once per image, outside the loops */
+    r.primitive = malloc((size_t)pixels * sizeof *r.primitive);
+    if (algorithm == HF_RASTER_PAINTER) r.mask = malloc((size_t)pixels);
+    if (algorithm == HF_RASTER_ZBUFFER) r.vertex_rows = malloc((size_t)r.cols * 8 * sizeof(double));
+    if (!r.primitive || (algorithm == HF_RASTER_PAINTER && !r.mask) ||
+        (algorithm == HF_RASTER_ZBUFFER && !r.vertex_rows)) {
+        free(r.primitive);
+        free(r.mask);
+        free(r.vertex_rows);
+        return PyErr_NoMemory();
+    }
+    timed_begin(&section);
+    status = hf_raster_render(algorithm, &r);
+    elapsed_ns = timed_end(&section);
+    free(r.primitive);
+    free(r.mask);
+    free(r.vertex_rows);
+    if (status != HF_OK) {
+        PyErr_Format(PyExc_RuntimeError, "rasteriser %d failed: %s", algorithm,
+                     status_text(status));
+        return NULL;
+    }
+    memcpy(counts, r.counts, sizeof r.counts);
+    return PyLong_FromLongLong(elapsed_ns);
+}
+
 static PyMethodDef methods[] = {
     {"walk", walk, METH_VARARGS, walk_doc},
     {"intersect", intersect, METH_VARARGS, intersect_doc},
@@ -814,6 +934,7 @@ static PyMethodDef methods[] = {
     {"horizon_walk", horizon_walk, METH_VARARGS, horizon_walk_doc},
     {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
+    {"raster", raster, METH_VARARGS, raster_doc},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,
