@@ -335,9 +335,9 @@ def fuzz_one(data: bytes) -> None:
 
     def number():
         tag = take(1)[0]
-        if tag < 64:
+        if tag < 32:
             return _FUZZ_VALUES[tag % len(_FUZZ_VALUES)]
-        if tag < 160:
+        if tag < 232:
             return float(struct.unpack("<h", take(2))[0]) / 16.0
         return struct.unpack("<d", take(8))[0]
 
@@ -347,7 +347,8 @@ def fuzz_one(data: bytes) -> None:
                        dtype=np.float32).reshape(rows, cols)
     position = [number() for _ in range(3)]
     look_at = [number() for _ in range(3)]
-    fov = number()
+    choice = take(1)[0] % 3  # a hazard, a common field of view, or any in (0, 180)
+    fov = number() if choice == 0 else (60.0 if choice == 1 else 0.5 + 0.7 * take(1)[0])
     width, height = 1 + take(1)[0] % 17, 1 + take(1)[0] % 17
     step = [0.5, 0.25, 1.0, 1e-3, 64.0, 0.0][take(1)[0] % 6]
     before = heights.copy()
