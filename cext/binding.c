@@ -809,26 +809,31 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
 
 PyDoc_STRVAR(raster_doc,
              "raster(algorithm, heights, hmin, hmax, camera, sx, sy, near, z_bottom, step,\n"
-             "       t, cell, normal, coverage, counts) -> int\n\n"
-             "Render one image with a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon);\n"
-             "camera is float64 (position, forward, right, up, half_w, half_h). Returns the\n"
-             "elapsed nanoseconds of the C loop. Private: use algos.raster.");
+             "       region, t, cell, normal, coverage, primitive, mask, counts) -> int\n\n"
+             "Draw one region (row_begin, row_end, column_begin, column_end) of an image with\n"
+             "a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon); camera is float64\n"
+             "(position, forward, right, up, half_w, half_h); primitive (int64) and mask\n"
+             "(uint8, painter) are whole-image workspaces. Returns the elapsed nanoseconds\n"
+             "of the C loop. Private: use algos.raster.");
 
 static PyObject *raster(PyObject *self, PyObject *args) {
     int algorithm, status;
     double hmin, hmax, near, z_bottom, step;
-    PyObject *o_heights, *o_camera, *o_sx, *o_sy, *o_t, *o_cell, *o_normal, *o_coverage, *o_counts;
+    PyObject *o_heights, *o_camera, *o_sx, *o_sy, *o_t, *o_cell, *o_normal, *o_coverage,
+        *o_primitive, *o_mask, *o_counts;
     hf_raster r;
     npy_intp shape[2], width, height, pixels;
+    long long region[4];
     const double *camera;
     int64_t *counts;
     void *p;
     timed_section section;
     long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "iOddOOOdddOOOOO", &algorithm, &o_heights, &hmin, &hmax, &o_camera,
-                          &o_sx, &o_sy, &near, &z_bottom, &step, &o_t, &o_cell, &o_normal,
-                          &o_coverage, &o_counts))
+    if (!PyArg_ParseTuple(args, "iOddOOOddd(LLLL)OOOOOOO", &algorithm, &o_heights, &hmin, &hmax,
+                          &o_camera, &o_sx, &o_sy, &near, &z_bottom, &step, &region[0], &region[1],
+                          &region[2], &region[3], &o_t, &o_cell, &o_normal, &o_coverage,
+                          &o_primitive, &o_mask, &o_counts))
         return NULL;
     memset(&r, 0, sizeof r);
     if (algorithm < 0 || algorithm >= HF_N_RASTER) {
@@ -855,13 +860,28 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     r.sx = (const double *)p;
     if (!get_array(o_sy, "sy", NPY_FLOAT64, -1, 0, 0, &p, &height)) return NULL;
     r.sy = (const double *)p;
-    /* sizes: each side fits int32, every pixel index fits int64 and the workspace size_t */
+    /* sizes: each side fits int32, so every pixel index (int64) and workspace size fits */
     if (width < 1 || height < 1 || width > HF_MAX_GRID_SIDE || height > HF_MAX_GRID_SIDE) {
         PyErr_Format(PyExc_ValueError, "image: %zd x %zd pixels, each side must be in [1, 2^24]",
                      (Py_ssize_t)width, (Py_ssize_t)height);
         return NULL;
     }
     pixels = width * height;
+    if (region[0] < 0 || region[1] > height || region[0] >= region[1] || region[2] < 0 ||
+        region[3] > width || region[2] >= region[3]) {
+        PyErr_Format(PyExc_ValueError,
+                     "region: rows [%lld, %lld) x columns [%lld, %lld) is empty or outside "
+                     "the %zd x %zd image",
+                     region[0], region[1], region[2], region[3], (Py_ssize_t)width,
+                     (Py_ssize_t)height);
+        return NULL;
+    }
+    if (algorithm == HF_RASTER_FLOATING_HORIZON ? (region[0] != 0 || region[1] != height)
+                                                : (region[2] != 0 || region[3] != width)) {
+        PyErr_SetString(PyExc_ValueError, "region: zbuffer and painter draw whole rows, "
+                                          "floating_horizon whole columns");
+        return NULL;
+    }
     for (int k = 0; k < 14; ++k) {
         if (!isfinite(camera[k])) {
             PyErr_Format(PyExc_ValueError, "camera: element %d is not finite", k);
@@ -883,6 +903,10 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     r.half_h = camera[13];
     r.width = (int32_t)width;
     r.height = (int32_t)height;
+    r.row_begin = (int32_t)region[0];
+    r.row_end = (int32_t)region[1];
+    r.column_begin = (int32_t)region[2];
+    r.column_end = (int32_t)region[3];
     r.hmin = hmin;
     r.hmax = hmax;
     r.near = near;
@@ -896,24 +920,21 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     r.normal = (double *)p;
     if (!get_array(o_coverage, "coverage", NPY_INT32, pixels, 1, 1, &p, NULL)) return NULL;
     r.coverage = (int32_t *)p;
+    if (!get_array(o_primitive, "primitive", NPY_INT64, pixels, 1, 0, &p, NULL)) return NULL;
+    r.primitive = (int64_t *)p;
+    if (!get_array(o_mask, "mask", NPY_UINT8, pixels, 1, algorithm != HF_RASTER_PAINTER, &p, NULL))
+        return NULL;
+    r.mask = (uint8_t *)p;
     if (!get_array(o_counts, "counts", NPY_INT64, HF_N_COUNTS, 1, 0, &p, NULL)) return NULL;
     counts = (int64_t *)p;
-    /* the workspace, allocated once per image, outside the loops */
-    r.primitive = malloc((size_t)pixels * sizeof *r.primitive);
-    if (algorithm == HF_RASTER_PAINTER) r.mask = malloc((size_t)pixels);
-    if (algorithm == HF_RASTER_ZBUFFER) r.vertex_rows = malloc((size_t)r.cols * 8 * sizeof(double));
-    if (!r.primitive || (algorithm == HF_RASTER_PAINTER && !r.mask) ||
-        (algorithm == HF_RASTER_ZBUFFER && !r.vertex_rows)) {
-        free(r.primitive);
-        free(r.mask);
-        free(r.vertex_rows);
-        return PyErr_NoMemory();
+    /* the zbuffer's two rows of projected corners, allocated once per call */
+    if (algorithm == HF_RASTER_ZBUFFER) {
+        r.vertex_rows = malloc((size_t)r.cols * 8 * sizeof(double));
+        if (!r.vertex_rows) return PyErr_NoMemory();
     }
     timed_begin(&section);
     status = hf_raster_render(algorithm, &r);
     elapsed_ns = timed_end(&section);
-    free(r.primitive);
-    free(r.mask);
     free(r.vertex_rows);
     if (status != HF_OK) {
         PyErr_Format(PyExc_RuntimeError, "rasteriser %d failed: %s", algorithm,

@@ -39,15 +39,16 @@ static inline cam_vertex to_camera(const hf_raster *r, double x, double y, doubl
     return v;
 }
 
-/* Which of the five half-spaces of the view frustum (near, left, right, bottom, top) a
- * point lies outside of, one bit each. A cell whose four corners share a bit is culled. */
+/* Which of the five half-spaces of the view frustum (near, left, right, and the bottom
+ * and top of the region's rows) a point lies outside of, one bit each. A cell whose four
+ * corners share a bit is culled. */
 static inline int outcode(const hf_raster *r, cam_vertex v) {
     int code = 0;
     if (v.w < r->near) code |= 1;
     if (v.a < -r->half_w * v.w) code |= 2;
     if (v.a > r->half_w * v.w) code |= 4;
-    if (v.b < -r->half_h * v.w) code |= 8;
-    if (v.b > r->half_h * v.w) code |= 16;
+    if (v.b < r->band_bottom * v.w) code |= 8;
+    if (v.b > r->band_top * v.w) code |= 16;
     return code;
 }
 
@@ -124,7 +125,7 @@ static inline void scan_triangle(hf_raster *r, const int algorithm, const screen
     row_top = first_index(top->Y, height);
     row_mid = first_index(mid->Y, height);
     row_bottom = first_index(bottom->Y, height);
-    if (row_top >= row_bottom) return;
+    if (row_top >= row_bottom || row_bottom <= r->row_begin || row_top >= r->row_end) return;
     r->counts[HF_COUNT_TRIANGLES] += 1;
     mid_left = area2 < 0;
     /* 1/w along a row: the plane's X gradient */
@@ -137,6 +138,9 @@ static inline void scan_triangle(hf_raster *r, const int algorithm, const screen
     long_edge = edge_start(top, bottom, row_top);
     /* the upper trapezoid's short edge; the lower one's replaces it on row_mid */
     short_edge = row_top < row_mid ? edge_start(top, mid, row_top) : long_edge;
+    /* Rows above the region only advance the trackers, so that a row's edges are where a
+     * whole-image call puts them (results do not depend on the split into regions). */
+    if (row_bottom > r->row_end) row_bottom = r->row_end;
     for (row = row_top; row < row_bottom; ++row) {
         const edge_tracker *left, *right;
         int32_t c0, c1, c;
@@ -145,7 +149,7 @@ static inline void scan_triangle(hf_raster *r, const int algorithm, const screen
         right = mid_left ? &long_edge : &short_edge;
         c0 = first_index(left->x, width);
         c1 = first_index(right->x, width);
-        if (c0 < c1) {
+        if (c0 < c1 && row >= r->row_begin) {
             const int64_t base = (int64_t)row * width;
             double z = left->z + ((double)c0 + 0.5 - left->x) * dz_dx;
             for (c = c0; c < c1; ++c) {
@@ -309,7 +313,7 @@ static void zbuffer(hf_raster *r) {
  * whose triangle on the camera's side of the diagonal goes first). No sorting. */
 static void painter(hf_raster *r) {
     const int32_t nx = r->cols - 1, ny = r->rows - 1;
-    const int64_t pixels = (int64_t)r->width * r->height;
+    const int64_t pixels = (int64_t)r->width * (r->row_end - r->row_begin);
     const double cx = r->position[0], cy = r->position[1];
     const int32_t ci = cx < 0 ? 0 : (cx >= nx ? nx - 1 : (int32_t)floor(cx));
     const int32_t cj = cy < 0 ? 0 : (cy >= ny ? ny - 1 : (int32_t)floor(cy));
@@ -365,7 +369,7 @@ static void floating_horizon(hf_raster *r) {
     const double d_first = sqrt(gap_x * gap_x + gap_y * gap_y);
     const double d_last = sqrt(far_x * far_x + far_y * far_y);
     int32_t c;
-    for (c = 0; c < width; ++c) {
+    for (c = r->column_begin; c < r->column_end; ++c) {
         int32_t horizon = height;
         int64_t k;
         double distance;
@@ -429,8 +433,9 @@ static void floating_horizon(hf_raster *r) {
 static void resolve(hf_raster *r) {
     const int32_t width = r->width, height = r->height, nx = r->cols - 1;
     int32_t c, k;
-    for (k = 0; k < height; ++k) {
-        for (c = 0; c < width; ++c) {
+    (void)height;
+    for (k = r->row_begin; k < r->row_end; ++k) {
+        for (c = r->column_begin; c < r->column_end; ++c) {
             const int64_t pixel = (int64_t)k * width + c;
             const int64_t id = r->primitive[pixel];
             double *n = r->normal ? r->normal + 3 * pixel : NULL;
@@ -470,16 +475,29 @@ static void resolve(hf_raster *r) {
 }
 
 int hf_raster_render(int algorithm, hf_raster *r) {
-    const int64_t pixels = (int64_t)r->width * r->height;
-    int64_t p;
+    const int32_t width = r->width, height = r->height;
+    int32_t k, c;
     if (algorithm < 0 || algorithm >= HF_N_RASTER) return HF_ERR_ARGUMENT;
+    if (r->row_begin < 0 || r->row_end > height || r->row_begin >= r->row_end ||
+        r->column_begin < 0 || r->column_end > width || r->column_begin >= r->column_end)
+        return HF_ERR_ARGUMENT;
+    if (algorithm != HF_RASTER_FLOATING_HORIZON && (r->column_begin != 0 || r->column_end != width))
+        return HF_ERR_ARGUMENT; /* zbuffer and painter split by whole rows */
+    if (algorithm == HF_RASTER_FLOATING_HORIZON && (r->row_begin != 0 || r->row_end != height))
+        return HF_ERR_ARGUMENT; /* the floating horizon splits by whole columns */
+    /* the region's top and bottom edges as tans, like sy (exactly +-half_h for the image) */
+    r->band_top = (1.0 - 2.0 * r->row_begin / height) * r->half_h;
+    r->band_bottom = (1.0 - 2.0 * r->row_end / height) * r->half_h;
     memset(r->counts, 0, sizeof r->counts);
-    for (p = 0; p < pixels; ++p) {
-        r->t[p] = 0;
-        r->primitive[p] = -1;
+    for (k = r->row_begin; k < r->row_end; ++k) {
+        for (c = r->column_begin; c < r->column_end; ++c) {
+            const int64_t p = (int64_t)k * width + c;
+            r->t[p] = 0;
+            r->primitive[p] = -1;
+            if (r->coverage) r->coverage[p] = 0;
+            if (r->mask) r->mask[p] = 0;
+        }
     }
-    if (r->coverage) memset(r->coverage, 0, (size_t)pixels * sizeof *r->coverage);
-    if (r->mask) memset(r->mask, 0, (size_t)pixels);
     switch (algorithm) {
     case HF_RASTER_ZBUFFER: zbuffer(r); break;
     case HF_RASTER_PAINTER: painter(r); break;

@@ -65,20 +65,27 @@ typedef struct {
     double near;           /* geometry closer than this depth is clipped away    */
     double z_bottom;       /* the skirts' lower edge                             */
     double step;           /* floating horizon: march step in cells              */
+    /* The region drawn: rows [row_begin, row_end) x columns [column_begin, column_end).
+     * Threads draw disjoint regions of one image: zbuffer and painter bands of whole
+     * rows, floating_horizon ranges of whole columns. Every pixel gets the value it gets
+     * in a whole-image call (the same fragments in the same order), bit for bit. */
+    int32_t row_begin, row_end, column_begin, column_end;
+    double band_top, band_bottom; /* set by hf_raster_render: the region's vertical tans */
     /* outputs, (height, width) pixels in row-major order; normal and coverage optional */
     double *t;         /* inf where nothing is hit                           */
     int32_t *cell;     /* (i, j); (-1, -1) where nothing is hit              */
     double *normal;    /* unit, NaN where nothing is hit                     */
     int32_t *coverage; /* zbuffer: front-facing fragments per pixel          */
-    /* workspace of the caller, never allocated here */
+    /* workspace of the caller, never allocated here (whole image; a region uses its part) */
     int64_t *primitive;  /* per pixel: cell_index * 4 + kind, or -1            */
     uint8_t *mask;       /* painter: per pixel                                 */
     double *vertex_rows; /* zbuffer: 2 * cols * 4 doubles                      */
     int64_t counts[HF_N_COUNTS];
 } hf_raster;
 
-/* Render one image. Returns 0 (HF_OK) or HF_ERR_ARGUMENT for an unknown algorithm. No
- * allocation; thread-safe; the GIL may be released around it. */
+/* Render one region of an image. Returns 0 (HF_OK), or HF_ERR_ARGUMENT for an unknown
+ * algorithm or a region outside the image. No allocation; thread-safe for disjoint
+ * regions; the GIL may be released around it. */
 int hf_raster_render(int algorithm, hf_raster *r);
 
 #endif

@@ -202,6 +202,23 @@ def test_painter_equals_zbuffer_and_stops_when_full():
     assert np.array_equal(z.cell, p.cell) and np.array_equal(z.t, p.t)
 
 
+@pytest.mark.parametrize("algorithm", raster.RASTERISERS)
+def test_threads_bit_identical(algorithm):
+    """Bands of rows (zbuffer, painter) or ranges of columns (floating_horizon) drawn by
+    several threads give the whole-image call's image bit for bit."""
+    h = random_field(8, rows=48, cols=56, relief=5.0)
+    position, look_at = (-6.0, 20.0, 12.0), (40.0, 30.0, 1.0)
+    one = raster.render(algorithm, h, position, look_at, 70, 150, 97, coverage=True)
+    for threads in (2, 3, 7):
+        many = raster.render(algorithm, h, position, look_at, 70, 150, 97, coverage=True,
+                             threads=threads)
+        assert np.array_equal(one.t, many.t), f"{algorithm}, {threads} threads: t differs"
+        assert np.array_equal(one.cell, many.cell), f"{algorithm}, {threads} threads"
+        assert np.array_equal(one.normal, many.normal, equal_nan=True)
+        if one.coverage is not None:
+            assert np.array_equal(one.coverage, many.coverage)
+
+
 def test_frustum_culling_counts():
     h = random_field(2, rows=65, cols=65)
     image = raster.render("zbuffer", h, (32.0, 32.0, 10.0), (32.0, 60.0, 5.0), 30, 64, 36)
