@@ -44,11 +44,13 @@ from . import _kernels
 from .field import as_field
 from .parallel import resolve_threads, run_ranges, split
 
-__all__ = ["RASTERISERS", "Image", "pinhole_frame", "render", "trace", "diff_images",
-           "COUNTS", "fuzz_one"]
+__all__ = ["RASTERISERS", "Image", "pinhole_frame", "render", "hidden_lines", "trace",
+           "diff_images", "COUNTS", "fuzz_one"]
 
 #: the rasterisers, by their C id
 RASTERISERS = ("zbuffer", "painter", "floating_horizon")
+#: the C id of the floating horizon's hidden-line drawing (:func:`hidden_lines`)
+_HIDDEN_LINES = 3
 
 #: the cost model's counts, in the C order (cext/raster.h, enum hf_raster_count)
 COUNTS = ("cells", "cells_culled", "cells_drawn", "triangles", "fragments", "pixels_written",
@@ -80,6 +82,11 @@ class Image:
         statistics (``algos.STATS``).
     elapsed_ns : int
         Wall time of the C loop.
+    coverage : ndarray (height, width) int32 or None
+        ``render(..., coverage=True)`` of ``zbuffer``: front-facing fragments per pixel.
+    lines : ndarray (height, width) bool or None
+        :func:`hidden_lines`: the drawing; ``t``, ``cell`` and ``normal`` are set on its
+        pixels only.
     """
 
     algorithm: str
@@ -89,6 +96,7 @@ class Image:
     counts: dict = field(default_factory=dict)
     elapsed_ns: int = 0
     coverage: np.ndarray | None = None
+    lines: np.ndarray | None = None
 
 
 def pinhole_frame(position, look_at, fov, width, height):
@@ -162,6 +170,24 @@ def _surface_at(h: np.ndarray, x: float, y: float) -> float:
     return h00 + (h11 - h01) * u + (h01 - h00) * v
 
 
+def _setup(heights, position, look_at, fov, width, height):
+    """The field, the camera (see :func:`pinhole_frame`) and the skirts' lower edge,
+    validated: a camera at or below the surface inside the footprint is refused."""
+    fld = as_field(heights)
+    h = fld.heights
+    frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
+    px, py, pz = (float(v) for v in frame[:3])
+    rows, cols = h.shape
+    if 0 <= px <= cols - 1 and 0 <= py <= rows - 1 and not pz > _surface_at(h, px, py):
+        raise ValueError(f"position: ({px}, {py}, {pz}) is at or below the surface "
+                         f"({_surface_at(h, px, py)}); every ray would hit at t = 0")
+    # the skirts reach far enough down that the rays they miss lie within about 1e-6 rad
+    # of the vertical vanishing point
+    reach = (rows + cols) + abs(pz - fld.hmin) + abs(px) + abs(py) + 1.0
+    z_bottom = fld.hmin - 1e6 * reach
+    return fld, frame, sx, sy, z_bottom
+
+
 def render(algorithm, heights, position, look_at, fov, width, height, *,
            outputs=("t", "cell", "normal"), step=0.5, coverage=False, threads=1) -> Image:
     """An image of the ``triangles`` surface by a rasteriser.
@@ -228,19 +254,9 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
     step = float(step)
     if not 1e-3 <= step <= 64:
         raise ValueError(f"step: expected cells in [1e-3, 64], got {step}")
-    fld = as_field(heights)
+    fld, frame, sx, sy, z_bottom = _setup(heights, position, look_at, fov, width, height)
     h = fld.heights
-    frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
-    px, py, pz = (float(v) for v in frame[:3])
-    rows, cols = h.shape
-    if 0 <= px <= cols - 1 and 0 <= py <= rows - 1 and not pz > _surface_at(h, px, py):
-        raise ValueError(f"position: ({px}, {py}, {pz}) is at or below the surface "
-                         f"({_surface_at(h, px, py)}); every ray would hit at t = 0")
     width, height = len(sx), len(sy)
-    # the skirts reach far enough down that the rays they miss lie within about 1e-6 rad
-    # of the vertical vanishing point
-    reach = (rows + cols) + abs(pz - fld.hmin) + abs(px) + abs(py) + 1.0
-    z_bottom = fld.hmin - 1e6 * reach
     t = np.empty((height, width), dtype=np.float64)
     cell = np.empty((height, width, 2), dtype=np.int32)
     normal = np.empty((height, width, 3), dtype=np.float64) if "normal" in outputs else None
@@ -275,6 +291,42 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
         counts[COUNTS.index("stopped_full")] = int(all(p[0][7] for p in parts))
     return Image(algorithm, t, cell, normal, dict(zip(COUNTS, (int(c) for c in counts))),
                  int(elapsed), cover)
+
+
+def hidden_lines(heights, position, look_at, fov, width, height, *,
+                 outputs=("t", "cell", "normal")) -> Image:
+    """The floating horizon's hidden-line drawing of the grid (the Czech chapter).
+
+    The row sections ``y = j`` are drawn front to back (in order of distance from the
+    camera's y, each side of it separately), zig-zagging through the column segments
+    that join consecutive rows; at every image column a segment spans, its point is
+    drawn when it lies above the upper or below the lower horizon of the sections drawn
+    before (one point per column and segment; a segment reaching behind the near plane
+    is left out). Approximate by design: the surface between two sections hides nothing.
+
+    Parameters and errors as :func:`render`. Returns an :class:`Image` whose ``lines``
+    marks the drawn pixels; there ``t`` is the ray parameter of the pixel's direction at
+    the drawn point's depth and ``cell`` a cell the segment borders (``normal`` that of
+    its lower triangle); elsewhere ``t`` is ``inf`` and ``cell`` ``(-1, -1)``.
+    """
+    if isinstance(outputs, str):
+        outputs = (outputs,)
+    for out in outputs:
+        if out not in ("t", "cell", "normal"):
+            raise ValueError(f"outputs: unknown output {out!r}; valid outputs are t, cell, normal")
+    fld, frame, sx, sy, z_bottom = _setup(heights, position, look_at, fov, width, height)
+    width, height = len(sx), len(sy)
+    t = np.empty((height, width), dtype=np.float64)
+    cell = np.empty((height, width, 2), dtype=np.int32)
+    normal = np.empty((height, width, 3), dtype=np.float64) if "normal" in outputs else None
+    primitive = np.empty((height, width), dtype=np.int64)
+    lines = np.empty((height, width), dtype=np.uint8)
+    counts = np.zeros(len(COUNTS), dtype=np.int64)
+    elapsed = _kernels.raster(_HIDDEN_LINES, fld.heights, fld.hmin, fld.hmax, frame, sx, sy,
+                              NEAR, z_bottom, 0.5, (0, height, 0, width), t, cell, normal,
+                              None, primitive, lines, counts)
+    return Image("hidden_lines", t, cell, normal, dict(zip(COUNTS, (int(c) for c in counts))),
+                 int(elapsed), None, lines.astype(bool))
 
 
 def trace(algorithm, heights, position, look_at, fov, width, height, *, threads=None,

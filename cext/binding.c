@@ -811,7 +811,8 @@ PyDoc_STRVAR(raster_doc,
              "raster(algorithm, heights, hmin, hmax, camera, sx, sy, near, z_bottom, step,\n"
              "       region, t, cell, normal, coverage, primitive, mask, counts) -> int\n\n"
              "Draw one region (row_begin, row_end, column_begin, column_end) of an image with\n"
-             "a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon); camera is float64\n"
+             "a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon, 3 hidden lines);\n"
+             "camera is float64\n"
              "(position, forward, right, up, half_w, half_h); primitive (int64) and mask\n"
              "(uint8, painter) are whole-image workspaces. Returns the elapsed nanoseconds\n"
              "of the C loop. Private: use algos.raster.");
@@ -882,6 +883,10 @@ static PyObject *raster(PyObject *self, PyObject *args) {
                                           "floating_horizon whole columns");
         return NULL;
     }
+    if (algorithm == HF_RASTER_HIDDEN_LINES && (region[0] != 0 || region[1] != height)) {
+        PyErr_SetString(PyExc_ValueError, "region: hidden lines draw the whole image");
+        return NULL;
+    }
     for (int k = 0; k < 14; ++k) {
         if (!isfinite(camera[k])) {
             PyErr_Format(PyExc_ValueError, "camera: element %d is not finite", k);
@@ -922,14 +927,18 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     r.coverage = (int32_t *)p;
     if (!get_array(o_primitive, "primitive", NPY_INT64, pixels, 1, 0, &p, NULL)) return NULL;
     r.primitive = (int64_t *)p;
-    if (!get_array(o_mask, "mask", NPY_UINT8, pixels, 1, algorithm != HF_RASTER_PAINTER, &p, NULL))
+    if (!get_array(o_mask, "mask", NPY_UINT8, pixels, 1,
+                   algorithm != HF_RASTER_PAINTER && algorithm != HF_RASTER_HIDDEN_LINES, &p, NULL))
         return NULL;
     r.mask = (uint8_t *)p;
     if (!get_array(o_counts, "counts", NPY_INT64, HF_N_COUNTS, 1, 0, &p, NULL)) return NULL;
     counts = (int64_t *)p;
-    /* the zbuffer's two rows of projected corners, allocated once per call */
-    if (algorithm == HF_RASTER_ZBUFFER) {
-        r.vertex_rows = malloc((size_t)r.cols * 8 * sizeof(double));
+    /* allocated once per call: the zbuffer's two rows of projected corners, the hidden
+     * lines' horizons */
+    if (algorithm == HF_RASTER_ZBUFFER || algorithm == HF_RASTER_HIDDEN_LINES) {
+        const size_t doubles =
+            algorithm == HF_RASTER_ZBUFFER ? (size_t)r.cols * 8 : (size_t)width * 4;
+        r.vertex_rows = malloc(doubles * sizeof(double));
         if (!r.vertex_rows) return PyErr_NoMemory();
     }
     timed_begin(&section);

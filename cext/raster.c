@@ -429,6 +429,98 @@ static void floating_horizon(hf_raster *r) {
     }
 }
 
+/* ---- hidden lines: the floating horizon's line drawing ------------------------------- */
+/* One segment of a section: at each image column it spans, the point of the segment on
+ * that column is drawn when it lies above the upper or below the lower horizon of the
+ * earlier sections (Y grows downwards: above is smaller Y); the section's own extent is
+ * gathered in section_min / section_max and joins the horizons once the section is done. */
+static void line_segment(hf_raster *r, cam_vertex a, cam_vertex b, int64_t id, const double *upper,
+                         const double *lower, double *section_min, double *section_max) {
+    screen_vertex sa, sb, swap;
+    int32_t c0, c1, c;
+    r->counts[HF_COUNT_SAMPLES] += 1;
+    /* a segment reaching behind the near plane is left out (the form's approximation) */
+    if (a.w < r->near || b.w < r->near) return;
+    sa = project(r, a);
+    sb = project(r, b);
+    if (sb.X < sa.X) swap = sa, sa = sb, sb = swap;
+    c0 = first_index(sa.X, r->width);
+    c1 = first_index(sb.X, r->width);
+    for (c = c0; c < c1; ++c) {
+        const double s = ((double)c + 0.5 - sa.X) / (sb.X - sa.X);
+        const double Y = sa.Y + s * (sb.Y - sa.Y), Z = sa.Z + s * (sb.Z - sa.Z);
+        r->counts[HF_COUNT_FRAGMENTS] += 1;
+        if ((Y < upper[c] || Y > lower[c]) && Y >= 0 && Y < (double)r->height) {
+            const int64_t pixel = (int64_t)floor(Y) * r->width + c;
+            /* two visible points in one pixel: the nearer one */
+            if (!r->mask[pixel] || Z > r->t[pixel]) {
+                r->mask[pixel] = 1;
+                r->t[pixel] = Z;
+                r->primitive[pixel] = id;
+                r->counts[HF_COUNT_WRITTEN] += 1;
+            }
+        }
+        if (Y < section_min[c]) section_min[c] = Y;
+        if (Y > section_max[c]) section_max[c] = Y;
+    }
+}
+
+/* The row sections y = j in order of distance from the camera's y (the rows on each side
+ * of it separately: a ray from the camera meets only one side, and within a side it
+ * meets the rows in this order, so nearer sections are drawn first). Row j's section is
+ * its row segments and the column segments joining it to the row before (the zig-zag). */
+static void hidden_lines(hf_raster *r) {
+    const int32_t width = r->width, rows = r->rows, cols = r->cols;
+    double *upper = r->vertex_rows, *lower = upper + width, *section_min = lower + width,
+           *section_max = section_min + width;
+    const double cy = r->position[1];
+    int half;
+    for (half = 0; half < 2; ++half) {
+        /* half 0: rows at or beyond the camera's y, upwards; half 1: before it, downwards */
+        const int32_t step = half == 0 ? 1 : -1;
+        int32_t first, j, c, i;
+        if (half == 0) {
+            first = cy <= 0 ? 0 : (int32_t)ceil(cy);
+            if (first > rows - 1) continue;
+        } else {
+            if (!(cy > 0)) continue;
+            first = cy >= rows - 1 ? rows - 1 : (int32_t)ceil(cy) - 1;
+        }
+        for (c = 0; c < width; ++c) {
+            upper[c] = INFINITY;
+            lower[c] = -INFINITY;
+        }
+        for (j = first; j >= 0 && j < rows; j += step) {
+            const int32_t previous = j - step;
+            const int32_t cell_j = j < rows - 1 ? j : rows - 2;
+            for (c = 0; c < width; ++c) {
+                section_min[c] = INFINITY;
+                section_max[c] = -INFINITY;
+            }
+            for (i = 0; i < cols - 1; ++i) {
+                const cam_vertex a = to_camera(r, i, j, height_at(r, i, j));
+                const cam_vertex b = to_camera(r, i + 1, j, height_at(r, i + 1, j));
+                const int64_t id = ((int64_t)cell_j * (cols - 1) + i) * 4;
+                line_segment(r, a, b, id, upper, lower, section_min, section_max);
+            }
+            if (previous >= 0 && previous < rows) {
+                const int32_t low = previous < j ? previous : j;
+                for (i = 0; i < cols; ++i) {
+                    const cam_vertex a = to_camera(r, i, previous, height_at(r, i, previous));
+                    const cam_vertex b = to_camera(r, i, j, height_at(r, i, j));
+                    const int32_t cell_i = i < cols - 1 ? i : cols - 2;
+                    const int64_t id = ((int64_t)low * (cols - 1) + cell_i) * 4;
+                    line_segment(r, a, b, id, upper, lower, section_min, section_max);
+                }
+            }
+            for (c = 0; c < width; ++c) {
+                if (section_min[c] < upper[c]) upper[c] = section_min[c];
+                if (section_max[c] > lower[c]) lower[c] = section_max[c];
+            }
+        }
+    }
+}
+
 /* ---- the last pass: t, cell and normal from 1/w and the primitive ------------------- */
 static void resolve(hf_raster *r) {
     const int32_t width = r->width, height = r->height, nx = r->cols - 1;
@@ -485,6 +577,9 @@ int hf_raster_render(int algorithm, hf_raster *r) {
         return HF_ERR_ARGUMENT; /* zbuffer and painter split by whole rows */
     if (algorithm == HF_RASTER_FLOATING_HORIZON && (r->row_begin != 0 || r->row_end != height))
         return HF_ERR_ARGUMENT; /* the floating horizon splits by whole columns */
+    if (algorithm == HF_RASTER_HIDDEN_LINES && (r->row_begin != 0 || r->row_end != height ||
+                                                r->column_begin != 0 || r->column_end != width))
+        return HF_ERR_ARGUMENT; /* the line drawing's horizons span the whole image */
     /* the region's top and bottom edges as tans, like sy (exactly +-half_h for the image) */
     r->band_top = (1.0 - 2.0 * r->row_begin / height) * r->half_h;
     r->band_bottom = (1.0 - 2.0 * r->row_end / height) * r->half_h;
@@ -501,7 +596,8 @@ int hf_raster_render(int algorithm, hf_raster *r) {
     switch (algorithm) {
     case HF_RASTER_ZBUFFER: zbuffer(r); break;
     case HF_RASTER_PAINTER: painter(r); break;
-    default: floating_horizon(r); break;
+    case HF_RASTER_FLOATING_HORIZON: floating_horizon(r); break;
+    default: hidden_lines(r); break;
     }
     resolve(r);
     return HF_OK;

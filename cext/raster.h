@@ -11,6 +11,10 @@
  * - floating_horizon: the chapter's algorithm for z = F(x, y), in its shaded column form:
  *   each image column marches front to back over the field and draws only above its
  *   current horizon. Approximate by design.
+ * - hidden_lines: the floating horizon's line drawing: the grid's row sections front to
+ *   back, zig-zagging through the column segments that join consecutive rows, each point
+ *   drawn when it lies above the upper or below the lower horizon of the sections drawn
+ *   before it (one point per image column and segment).
  *
  * The camera is the pinhole of datasets_gen.rays.pinhole: pixel (c, k) (column, row; row 0
  * at the top) looks along d = forward + sx[c] right + sy[k] up, and the depth written is the
@@ -28,7 +32,8 @@ enum hf_raster_algorithm {
     HF_RASTER_ZBUFFER = 0,
     HF_RASTER_PAINTER = 1,
     HF_RASTER_FLOATING_HORIZON = 2,
-    HF_N_RASTER = 3
+    HF_RASTER_HIDDEN_LINES = 3, /* the floating horizon's line drawing (whole image only) */
+    HF_N_RASTER = 4
 };
 
 /* primitive kinds stored per pixel (id = cell_index * 4 + kind) */
@@ -47,7 +52,7 @@ enum hf_raster_count {
     HF_COUNT_TRIANGLES = 3, /* front-facing triangles scan converted (skirts included) */
     HF_COUNT_FRAGMENTS = 4, /* pixel centres found inside a drawn triangle            */
     HF_COUNT_WRITTEN = 5,   /* depth or colour writes                                 */
-    HF_COUNT_SAMPLES = 6,   /* floating horizon: surface samples taken                */
+    HF_COUNT_SAMPLES = 6,   /* floating horizon: surface samples (lines: segments)    */
     HF_COUNT_FULL = 7,      /* painter: 1 when it stopped on a full mask              */
     HF_N_COUNTS = 8
 };
@@ -78,8 +83,8 @@ typedef struct {
     int32_t *coverage; /* zbuffer: front-facing fragments per pixel          */
     /* workspace of the caller, never allocated here (whole image; a region uses its part) */
     int64_t *primitive;  /* per pixel: cell_index * 4 + kind, or -1            */
-    uint8_t *mask;       /* painter: per pixel                                 */
-    double *vertex_rows; /* zbuffer: 2 * cols * 4 doubles                      */
+    uint8_t *mask;       /* painter: per pixel; hidden lines: the drawing (output) */
+    double *vertex_rows; /* zbuffer: 2 * cols * 4 doubles; lines: 4 * width     */
     int64_t counts[HF_N_COUNTS];
 } hf_raster;
 

@@ -278,6 +278,36 @@ def test_floating_horizon_pitched_is_measured():
     assert stats["depth_median_abs"] < 1.0, stats
 
 
+@pytest.mark.parametrize("view", ["level", "above"])
+@pytest.mark.parametrize("name", ["plane", "ridge"])
+def test_hidden_lines_draw_only_visible_points(name, view):
+    """The hidden-line form on a plane and a ridge: every drawn point is visible (its
+    depth within 5 % of the exact image's at that pixel; a drawn point sits on its
+    column's centre, within a pixel of the row's centre); on the ridge's level view the
+    sections behind it are hidden below its silhouette."""
+    y, x = np.mgrid[0:33, 0:33].astype(float)
+    h = {"plane": 0.05 * x + 0.02 * y,
+         "ridge": 4.0 * np.exp(-((y - 16) / 3.0) ** 2)}[name].astype(np.float32)
+    position, look_at = {"level": ((16.0, -12.0, 3.0), (16.0, 30.0, 1.0)),
+                         "above": ((-8.0, -10.0, 14.0), (16.0, 16.0, 0.0))}[view]
+    lines = raster.hidden_lines(h, position, look_at, 60, 200, 120)
+    exact = raster.render("zbuffer", h, position, look_at, 60, 200, 120)
+    drawn = lines.lines
+    assert drawn.sum() > 1000
+    # a point on the far edge or a silhouette may sit in a pixel whose centre sees the sky
+    assert (drawn & np.isinf(exact.t)).sum() <= 2 * 200
+    hidden = drawn & np.isfinite(exact.t) & (lines.t > exact.t * 1.05)
+    if name == "ridge" and view == "above":
+        # measured: 18 of 4360 points next to the ridge's silhouette, where the pixel
+        # centre sees the ground behind while the point lies on the crest
+        assert hidden.sum() <= 0.01 * drawn.sum(), hidden.sum()
+    else:
+        assert not hidden.any(), f"{hidden.sum()} hidden points drawn"
+    assert np.isinf(lines.t[~drawn]).all() and (lines.cell[~drawn] == -1).all()
+    if name == "ridge" and view == "level":
+        assert lines.counts["pixels_written"] < 0.8 * lines.counts["fragments"]
+
+
 # ---- bad input, empty views, tiny images ----------------------------------------------
 
 @pytest.mark.parametrize("algorithm", raster.RASTERISERS)
