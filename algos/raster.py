@@ -402,7 +402,8 @@ def fuzz_one(data: bytes) -> None:
     """The fuzz decoder's branch for the rasterisers: turn ``data`` into one call of
     :func:`render` and check its invariants; raise AssertionError on a finding.
 
-    The bytes give the rasteriser, a field of up to 9 x 9 samples, a camera (position,
+    The bytes give the rasteriser (or :func:`hidden_lines`) and its thread count (1 to
+    3), a field of up to 9 x 9 samples, a camera (position,
     look_at, fov; doubles from the bytes or from a table of hazards: NaN, infinities,
     zeros, huge and tiny values), an image of up to 17 x 17 pixels and the march step.
     Invariants: the call returns or raises ValueError/TypeError; the heights are unmodified;
@@ -426,7 +427,8 @@ def fuzz_one(data: bytes) -> None:
             return float(struct.unpack("<h", take(2))[0]) / 16.0
         return struct.unpack("<d", take(8))[0]
 
-    algorithm = RASTERISERS[take(1)[0] % len(RASTERISERS)]
+    algorithm = (RASTERISERS + ("hidden_lines",))[take(1)[0] % (len(RASTERISERS) + 1)]
+    threads = 1 + take(1)[0] % 3
     rows, cols = 2 + take(1)[0] % 8, 2 + take(1)[0] % 8
     heights = np.array([struct.unpack("<b", take(1))[0] / 8.0 for _ in range(rows * cols)],
                        dtype=np.float32).reshape(rows, cols)
@@ -438,7 +440,11 @@ def fuzz_one(data: bytes) -> None:
     step = [0.5, 0.25, 1.0, 1e-3, 64.0, 0.0][take(1)[0] % 6]
     before = heights.copy()
     try:
-        image = render(algorithm, heights, position, look_at, fov, width, height, step=step)
+        if algorithm == "hidden_lines":
+            image = hidden_lines(heights, position, look_at, fov, width, height)
+        else:
+            image = render(algorithm, heights, position, look_at, fov, width, height, step=step,
+                           threads=threads)
     except (ValueError, TypeError):
         assert np.array_equal(heights, before), "render modified the heights"
         return
