@@ -401,3 +401,24 @@ def test_fuzz_decoder_runs(seed):
     under the sanitizers)."""
     rng = np.random.default_rng(seed)
     raster.fuzz_one(rng.bytes(int(rng.integers(0, 120))))
+
+
+def test_crossover_study_runs(tmp_path):
+    """The study's library entry on a tiny tier: every file written, one summary row per
+    case with a positive ratio (no timing is asserted)."""
+    from bench.studies import raster_vs_trace
+
+    tier = dict(images=[(32, 18)], fields=[64], repeats=1)
+    paths = raster_vs_trace.run(str(tmp_path), tier=tier, threads=2, counts=False,
+                                echo=lambda *a: None)
+    for key in ("csv", "md", "png", "env"):
+        assert (tmp_path / paths[key].split("/")[-1]).exists(), key
+    table = (tmp_path / "raster_vs_trace.md").read_text()
+    assert table.count("| 64^2 |") == 2  # two views
+    import csv
+
+    with open(paths["csv"]) as f:
+        rows = list(csv.DictReader(f))
+    renderers = {r["renderer"] for r in rows}
+    assert {"zbuffer", "painter", "floating_horizon", "zbuffer@threads"} <= renderers
+    assert all(float(r["median_ms"]) > 0 for r in rows)

@@ -11,9 +11,9 @@ Axes (each a declared list; ``quick`` is the small tier, the default):
   ``hftrace render`` frames it) and ``grazing`` (a level camera near the ground at the
   south edge, looking north across the field).
 
-Renderers: the rasterisers of :mod:`algos.raster` (one thread; they have no threaded
-form yet) and the best tracers (:data:`TRACERS`, one thread, plus ``runs_maxmip`` on
-every core as the threaded run). Each case times every renderer interleaved
+Renderers: the rasterisers of :mod:`algos.raster` and the best tracers (:data:`TRACERS`),
+each on one thread, plus ``runs_maxmip`` and ``zbuffer`` on every core as the threaded
+runs. Each case times every renderer interleaved
 (:func:`bench.timing.interleaved`, caches flushed, the median of ``repeats``), on the
 C loop's own clock; the field's acceleration structures are built once per field, before
 timing, and not counted.
@@ -68,8 +68,9 @@ FULL = dict(
 )
 #: the best tracers (exact, triangles surface): the baseline cell walk and the culling ones
 TRACERS = ("dda", "runs", "dda_maxmip", "runs_maxmip")
-#: the threaded run
+#: the threaded runs: a tracer and a rasteriser on every core (or ``threads``)
 THREADED = "runs_maxmip"
+THREADED_RASTERISER = "zbuffer"
 VIEWS = ("overview", "grazing")
 EXACT_RASTERISERS = ("zbuffer", "painter")
 FOV = 60.0
@@ -107,10 +108,13 @@ def _case(field, view, width, height, repeats, threads):
     position, look_at = view_camera(view, heights)
     images = {}
 
-    def raster_job(name):
+    def raster_job(name, n_threads=1):
+        key = name if n_threads == 1 else f"{name}@threads"
+
         def job():
-            images[name] = raster.render(name, field, position, look_at, FOV, width, height)
-            return images[name].elapsed_ns
+            images[key] = raster.render(name, field, position, look_at, FOV, width, height,
+                                        threads=n_threads)
+            return images[key].elapsed_ns
         return job
 
     def trace_job(name, n_threads):
@@ -127,6 +131,8 @@ def _case(field, view, width, height, repeats, threads):
         jobs[name] = trace_job(name, 1)
     if threads != 1 and THREADED in algos.INTERSECTORS:
         jobs[f"{THREADED}@threads"] = trace_job(THREADED, threads)
+    if threads != 1:
+        jobs[f"{THREADED_RASTERISER}@threads"] = raster_job(THREADED_RASTERISER, threads)
     times = interleaved(jobs, repeats)
     exact = images["zbuffer"]
     cells = exact.cell[np.isfinite(exact.t)]
@@ -138,7 +144,7 @@ def _case(field, view, width, height, repeats, threads):
         rows.append(dict(
             field=field.rows, view=view, width=width, height=height, pixels=width * height,
             visible_cells=visible, renderer=name,
-            kind="rasteriser" if name in raster.RASTERISERS else "tracer",
+            kind="rasteriser" if name.split("@")[0] in raster.RASTERISERS else "tracer",
             threads=(threads if name.endswith("@threads") else 1),
             median_ms=float(np.median(samples)) / 1e6,
             cell_differs=agreement["cell_differs"],
@@ -158,7 +164,7 @@ def _summaries(rows):
         best_t = min(tracers, key=lambda r: r["median_ms"])
         best_r = min(rasters, key=lambda r: r["median_ms"])
         fh = next(r for r in group if r["renderer"] == "floating_horizon")
-        threaded = [r for r in group if r["renderer"].endswith("@threads")]
+        threaded = {r["renderer"]: r["median_ms"] for r in group if r["renderer"].endswith("@threads")}
         out.append(dict(
             field=size, view=view, width=width, height=height, pixels=width * height,
             visible_cells=group[0]["visible_cells"],
@@ -167,7 +173,8 @@ def _summaries(rows):
             best_rasteriser=best_r["renderer"], rasteriser_ms=best_r["median_ms"],
             ratio=best_t["median_ms"] / best_r["median_ms"],
             floating_horizon_ms=fh["median_ms"], floating_horizon_cell_differs=fh["cell_differs"],
-            threaded_ms=threaded[0]["median_ms"] if threaded else float("nan")))
+            threaded_tracer_ms=threaded.get(f"{THREADED}@threads", float("nan")),
+            threaded_rasteriser_ms=threaded.get(f"{THREADED_RASTERISER}@threads", float("nan"))))
     return out
 
 
@@ -175,15 +182,17 @@ def _write_table(path, summaries, env, tier, instructions):
     lines = [
         "# Rasterising against tracing (issue 23)",
         "",
-        f"Tier `{tier}`; every renderer on one thread (the threaded column: "
-        f"`{THREADED}` on {env.get('threads_used')} threads); median of the C loop's time. "
+        f"Tier `{tier}`; every renderer on one thread (the threaded columns: "
+        f"`{THREADED}` and `{THREADED_RASTERISER}` on {env.get('threads_used')} threads); "
+        "median of the C loop's time (of the pool's wall time when threaded). "
         "ratio = best tracer / best exact rasteriser: above 1 rasterising wins. "
         "`fh` = floating_horizon (approximate): time and fraction of pixels whose cell "
         "differs from the exact image.",
         "",
         "| field | view | image | visible cells | pixels / visible cell | best tracer | ms "
-        "| best rasteriser | ms | ratio | fh ms | fh cells differ | threaded ms |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| best rasteriser | ms | ratio | fh ms | fh cells differ | threaded tracer ms "
+        "| threaded zbuffer ms |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in summaries:
         lines.append(
@@ -191,7 +200,7 @@ def _write_table(path, summaries, env, tier, instructions):
             f"| {s['pixels_per_visible_cell']:.3g} | {s['best_tracer']} | {s['tracer_ms']:.1f} "
             f"| {s['best_rasteriser']} | {s['rasteriser_ms']:.1f} | {s['ratio']:.2f} "
             f"| {s['floating_horizon_ms']:.1f} | {s['floating_horizon_cell_differs']:.3f} "
-            f"| {s['threaded_ms']:.1f} |")
+            f"| {s['threaded_tracer_ms']:.1f} | {s['threaded_rasteriser_ms']:.1f} |")
     if instructions:
         lines += ["", "Instructions per pixel (callgrind, smallest case):", "",
                   "| renderer | instructions | per pixel |", "|---|---|---|"]
@@ -277,14 +286,14 @@ def instructions(renderer, size, view, width, height):
     return None
 
 
-def run(out_dir, quick=True, threads=None, counts=True, echo=print) -> dict:
+def run(out_dir, quick=True, threads=None, counts=True, echo=print, tier=None) -> dict:
     """Run the study; write its files into ``out_dir`` and return their paths.
 
     ``quick``: the small tier :data:`QUICK` (else :data:`FULL`, hours: do not run it on a
-    shared machine). ``threads``: the threaded run's thread count (None: every core).
+    shared machine). ``threads``: the threaded runs' thread count (None: every core).
     ``counts``: instruction counts of every renderer on the smallest case, when valgrind
-    is installed."""
-    tier = QUICK if quick else FULL
+    is installed. ``tier``: a dict like :data:`QUICK` that replaces the tier (tests)."""
+    tier = tier or (QUICK if quick else FULL)
     os.makedirs(out_dir, exist_ok=True)
     n_threads = threads if threads is not None else len(os.sched_getaffinity(0))
     rows = []
@@ -303,7 +312,7 @@ def run(out_dir, quick=True, threads=None, counts=True, echo=print) -> dict:
     summaries = _summaries(rows)
     env = environment()
     env.update(threads_used=n_threads, tier="quick" if quick else "full",
-               note="rasterisers single-threaded; tracers on 1 thread and the threaded run")
+               note="every renderer on 1 thread; runs_maxmip and zbuffer also threaded")
     paths = {}
     paths["csv"] = os.path.join(out_dir, "raster_vs_trace.csv")
     with open(paths["csv"], "w", newline="") as f:
