@@ -935,11 +935,12 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     counts = (int64_t *)p;
     /* allocated once per call: the zbuffer's two rows of projected corners, the hidden
      * lines' horizons */
-    if (algorithm == HF_RASTER_ZBUFFER || algorithm == HF_RASTER_HIDDEN_LINES) {
-        const size_t doubles =
-            algorithm == HF_RASTER_ZBUFFER ? (size_t)r.cols * 8 : (size_t)width * 4;
-        r.vertex_rows = malloc(doubles * sizeof(double));
-        if (!r.vertex_rows) return PyErr_NoMemory();
+    {
+        const size_t doubles = hf_raster_workspace_doubles(algorithm, r.cols, r.width);
+        if (doubles) {
+            r.vertex_rows = malloc(doubles * sizeof(double));
+            if (!r.vertex_rows) return PyErr_NoMemory();
+        }
     }
     timed_begin(&section);
     status = hf_raster_render(algorithm, &r);

@@ -15,6 +15,7 @@
  * and the row, so two triangles that share an edge see it at the same x bit for bit: a
  * centre on the shared edge goes to exactly one of them (no cracks, no double hits). */
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 #include "hftrace.h"
 #include "raster.h"
@@ -209,18 +210,25 @@ static inline double height_at(const hf_raster *r, int32_t i, int32_t j) {
     return (double)r->heights[(int64_t)j * r->cols + i];
 }
 
-/* The two triangles of cell (i, j) from its corners' camera coordinates, each only when it
- * faces the camera (the camera above its plane; a back face is hidden by the front of the
- * solid). `lower_first`: draw the u >= v triangle first (the painter's order). */
-static inline void draw_cell(hf_raster *r, const int algorithm, int32_t i, int32_t j,
-                             cam_vertex v00, cam_vertex v10, cam_vertex v01, cam_vertex v11,
-                             int lower_first) {
+/* Which triangles of cell (i, j) face the camera (the camera above its plane; a back face
+ * is hidden by the front of the solid); returns the cell's primitive id base. */
+static inline int64_t cell_faces(const hf_raster *r, int32_t i, int32_t j, int *lower_faces,
+                                 int *upper_faces) {
     const double h00 = height_at(r, i, j), h10 = height_at(r, i + 1, j);
     const double h01 = height_at(r, i, j + 1), h11 = height_at(r, i + 1, j + 1);
     const double px = r->position[0] - i, py = r->position[1] - j, pz = r->position[2] - h00;
-    const int lower_faces = pz - (h10 - h00) * px - (h11 - h10) * py > 0;
-    const int upper_faces = pz - (h11 - h01) * px - (h01 - h00) * py > 0;
-    const int64_t id = ((int64_t)j * (r->cols - 1) + i) * 4;
+    *lower_faces = pz - (h10 - h00) * px - (h11 - h10) * py > 0;
+    *upper_faces = pz - (h11 - h01) * px - (h01 - h00) * py > 0;
+    return ((int64_t)j * (r->cols - 1) + i) * 4;
+}
+
+/* The two triangles of cell (i, j) from its corners' camera coordinates, the facing ones
+ * only. `lower_first`: draw the u >= v triangle first (the painter's order). */
+static inline void draw_cell(hf_raster *r, const int algorithm, int32_t i, int32_t j,
+                             cam_vertex v00, cam_vertex v10, cam_vertex v01, cam_vertex v11,
+                             int lower_first) {
+    int lower_faces, upper_faces;
+    const int64_t id = cell_faces(r, i, j, &lower_faces, &upper_faces);
     r->counts[HF_COUNT_DRAWN] += 1;
     if (lower_first) {
         if (lower_faces) draw_triangle(r, algorithm, v00, v10, v11, id + HF_KIND_LOWER);
@@ -266,39 +274,58 @@ static void draw_skirts(hf_raster *r, const int algorithm) {
 }
 
 /* ---- zbuffer: every cell in row order, corners projected once (two rows cached) ------- */
+typedef struct {
+    cam_vertex v;
+    screen_vertex s; /* valid when v.w >= near */
+    int code;
+} corner;
+
+size_t hf_raster_workspace_doubles(int algorithm, int32_t cols, int32_t width) {
+    if (algorithm == HF_RASTER_ZBUFFER)
+        return (2 * (size_t)cols * sizeof(corner) + sizeof(double) - 1) / sizeof(double);
+    if (algorithm == HF_RASTER_HIDDEN_LINES) return 4 * (size_t)width;
+    return 0;
+}
+
 static void zbuffer(hf_raster *r) {
     const int32_t rows = r->rows, cols = r->cols;
-    double *cache[2];
+    corner *cache[2];
     int32_t i, j;
-    cache[0] = r->vertex_rows;
-    cache[1] = r->vertex_rows + 4 * (int64_t)cols;
+    cache[0] = (corner *)r->vertex_rows;
+    cache[1] = cache[0] + cols;
     for (j = 0; j < rows; ++j) {
-        /* the corners of row j: (a, b, w, outcode) */
-        double *row = cache[j & 1];
+        /* the corners of row j, projected once for the (up to) six triangles they touch */
+        corner *row = cache[j & 1];
         for (i = 0; i < cols; ++i) {
-            const cam_vertex v = to_camera(r, i, j, height_at(r, i, j));
-            row[4 * i] = v.a;
-            row[4 * i + 1] = v.b;
-            row[4 * i + 2] = v.w;
-            row[4 * i + 3] = (double)outcode(r, v);
+            row[i].v = to_camera(r, i, j, height_at(r, i, j));
+            row[i].code = outcode(r, row[i].v);
+            if (row[i].v.w >= r->near) row[i].s = project(r, row[i].v);
         }
         if (j == 0) continue;
         {
-            const double *below = cache[(j - 1) & 1], *above = row;
+            const corner *below = cache[(j - 1) & 1], *above = row;
             for (i = 0; i < cols - 1; ++i) {
-                const double *c00 = below + 4 * i, *c10 = c00 + 4, *c01 = above + 4 * i,
-                             *c11 = c01 + 4;
-                cam_vertex v00, v10, v01, v11;
+                const corner *c00 = below + i, *c10 = c00 + 1, *c01 = above + i, *c11 = c01 + 1;
                 r->counts[HF_COUNT_CELLS] += 1;
-                if ((int)c00[3] & (int)c10[3] & (int)c01[3] & (int)c11[3]) {
+                if (c00->code & c10->code & c01->code & c11->code) {
                     r->counts[HF_COUNT_CULLED] += 1;
                     continue;
                 }
-                v00.a = c00[0], v00.b = c00[1], v00.w = c00[2];
-                v10.a = c10[0], v10.b = c10[1], v10.w = c10[2];
-                v01.a = c01[0], v01.b = c01[1], v01.w = c01[2];
-                v11.a = c11[0], v11.b = c11[1], v11.w = c11[2];
-                draw_cell(r, HF_RASTER_ZBUFFER, i, j - 1, v00, v10, v01, v11, 1);
+                if ((c00->code | c10->code | c01->code | c11->code) & 1) {
+                    /* a corner behind the near plane: clip in camera space */
+                    draw_cell(r, HF_RASTER_ZBUFFER, i, j - 1, c00->v, c10->v, c01->v, c11->v, 1);
+                } else {
+                    /* the same screen vertices draw_triangle would compute, cached */
+                    int lower_faces, upper_faces;
+                    const int64_t id = cell_faces(r, i, j - 1, &lower_faces, &upper_faces);
+                    r->counts[HF_COUNT_DRAWN] += 1;
+                    if (lower_faces)
+                        scan_triangle(r, HF_RASTER_ZBUFFER, &c00->s, &c10->s, &c11->s,
+                                      id + HF_KIND_LOWER);
+                    if (upper_faces)
+                        scan_triangle(r, HF_RASTER_ZBUFFER, &c00->s, &c11->s, &c01->s,
+                                      id + HF_KIND_UPPER);
+                }
             }
         }
     }

@@ -26,6 +26,7 @@
 #ifndef HFTRACE_RASTER_H
 #define HFTRACE_RASTER_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 enum hf_raster_algorithm {
@@ -84,7 +85,7 @@ typedef struct {
     /* workspace of the caller, never allocated here (whole image; a region uses its part) */
     int64_t *primitive;  /* per pixel: cell_index * 4 + kind, or -1            */
     uint8_t *mask;       /* painter: per pixel; hidden lines: the drawing (output) */
-    double *vertex_rows; /* zbuffer: 2 * cols * 4 doubles; lines: 4 * width     */
+    double *vertex_rows; /* hf_raster_workspace_doubles(algorithm, cols, width)   */
     int64_t counts[HF_N_COUNTS];
 } hf_raster;
 
@@ -92,5 +93,8 @@ typedef struct {
  * algorithm or a region outside the image. No allocation; thread-safe for disjoint
  * regions; the GIL may be released around it. */
 int hf_raster_render(int algorithm, hf_raster *r);
+
+/* The size of hf_raster.vertex_rows, in doubles (0: not used by this algorithm). */
+size_t hf_raster_workspace_doubles(int algorithm, int32_t cols, int32_t width);
 
 #endif
