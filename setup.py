@@ -13,7 +13,7 @@ import numpy
 from setuptools import Extension, setup
 
 SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
-           "terrain.c"]
+           "terrain.c", "raster.c"]
 
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
 link_args = []
@@ -41,7 +41,7 @@ setup(
             define_macros=macros,
             extra_compile_args=compile_args,
             extra_link_args=link_args,
-            depends=[os.path.join("cext", name) for name in ("hftrace.h", "internal.h", "hit.h", "hitbatch.h")],
+            depends=[os.path.join("cext", name) for name in ("hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h")],
         )
     ]
 )

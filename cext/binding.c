@@ -11,11 +11,12 @@
 #include "hftrace.h"
 #include "hitbatch.h"
 #include "terrain.h"
+#include "raster.h"
 
 /* An optional array argument: None, or a C-contiguous, aligned array of `type` with
  * exactly `size` elements (size < 0: at least one). */
-static int get_array(PyObject *object, const char *name, int type, npy_intp size,
-                     int writable, int optional, void **data, npy_intp *length) {
+static int get_array(PyObject *object, const char *name, int type, npy_intp size, int writable,
+                     int optional, void **data, npy_intp *length) {
     PyArrayObject *array;
     *data = NULL;
     if (length) *length = 0;
@@ -36,20 +37,71 @@ static int get_array(PyObject *object, const char *name, int type, npy_intp size
                      "%s: expected a C-contiguous, aligned, native-order%s array of dtype "
                      "%s",
                      name, writable ? ", writable" : "",
-                     type == NPY_FLOAT64 ? "float64"
+                     type == NPY_FLOAT64   ? "float64"
                      : type == NPY_FLOAT32 ? "float32"
-                     : type == NPY_INT64 ? "int64"
-                     : type == NPY_INT32 ? "int32"
-                                         : "uint64");
+                     : type == NPY_INT64   ? "int64"
+                     : type == NPY_INT32   ? "int32"
+                                           : "uint64");
         return 0;
     }
     if (size >= 0 && PyArray_SIZE(array) != size) {
-        PyErr_Format(PyExc_ValueError, "%s: expected %zd elements, got %zd", name,
-                     (Py_ssize_t)size, (Py_ssize_t)PyArray_SIZE(array));
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd elements, got %zd", name, (Py_ssize_t)size,
+                     (Py_ssize_t)PyArray_SIZE(array));
         return 0;
     }
     *data = PyArray_DATA(array);
     if (length) *length = PyArray_SIZE(array);
+    return 1;
+}
+
+/* ---- shared pieces of every entry point ------------------------------------------- */
+
+/* A kernel call without the GIL, timed with the monotonic clock: timed_begin releases
+ * the GIL and starts the clock, timed_end stops it, takes the GIL back and returns the
+ * elapsed nanoseconds. Nothing between the two may touch a Python object. */
+typedef struct {
+    PyThreadState *thread;
+    struct timespec start;
+} timed_section;
+
+static void timed_begin(timed_section *section) {
+    section->thread = PyEval_SaveThread();
+    clock_gettime(CLOCK_MONOTONIC, &section->start);
+}
+
+static long long timed_end(timed_section *section) {
+    struct timespec stop;
+    clock_gettime(CLOCK_MONOTONIC, &stop);
+    PyEval_RestoreThread(section->thread);
+    return (long long)(stop.tv_sec - section->start.tv_sec) * 1000000000LL +
+           (long long)(stop.tv_nsec - section->start.tv_nsec);
+}
+
+/* The rays of a batch: origins and directions of shape (N, dim), float64, and the
+ * optional ranges tmin, tmax (None, or N float64). */
+typedef struct {
+    npy_intp n;
+    const double *origins, *directions, *tmin, *tmax;
+} ray_arrays;
+
+static int get_rays(PyObject *o_origins, PyObject *o_directions, PyObject *o_tmin, PyObject *o_tmax,
+                    int dim, ray_arrays *rays) {
+    npy_intp size;
+    void *p;
+    if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &size)) return 0;
+    if (size % dim != 0) {
+        PyErr_Format(PyExc_ValueError, "origins: expected shape (N, %d)", dim);
+        return 0;
+    }
+    rays->n = size / dim;
+    rays->origins = (const double *)p;
+    if (!get_array(o_directions, "directions", NPY_FLOAT64, dim * rays->n, 0, 0, &p, NULL))
+        return 0;
+    rays->directions = (const double *)p;
+    if (!get_array(o_tmin, "tmin", NPY_FLOAT64, rays->n, 0, 1, &p, NULL)) return 0;
+    rays->tmin = (const double *)p;
+    if (!get_array(o_tmax, "tmax", NPY_FLOAT64, rays->n, 0, 1, &p, NULL)) return 0;
+    rays->tmax = (const double *)p;
     return 1;
 }
 
@@ -73,17 +125,18 @@ static PyObject *walk(PyObject *self, PyObject *args) {
     int kernel, mode, status;
     long nx, ny;
     long long max_denominator;
-    PyObject *o_origins, *o_directions, *o_tmin, *o_tmax, *o_pattern, *o_n_cells,
-        *o_n_runs, *o_offsets, *o_out, *o_checksums;
+    PyObject *o_origins, *o_directions, *o_tmin, *o_tmax, *o_pattern, *o_n_cells, *o_n_runs,
+        *o_offsets, *o_out, *o_checksums;
     hf_batch batch;
-    npy_intp n2, n, out_len, pattern_len;
+    ray_arrays rays;
+    npy_intp n, out_len, pattern_len;
     void *p;
-    struct timespec start, stop;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "iiOOOOllLOOOOOO", &kernel, &mode, &o_origins,
-                          &o_directions, &o_tmin, &o_tmax, &nx, &ny, &max_denominator,
-                          &o_pattern, &o_n_cells, &o_n_runs, &o_offsets, &o_out,
-                          &o_checksums))
+    if (!PyArg_ParseTuple(args, "iiOOOOllLOOOOOO", &kernel, &mode, &o_origins, &o_directions,
+                          &o_tmin, &o_tmax, &nx, &ny, &max_denominator, &o_pattern, &o_n_cells,
+                          &o_n_runs, &o_offsets, &o_out, &o_checksums))
         return NULL;
     if (kernel < 0 || kernel >= HF_N_KERNELS || mode < 0 || mode >= HF_N_MODES) {
         PyErr_Format(PyExc_ValueError, "kernel %d or mode %d out of range", kernel, mode);
@@ -95,30 +148,21 @@ static PyObject *walk(PyObject *self, PyObject *args) {
         return NULL;
     }
     memset(&batch, 0, sizeof batch);
-    if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &n2)) return NULL;
-    batch.origins = (const double *)p;
-    if (n2 % 2 != 0) {
-        PyErr_SetString(PyExc_ValueError, "origins: expected shape (N, 2)");
-        return NULL;
-    }
-    n = n2 / 2;
+    if (!get_rays(o_origins, o_directions, o_tmin, o_tmax, 2, &rays)) return NULL;
+    n = rays.n;
     batch.n_rays = n;
-    if (!get_array(o_directions, "directions", NPY_FLOAT64, 2 * n, 0, 0, &p, NULL))
-        return NULL;
-    batch.directions = (const double *)p;
-    if (!get_array(o_tmin, "tmin", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    batch.tmin = (const double *)p;
-    if (!get_array(o_tmax, "tmax", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    batch.tmax = (const double *)p;
+    batch.origins = rays.origins;
+    batch.directions = rays.directions;
+    batch.tmin = rays.tmin;
+    batch.tmax = rays.tmax;
     batch.nx = (int32_t)nx;
     batch.ny = (int32_t)ny;
     batch.max_denominator = max_denominator;
-    if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &pattern_len))
-        return NULL;
+    if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &pattern_len)) return NULL;
     batch.pattern = (int32_t *)p;
     if (kernel == HF_RUNS_PERIODIC &&
-        (max_denominator < 1 || max_denominator > HF_MAX_DENOMINATOR ||
-         batch.pattern == NULL || pattern_len < max_denominator + 1)) {
+        (max_denominator < 1 || max_denominator > HF_MAX_DENOMINATOR || batch.pattern == NULL ||
+         pattern_len < max_denominator + 1)) {
         PyErr_SetString(PyExc_ValueError,
                         "runs_periodic needs 1 <= max_denominator <= 2^24 and a pattern "
                         "workspace of max_denominator + 1 int32");
@@ -141,26 +185,21 @@ static PyObject *walk(PyObject *self, PyObject *args) {
         batch.out = (int32_t *)p;
         batch.out_rows = out_len / width;
     } else {
-        if (!get_array(o_checksums, "checksums", NPY_UINT64, n, 1, 0, &p, NULL))
-            return NULL;
+        if (!get_array(o_checksums, "checksums", NPY_UINT64, n, 1, 0, &p, NULL)) return NULL;
         batch.checksums = (uint64_t *)p;
     }
 
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &start);
+    timed_begin(&section);
     status = hf_walk_batch(kernel, mode, &batch);
-    clock_gettime(CLOCK_MONOTONIC, &stop);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
 
     if (status != HF_OK) {
         PyErr_Format(PyExc_RuntimeError, "kernel %d failed on ray %lld: %s", kernel,
                      (long long)batch.bad_ray, status_text(status));
         return NULL;
     }
-    return PyLong_FromLongLong((long long)(stop.tv_sec - start.tv_sec) * 1000000000LL +
-                               (long long)(stop.tv_nsec - start.tv_nsec));
+    return PyLong_FromLongLong(elapsed_ns);
 }
-
 
 /* A float32 C-contiguous array of exactly this shape (ndim given by the shape length). */
 static int get_f32(PyObject *object, const char *name, int ndim, const npy_intp *shape,
@@ -190,8 +229,7 @@ static int get_f32(PyObject *object, const char *name, int ndim, const npy_intp 
 }
 
 /* (values, prefix, suffix, sparse, block_shift) for lines of `length` cells */
-static int get_rmq(PyObject *object, const char *name, npy_intp lines, npy_intp length,
-                   hf_rmq *q) {
+static int get_rmq(PyObject *object, const char *name, npy_intp lines, npy_intp length, hf_rmq *q) {
     PyObject *values, *prefix, *suffix, *sparse;
     int block_shift;
     npy_intp shape[3];
@@ -231,18 +269,20 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     int kernel, surface, cull_cells, fine_level, status, k;
     double hmin, hmax;
     long long max_denominator;
-    PyObject *o_heights, *o_cellmax, *o_row, *o_col, *o_mip, *o_origins, *o_directions,
-        *o_tmin, *o_tmax, *o_pattern, *o_march, *o_t, *o_cell, *o_normal, *o_stats;
+    PyObject *o_heights, *o_cellmax, *o_row, *o_col, *o_mip, *o_origins, *o_directions, *o_tmin,
+        *o_tmax, *o_pattern, *o_march, *o_t, *o_cell, *o_normal, *o_stats;
     hf_hit_batch b;
     PyArrayObject *ha;
-    npy_intp n3, n, shape[2], plen;
+    ray_arrays rays;
+    npy_intp n, shape[2], plen;
     void *p;
-    struct timespec start, stop;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights,
-                          &o_cellmax, &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins,
-                          &o_directions, &o_tmin, &o_tmax, &cull_cells, &max_denominator,
-                          &o_pattern, &o_march, &fine_level, &o_t, &o_cell, &o_normal, &o_stats))
+    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights, &o_cellmax,
+                          &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins, &o_directions, &o_tmin,
+                          &o_tmax, &cull_cells, &max_denominator, &o_pattern, &o_march, &fine_level,
+                          &o_t, &o_cell, &o_normal, &o_stats))
         return NULL;
     memset(&b, 0, sizeof b);
     if (kernel < 0 || kernel >= HF_N_HIT_KERNELS || surface < 0 || surface > HF_BILINEAR) {
@@ -256,7 +296,8 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     ha = (PyArrayObject *)o_heights;
     shape[0] = PyArray_DIM(ha, 0);
     shape[1] = PyArray_DIM(ha, 1);
-    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE || shape[1] > HF_MAX_GRID_SIDE) {
+    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE ||
+        shape[1] > HF_MAX_GRID_SIDE) {
         PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
         return NULL;
     }
@@ -269,8 +310,9 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         /* the lean layout (algos.Field(lean=True)): runs_maxmip without cell culling is
          * the one kernel that never reads the cell maxima */
         if (kernel != HF_HIT_RUNS_MAXMIP || cull_cells || o_row != Py_None) {
-            PyErr_SetString(PyExc_ValueError,
-                            "cellmax: only runs_maxmip without cell or run culling runs without it");
+            PyErr_SetString(
+                PyExc_ValueError,
+                "cellmax: only runs_maxmip without cell or run culling runs without it");
             return NULL;
         }
         b.cellmax = NULL;
@@ -316,25 +358,19 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         }
         b.mip_levels = (int)levels;
     }
-    if (!get_array(o_origins, "origins", NPY_FLOAT64, -1, 0, 0, &p, &n3)) return NULL;
-    if (n3 % 3 != 0) {
-        PyErr_SetString(PyExc_ValueError, "origins: expected shape (N, 3)");
-        return NULL;
-    }
-    n = n3 / 3;
+    if (!get_rays(o_origins, o_directions, o_tmin, o_tmax, 3, &rays)) return NULL;
+    n = rays.n;
     b.n_rays = n;
-    b.origins = (const double *)p;
-    if (!get_array(o_directions, "directions", NPY_FLOAT64, 3 * n, 0, 0, &p, NULL)) return NULL;
-    b.directions = (const double *)p;
-    if (!get_array(o_tmin, "tmin", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    b.tmin = (const double *)p;
-    if (!get_array(o_tmax, "tmax", NPY_FLOAT64, n, 0, 1, &p, NULL)) return NULL;
-    b.tmax = (const double *)p;
+    b.origins = rays.origins;
+    b.directions = rays.directions;
+    b.tmin = rays.tmin;
+    b.tmax = rays.tmax;
     b.max_denominator = max_denominator;
     if (!get_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return NULL;
     b.pattern = (int32_t *)p;
-    if (kernel == HF_RUNS_PERIODIC && (b.pattern == NULL || max_denominator < 1 ||
-                                       max_denominator > HF_MAX_DENOMINATOR || plen < max_denominator + 1)) {
+    if (kernel == HF_RUNS_PERIODIC &&
+        (b.pattern == NULL || max_denominator < 1 || max_denominator > HF_MAX_DENOMINATOR ||
+         plen < max_denominator + 1)) {
         PyErr_SetString(PyExc_ValueError, "runs_periodic needs a pattern of max_denominator + 1");
         return NULL;
     }
@@ -364,40 +400,33 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     if (!get_array(o_stats, "stats", NPY_INT64, 5 * n, 1, 1, &p, NULL)) return NULL;
     b.stats = (int64_t *)p;
 
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &start);
+    timed_begin(&section);
     status = hf_intersect_batch(kernel, &b);
-    clock_gettime(CLOCK_MONOTONIC, &stop);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
 
     if (status != HF_OK) {
         PyErr_Format(PyExc_RuntimeError, "intersector %d failed on ray %lld: %s", kernel,
                      (long long)b.bad_ray, status_text(status));
         return NULL;
     }
-    return PyLong_FromLongLong((long long)(stop.tv_sec - start.tv_sec) * 1000000000LL +
-                               (long long)(stop.tv_nsec - start.tv_nsec));
+    return PyLong_FromLongLong(elapsed_ns);
 }
 
-PyDoc_STRVAR(quantize_doc,
-             "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
-             "The ray the exact kernels walk: the origin rounded to 2^-16 cell, the\n"
-             "direction scaled by a power of two and rounded (see algos.lattice).");
+PyDoc_STRVAR(quantize_doc, "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
+                           "The ray the exact kernels walk: the origin rounded to 2^-16 cell, the\n"
+                           "direction scaled by a power of two and rounded (see algos.lattice).");
 
 static PyObject *quantize_ray(PyObject *self, PyObject *args) {
     double origin[2], direction[2], origin_out[2], direction_out[2];
     (void)self;
-    if (!PyArg_ParseTuple(args, "dddd", &origin[0], &origin[1], &direction[0],
-                          &direction[1]))
+    if (!PyArg_ParseTuple(args, "dddd", &origin[0], &origin[1], &direction[0], &direction[1]))
         return NULL;
     hf_quantize_ray(origin, direction, origin_out, direction_out);
-    return Py_BuildValue("dddd", origin_out[0], origin_out[1], direction_out[0],
-                         direction_out[1]);
+    return Py_BuildValue("dddd", origin_out[0], origin_out[1], direction_out[0], direction_out[1]);
 }
 
-PyDoc_STRVAR(best_rational_doc,
-             "best_rational(num, den, max_den) -> (p, q)\n\n"
-             "The C best rational approximation used by runs_periodic.");
+PyDoc_STRVAR(best_rational_doc, "best_rational(num, den, max_den) -> (p, q)\n\n"
+                                "The C best rational approximation used by runs_periodic.");
 
 static PyObject *best_rational(PyObject *self, PyObject *args) {
     long long num, den, max_den;
@@ -436,8 +465,8 @@ static int get_heights(PyObject *object, const double **data, int64_t *rows, int
 
 static int vertex_range(long long start, long long stop, int64_t rows, int64_t cols) {
     if (start < 0 || stop < start || stop > (long long)(rows * cols)) {
-        PyErr_Format(PyExc_ValueError, "vertex range [%lld, %lld) outside [0, %lld]", start,
-                     stop, (long long)(rows * cols));
+        PyErr_Format(PyExc_ValueError, "vertex range [%lld, %lld) outside [0, %lld]", start, stop,
+                     (long long)(rows * cols));
         return 0;
     }
     return 1;
@@ -481,10 +510,8 @@ static int get_mip(PyObject *o_mip, int64_t rows, int64_t cols, hf_hz_mip *mip, 
     return 1;
 }
 
-static PyObject *stats_tuple(const hf_hz_stats *s, const struct timespec *a,
-                             const struct timespec *b) {
-    long long ns = (long long)(b->tv_sec - a->tv_sec) * 1000000000LL + (b->tv_nsec - a->tv_nsec);
-    return Py_BuildValue("LLL", ns, (long long)s->cells, (long long)s->skips);
+static PyObject *stats_tuple(const hf_hz_stats *s, long long elapsed_ns) {
+    return Py_BuildValue("LLL", elapsed_ns, (long long)s->cells, (long long)s->skips);
 }
 
 /* A pattern's interpolation arrays: dx_a, dy_a, dx_b, dy_b (int64) and w (float64), n
@@ -519,12 +546,13 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     void *p;
     hf_hz_pattern pat;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     int64_t reach = 0;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb,
-                          &o_dyb, &o_w, &o_lx, &o_ly, &end_k, &end_f, &end_inv_t, &zmax,
-                          &stop_every, &start, &stop, &o_out))
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb, &o_dyb,
+                          &o_w, &o_lx, &o_ly, &end_k, &end_f, &end_inv_t, &zmax, &stop_every,
+                          &start, &stop, &o_out))
         return NULL;
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
     if (!get_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
@@ -533,7 +561,10 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
         PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
         const int64_t *ints[4];
         if (!get_lerp_arrays(lerp, n, ints, &pat.w)) return NULL;
-        dxa = ints[0]; dya = ints[1]; dxb = ints[2]; dyb = ints[3];
+        dxa = ints[0];
+        dya = ints[1];
+        dxb = ints[2];
+        dyb = ints[3];
     }
     if (!get_array(o_lx, "limit_x", NPY_INT64, cols, 0, 0, &p, NULL)) return NULL;
     lx = (const int64_t *)p;
@@ -575,7 +606,8 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     off_a = malloc((size_t)(n ? n : 1) * sizeof *off_a);
     off_b = malloc((size_t)(n ? n : 1) * sizeof *off_b);
     if (!off_a || !off_b) {
-        free(off_a); free(off_b);
+        free(off_a);
+        free(off_b);
         return PyErr_NoMemory();
     }
     for (npy_intp e = 0; e < n; e++) {
@@ -590,14 +622,12 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     pat.end_k = end_k;
     pat.end_f = end_f;
     pat.end_inv_t = end_inv_t;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     hf_horizon_pattern(H, rows, cols, &pat, zmax, stop_every, start, stop, (double *)p);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
     free(off_a);
     free(off_b);
-    return stats_tuple(&st, &t0, &t1);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(horizon_sweep_doc,
@@ -617,7 +647,8 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     void *p, *out;
     int status;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OLLOOOOOOOOdLLO", &o_h, &q, &pp, &o_tf, &o_dxa, &o_dya, &o_dxb,
                           &o_dyb, &o_w, &o_mx, &o_my, &norm, &k_lo, &k_hi, &o_out))
@@ -637,7 +668,10 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
         PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
         const int64_t *ints[4];
         if (!get_lerp_arrays(lerp, n, ints, &w)) return NULL;
-        dxa = ints[0]; dya = ints[1]; dxb = ints[2]; dyb = ints[3];
+        dxa = ints[0];
+        dya = ints[1];
+        dxb = ints[2];
+        dyb = ints[3];
     }
     if (!get_array(o_mx, "mx", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     mx = (const int64_t *)p;
@@ -657,14 +691,12 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
             return NULL;
         }
     }
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     status = hf_horizon_sweep(H, rows, cols, q, pp, n, tf, dxa, dya, dxb, dyb, w, mx, my, norm,
                               k_lo, k_hi, (double *)out);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
+    elapsed_ns = timed_end(&section);
     if (status) return PyErr_NoMemory();
-    return stats_tuple(&st, &t0, &t1);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(horizon_walk_doc,
@@ -682,10 +714,11 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     int has_mip;
     void *out;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOdddLLO", &o_h, &o_mip, &dx, &dy, &max_distance, &start,
-                          &stop, &o_out))
+    if (!PyArg_ParseTuple(args, "OOdddLLO", &o_h, &o_mip, &dx, &dy, &max_distance, &start, &stop,
+                          &o_out))
         return NULL;
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
         !get_mip(o_mip, rows, cols, &mip, &has_mip))
@@ -695,13 +728,11 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
         return NULL;
     }
     if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     hf_horizon_walk(H, rows, cols, has_mip ? &mip : NULL, dx, dy, max_distance, start, stop,
                     (double *)out, &st);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
-    return stats_tuple(&st, &t0, &t1);
+    elapsed_ns = timed_end(&section);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(viewshed_doc,
@@ -719,7 +750,8 @@ static PyObject *viewshed(PyObject *self, PyObject *args) {
     int has_mip;
     void *out;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOddddddLLO", &o_h, &o_mip, &ox, &oy, &z0, &th, &drop, &eps,
                           &start, &stop, &o_out))
@@ -733,13 +765,11 @@ static PyObject *viewshed(PyObject *self, PyObject *args) {
         return NULL;
     }
     if (!get_array(o_out, "out", NPY_UINT8, rows * cols, 1, 0, &out, NULL)) return NULL;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    timed_begin(&section);
     hf_viewshed(H, rows, cols, has_mip ? &mip : NULL, ox, oy, z0, th, drop, eps, start, stop,
                 (uint8_t *)out, &st);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
-    return stats_tuple(&st, &t0, &t1);
+    elapsed_ns = timed_end(&section);
+    return stats_tuple(&st, elapsed_ns);
 }
 
 PyDoc_STRVAR(horizon_march_doc,
@@ -755,26 +785,174 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
     int64_t rows, cols;
     void *out;
     hf_hz_stats st = {0, 0};
-    struct timespec t0, t1;
+    timed_section section;
+    long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OdddddLLO", &o_h, &dx, &dy, &step, &max_distance, &zmax,
-                          &start, &stop, &o_out))
+    if (!PyArg_ParseTuple(args, "OdddddLLO", &o_h, &dx, &dy, &step, &max_distance, &zmax, &start,
+                          &stop, &o_out))
         return NULL;
-    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols))
-        return NULL;
-    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || !(step > 0) ||
-        !isfinite(step) || isnan(max_distance) || isnan(zmax)) {
+    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
+    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || !(step > 0) || !isfinite(step) ||
+        isnan(max_distance) || isnan(zmax)) {
         PyErr_SetString(PyExc_ValueError, "direction, step or max_distance invalid");
         return NULL;
     }
     if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
-    Py_BEGIN_ALLOW_THREADS
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, start, stop,
-                     (double *)out, &st);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    Py_END_ALLOW_THREADS
-    return stats_tuple(&st, &t0, &t1);
+    timed_begin(&section);
+    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, start, stop, (double *)out,
+                     &st);
+    elapsed_ns = timed_end(&section);
+    return stats_tuple(&st, elapsed_ns);
+}
+
+/* ---- rasterisers -------------------------------------------------------------------- */
+
+PyDoc_STRVAR(raster_doc,
+             "raster(algorithm, heights, hmin, hmax, camera, sx, sy, near, z_bottom, step,\n"
+             "       region, t, cell, normal, coverage, primitive, mask, counts) -> int\n\n"
+             "Draw one region (row_begin, row_end, column_begin, column_end) of an image with\n"
+             "a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon, 3 hidden lines);\n"
+             "camera is float64\n"
+             "(position, forward, right, up, half_w, half_h); primitive (int64) and mask\n"
+             "(uint8, painter) are whole-image workspaces. Returns the elapsed nanoseconds\n"
+             "of the C loop. Private: use algos.raster.");
+
+static PyObject *raster(PyObject *self, PyObject *args) {
+    int algorithm, status;
+    double hmin, hmax, near, z_bottom, step;
+    PyObject *o_heights, *o_camera, *o_sx, *o_sy, *o_t, *o_cell, *o_normal, *o_coverage,
+        *o_primitive, *o_mask, *o_counts;
+    hf_raster r;
+    npy_intp shape[2], width, height, pixels;
+    long long region[4];
+    const double *camera;
+    int64_t *counts;
+    void *p;
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "iOddOOOddd(LLLL)OOOOOOO", &algorithm, &o_heights, &hmin, &hmax,
+                          &o_camera, &o_sx, &o_sy, &near, &z_bottom, &step, &region[0], &region[1],
+                          &region[2], &region[3], &o_t, &o_cell, &o_normal, &o_coverage,
+                          &o_primitive, &o_mask, &o_counts))
+        return NULL;
+    memset(&r, 0, sizeof r);
+    if (algorithm < 0 || algorithm >= HF_N_RASTER) {
+        PyErr_Format(PyExc_ValueError, "algorithm: %d is not a rasteriser id", algorithm);
+        return NULL;
+    }
+    if (!PyArray_Check(o_heights) || PyArray_NDIM((PyArrayObject *)o_heights) != 2) {
+        PyErr_SetString(PyExc_TypeError, "heights: expected a 2D numpy array");
+        return NULL;
+    }
+    shape[0] = PyArray_DIM((PyArrayObject *)o_heights, 0);
+    shape[1] = PyArray_DIM((PyArrayObject *)o_heights, 1);
+    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE ||
+        shape[1] > HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
+        return NULL;
+    }
+    if (!get_f32(o_heights, "heights", 2, shape, &r.heights)) return NULL;
+    r.rows = (int32_t)shape[0];
+    r.cols = (int32_t)shape[1];
+    if (!get_array(o_camera, "camera", NPY_FLOAT64, 14, 0, 0, &p, NULL)) return NULL;
+    camera = (const double *)p;
+    if (!get_array(o_sx, "sx", NPY_FLOAT64, -1, 0, 0, &p, &width)) return NULL;
+    r.sx = (const double *)p;
+    if (!get_array(o_sy, "sy", NPY_FLOAT64, -1, 0, 0, &p, &height)) return NULL;
+    r.sy = (const double *)p;
+    /* sizes: each side fits int32, so every pixel index (int64) and workspace size fits */
+    if (width < 1 || height < 1 || width > HF_MAX_GRID_SIDE || height > HF_MAX_GRID_SIDE) {
+        PyErr_Format(PyExc_ValueError, "image: %zd x %zd pixels, each side must be in [1, 2^24]",
+                     (Py_ssize_t)width, (Py_ssize_t)height);
+        return NULL;
+    }
+    pixels = width * height;
+    if (region[0] < 0 || region[1] > height || region[0] >= region[1] || region[2] < 0 ||
+        region[3] > width || region[2] >= region[3]) {
+        PyErr_Format(PyExc_ValueError,
+                     "region: rows [%lld, %lld) x columns [%lld, %lld) is empty or outside "
+                     "the %zd x %zd image",
+                     region[0], region[1], region[2], region[3], (Py_ssize_t)width,
+                     (Py_ssize_t)height);
+        return NULL;
+    }
+    if (algorithm == HF_RASTER_FLOATING_HORIZON ? (region[0] != 0 || region[1] != height)
+                                                : (region[2] != 0 || region[3] != width)) {
+        PyErr_SetString(PyExc_ValueError, "region: zbuffer and painter draw whole rows, "
+                                          "floating_horizon whole columns");
+        return NULL;
+    }
+    if (algorithm == HF_RASTER_HIDDEN_LINES && (region[0] != 0 || region[1] != height)) {
+        PyErr_SetString(PyExc_ValueError, "region: hidden lines draw the whole image");
+        return NULL;
+    }
+    for (int k = 0; k < 14; ++k) {
+        if (!isfinite(camera[k])) {
+            PyErr_Format(PyExc_ValueError, "camera: element %d is not finite", k);
+            return NULL;
+        }
+    }
+    if (!(camera[12] > 0) || !(camera[13] > 0) || !(near > 0) || !isfinite(near) ||
+        !isfinite(z_bottom) || !(step > 0) || !isfinite(step) || !isfinite(hmin) ||
+        !isfinite(hmax)) {
+        PyErr_SetString(PyExc_ValueError,
+                        "camera: half_w, half_h, near and step must be positive and finite");
+        return NULL;
+    }
+    memcpy(r.position, camera, sizeof r.position);
+    memcpy(r.forward, camera + 3, sizeof r.forward);
+    memcpy(r.right, camera + 6, sizeof r.right);
+    memcpy(r.up, camera + 9, sizeof r.up);
+    r.half_w = camera[12];
+    r.half_h = camera[13];
+    r.width = (int32_t)width;
+    r.height = (int32_t)height;
+    r.row_begin = (int32_t)region[0];
+    r.row_end = (int32_t)region[1];
+    r.column_begin = (int32_t)region[2];
+    r.column_end = (int32_t)region[3];
+    r.hmin = hmin;
+    r.hmax = hmax;
+    r.near = near;
+    r.z_bottom = z_bottom;
+    r.step = step;
+    if (!get_array(o_t, "t", NPY_FLOAT64, pixels, 1, 0, &p, NULL)) return NULL;
+    r.t = (double *)p;
+    if (!get_array(o_cell, "cell", NPY_INT32, 2 * pixels, 1, 0, &p, NULL)) return NULL;
+    r.cell = (int32_t *)p;
+    if (!get_array(o_normal, "normal", NPY_FLOAT64, 3 * pixels, 1, 1, &p, NULL)) return NULL;
+    r.normal = (double *)p;
+    if (!get_array(o_coverage, "coverage", NPY_INT32, pixels, 1, 1, &p, NULL)) return NULL;
+    r.coverage = (int32_t *)p;
+    if (!get_array(o_primitive, "primitive", NPY_INT64, pixels, 1, 0, &p, NULL)) return NULL;
+    r.primitive = (int64_t *)p;
+    if (!get_array(o_mask, "mask", NPY_UINT8, pixels, 1,
+                   algorithm != HF_RASTER_PAINTER && algorithm != HF_RASTER_HIDDEN_LINES, &p, NULL))
+        return NULL;
+    r.mask = (uint8_t *)p;
+    if (!get_array(o_counts, "counts", NPY_INT64, HF_N_COUNTS, 1, 0, &p, NULL)) return NULL;
+    counts = (int64_t *)p;
+    /* allocated once per call: the zbuffer's two rows of projected corners, the hidden
+     * lines' horizons */
+    {
+        const size_t doubles = hf_raster_workspace_doubles(algorithm, r.cols, r.width);
+        if (doubles) {
+            r.vertex_rows = malloc(doubles * sizeof(double));
+            if (!r.vertex_rows) return PyErr_NoMemory();
+        }
+    }
+    timed_begin(&section);
+    status = hf_raster_render(algorithm, &r);
+    elapsed_ns = timed_end(&section);
+    free(r.vertex_rows);
+    if (status != HF_OK) {
+        PyErr_Format(PyExc_RuntimeError, "rasteriser %d failed: %s", algorithm,
+                     status_text(status));
+        return NULL;
+    }
+    memcpy(counts, r.counts, sizeof r.counts);
+    return PyLong_FromLongLong(elapsed_ns);
 }
 
 static PyMethodDef methods[] = {
@@ -787,11 +965,18 @@ static PyMethodDef methods[] = {
     {"horizon_walk", horizon_walk, METH_VARARGS, horizon_walk_doc},
     {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
+    {"raster", raster, METH_VARARGS, raster_doc},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "algos._kernels",
-                                    "hftrace C kernels (private; see algos).", -1, methods,
-                                    NULL, NULL, NULL, NULL};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,
+                                    "algos._kernels",
+                                    "hftrace C kernels (private; see algos).",
+                                    -1,
+                                    methods,
+                                    NULL,
+                                    NULL,
+                                    NULL,
+                                    NULL};
 
 PyMODINIT_FUNC PyInit__kernels(void) {
     PyObject *m;

@@ -13,9 +13,9 @@
 /* ---- clipping ----------------------------------------------------------------------- */
 /* [t0, t1] of the ray inside the box; returns 0 when empty. entry_axis: the face that
  * set t0 (0 x, 1 y, 2 z) or -1 when t0 is tmin. */
-static int clip_to_box(const double o[3], const double d[3], double tmin, double tmax,
-                       double x_max, double y_max, double hmin, double hmax, double *t0_out,
-                       double *t1_out, int *entry_axis) {
+static int clip_to_box(const double o[3], const double d[3], double tmin, double tmax, double x_max,
+                       double y_max, double hmin, double hmax, double *t0_out, double *t1_out,
+                       int *entry_axis) {
     double t0 = tmin, t1 = tmax;
     int axis = -1, k;
     const double hi[2] = {x_max, y_max};
@@ -25,14 +25,21 @@ static int clip_to_box(const double o[3], const double d[3], double tmin, double
              * equals the one computed there bit for bit */
             const double inv = 1.0 / d[k];
             double a = (0 - o[k]) * inv, b = (hi[k] - o[k]) * inv;
-            if (a > b) { const double s = a; a = b; b = s; }
-            if (a > t0) { t0 = a; axis = k; }
+            if (a > b) {
+                const double s = a;
+                a = b;
+                b = s;
+            }
+            if (a > t0) {
+                t0 = a;
+                axis = k;
+            }
             if (b < t1) t1 = b;
         } else if (!(o[k] >= 0 && o[k] <= hi[k])) {
             return 0;
         }
     }
-    if (!(t0 <= t1)) return 0;  /* misses the footprint (or an empty [tmin, tmax]) */
+    if (!(t0 <= t1)) return 0; /* misses the footprint (or an empty [tmin, tmax]) */
     /* Robust slab bounds: the z slab is widened by a hair, so that rounding in z(t) can
      * never push a hit that lies exactly on hmin or hmax (a flat field has both) out of
      * the interval; the widening only adds parameters that are tested exactly anyway. */
@@ -43,8 +50,11 @@ static int clip_to_box(const double o[3], const double d[3], double tmin, double
     }
     if (d[2] < 0) {
         const double above = (hmax - o[2]) / d[2], below = (hmin - o[2]) / d[2];
-        if (above > t0) { t0 = above; axis = 2; }
-        if (!(t0 <= t1)) return 0;  /* still above hmax when it leaves */
+        if (above > t0) {
+            t0 = above;
+            axis = 2;
+        }
+        if (!(t0 <= t1)) return 0; /* still above hmax when it leaves */
         /* at or below hmin the ray is inside the solid: the hit is no later than that
          * (already below at t0: the hit is t0 itself) */
         if (below < t1) t1 = below > t0 ? below : t0;
@@ -72,14 +82,29 @@ static double field_gap(hf_hit *h, double t, int32_t *ci, int32_t *cj, double *s
     if (j > h->rows - 2) j = h->rows - 2;
     u = x - i;
     v = y - j;
-    h00 = hf_height(h, i, j); h10 = hf_height(h, i + 1, j);
-    h01 = hf_height(h, i, j + 1); h11 = hf_height(h, i + 1, j + 1);
+    h00 = hf_height(h, i, j);
+    h10 = hf_height(h, i + 1, j);
+    h01 = hf_height(h, i, j + 1);
+    h11 = hf_height(h, i + 1, j + 1);
     switch (h->surface) {
-    case HF_FLAT: s = (h00 + h10 + h01 + h11) / 4.0; *su = 0; *sv = 0; break;
-    case HF_PLANE3: *su = h10 - h00; *sv = h01 - h00; s = h00 + *su * u + *sv * v; break;
+    case HF_FLAT:
+        s = (h00 + h10 + h01 + h11) / 4.0;
+        *su = 0;
+        *sv = 0;
+        break;
+    case HF_PLANE3:
+        *su = h10 - h00;
+        *sv = h01 - h00;
+        s = h00 + *su * u + *sv * v;
+        break;
     case HF_TRIANGLES:
-        if (u >= v) { *su = h10 - h00; *sv = h11 - h10; }
-        else { *su = h11 - h01; *sv = h01 - h00; }
+        if (u >= v) {
+            *su = h10 - h00;
+            *sv = h11 - h10;
+        } else {
+            *su = h11 - h01;
+            *sv = h01 - h00;
+        }
         s = h00 + *su * u + *sv * v;
         break;
     default: {
@@ -109,7 +134,10 @@ static void march(hf_hit *h, const hf_hit_batch *b, int kernel) {
             t = prev + step;
             if (t > h->t1) t = h->t1;
             h->cells_tested += 1;
-            if (field_gap(h, t, &i, &j, &su, &sv) <= 0) { hf_hit_at(h, t, i, j, -1, su, sv); return; }
+            if (field_gap(h, t, &i, &j, &su, &sv) <= 0) {
+                hf_hit_at(h, t, i, j, -1, su, sv);
+                return;
+            }
             prev = t;
             step *= b->march_growth;
         }
@@ -130,7 +158,10 @@ static void march(hf_hit *h, const hf_hit_batch *b, int kernel) {
         for (k = 0; k < b->march_refinements; ++k) {
             const double mid = 0.5 * (lo + hi);
             h->cells_tested += 1;
-            if (field_gap(h, mid, &i, &j, &su, &sv) <= 0) hi = mid; else lo = mid;
+            if (field_gap(h, mid, &i, &j, &su, &sv) <= 0)
+                hi = mid;
+            else
+                lo = mid;
         }
         t = hi;
     }
@@ -159,17 +190,17 @@ static int32_t cell_at(double o, double d, double t, int32_t n) {
 
 /* dda_maxmip: the walk stops descending at `floor_level`, whose 2^floor x 2^floor tiles
  * it walks cell by cell with face parameters computed directly (no drift: the exact
- * interval's own expressions). A cell is culled by z at its exit face (descending) or at its entry (else): for a descending ray that is
- * exactly the exact test's cull, so only the cells it passes pay for the interval and the
- * surface test. A skipped tile is left by an integer step on its exit axis, the other
- * index recomputed at the exit and clamped into the tile just left. */
+ * interval's own expressions). A cell is culled by z at its exit face (descending) or at its entry
+ * (else): for a descending ray that is exactly the exact test's cull, so only the cells it passes
+ * pay for the interval and the surface test. A skipped tile is left by an integer step on its exit
+ * axis, the other index recomputed at the exit and clamped into the tile just left. */
 static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
     const int32_t nx = h->cols - 1, ny = h->rows - 1;
     const int top = b->mip_levels - 1;
     const int F = floor_level < top ? floor_level : top;
     const int descending = h->dz < 0;
     const int32_t sx = h->dx > 0 ? 1 : -1, sy = h->dy > 0 ? 1 : -1;
-    const int32_t fx = h->dx > 0, fy = h->dy > 0;  /* exit face of index k: k + f */
+    const int32_t fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
     const int has_x = h->dx != 0, has_y = h->dy != 0;
     const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
     const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
@@ -186,10 +217,17 @@ static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
         const double ty = has_y ? ((double)(((int64_t)tj + fy) << L) - oy) * inv_y : inf;
         double te = t1;
         int axis = -1;
-        if (tx < te) { te = tx; axis = 0; }
-        if (ty < te) { te = ty; axis = 1; }
-        else if (ty == te && axis == 0) axis = 2;
-        if (oz + (descending ? te : t) * dz > (double)b->mip[L][(int64_t)tj * b->mip_cols[L] + ti]) {
+        if (tx < te) {
+            te = tx;
+            axis = 0;
+        }
+        if (ty < te) {
+            te = ty;
+            axis = 1;
+        } else if (ty == te && axis == 0)
+            axis = 2;
+        if (oz + (descending ? te : t) * dz >
+            (double)b->mip[L][(int64_t)tj * b->mip_cols[L] + ti]) {
             /* skip the tile, then try one level coarser */
             h->tiles_skipped += 1;
         } else if (L > F) {
@@ -207,19 +245,23 @@ static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
             for (;;) {
                 const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
                 h->cells_visited += 1;
-                if (!cull || !(oz + (descending ? tb : t_in) * dz >
-                               (double)cellmax[(int64_t)j * nx + i])) {
+                if (!cull ||
+                    !(oz + (descending ? tb : t_in) * dz > (double)cellmax[(int64_t)j * nx + i])) {
                     if (hf_hit_cell_exact(h, i, j)) return 1;
                 }
                 if (!(tb < t1)) return 0;
                 if (mx < my) {
-                    i += sx; t_in = mx;
+                    i += sx;
+                    t_in = mx;
                     mx = ((double)(i + fx) - ox) * inv_x;
                 } else if (my < mx) {
-                    j += sy; t_in = my;
+                    j += sy;
+                    t_in = my;
                     my = ((double)(j + fy) - oy) * inv_y;
                 } else {
-                    i += sx; j += sy; t_in = mx;
+                    i += sx;
+                    j += sy;
+                    t_in = mx;
                     mx = ((double)(i + fx) - ox) * inv_x;
                     my = ((double)(j + fy) - oy) * inv_y;
                 }
@@ -235,10 +277,16 @@ static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
             /* into the next tile at level L */
             const int64_t size = (int64_t)1 << L;
             int64_t ni = i, nj = j;
-            if (axis == 0 || axis == 2) ni = h->dx > 0 ? ((int64_t)ti + 1) * size : (int64_t)ti * size - 1;
-            else ni = clamp32(cell_at(ox, h->dx, te, nx), (int64_t)ti * size, ((int64_t)ti + 1) * size - 1);
-            if (axis == 1 || axis == 2) nj = h->dy > 0 ? ((int64_t)tj + 1) * size : (int64_t)tj * size - 1;
-            else nj = clamp32(cell_at(oy, h->dy, te, ny), (int64_t)tj * size, ((int64_t)tj + 1) * size - 1);
+            if (axis == 0 || axis == 2)
+                ni = h->dx > 0 ? ((int64_t)ti + 1) * size : (int64_t)ti * size - 1;
+            else
+                ni = clamp32(cell_at(ox, h->dx, te, nx), (int64_t)ti * size,
+                             ((int64_t)ti + 1) * size - 1);
+            if (axis == 1 || axis == 2)
+                nj = h->dy > 0 ? ((int64_t)tj + 1) * size : (int64_t)tj * size - 1;
+            else
+                nj = clamp32(cell_at(oy, h->dy, te, ny), (int64_t)tj * size,
+                             ((int64_t)tj + 1) * size - 1);
             if (axis < 0 || ni < 0 || ni >= nx || nj < 0 || nj >= ny) return 0;
             i = (int32_t)ni;
             j = (int32_t)nj;
@@ -299,8 +347,12 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
             h.col_max = b->cull_runs ? &b->col_max : NULL;
             h.surface = b->surface;
             h.cull_cells = b->cull_cells;
-            h.ox = o[0]; h.oy = o[1]; h.oz = o[2];
-            h.dx = d[0]; h.dy = d[1]; h.dz = d[2];
+            h.ox = o[0];
+            h.oy = o[1];
+            h.oz = o[2];
+            h.dx = d[0];
+            h.dy = d[1];
+            h.dz = d[2];
             h.inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
             h.inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
             h.t0 = t0;
@@ -308,7 +360,10 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
             h.entry_axis = entry_axis;
             hf_hit_prepare(&h);
             memset(&b2, 0, sizeof b2);
-            o2[0] = o[0]; o2[1] = o[1]; d2[0] = d[0]; d2[1] = d[1];
+            o2[0] = o[0];
+            o2[1] = o[1];
+            d2[0] = d[0];
+            d2[1] = d[1];
             /* A ray lying in the far box face x = cols-1 (or y = rows-1) has no half-open
              * cell there; walk the last column (row) instead. Moving the 2D walk's origin
              * by 3/4 of a lattice unit keeps it in that column even after the exact
@@ -352,13 +407,20 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                 m.floor_level = b->fine_level;
                 {
                     const int status = hf_runs_maxmip_hit(&b2, &sink, &m);
-                    if (status != HF_OK) { b->bad_ray = ray; return status; }
+                    if (status != HF_OK) {
+                        b->bad_ray = ray;
+                        return status;
+                    }
                 }
             } else {
                 /* (a maxmip kernel on a grid line, where neighbouring tiles matter, walks
                  * every cell with its base kernel) */
-                const int status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&pattern : NULL);
-                if (status != HF_OK) { b->bad_ray = ray; return status; }
+                const int status =
+                    walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&pattern : NULL);
+                if (status != HF_OK) {
+                    b->bad_ray = ray;
+                    return status;
+                }
             }
         }
         /* outputs, each only when asked for */

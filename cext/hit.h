@@ -20,10 +20,10 @@ enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 
  * between. Inside one block the few cells are scanned. */
 typedef struct {
     int32_t n_lines, length, block_shift, n_blocks, n_levels;
-    const float *values;  /* [line][length]                       */
-    const float *prefix;  /* [line][length]: max from block start */
-    const float *suffix;  /* [line][length]: max to block end     */
-    const float *sparse;  /* [line][level][n_blocks]              */
+    const float *values; /* [line][length]                       */
+    const float *prefix; /* [line][length]: max from block start */
+    const float *suffix; /* [line][length]: max to block end     */
+    const float *sparse; /* [line][level][n_blocks]              */
 } hf_rmq;
 
 typedef struct {
@@ -31,8 +31,8 @@ typedef struct {
     const float *heights;
     const float *cellmax;
     int32_t rows, cols;
-    const hf_rmq *row_max;  /* runs along x; NULL: no run culling */
-    const hf_rmq *col_max;  /* runs along y                      */
+    const hf_rmq *row_max; /* runs along x; NULL: no run culling */
+    const hf_rmq *col_max; /* runs along y                      */
     int surface;
     int cull_cells;
     /* the ray, clipped to [t0, t1]; entry_axis: the box face it entered by at t0 (0 x,
@@ -42,18 +42,18 @@ typedef struct {
     /* The tight path (hf_hit_prepare): with cell culling on and no grid-line special
      * case, a cell (or a run) is first rejected by a bound computed from its index along
      * one axis alone; only the survivors pay for the exact interval. */
-    int fast;               /* cell kernels: use the bound                               */
-    int cell_axis;          /* the axis whose slab bounds a cell of a cell kernel       */
-    int fast_runs;          /* run kernels: use it too (descending rays, dz < 0)         */
-    int bound_off[2];       /* per axis: 1 when the low-z end of cell k is boundary k+1 */
-    double bound_lo, bound_hi;  /* clamp of that boundary's parameter to [t0, t1]       */
+    int fast;                  /* cell kernels: use the bound                               */
+    int cell_axis;             /* the axis whose slab bounds a cell of a cell kernel       */
+    int fast_runs;             /* run kernels: use it too (descending rays, dz < 0)         */
+    int bound_off[2];          /* per axis: 1 when the low-z end of cell k is boundary k+1 */
+    double bound_lo, bound_hi; /* clamp of that boundary's parameter to [t0, t1]       */
     double o_axis[2], inv_axis[2];
     /* the result */
     int found;
     double t;
     int32_t i, j;
-    int wall_axis;          /* -1: the surface; 0/1: a vertical wall facing -x/-y travel */
-    double su, sv;          /* surface slope ds/du, ds/dv at the hit (for the normal)  */
+    int wall_axis; /* -1: the surface; 0/1: a vertical wall facing -x/-y travel */
+    double su, sv; /* surface slope ds/du, ds/dv at the hit (for the normal)  */
     int64_t cells_visited, cells_tested, runs_visited, runs_culled, tiles_skipped;
 } hf_hit;
 
@@ -96,8 +96,8 @@ static inline double hf_height(const hf_hit *h, int32_t i, int32_t j) {
 }
 
 /* Record a hit at t in cell (i, j). */
-static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_axis,
-                            double su, double sv) {
+static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_axis, double su,
+                            double sv) {
     h->found = 1;
     h->t = t;
     h->i = i;
@@ -112,7 +112,7 @@ static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_
  * the root, kept inside the interval. */
 static inline double hf_linear_root(double ta, double tb, double fa, double fb) {
     double t = ta + (tb - ta) * (fa / (fa - fb));
-    if (!(t >= ta)) t = ta;  /* also catches NaN from a degenerate interval */
+    if (!(t >= ta)) t = ta; /* also catches NaN from a degenerate interval */
     if (t > tb) t = tb;
     return t;
 }
@@ -157,7 +157,10 @@ static inline double hf_quadratic_first(double a, double b, double c, double len
         for (k = 0; k < 200; ++k) {
             const double mid = 0.5 * (lo + hi);
             if (mid <= lo || mid >= hi) break;
-            if ((a * mid + b) * mid + c <= 0) hi = mid; else lo = mid;
+            if ((a * mid + b) * mid + c <= 0)
+                hi = mid;
+            else
+                lo = mid;
         }
         best = hi;
     }
@@ -167,8 +170,7 @@ static inline double hf_quadratic_first(double a, double b, double c, double len
 /* Test cell (i, j) on [ta, tb]. `wall` is the axis of the vertical wall the ray meets
  * at ta if it is already below the surface there (0 x, 1 y), or -1 when that is not a
  * wall (a start inside the solid). Returns 1 on a hit. */
-static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, double tb,
-                                  int wall) {
+static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, double tb, int wall) {
     const double h00 = hf_height(h, i, j), h10 = hf_height(h, i + 1, j);
     const double h01 = hf_height(h, i, j + 1), h11 = hf_height(h, i + 1, j + 1);
     const double ua = h->ox + ta * h->dx - i, va = h->oy + ta * h->dy - j;
@@ -202,8 +204,10 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
             const double ts = ta - (ua - va) / w;
             if (ts > ta && ts < tb) t_split = ts;
         }
-        if (lower_first) fa = za - (h00 + la * ua + lb * va);
-        else fa = za - (h00 + ua_ * ua + ub_ * va);
+        if (lower_first)
+            fa = za - (h00 + la * ua + lb * va);
+        else
+            fa = za - (h00 + ua_ * ua + ub_ * va);
         if (fa <= 0) {
             return lower_first ? hf_hit_at(h, ta, i, j, wall, la, lb)
                                : hf_hit_at(h, ta, i, j, wall, ua_, ub_);
@@ -213,7 +217,8 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
              * split so the diagonal is watertight */
             const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
             const double zs = h->oz + t_split * h->dz;
-            f_split = lower_first ? zs - (h00 + la * us + lb * vs) : zs - (h00 + ua_ * us + ub_ * vs);
+            f_split =
+                lower_first ? zs - (h00 + la * us + lb * vs) : zs - (h00 + ua_ * us + ub_ * vs);
             if (f_split <= 0) {
                 const double t = hf_linear_root(ta, t_split, fa, f_split);
                 return lower_first ? hf_hit_at(h, t, i, j, -1, la, lb)
@@ -227,10 +232,10 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
              * first plane's value may round a hair above it, is the case this catches). */
             const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
             const double zs = h->oz + t_split * h->dz;
-            const double f_split2 = lower_first ? zs - (h00 + ua_ * us + ub_ * vs)
-                                                : zs - (h00 + la * us + lb * vs);
-            const double fb = lower_first ? zb - (h00 + ua_ * ub + ub_ * vb)
-                                          : zb - (h00 + la * ub + lb * vb);
+            const double f_split2 =
+                lower_first ? zs - (h00 + ua_ * us + ub_ * vs) : zs - (h00 + la * us + lb * vs);
+            const double fb =
+                lower_first ? zb - (h00 + ua_ * ub + ub_ * vb) : zb - (h00 + la * ub + lb * vb);
             if (f_split2 <= 0) {
                 return lower_first ? hf_hit_at(h, t_split, i, j, -1, ua_, ub_)
                                    : hf_hit_at(h, t_split, i, j, -1, la, lb);
@@ -249,9 +254,7 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
         const double qa = -c * h->dx * h->dy;
         const double qb = h->dz - a * h->dx - b * h->dy - c * (ua * h->dy + va * h->dx);
         double tau, t, u, v;
-        if (fa <= 0) {
-            return hf_hit_at(h, ta, i, j, wall, a + c * va, b + c * ua);
-        }
+        if (fa <= 0) { return hf_hit_at(h, ta, i, j, wall, a + c * va, b + c * ua); }
         tau = hf_quadratic_first(qa, qb, fa, tb - ta);
         if (tau < 0) return 0;
         t = ta + tau;
@@ -270,14 +273,28 @@ static inline int hf_cell_interval(const hf_hit *h, int32_t i, int32_t j, double
     int axis = -1;
     if (h->dx != 0) {
         double a = (i - h->ox) * h->inv_dx, b = (i + 1 - h->ox) * h->inv_dx;
-        if (a > b) { const double s = a; a = b; b = s; }
-        if (a > lo) { lo = a; axis = 0; }
+        if (a > b) {
+            const double s = a;
+            a = b;
+            b = s;
+        }
+        if (a > lo) {
+            lo = a;
+            axis = 0;
+        }
         if (b < hi) hi = b;
     }
     if (h->dy != 0) {
         double a = (j - h->oy) * h->inv_dy, b = (j + 1 - h->oy) * h->inv_dy;
-        if (a > b) { const double s = a; a = b; b = s; }
-        if (a > lo) { lo = a; axis = 1; }
+        if (a > b) {
+            const double s = a;
+            a = b;
+            b = s;
+        }
+        if (a > lo) {
+            lo = a;
+            axis = 1;
+        }
         if (b < hi) hi = b;
     }
     *ta = lo;
@@ -294,8 +311,8 @@ static inline int hf_on_grid_line(const hf_hit *h) {
            ((h->dx == 0 && h->ox == floor(h->ox)) || (h->dy == 0 && h->oy == floor(h->oy)));
 }
 
-static inline int hf_test_line_neighbours(hf_hit *h, int32_t i, int32_t j, double ta,
-                                          double tb, int wall) {
+static inline int hf_test_line_neighbours(hf_hit *h, int32_t i, int32_t j, double ta, double tb,
+                                          int wall) {
     const int x_line = h->dx == 0 && h->ox == (double)i && i > 0;
     const int y_line = h->dy == 0 && h->oy == (double)j && j > 0;
     hf_hit best = *h, trial;
@@ -373,16 +390,16 @@ static inline float hf_cellmax(const hf_hit *h, int32_t i, int32_t j) {
 typedef struct {
     const float *cellmax;
     int64_t stride;
-    double z[2];       /* bound for the current index along x and y (-inf: no slab)   */
-    double step[2];    /* dz |inv| per step, 0 for an axis the ray does not cross     */
-    double zfloor;     /* z at t1 (descending) or t0, minus the margin                */
+    double z[2];    /* bound for the current index along x and y (-inf: no slab)   */
+    double step[2]; /* dz |inv| per step, 0 for an axis the ray does not cross     */
+    double zfloor;  /* z at t1 (descending) or t0, minus the margin                */
     double margin;
-    int64_t cell;      /* offset of the current cell's maximum in cellmax              */
-    int64_t cell_step[2];  /* its change per step along x and y                      */
-    int32_t k[2];      /* the current index along x and y                             */
-    int32_t sign[2];   /* the direction of travel along x and y                       */
-    int fast;          /* the bound applies (else every cell takes hf_hit_cell)        */
-    int64_t visited;   /* cells that went through the bound                          */
+    int64_t cell;         /* offset of the current cell's maximum in cellmax              */
+    int64_t cell_step[2]; /* its change per step along x and y                      */
+    int32_t k[2];         /* the current index along x and y                             */
+    int32_t sign[2];      /* the direction of travel along x and y                       */
+    int fast;             /* the bound applies (else every cell takes hf_hit_cell)        */
+    int64_t visited;      /* cells that went through the bound                          */
 } hf_cull;
 
 /* The bound of index k along axis a, directly (for a start, or a jump). */
@@ -437,7 +454,10 @@ static inline void hf_cull_step(hf_cull *c, int a) {
 /* Move axis a to index k: one step, or a direct start (never a long sum). */
 static inline void hf_cull_goto(hf_cull *c, const hf_hit *h, int a, int32_t k) {
     if (k == c->k[a]) return;
-    if (k == c->k[a] + c->sign[a]) { hf_cull_step(c, a); return; }
+    if (k == c->k[a] + c->sign[a]) {
+        hf_cull_step(c, a);
+        return;
+    }
     c->k[a] = k;
     c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
     if (c->step[a] != 0 || c->z[a] != -(double)INFINITY) c->z[a] = hf_cull_direct(h, c, a, k);
@@ -454,12 +474,14 @@ static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
     double ta, tb;
     const int axis = hf_cell_interval(h, i, j, &ta, &tb);
     int wall;
-    if (!(ta <= tb)) return 0;  /* the float ray misses this cell of the rounded walk */
+    if (!(ta <= tb)) return 0; /* the float ray misses this cell of the rounded walk */
     /* Walls: at t0 the box's side faces (every surface); inside the grid the cell borders,
      * where flat and plane3 jump. Entering below a continuous surface (triangles,
      * bilinear) at a border can only be rounding, and gets the surface's normal. */
-    if (ta == h->t0) wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
-    else wall = (h->surface == HF_FLAT || h->surface == HF_PLANE3) ? axis : -1;
+    if (ta == h->t0)
+        wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
+    else
+        wall = (h->surface == HF_FLAT || h->surface == HF_PLANE3) ? axis : -1;
     if (hf_on_grid_line(h)) return hf_test_line_neighbours(h, i, j, ta, tb, wall);
     if (h->cull_cells) {
         /* the ray's lowest z over the cell is above every corner: no hit */
@@ -503,14 +525,28 @@ static inline hf_span hf_run_span(const hf_hit *h, int major_is_x, int32_t minor
     s.entry_axis = -1;
     if (d_min != 0) {
         double a = (minor - o_min) * inv_min, b = (minor + 1 - o_min) * inv_min;
-        if (a > b) { const double x = a; a = b; b = x; }
-        if (a > s.ta) { s.ta = a; s.entry_axis = major_is_x ? 1 : 0; }
+        if (a > b) {
+            const double x = a;
+            a = b;
+            b = x;
+        }
+        if (a > s.ta) {
+            s.ta = a;
+            s.entry_axis = major_is_x ? 1 : 0;
+        }
         s.tb = b < s.tb ? b : s.tb;
     }
     {
         double a = (lo - o_maj) * inv_maj, b = (hi + 1 - o_maj) * inv_maj;
-        if (a > b) { const double x = a; a = b; b = x; }
-        if (a > s.ta) { s.ta = a; s.entry_axis = major_is_x ? 0 : 1; }
+        if (a > b) {
+            const double x = a;
+            a = b;
+            b = x;
+        }
+        if (a > s.ta) {
+            s.ta = a;
+            s.entry_axis = major_is_x ? 0 : 1;
+        }
         s.tb = b < s.tb ? b : s.tb;
     }
     return s;
@@ -520,8 +556,8 @@ static inline hf_span hf_run_span(const hf_hit *h, int major_is_x, int32_t minor
  * runs from the previous cell's exit (or the span's start) to its own exit, each clipped
  * to the span; then the exact cull and the surface test. Cells are not split where the
  * minor strip ends: the span's tb covers that. */
-static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
-                              int32_t k, const hf_span *s) {
+static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t first, int32_t k,
+                              const hf_span *s) {
     const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
     const double d_maj = major_is_x ? h->dx : h->dy;
     const int32_t i = major_is_x ? k : minor, j = major_is_x ? minor : k;
@@ -542,9 +578,12 @@ static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t 
     }
     /* walls: the box face at t0, else the grid line crossed at ta (for the surfaces that
      * jump there) */
-    if (ta == h->t0) wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
-    else if (!(h->surface == HF_FLAT || h->surface == HF_PLANE3)) wall = -1;
-    else wall = k == first ? s->entry_axis : (major_is_x ? 0 : 1);
+    if (ta == h->t0)
+        wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
+    else if (!(h->surface == HF_FLAT || h->surface == HF_PLANE3))
+        wall = -1;
+    else
+        wall = k == first ? s->entry_axis : (major_is_x ? 0 : 1);
     return hf_surface_test(h, i, j, ta, t_out, wall);
 }
 
@@ -576,7 +615,7 @@ static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t f
     }
     s = hf_run_span(h, major_is_x, minor, lo, hi);
     if (!(s.ta <= s.tb)) {
-        h->cells_visited += hi - lo + 1;  /* the float ray misses the rounded walk's run */
+        h->cells_visited += hi - lo + 1; /* the float ray misses the rounded walk's run */
         return 0;
     }
     if (q != NULL) {
@@ -601,10 +640,10 @@ static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t f
  * hit, -1 when the float ray misses the rounded walk's run, else 0). */
 #if defined(__GNUC__) || defined(__clang__)
 #define HF_COLD static __attribute__((noinline))
-#define HF_HOT static inline __attribute__((always_inline))
+#define HF_HOT  static inline __attribute__((always_inline))
 #else
 #define HF_COLD static
-#define HF_HOT static inline
+#define HF_HOT  static inline
 #endif
 
 HF_COLD int hf_run_rmq_cull(hf_hit *h, const hf_rmq *q, int32_t minor, int32_t lo, int32_t hi,
@@ -616,8 +655,8 @@ HF_COLD int hf_run_rmq_cull(hf_hit *h, const hf_rmq *q, int32_t minor, int32_t l
     return 0;
 }
 
-HF_COLD int hf_run_survivor(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
-                            int32_t last, int32_t k, hf_span *s, int *ready) {
+HF_COLD int hf_run_survivor(hf_hit *h, int major_is_x, int32_t minor, int32_t first, int32_t last,
+                            int32_t k, hf_span *s, int *ready) {
     if (!*ready) {
         const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
         *s = hf_run_span(h, major_is_x, minor, lo, hi);
@@ -632,8 +671,8 @@ HF_COLD int hf_run_survivor(hf_hit *h, int major_is_x, int32_t minor, int32_t fi
  * cells (a range-maximum query, for runs long enough to pay), else each cell by its own
  * exit face; the run's exact span is computed only once a cell survives. The cells that
  * reach hf_run_cell, and their intervals, are those of hf_hit_run. */
-HF_HOT int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_t minor,
-                            int32_t first, int32_t last) {
+HF_HOT int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_t minor, int32_t first,
+                            int32_t last) {
     const int32_t step = last >= first ? 1 : -1;
     const int am = major_is_x ? 0 : 1, an = 1 - am;
     const hf_rmq *q = major_is_x ? h->row_max : h->col_max;

@@ -19,8 +19,8 @@ enum hf_hit_kernel {
 
 typedef struct {
     int64_t n_rays;
-    const double *origins, *directions;  /* (n, 3) */
-    const double *tmin, *tmax;           /* (n,) or NULL for [0, inf) */
+    const double *origins, *directions; /* (n, 3) */
+    const double *tmin, *tmax;          /* (n,) or NULL for [0, inf) */
     /* the field */
     const float *heights, *cellmax;
     int32_t rows, cols;
@@ -32,7 +32,7 @@ typedef struct {
     int mip_levels;
     const float *mip[HF_MAX_MIP_LEVELS];
     int32_t mip_cols[HF_MAX_MIP_LEVELS];
-    int fine_level;                      /* runs_maxmip: tile level the runs walk */
+    int fine_level; /* runs_maxmip: tile level the runs walk */
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;
@@ -40,11 +40,11 @@ typedef struct {
     int32_t march_steps, march_refinements;
     double march_growth, march_first_fraction, march_min_step;
     /* outputs, NULL when not asked for */
-    double *t;          /* (n,)    */
-    int32_t *cell;      /* (n, 2)  */
-    double *normal;     /* (n, 3)  */
-    int64_t *stats;     /* (n, 5): cells visited, cells tested, runs visited, runs culled,
-                           tiles skipped */
+    double *t;      /* (n,)    */
+    int32_t *cell;  /* (n, 2)  */
+    double *normal; /* (n, 3)  */
+    int64_t *stats; /* (n, 5): cells visited, cells tested, runs visited, runs culled,
+                       tiles skipped */
     int64_t bad_ray;
 } hf_hit_batch;
 

@@ -28,13 +28,13 @@ __extension__ typedef __int128 hf_i128;
 
 /* Debug builds (HFTRACE_DEBUG=1) check invariants and print the values that broke them. */
 #ifdef HF_DEBUG
-#define HF_ASSERT(cond, fmt, ...)                                                        \
-    do {                                                                                 \
-        if (!(cond)) {                                                                   \
-            fprintf(stderr, "hftrace assertion failed at %s:%d: %s: " fmt "\n",           \
-                    __FILE__, __LINE__, #cond, __VA_ARGS__);                             \
-            abort();                                                                     \
-        }                                                                                \
+#define HF_ASSERT(cond, fmt, ...)                                                         \
+    do {                                                                                  \
+        if (!(cond)) {                                                                    \
+            fprintf(stderr, "hftrace assertion failed at %s:%d: %s: " fmt "\n", __FILE__, \
+                    __LINE__, #cond, __VA_ARGS__);                                        \
+            abort();                                                                      \
+        }                                                                                 \
     } while (0)
 #else
 #define HF_ASSERT(cond, fmt, ...) ((void)0)
@@ -51,36 +51,35 @@ __extension__ typedef __int128 hf_i128;
  * rational approximation and keeps time_major, so tmin/tmax keep their meaning along the
  * major axis. */
 typedef struct {
-    int swap;                      /* 1: the major axis is y                           */
+    int swap; /* 1: the major axis is y                           */
     int mirror_major, mirror_minor;
-    int32_t n_major, n_minor;      /* grid extent in cells along each reduced axis     */
-    int64_t o_major, o_minor;      /* reduced origin in lattice units                  */
-    int64_t time_major;            /* d(major)/dtau in lattice units                   */
-    int64_t slope_major;           /* A > 0                                            */
-    int64_t slope_minor;           /* B, 0 <= B <= A                                   */
-    int32_t a0, b0, a1, b1;        /* first and last visited cell, reduced indices     */
+    int32_t n_major, n_minor; /* grid extent in cells along each reduced axis     */
+    int64_t o_major, o_minor; /* reduced origin in lattice units                  */
+    int64_t time_major;       /* d(major)/dtau in lattice units                   */
+    int64_t slope_major;      /* A > 0                                            */
+    int64_t slope_minor;      /* B, 0 <= B <= A                                   */
+    int32_t a0, b0, a1, b1;   /* first and last visited cell, reduced indices     */
 } hf_line;
 
 /* Set up the exact line of one ray. max_denominator > 0 selects the runs_periodic slope
  * approximation. Returns 1 if the ray visits at least one cell, 0 if it visits none. */
-int hf_line_exact(const double origin[2], const double direction[2], double tmin,
-                  double tmax, int32_t nx, int32_t ny, int64_t max_denominator,
-                  hf_line *line);
+int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
+                  int32_t nx, int32_t ny, int64_t max_denominator, hf_line *line);
 
 /* ---- Output sink --------------------------------------------------------------------
  * Kernels report cells (cell kernels) or runs (run kernels); the sink turns either into
  * what the mode asks for. The mode is a compile-time constant at every call site, so
  * the switch folds away. */
 typedef struct {
-    int32_t *out;          /* CELLS/RUNS: next free row                                */
-    int32_t *out_end;      /* one past the last row this ray may write                 */
+    int32_t *out;     /* CELLS/RUNS: next free row                                */
+    int32_t *out_end; /* one past the last row this ray may write                 */
     int64_t n_cells, n_runs;
     uint64_t hash;
-    int major_is_x;        /* which index is the major one, for run assembly           */
-    int run_open;          /* cell kernels: a run is being assembled                   */
+    int major_is_x; /* which index is the major one, for run assembly           */
+    int run_open;   /* cell kernels: a run is being assembled                   */
     int32_t run_minor, run_first, run_last;
     int overflow;
-    hf_hit *hit;           /* HF_MODE_HIT only; set by the caller, kept by hf_sink_init  */
+    hf_hit *hit; /* HF_MODE_HIT only; set by the caller, kept by hf_sink_init  */
 } hf_sink;
 
 /* Checksum fold: a rotate-xor chain. It depends on every value and on their order, and
@@ -112,20 +111,23 @@ HF_INLINE void hf_sink_init(hf_sink *s, int32_t *out, int32_t *out_end, int majo
 
 /* A whole run (minor, first, last), first and last in travel order along the major axis.
  * Returns 1 when the walk must stop (a first hit was found). */
-HF_INLINE int hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t first,
-                           int32_t last) {
+HF_INLINE int hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t first, int32_t last) {
     const int32_t step = last >= first ? 1 : -1;
     int32_t major;
     switch (mode) {
-    case HF_MODE_HIT:
-        return hf_hit_run(s->hit, s->major_is_x, minor, first, last);
+    case HF_MODE_HIT: return hf_hit_run(s->hit, s->major_is_x, minor, first, last);
     case HF_MODE_COUNT:
         s->n_runs += 1;
         s->n_cells += (int64_t)(last - first) * step + 1;
         break;
     case HF_MODE_RUNS:
-        if (s->out + 3 > s->out_end) { s->overflow = 1; return 0; }
-        s->out[0] = minor; s->out[1] = first; s->out[2] = last;
+        if (s->out + 3 > s->out_end) {
+            s->overflow = 1;
+            return 0;
+        }
+        s->out[0] = minor;
+        s->out[1] = first;
+        s->out[2] = last;
         s->out += 3;
         s->n_runs += 1;
         break;
@@ -140,8 +142,13 @@ HF_INLINE int hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t fir
             return 0;
         }
         for (major = first;; major += step) {
-            if (s->major_is_x) { s->out[0] = major; s->out[1] = minor; }
-            else { s->out[0] = minor; s->out[1] = major; }
+            if (s->major_is_x) {
+                s->out[0] = major;
+                s->out[1] = minor;
+            } else {
+                s->out[0] = minor;
+                s->out[1] = major;
+            }
             s->out += 2;
             if (major == last) break;
         }
@@ -155,8 +162,7 @@ HF_INLINE int hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t fir
         }
         s->n_cells += (int64_t)(last - first) * step + 1;
         break;
-    default:
-        break;
+    default: break;
     }
     return 0;
 }
@@ -166,11 +172,14 @@ HF_INLINE int hf_emit_run(hf_sink *s, const int mode, int32_t minor, int32_t fir
 HF_INLINE int hf_emit_cell(hf_sink *s, const int mode, int32_t i, int32_t j) {
     int32_t minor, major;
     switch (mode) {
-    case HF_MODE_HIT:
-        return hf_hit_cell(s->hit, i, j);
+    case HF_MODE_HIT: return hf_hit_cell(s->hit, i, j);
     case HF_MODE_CELLS:
-        if (s->out + 2 > s->out_end) { s->overflow = 1; return 0; }
-        s->out[0] = i; s->out[1] = j;
+        if (s->out + 2 > s->out_end) {
+            s->overflow = 1;
+            return 0;
+        }
+        s->out[0] = i;
+        s->out[1] = j;
         s->out += 2;
         s->n_cells += 1;
         return 0;
@@ -178,8 +187,7 @@ HF_INLINE int hf_emit_cell(hf_sink *s, const int mode, int32_t i, int32_t j) {
         s->hash = hf_fold(s->hash, hf_cell_key(i, j));
         s->n_cells += 1;
         return 0;
-    default:
-        break;
+    default: break;
     }
     /* COUNT, RUNS, RUNFOLD: a new run starts whenever the minor index changes */
     minor = s->major_is_x ? j : i;
@@ -233,8 +241,7 @@ HF_INLINE int hf_visit_cell(hf_sink *s, const int mode, hf_cull *c, int32_t i, i
 
 /* Close the run a cell kernel was assembling. */
 HF_INLINE void hf_sink_finish(hf_sink *s, const int mode) {
-    if ((mode == HF_MODE_COUNT || mode == HF_MODE_RUNS || mode == HF_MODE_RUNFOLD) &&
-        s->run_open) {
+    if ((mode == HF_MODE_COUNT || mode == HF_MODE_RUNS || mode == HF_MODE_RUNFOLD) && s->run_open) {
         hf_emit_run(s, mode, s->run_minor, s->run_first, s->run_last);
         s->run_open = 0;
     }
@@ -256,17 +263,17 @@ HF_INLINE hf_frame hf_frame_of(const hf_line *L) {
     return f;
 }
 
-HF_INLINE int hf_emit_reduced_cell(hf_sink *s, const int mode, const hf_frame *f,
-                                   int32_t a, int32_t b) {
+HF_INLINE int hf_emit_reduced_cell(hf_sink *s, const int mode, const hf_frame *f, int32_t a,
+                                   int32_t b) {
     const int32_t major = f->base_major + f->sign_major * a;
     const int32_t minor = f->base_minor + f->sign_minor * b;
     return f->swap ? hf_emit_cell(s, mode, minor, major) : hf_emit_cell(s, mode, major, minor);
 }
 
-HF_INLINE int hf_emit_reduced_run(hf_sink *s, const int mode, const hf_frame *f,
-                                  int32_t b, int32_t first, int32_t last) {
+HF_INLINE int hf_emit_reduced_run(hf_sink *s, const int mode, const hf_frame *f, int32_t b,
+                                  int32_t first, int32_t last) {
     return hf_emit_run(s, mode, f->base_minor + f->sign_minor * b,
-                f->base_major + f->sign_major * first, f->base_major + f->sign_major * last);
+                       f->base_major + f->sign_major * first, f->base_major + f->sign_major * last);
 }
 
 /* hf_cull_begin at the reduced cell (a, b). */
@@ -274,8 +281,10 @@ HF_INLINE void hf_cull_begin_reduced(hf_cull *c, const hf_sink *s, const int mod
                                      const hf_frame *f, int32_t a, int32_t b, int runs) {
     const int32_t major = f->base_major + f->sign_major * a;
     const int32_t minor = f->base_minor + f->sign_minor * b;
-    if (f->swap) hf_cull_begin(c, s, mode, minor, major, runs);
-    else hf_cull_begin(c, s, mode, major, minor, runs);
+    if (f->swap)
+        hf_cull_begin(c, s, mode, minor, major, runs);
+    else
+        hf_cull_begin(c, s, mode, major, minor, runs);
 }
 
 HF_INLINE int hf_visit_reduced_cell(hf_sink *s, const int mode, hf_cull *c, const hf_frame *f,
@@ -283,14 +292,15 @@ HF_INLINE int hf_visit_reduced_cell(hf_sink *s, const int mode, hf_cull *c, cons
     if (mode == HF_MODE_HIT) {
         /* the cull carries the cell's grid indices; no mapping per cell */
         HF_ASSERT(c->k[f->swap] == f->base_major + f->sign_major * a &&
-                  c->k[!f->swap] == f->base_minor + f->sign_minor * b,
+                      c->k[!f->swap] == f->base_minor + f->sign_minor * b,
                   "reduced (%d, %d) cull (%d, %d)", a, b, c->k[0], c->k[1]);
         return hf_visit_cell(s, mode, c, c->k[0], c->k[1]);
     }
     {
-    const int32_t major = f->base_major + f->sign_major * a;
-    const int32_t minor = f->base_minor + f->sign_minor * b;
-    return f->swap ? hf_visit_cell(s, mode, c, minor, major) : hf_visit_cell(s, mode, c, major, minor);
+        const int32_t major = f->base_major + f->sign_major * a;
+        const int32_t minor = f->base_minor + f->sign_minor * b;
+        return f->swap ? hf_visit_cell(s, mode, c, minor, major)
+                       : hf_visit_cell(s, mode, c, major, minor);
     }
 }
 
@@ -306,7 +316,9 @@ HF_INLINE int hf_visit_reduced_run(hf_sink *s, const int mode, hf_cull *c, const
 }
 
 /* The ray's inputs, with the documented defaults for a missing tmin/tmax. */
-HF_INLINE double hf_tmin(const hf_batch *b, int64_t ray) { return b->tmin ? b->tmin[ray] : 0.0; }
+HF_INLINE double hf_tmin(const hf_batch *b, int64_t ray) {
+    return b->tmin ? b->tmin[ray] : 0.0;
+}
 HF_INLINE double hf_tmax(const hf_batch *b, int64_t ray) {
     return b->tmax ? b->tmax[ray] : (double)INFINITY;
 }
@@ -315,8 +327,7 @@ HF_INLINE double hf_tmax(const hf_batch *b, int64_t ray) {
  * HF_DEFINE_BATCH(name, walk) defines int name(hf_batch *, int mode, void *ctx) that runs
  * walk(batch, ray, sink, mode, ctx) over every ray. walk must be an HF_INLINE function;
  * each mode gets its own copy of the loop with the mode folded in as a constant. */
-HF_INLINE int hf_ray_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
-                           int major_is_x) {
+HF_INLINE int hf_ray_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mode, int major_is_x) {
     int32_t *out = NULL, *out_end = NULL;
     if (mode == HF_MODE_CELLS || mode == HF_MODE_RUNS) {
         const int64_t width = mode == HF_MODE_CELLS ? 2 : 3;
@@ -342,9 +353,7 @@ HF_INLINE int hf_ray_end(hf_batch *b, int64_t ray, hf_sink *s, const int mode) {
         /* the counting pass and this pass must agree row for row */
         if (s->out != s->out_end) return HF_ERR_CAPACITY;
         break;
-    default:
-        b->checksums[ray] = s->hash;
-        break;
+    default: b->checksums[ray] = s->hash; break;
     }
     return HF_OK;
 }
@@ -354,11 +363,11 @@ HF_INLINE int hf_ray_end(hf_batch *b, int64_t ray, hf_sink *s, const int mode) {
  * first cell. Returns 1 with *status = HF_OK to walk; 0 to return *status (an error, or a
  * ray that visits no cell). */
 HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
-                             int64_t max_denominator, int runs, hf_line *L, hf_frame *f,
-                             hf_cull *c, int *status) {
-    const int nonempty = hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray,
-                                       hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny,
-                                       max_denominator, L);
+                             int64_t max_denominator, int runs, hf_line *L, hf_frame *f, hf_cull *c,
+                             int *status) {
+    const int nonempty =
+        hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray, hf_tmin(b, ray),
+                      hf_tmax(b, ray), b->nx, b->ny, max_denominator, L);
     *status = hf_ray_begin(b, ray, s, mode, !L->swap);
     if (*status != HF_OK || !nonempty) return 0;
     *f = hf_frame_of(L);
@@ -366,30 +375,33 @@ HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mod
     return 1;
 }
 
-#define HF_DEFINE_BATCH(NAME, WALK)                                                      \
-    HF_INLINE int NAME##_loop(hf_batch *b, const int mode, void *ctx) {                  \
-        int64_t ray;                                                                     \
-        int status;                                                                      \
-        hf_sink sink;                                                                    \
-        for (ray = 0; ray < b->n_rays; ++ray) {                                          \
-            status = WALK(b, ray, &sink, mode, ctx);                                     \
-            if (status == HF_OK) status = hf_ray_end(b, ray, &sink, mode);               \
-            if (status != HF_OK) { b->bad_ray = ray; return status; }                    \
-        }                                                                                \
-        return HF_OK;                                                                    \
-    }                                                                                    \
-    int NAME##_hit(hf_batch *b, hf_sink *sink, void *ctx) {                              \
-        return WALK(b, 0, sink, HF_MODE_HIT, ctx);                                       \
-    }                                                                                    \
-    int NAME(hf_batch *b, int mode, void *ctx) {                                         \
-        switch (mode) {                                                                  \
-        case HF_MODE_COUNT: return NAME##_loop(b, HF_MODE_COUNT, ctx);                   \
-        case HF_MODE_CELLS: return NAME##_loop(b, HF_MODE_CELLS, ctx);                   \
-        case HF_MODE_RUNS: return NAME##_loop(b, HF_MODE_RUNS, ctx);                     \
-        case HF_MODE_VISIT: return NAME##_loop(b, HF_MODE_VISIT, ctx);                   \
-        case HF_MODE_RUNFOLD: return NAME##_loop(b, HF_MODE_RUNFOLD, ctx);               \
-        default: return HF_ERR_ARGUMENT;                                                 \
-        }                                                                                \
+#define HF_DEFINE_BATCH(NAME, WALK)                                        \
+    HF_INLINE int NAME##_loop(hf_batch *b, const int mode, void *ctx) {    \
+        int64_t ray;                                                       \
+        int status;                                                        \
+        hf_sink sink;                                                      \
+        for (ray = 0; ray < b->n_rays; ++ray) {                            \
+            status = WALK(b, ray, &sink, mode, ctx);                       \
+            if (status == HF_OK) status = hf_ray_end(b, ray, &sink, mode); \
+            if (status != HF_OK) {                                         \
+                b->bad_ray = ray;                                          \
+                return status;                                             \
+            }                                                              \
+        }                                                                  \
+        return HF_OK;                                                      \
+    }                                                                      \
+    int NAME##_hit(hf_batch *b, hf_sink *sink, void *ctx) {                \
+        return WALK(b, 0, sink, HF_MODE_HIT, ctx);                         \
+    }                                                                      \
+    int NAME(hf_batch *b, int mode, void *ctx) {                           \
+        switch (mode) {                                                    \
+        case HF_MODE_COUNT: return NAME##_loop(b, HF_MODE_COUNT, ctx);     \
+        case HF_MODE_CELLS: return NAME##_loop(b, HF_MODE_CELLS, ctx);     \
+        case HF_MODE_RUNS: return NAME##_loop(b, HF_MODE_RUNS, ctx);       \
+        case HF_MODE_VISIT: return NAME##_loop(b, HF_MODE_VISIT, ctx);     \
+        case HF_MODE_RUNFOLD: return NAME##_loop(b, HF_MODE_RUNFOLD, ctx); \
+        default: return HF_ERR_ARGUMENT;                                   \
+        }                                                                  \
     }
 
 int hf_batch_dda(hf_batch *b, int mode, void *ctx);
@@ -411,9 +423,9 @@ int hf_batch_runs_periodic_hit(hf_batch *b, hf_sink *sink, void *ctx);
 /* runs_maxmip: the maximum mipmap its walk skips with (level 0: the cell maxima). */
 typedef struct {
     const float *const *levels;
-    const int32_t *cols;   /* row stride of each level */
+    const int32_t *cols; /* row stride of each level */
     int n_levels;
-    int floor_level;       /* tiles of 2^floor_level cells are walked run by run */
+    int floor_level; /* tiles of 2^floor_level cells are walked run by run */
 } hf_mipmap;
 
 int hf_runs_maxmip_hit(hf_batch *b, hf_sink *sink, const hf_mipmap *m);
@@ -449,8 +461,14 @@ HF_INLINE hf_i128 hf_floor_div(hf_i128 num, hf_i128 den) {
             hf_i128 rem;
             q = (hf_i128)(int64_t)estimate;
             rem = num - q * den;
-            while (rem < 0) { q -= 1; rem += den; }
-            while (rem >= den) { q += 1; rem -= den; }
+            while (rem < 0) {
+                q -= 1;
+                rem += den;
+            }
+            while (rem >= den) {
+                q += 1;
+                rem -= den;
+            }
             return q;
         }
     }

@@ -23,7 +23,7 @@ static int exponent_of(double x) {
     int biased;
     memcpy(&bits, &x, sizeof bits);
     biased = (int)((bits >> 52) & 0x7FF);
-    if (biased == 0) {  /* subnormal: rare, let libm handle it */
+    if (biased == 0) { /* subnormal: rare, let libm handle it */
         int e;
         (void)frexp(x, &e);
         return e;
@@ -41,8 +41,14 @@ static double pow2(int k) {
 
 /* x * 2^k, exact whenever the result is a normal number (as ldexp) */
 static double scale2(double x, int k) {
-    while (k > 1000) { x *= pow2(1000); k -= 1000; }
-    while (k < -1000) { x *= pow2(-1000); k += 1000; }
+    while (k > 1000) {
+        x *= pow2(1000);
+        k -= 1000;
+    }
+    while (k < -1000) {
+        x *= pow2(-1000);
+        k += 1000;
+    }
     return x * pow2(k);
 }
 
@@ -60,15 +66,14 @@ static int direction_scale(double dx, double dy) {
     return HF_DIR_BITS - exponent_of(fmax(fabs(dx), fabs(dy)));
 }
 
-void hf_quantize_ray(const double origin[2], const double direction[2],
-                     double origin_out[2], double direction_out[2]) {
+void hf_quantize_ray(const double origin[2], const double direction[2], double origin_out[2],
+                     double direction_out[2]) {
     int k, scale = 0;
     const int vertical = direction[0] == 0.0 && direction[1] == 0.0;
     if (!vertical) scale = direction_scale(direction[0], direction[1]);
     for (k = 0; k < 2; ++k) {
         origin_out[k] = round_even(origin[k] * (double)HF_ONE) / (double)HF_ONE;
-        direction_out[k] = vertical ? 0.0
-                                    : scale2(round_even(scale2(direction[k], scale)), -scale);
+        direction_out[k] = vertical ? 0.0 : scale2(round_even(scale2(direction[k], scale)), -scale);
         /* -0.0 is the same direction as 0.0 */
         if (direction_out[k] == 0.0) direction_out[k] = 0.0;
     }
@@ -80,34 +85,36 @@ void hf_quantize_ray(const double origin[2], const double direction[2],
  * lies beyond the box (|O| <= 2^46 + 2^40 and |D_major| >= 2^30), so it is "huge": it
  * behaves as +-infinity for clipping. */
 typedef struct {
-    int huge;       /* 0: finite, +1: +inf or beyond the box, -1: -inf or before it */
-    int64_t mant;   /* |mant| < 2^53 */
-    int expo;       /* < -31 whenever huge == 0 and mant != 0 */
+    int huge;     /* 0: finite, +1: +inf or beyond the box, -1: -inf or before it */
+    int64_t mant; /* |mant| < 2^53 */
+    int expo;     /* < -31 whenever huge == 0 and mant != 0 */
 } hf_param;
 
 static hf_param param_from_t(double t, int shift) {
     hf_param p = {0, 0, 0};
     int exponent;
     if (t == 0.0) return p;
-    if (isinf(t)) { p.huge = t > 0 ? 1 : -1; return p; }
-    exponent = exponent_of(t);                    /* exact, subnormals included */
-    p.mant = (int64_t)scale2(t, 53 - exponent);   /* |mant| in [2^52, 2^53) */
+    if (isinf(t)) {
+        p.huge = t > 0 ? 1 : -1;
+        return p;
+    }
+    exponent = exponent_of(t);                  /* exact, subnormals included */
+    p.mant = (int64_t)scale2(t, 53 - exponent); /* |mant| in [2^52, 2^53) */
     p.expo = exponent - 53 + shift;
-    if (p.expo >= -31) p.huge = t > 0 ? 1 : -1;   /* |tau| >= 2^52 2^-31 = 2^21 */
+    if (p.expo >= -31) p.huge = t > 0 ? 1 : -1; /* |tau| >= 2^52 2^-31 = 2^21 */
     return p;
 }
 
 /* max k with base + tau * coeff >= k * den (strict = 0) or > k * den (strict = 1). */
-static int64_t lattice_floor(hf_i128 base, hf_i128 coeff, hf_param tau, hf_i128 den,
-                             int strict) {
-    hf_i128 whole = base;  /* integer part of the value */
-    int fractional = 0;    /* the value exceeds `whole` by a fraction in (0, 1) */
+static int64_t lattice_floor(hf_i128 base, hf_i128 coeff, hf_param tau, hf_i128 den, int strict) {
+    hf_i128 whole = base; /* integer part of the value */
+    int fractional = 0;   /* the value exceeds `whole` by a fraction in (0, 1) */
     if (tau.mant != 0) {
-        const hf_i128 product = (hf_i128)tau.mant * coeff;   /* < 2^53 * 2^62 */
-        const int shift = -tau.expo;                          /* >= 32 */
+        const hf_i128 product = (hf_i128)tau.mant * coeff; /* < 2^53 * 2^62 */
+        const int shift = -tau.expo;                       /* >= 32 */
         hf_i128 floor_part;
         if (shift >= 126) {
-            floor_part = product < 0 ? -1 : 0;  /* |product| < 2^115: a mere fraction */
+            floor_part = product < 0 ? -1 : 0; /* |product| < 2^115: a mere fraction */
             fractional = product != 0;
         } else {
             const hf_i128 unit = (hf_i128)1 << shift;
@@ -123,8 +130,7 @@ static int64_t lattice_floor(hf_i128 base, hf_i128 coeff, hf_param tau, hf_i128 
 }
 
 /* ---- Best rational approximation (runs_periodic) ------------------------------------- */
-void hf_best_rational(int64_t num, int64_t den, int64_t max_den, int64_t *p_out,
-                      int64_t *q_out) {
+void hf_best_rational(int64_t num, int64_t den, int64_t max_den, int64_t *p_out, int64_t *q_out) {
     /* continued fraction of num/den; convergents p1/q1, previous p0/q0 */
     int64_t p0 = 0, q0 = 1, p1 = 1, q1 = 0, n = num, d = den;
     HF_ASSERT(den > 0 && num >= 0 && num <= den && max_den >= 1, "num=%lld den=%lld",
@@ -136,12 +142,19 @@ void hf_best_rational(int64_t num, int64_t den, int64_t max_den, int64_t *p_out,
         if (q2 > max_den) break;
         {
             const int64_t p2 = p0 + a * p1;
-            p0 = p1; q0 = q1; p1 = p2; q1 = q2;
+            p0 = p1;
+            q0 = q1;
+            p1 = p2;
+            q1 = q2;
         }
         rem = n - a * d;
         n = d;
         d = rem;
-        if (d == 0) { *p_out = p1; *q_out = q1; return; }   /* exact */
+        if (d == 0) {
+            *p_out = p1;
+            *q_out = q1;
+            return;
+        } /* exact */
     }
     {
         /* semiconvergent bound1 = (p0 + k p1)/(q0 + k q1) versus convergent p1/q1 */
@@ -152,18 +165,26 @@ void hf_best_rational(int64_t num, int64_t den, int64_t max_den, int64_t *p_out,
         hf_i128 e2 = (hf_i128)pb * den - (hf_i128)num * qb;
         if (e1 < 0) e1 = -e1;
         if (e2 < 0) e2 = -e2;
-        if (e1 * qb <= e2 * q1) { *p_out = p1; *q_out = q1; }
-        else { *p_out = pb; *q_out = qb; }
+        if (e1 * qb <= e2 * q1) {
+            *p_out = p1;
+            *q_out = q1;
+        } else {
+            *p_out = pb;
+            *q_out = qb;
+        }
     }
 }
 
 /* ---- The exact line of one ray -------------------------------------------------------- */
-static int64_t max64(int64_t a, int64_t b) { return a > b ? a : b; }
-static int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
+static int64_t max64(int64_t a, int64_t b) {
+    return a > b ? a : b;
+}
+static int64_t min64(int64_t a, int64_t b) {
+    return a < b ? a : b;
+}
 
-int hf_line_exact(const double origin[2], const double direction[2], double tmin,
-                  double tmax, int32_t nx, int32_t ny, int64_t max_denominator,
-                  hf_line *L) {
+int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
+                  int32_t nx, int32_t ny, int64_t max_denominator, hf_line *L) {
     int64_t O[2], D[2];
     int32_t n[2];
     int k, scale, major;
@@ -183,10 +204,16 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
         const int64_t i = (int64_t)hf_floor_div(O[0], one);
         const int64_t j = (int64_t)hf_floor_div(O[1], one);
         if (i < 0 || i >= nx || j < 0 || j >= ny) return 0;
-        L->swap = 0; L->mirror_major = 0; L->mirror_minor = 0;
-        L->n_major = nx; L->n_minor = ny;
-        L->o_major = O[0]; L->o_minor = O[1];
-        L->time_major = 1; L->slope_major = 1; L->slope_minor = 0;
+        L->swap = 0;
+        L->mirror_major = 0;
+        L->mirror_minor = 0;
+        L->n_major = nx;
+        L->n_minor = ny;
+        L->o_major = O[0];
+        L->o_minor = O[1];
+        L->time_major = 1;
+        L->slope_major = 1;
+        L->slope_minor = 0;
         L->a0 = L->a1 = (int32_t)i;
         L->b0 = L->b1 = (int32_t)j;
         return 1;
@@ -203,8 +230,7 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
     L->mirror_major = D[major] < 0;
     L->mirror_minor = D[1 - major] < 0;
     L->o_major = L->mirror_major ? (int64_t)n[major] * HF_ONE - O[major] : O[major];
-    L->o_minor = L->mirror_minor ? (int64_t)n[1 - major] * HF_ONE - O[1 - major]
-                                 : O[1 - major];
+    L->o_minor = L->mirror_minor ? (int64_t)n[1 - major] * HF_ONE - O[1 - major] : O[1 - major];
     L->time_major = D[major] < 0 ? -D[major] : D[major];
     L->slope_major = L->time_major;
     L->slope_minor = D[1 - major] < 0 ? -D[1 - major] : D[1 - major];
@@ -239,16 +265,15 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
         if (b0 < 0 || b0 >= L->n_minor) return 0;
         if (a0 > a1) return 0;
     } else {
-        const hf_i128 minor_at_major0 = ob * A - oa * B;  /* (A 2^16) * y where x = 0 */
-        const hf_i128 major_at_minor0 = oa * B - ob * A;  /* (B 2^16) * x where y = 0 */
+        const hf_i128 minor_at_major0 = ob * A - oa * B; /* (A 2^16) * y where x = 0 */
+        const hf_i128 major_at_minor0 = oa * B - ob * A; /* (B 2^16) * x where y = 0 */
         const hf_i128 na = (hf_i128)L->n_major * one, nb = (hf_i128)L->n_minor * one;
         /* the entry along one axis must precede the exit along the other */
         if (!(minor_at_major0 < nb * A)) return 0;
         if (!(major_at_minor0 < na * B)) return 0;
         b0 = max64(0, (int64_t)hf_floor_div(minor_at_major0, A * one));
         a0 = max64(a0, (int64_t)hf_floor_div(major_at_minor0, B * one));
-        b1 = min64(L->n_minor - 1,
-                   (int64_t)hf_floor_div(minor_at_major0 + na * B - 1, A * one));
+        b1 = min64(L->n_minor - 1, (int64_t)hf_floor_div(minor_at_major0 + na * B - 1, A * one));
         a1 = min64(a1, (int64_t)hf_floor_div(major_at_minor0 + nb * A - 1, B * one));
         if (lo.huge == 0) b0 = max64(b0, lattice_floor(ob * A, T * B, lo, A * one, 0));
         if (hi.huge == 0) b1 = min64(b1, lattice_floor(ob * A, T * B, hi, A * one, 1));
@@ -256,10 +281,9 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
          * entries) are exactly a0 <= a1 and b0 <= b1 term by term. */
         if (a0 > a1 || b0 > b1) return 0;
     }
-    HF_ASSERT(a0 >= 0 && a0 <= a1 && a1 < L->n_major && b0 >= 0 && b0 <= b1 &&
-                  b1 < L->n_minor,
-              "a0=%lld a1=%lld b0=%lld b1=%lld", (long long)a0, (long long)a1,
-              (long long)b0, (long long)b1);
+    HF_ASSERT(a0 >= 0 && a0 <= a1 && a1 < L->n_major && b0 >= 0 && b0 <= b1 && b1 < L->n_minor,
+              "a0=%lld a1=%lld b0=%lld b1=%lld", (long long)a0, (long long)a1, (long long)b0,
+              (long long)b1);
     L->a0 = (int32_t)a0;
     L->a1 = (int32_t)a1;
     L->b0 = (int32_t)b0;

@@ -15,8 +15,7 @@
  * ends on (a1, b1); `left` is negative only if exact arithmetic went wrong, which is
  * reported rather than walked. */
 HF_INLINE int midpoint_loop(hf_sink *s, const int mode, hf_cull *cull, const hf_line *L,
-                            const hf_frame *f, int32_t a, int32_t m, int64_t E,
-                            const int swap) {
+                            const hf_frame *f, int32_t a, int32_t m, int64_t E, const int swap) {
     const int64_t step_major = L->slope_minor * HF_ONE, step_minor = L->slope_major * HF_ONE;
     const int32_t a1 = L->a1, b1 = L->b1;
     int32_t left = (a1 - a) | (b1 - m);
@@ -24,13 +23,17 @@ HF_INLINE int midpoint_loop(hf_sink *s, const int mode, hf_cull *cull, const hf_
         if (hf_visit_reduced_cell(s, mode, cull, f, a, m)) break;
         if (left == 0) break;
         if (E < 0) {
-            a += 1; E += step_major;
+            a += 1;
+            E += step_major;
             hf_cull_walk(cull, mode, swap);
         } else if (E > 0) {
-            m += 1; E -= step_minor;
+            m += 1;
+            E -= step_minor;
             hf_cull_walk(cull, mode, !swap);
         } else {
-            a += 1; m += 1; E += step_major - step_minor;
+            a += 1;
+            m += 1;
+            E += step_major - step_minor;
             hf_cull_walk(cull, mode, 0);
             hf_cull_walk(cull, mode, 1);
         }
@@ -40,8 +43,7 @@ HF_INLINE int midpoint_loop(hf_sink *s, const int mode, hf_cull *cull, const hf_
     return HF_OK;
 }
 
-HF_INLINE int walk_midpoint(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
-                            void *ctx) {
+HF_INLINE int walk_midpoint(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
     hf_line L;
     hf_frame f;
     int32_t a, m;

@@ -42,13 +42,16 @@ HF_INLINE int runs_recurrence(hf_sink *s, const int mode, hf_cull *cull, const h
     first = L->a0;
     for (row = L->b0; row < L->b1; ++row) {
         last = (int32_t)(R == 0 ? column - 1 : column);
-        HF_ASSERT(last >= first && last <= L->a1, "row=%d first=%d last=%d a1=%d", row,
-                  first, last, L->a1);
+        HF_ASSERT(last >= first && last <= L->a1, "row=%d first=%d last=%d a1=%d", row, first, last,
+                  L->a1);
         if (hf_visit_reduced_run(s, mode, cull, f, row, first, last)) return HF_OK;
         first = (int32_t)column;
         column += short_length;
         R += rem;
-        if (R >= W) { R -= W; column += 1; }
+        if (R >= W) {
+            R -= W;
+            column += 1;
+        }
     }
     if (first > L->a1) return HF_ERR_INTERNAL;
     hf_visit_reduced_run(s, mode, cull, f, L->b1, first, L->a1);
@@ -62,8 +65,10 @@ HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, vo
     int status;
     (void)ctx;
     if (!hf_exact_begin(b, ray, s, mode, 0, 1, &L, &f, &cull, &status)) return status;
-    if (L.slope_minor == 0) hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
-    else status = runs_recurrence(s, mode, &cull, &L, &f);
+    if (L.slope_minor == 0)
+        hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
+    else
+        status = runs_recurrence(s, mode, &cull, &L, &f);
     hf_cull_end(&cull, s, mode);
     return status;
 }
@@ -86,15 +91,15 @@ HF_DEFINE_BATCH(hf_batch_runs, walk_runs)
 
 typedef struct {
     const hf_line *L;
-    int32_t row, first, last, pos;  /* the current run (reduced) and the current cell   */
-    int64_t column, R;              /* the crossing into row + 1: column, remainder     */
-    int64_t W, short_length, rem;   /* the recurrence's constants                       */
+    int32_t row, first, last, pos; /* the current run (reduced) and the current cell   */
+    int64_t column, R;             /* the crossing into row + 1: column, remainder     */
+    int64_t W, short_length, rem;  /* the recurrence's constants                       */
 } run_walker;
 
 /* The crossing of the line into row k: column and remainder (k > b0). */
 static void walker_crossing(const hf_line *L, int64_t k, int64_t W, int64_t *column, int64_t *R) {
-    const hf_i128 N = (hf_i128)L->o_major * L->slope_minor +
-                      ((hf_i128)k * HF_ONE - L->o_minor) * L->slope_major;
+    const hf_i128 N =
+        (hf_i128)L->o_major * L->slope_minor + ((hf_i128)k * HF_ONE - L->o_minor) * L->slope_major;
     const hf_i128 c = hf_floor_div(N, W);
     *column = (int64_t)c;
     *R = (int64_t)(N - c * W);
@@ -110,7 +115,10 @@ HF_INLINE void walker_next_row(run_walker *w) {
     w->pos = w->first;
     w->column += w->short_length;
     w->R += w->rem;
-    if (w->R >= w->W) { w->R -= w->W; w->column += 1; }
+    if (w->R >= w->W) {
+        w->R -= w->W;
+        w->column += 1;
+    }
     walker_set_last(w);
 }
 
@@ -128,8 +136,8 @@ static void walker_seek(run_walker *w, int32_t k, int32_t pos) {
 /* The row in which the line enters column P (P <= a1, in a row after the current one). */
 static int32_t walker_row_of_column(const run_walker *w, int32_t P) {
     const hf_line *L = w->L;
-    const hf_i128 N = (hf_i128)L->o_minor * L->slope_major +
-                      ((hf_i128)P * HF_ONE - L->o_major) * L->slope_minor;
+    const hf_i128 N =
+        (hf_i128)L->o_minor * L->slope_major + ((hf_i128)P * HF_ONE - L->o_major) * L->slope_minor;
     return (int32_t)hf_floor_div(N, (hf_i128)L->slope_major * HF_ONE);
 }
 
@@ -138,7 +146,10 @@ static int32_t walker_row_of_column(const run_walker *w, int32_t P) {
 static int walker_leave(run_walker *w, int32_t cmax, int32_t rmax) {
     const hf_line *L = w->L;
     for (;;) {
-        if (w->last > cmax) { w->pos = cmax + 1; return 0; }
+        if (w->last > cmax) {
+            w->pos = cmax + 1;
+            return 0;
+        }
         if (w->row >= L->b1) return 1;
         if ((int64_t)rmax - w->row > HF_SEEK_ROWS) {
             if (rmax >= L->b1) {
@@ -147,7 +158,10 @@ static int walker_leave(run_walker *w, int32_t cmax, int32_t rmax) {
             } else {
                 int64_t c, R;
                 walker_crossing(L, (int64_t)rmax + 1, w->W, &c, &R);
-                if (c <= cmax) { walker_seek(w, rmax + 1, (int32_t)c); return 0; }
+                if (c <= cmax) {
+                    walker_seek(w, rmax + 1, (int32_t)c);
+                    return 0;
+                }
             }
             /* through the tile's major face: column cmax + 1, in the row it enters it */
             walker_seek(w, walker_row_of_column(w, cmax + 1), cmax + 1);
@@ -193,8 +207,10 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
         const int32_t minor = f.base_minor + f.sign_minor * w.row;
         const int32_t i = f.swap ? minor : major, j = f.swap ? major : minor;
         const int32_t ti = i >> L_level, tj = j >> L_level;
-        const double tx = has_x ? ((double)(((int64_t)ti + fx) << L_level) - h->ox) * h->inv_dx : inf;
-        const double ty = has_y ? ((double)(((int64_t)tj + fy) << L_level) - h->oy) * h->inv_dy : inf;
+        const double tx =
+            has_x ? ((double)(((int64_t)ti + fx) << L_level) - h->ox) * h->inv_dx : inf;
+        const double ty =
+            has_y ? ((double)(((int64_t)tj + fy) << L_level) - h->oy) * h->inv_dy : inf;
         const double te = tx < ty ? (tx < h->t1 ? tx : h->t1) : (ty < h->t1 ? ty : h->t1);
         const float tile_max = m->levels[L_level][(int64_t)tj * m->cols[L_level] + ti];
         int32_t cmax, rmax;
@@ -208,10 +224,12 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
             const int64_t lo_major = (int64_t)(major >> L_level) << L_level;
             const int64_t lo_minor = (int64_t)(minor >> L_level) << L_level;
             cmax = (int32_t)(f.sign_major > 0
-                                 ? (lo_major + size <= L.n_major ? lo_major + size : L.n_major) - 1 - f.base_major
+                                 ? (lo_major + size <= L.n_major ? lo_major + size : L.n_major) -
+                                       1 - f.base_major
                                  : f.base_major - lo_major);
             rmax = (int32_t)(f.sign_minor > 0
-                                 ? (lo_minor + size <= L.n_minor ? lo_minor + size : L.n_minor) - 1 - f.base_minor
+                                 ? (lo_minor + size <= L.n_minor ? lo_minor + size : L.n_minor) -
+                                       1 - f.base_minor
                                  : f.base_minor - lo_minor);
         }
         if (h->oz + (descending ? te : t) * h->dz > (double)tile_max) {
@@ -227,8 +245,14 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
                     hf_cull_end(&cull, s, HF_MODE_HIT);
                     return HF_OK;
                 }
-                if (w.last > cmax) { w.pos = cmax + 1; break; }
-                if (w.row >= L.b1) { ended = 1; break; }
+                if (w.last > cmax) {
+                    w.pos = cmax + 1;
+                    break;
+                }
+                if (w.row >= L.b1) {
+                    ended = 1;
+                    break;
+                }
                 walker_next_row(&w);
                 if (w.row > rmax || w.first > cmax) break;
             }
@@ -254,7 +278,10 @@ static int64_t inverse_mod(int64_t value, int64_t modulus) {
     if (modulus == 1) return 0;
     while (r1 != 0) {
         const int64_t k = r0 / r1, r2 = r0 - k * r1, s2 = s0 - k * s1;
-        r0 = r1; r1 = r2; s0 = s1; s1 = s2;
+        r0 = r1;
+        r1 = r2;
+        s0 = s1;
+        s1 = s2;
     }
     return s0 < 0 ? s0 + modulus : s0;
 }
@@ -272,8 +299,7 @@ static void build_pattern(hf_pattern *pattern, int64_t p, int64_t q) {
     pattern->position_step = inverse_mod(q_mod_p, p);
 }
 
-HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
-                                 void *ctx) {
+HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
     hf_pattern *pattern = (hf_pattern *)ctx;
     hf_line L;
     hf_frame f;
@@ -305,8 +331,8 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
     {
         /* start clipping gives the phase: the first crossing, exactly */
         const hf_i128 W = (hf_i128)p * HF_ONE;
-        const hf_i128 N = (hf_i128)L.o_major * p +
-                          ((hf_i128)(L.b0 + 1) * HF_ONE - L.o_minor) * L.slope_major;
+        const hf_i128 N =
+            (hf_i128)L.o_major * p + ((hf_i128)(L.b0 + 1) * HF_ONE - L.o_minor) * L.slope_major;
         const hf_i128 c = hf_floor_div(N, W);
         const int64_t R = (int64_t)(N - c * W);
         column = (int64_t)c;
@@ -337,8 +363,7 @@ HF_DEFINE_BATCH(hf_batch_runs_periodic, walk_runs_periodic)
  * fractional part `frac` in doubles. Not exact: rounding can move a run boundary, and the
  * accuracy study reports how often. Loops are bounded by the clipped cell range, so a
  * rounding error can shorten or lengthen a run but never run away or write out of bounds. */
-HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
-                            void *ctx) {
+HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
     const double *o = b->origins + 2 * ray, *d = b->directions + 2 * ray;
     const int swap = fabs(d[1]) > fabs(d[0]);
     const int32_t n_major = swap ? b->ny : b->nx, n_minor = swap ? b->nx : b->ny;
@@ -357,10 +382,8 @@ HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode
     if (status != HF_OK) return status;
     if (A == 0.0) {
         /* vertical: the cell under the origin */
-        if (!(t0 < t1) || !(o[0] >= 0 && o[0] < b->nx && o[1] >= 0 && o[1] < b->ny))
-            return HF_OK;
-        hf_emit_run(s, mode, (int32_t)floor(o[1]), (int32_t)floor(o[0]),
-                    (int32_t)floor(o[0]));
+        if (!(t0 < t1) || !(o[0] >= 0 && o[0] < b->nx && o[1] >= 0 && o[1] < b->ny)) return HF_OK;
+        hf_emit_run(s, mode, (int32_t)floor(o[1]), (int32_t)floor(o[0]), (int32_t)floor(o[0]));
         return HF_OK;
     }
     /* slab clipping in float64 */
@@ -414,7 +437,10 @@ HF_INLINE int walk_runs_f64(hf_batch *b, int64_t ray, hf_sink *s, const int mode
         if (first < last) first = last;
         column += step_whole;
         frac += step_frac;
-        if (frac >= 1.0) { frac -= 1.0; column += 1; }
+        if (frac >= 1.0) {
+            frac -= 1.0;
+            column += 1;
+        }
     }
     hf_visit_reduced_run(s, mode, &cull, &f, row1, first, col1 < first ? first : col1);
     hf_cull_end(&cull, s, mode);

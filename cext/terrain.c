@@ -43,8 +43,7 @@ static double on_row(const double *H, int64_t cols, int64_t Y, double x) {
 /* ---- shared pattern ----------------------------------------------------------------- */
 
 void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz_pattern *p,
-                        double zmax, int64_t stop_every, int64_t start, int64_t stop,
-                        double *out) {
+                        double zmax, int64_t stop_every, int64_t start, int64_t stop, double *out) {
     const double *inv_t = p->inv_t, *w = p->w;
     const int64_t *off_a = p->off_a, *off_b = p->off_b;
     int64_t chunk = stop_every > 0 ? stop_every : p->n + 1;
@@ -120,18 +119,17 @@ static void sweep_line(const double *H, int64_t rows, int64_t cols, int64_t q, i
     }
     {
         double sp = H[j0 * cols + i0], tp = 0.0;
-        while (top >= 2 && (hs[top - 1] - sp) * (ht[top - 2] - tp) <=
-                               (hs[top - 2] - sp) * (ht[top - 1] - tp))
+        while (top >= 2 &&
+               (hs[top - 1] - sp) * (ht[top - 2] - tp) <= (hs[top - 2] - sp) * (ht[top - 1] - tp))
             top--;
         out[j0 * cols + i0] = top ? (hs[top - 1] - sp) / (ht[top - 1] - tp) * inv_norm : -HZ_INF;
     }
 }
 
 int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int64_t p,
-                     int64_t n_entries, const double *tfrac, const int64_t *dxa,
-                     const int64_t *dya, const int64_t *dxb, const int64_t *dyb,
-                     const double *w, const int64_t *mx, const int64_t *my, double norm,
-                     int64_t k_lo, int64_t k_hi, double *out) {
+                     int64_t n_entries, const double *tfrac, const int64_t *dxa, const int64_t *dya,
+                     const int64_t *dxb, const int64_t *dyb, const double *w, const int64_t *mx,
+                     const int64_t *my, double norm, int64_t k_lo, int64_t k_hi, double *out) {
     int64_t max_periods = (cols - 1) / q + 2;
     int64_t cap = 1 + max_periods * n_entries;
     int64_t c_min = -q * (rows - 1), c_max = p * (cols - 1), n_c = c_max - c_min + 1;
@@ -140,7 +138,11 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
     int64_t *rel_b = malloc((size_t)n_entries * sizeof *rel_b);
     int64_t *first = malloc((size_t)n_c * sizeof *first);
     if (!ht || !hs || !rel_a || !rel_b || !first) {
-        free(ht); free(hs); free(rel_a); free(rel_b); free(first);
+        free(ht);
+        free(hs);
+        free(rel_a);
+        free(rel_b);
+        free(first);
         return -1;
     }
     for (int64_t e = 0; e < n_entries; e++) {
@@ -158,10 +160,14 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
     for (int64_t k = k_lo; k < k_hi; k++) {
         int64_t v = first[k];
         if (v < 0) continue;
-        sweep_line(H, rows, cols, q, p, v % cols, v / cols, n_entries, tfrac, rel_a, rel_b, w,
-                   mx, my, 1.0 / norm, ht, hs, out);
+        sweep_line(H, rows, cols, q, p, v % cols, v / cols, n_entries, tfrac, rel_a, rel_b, w, mx,
+                   my, 1.0 / norm, ht, hs, out);
     }
-    free(ht); free(hs); free(rel_a); free(rel_b); free(first);
+    free(ht);
+    free(hs);
+    free(rel_a);
+    free(rel_b);
+    free(first);
     return 0;
 }
 
@@ -171,7 +177,7 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
 typedef struct {
     double ox, oy, dx, dy, inv_dx, inv_dy;
     int sx, sy;
-    int64_t nx, ny;     /* cells: cols - 1, rows - 1 */
+    int64_t nx, ny; /* cells: cols - 1, rows - 1 */
 } walk_ray;
 
 static int64_t first_index(double o, int s, int64_t n) {
@@ -181,9 +187,12 @@ static int64_t first_index(double o, int s, int64_t n) {
     return i;
 }
 
-static void walk_init(walk_ray *r, int64_t rows, int64_t cols, double ox, double oy,
-                      double dx, double dy) {
-    r->ox = ox; r->oy = oy; r->dx = dx; r->dy = dy;
+static void walk_init(walk_ray *r, int64_t rows, int64_t cols, double ox, double oy, double dx,
+                      double dy) {
+    r->ox = ox;
+    r->oy = oy;
+    r->dx = dx;
+    r->dy = dy;
     r->sx = dx > 0 ? 1 : dx < 0 ? -1 : 0;
     r->sy = dy > 0 ? 1 : dy < 0 ? -1 : 0;
     r->inv_dx = r->sx ? 1.0 / dx : 0.0;
@@ -194,16 +203,18 @@ static void walk_init(walk_ray *r, int64_t rows, int64_t cols, double ox, double
 
 /* Where the ray leaves the footprint [0, nx] x [0, ny]. */
 static double footprint_exit(const walk_ray *r) {
-    double tx = r->sx > 0 ? ((double)r->nx - r->ox) * r->inv_dx
-              : r->sx < 0 ? -r->ox * r->inv_dx : HZ_INF;
-    double ty = r->sy > 0 ? ((double)r->ny - r->oy) * r->inv_dy
-              : r->sy < 0 ? -r->oy * r->inv_dy : HZ_INF;
+    double tx = r->sx > 0   ? ((double)r->nx - r->ox) * r->inv_dx
+                : r->sx < 0 ? -r->ox * r->inv_dx
+                            : HZ_INF;
+    double ty = r->sy > 0   ? ((double)r->ny - r->oy) * r->inv_dy
+                : r->sy < 0 ? -r->oy * r->inv_dy
+                            : HZ_INF;
     return tx < ty ? tx : ty;
 }
 
 /* The surface where the ray leaves its cell through the face X (tX <= tY) or Y. */
-static double exit_value(const double *H, int64_t rows, int64_t cols, const walk_ray *r,
-                         int64_t X, int64_t Y, double tX, double tY) {
+static double exit_value(const double *H, int64_t rows, int64_t cols, const walk_ray *r, int64_t X,
+                         int64_t Y, double tX, double tY) {
     if (tX < tY) return on_column(H, rows, cols, X, r->oy + tX * r->dy);
     if (tY < tX) return on_row(H, cols, Y, r->ox + tY * r->dx);
     return H[Y * cols + X];
@@ -266,10 +277,9 @@ static int try_skip(const double *H, int64_t rows, int64_t cols, const walk_ray 
  * its reference height before adding a tiny delta). visit returns nonzero to stop. */
 typedef int (*visit_fn)(void *ctx, double t, double s, double delta);
 
-static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
-                                 const hf_hz_mip *mip, const walk_ray *r, double t_end,
-                                 double s_origin, visit_fn visit, skip_test test, void *ctx,
-                                 hf_hz_stats *stats) {
+static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
+                                 const walk_ray *r, double t_end, double s_origin, visit_fn visit,
+                                 skip_test test, void *ctx, hf_hz_stats *stats) {
     int64_t ci = first_index(r->ox, r->sx, r->nx), cj = first_index(r->oy, r->sy, r->ny);
     double t_in = 0.0, s_in = s_origin, ddiag = r->dx - r->dy, c0 = r->ox - r->oy;
     int level = 0;
@@ -279,8 +289,8 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
         int64_t X = r->sx > 0 ? ci + 1 : ci, Y = r->sy > 0 ? cj + 1 : cj;
         double tX, tY, t_out, td, sd = 0.0;
         if (mip && test) {
-            int moved = try_skip(H, rows, cols, r, mip, &level, &ci, &cj, &t_in, &s_in, t_end,
-                                 test, ctx);
+            int moved =
+                try_skip(H, rows, cols, r, mip, &level, &ci, &cj, &t_in, &s_in, t_end, test, ctx);
             if (moved) {
                 skips++;
                 if (moved == 2) break;
@@ -321,8 +331,10 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols,
                 visit(ctx, t1, s1, 0.0);
             else { /* from the nearer end of the piece: no cancellation against the other */
                 double f = t1 > t0 ? (t_end - t0) / (t1 - t0) : 0.0;
-                if (f <= 0.5) visit(ctx, t_end, s0_, (s1 - s0_) * f);
-                else visit(ctx, t_end, s1, (s0_ - s1) * (1.0 - f));
+                if (f <= 0.5)
+                    visit(ctx, t_end, s0_, (s1 - s0_) * f);
+                else
+                    visit(ctx, t_end, s1, (s0_ - s1) * (1.0 - f));
             }
             break;
         }
@@ -355,9 +367,9 @@ static int horizon_skip(const void *vctx, double tile_max, double t_in, double t
     return tile_max - c->h <= c->best * (c->best >= 0 ? t_in : t_exit);
 }
 
-void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
-                     double dx, double dy, double max_distance, int64_t start, int64_t stop,
-                     double *out, hf_hz_stats *stats) {
+void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip, double dx,
+                     double dy, double max_distance, int64_t start, int64_t stop, double *out,
+                     hf_hz_stats *stats) {
     for (int64_t v = start; v < stop; v++) {
         int64_t j = v / cols, i = v - j * cols;
         walk_ray r;
@@ -368,14 +380,14 @@ void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mi
         if (max_distance < t_end) t_end = max_distance;
         c.h = H[v];
         c.best = -HZ_INF;
-        walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, c.h, horizon_visit, horizon_skip,
-                             &c, stats);
+        walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, c.h, horizon_visit, horizon_skip, &c,
+                             stats);
         out[v] = c.best;
     }
 }
 
 typedef struct {
-    double z0, slope, drop2, eps;  /* drop2 = drop * |d|^2 */
+    double z0, slope, drop2, eps; /* drop2 = drop * |d|^2 */
     int uncertain, blocked;
 } los_ctx;
 
@@ -401,9 +413,9 @@ static int los_skip(const void *vctx, double tile_max, double t_in, double t_exi
     return tile_max + c->eps < low;
 }
 
-void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
-                 double ox, double oy, double z0, double target_height, double drop,
-                 double eps, int64_t start, int64_t stop, uint8_t *out, hf_hz_stats *stats) {
+void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip, double ox,
+                 double oy, double z0, double target_height, double drop, double eps, int64_t start,
+                 int64_t stop, uint8_t *out, hf_hz_stats *stats) {
     const double s_observer = surface_at(H, rows, cols, ox, oy);
     for (int64_t v = start; v < stop; v++) {
         int64_t j = v / cols, i = v - j * cols;
@@ -430,8 +442,8 @@ void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *m
 /* ---- the r.horizon-style marcher ---------------------------------------------------- */
 
 void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,
-                      double step, double max_distance, double zmax, int64_t start,
-                      int64_t stop, double *out, hf_hz_stats *stats) {
+                      double step, double max_distance, double zmax, int64_t start, int64_t stop,
+                      double *out, hf_hz_stats *stats) {
     int64_t samples = 0;
     double xmax = (double)(cols - 1), ymax = (double)(rows - 1);
     for (int64_t v = start; v < stop; v++) {

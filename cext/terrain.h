@@ -39,8 +39,7 @@ typedef struct {
  * stop (every stop_every breakpoints, the walk ends once (zmax - H[v]) / distance <= best);
  * stop_every = 0 disables it. */
 void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz_pattern *p,
-                        double zmax, int64_t stop_every, int64_t start, int64_t stop,
-                        double *out);
+                        double zmax, int64_t stop_every, int64_t start, int64_t stop, double *out);
 
 /* Horizon tangents of every vertex by the rational-direction sweep (octant frame, direction
  * (q, p) with q >= p >= 0, q >= 1, gcd 1). The period pattern holds the breakpoints of one
@@ -52,32 +51,31 @@ void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz
  * threads can share the field, each with its own range: lines write disjoint vertices.
  * Returns 0, or -1 when memory runs out. */
 int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int64_t p,
-                     int64_t n_entries, const double *tfrac, const int64_t *dxa,
-                     const int64_t *dya, const int64_t *dxb, const int64_t *dyb,
-                     const double *w, const int64_t *mx, const int64_t *my, double norm,
-                     int64_t k_lo, int64_t k_hi, double *out);
+                     int64_t n_entries, const double *tfrac, const int64_t *dxa, const int64_t *dya,
+                     const int64_t *dxb, const int64_t *dyb, const double *w, const int64_t *mx,
+                     const int64_t *my, double norm, int64_t k_lo, int64_t k_hi, double *out);
 
 /* A max-mipmap of the cell maxima: level k holds tiles of 2^k x 2^k cells. */
 typedef struct {
     int32_t n_levels;
-    const double *data;         /* every level, concatenated                           */
-    const int64_t *offset;      /* (n_levels,) start of each level in data             */
-    const int64_t *rows;        /* (n_levels,) tile rows per level                     */
-    const int64_t *cols;        /* (n_levels,) tile columns per level                  */
+    const double *data;    /* every level, concatenated                           */
+    const int64_t *offset; /* (n_levels,) start of each level in data             */
+    const int64_t *rows;   /* (n_levels,) tile rows per level                     */
+    const int64_t *cols;   /* (n_levels,) tile columns per level                  */
 } hf_hz_mip;
 
 /* Walk statistics, summed over a batch. */
 typedef struct {
-    int64_t cells;     /* cells evaluated                                                */
-    int64_t skips;     /* tiles (or cells) skipped by the mipmap                          */
+    int64_t cells; /* cells evaluated                                                */
+    int64_t skips; /* tiles (or cells) skipped by the mipmap                          */
 } hf_hz_stats;
 
 /* Per-vertex horizon walks in the original frame, along the unit direction (dx, dy):
  * vertices [start, stop), max_distance (inf: to the edge of the footprint), mip NULL for
  * the plain cell walk. out[v] as in hf_horizon_pattern. */
-void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
-                     double dx, double dy, double max_distance, int64_t start, int64_t stop,
-                     double *out, hf_hz_stats *stats);
+void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip, double dx,
+                     double dy, double max_distance, int64_t start, int64_t stop, double *out,
+                     hf_hz_stats *stats);
 
 /* Line of sight from the observer (ox, oy, z0) to every target vertex in [start, stop):
  * the segment to (i, j, H + target_height) is blocked when the surface rises strictly
@@ -85,14 +83,14 @@ void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mi
  * horizontal distance from the observer). Writes 0 visible, 1 blocked, 2 uncertain (a
  * breakpoint within eps of the segment and none clearly above: resolved by the caller).
  * The target vertex itself is not tested; mip may be NULL. */
-void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
-                 double ox, double oy, double z0, double target_height, double drop,
-                 double eps, int64_t start, int64_t stop, uint8_t *out, hf_hz_stats *stats);
+void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip, double ox,
+                 double oy, double z0, double target_height, double drop, double eps, int64_t start,
+                 int64_t stop, uint8_t *out, hf_hz_stats *stats);
 
 /* The r.horizon-style marcher: samples the surface every `step` along the unit direction,
  * stopping at the footprint, at max_distance, or once (zmax - H) / distance <= best. */
 void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,
-                      double step, double max_distance, double zmax, int64_t start,
-                      int64_t stop, double *out, hf_hz_stats *stats);
+                      double step, double max_distance, double zmax, int64_t start, int64_t stop,
+                      double *out, hf_hz_stats *stats);
 
 #endif
