@@ -41,7 +41,8 @@ setup(
             define_macros=macros,
             extra_compile_args=compile_args,
             extra_link_args=link_args,
-            depends=[os.path.join("cext", name) for name in ("hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h")],
+            depends=[os.path.join("cext", name)
+                     for name in ("hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h")],
         )
     ]
 )

@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _kernels
+from .field import HeightField
 from .lattice import quantize
 from .parallel import resolve_threads, run_ranges, split
 from .registry import Traversal, get_traversal
-from .field import HeightField
 from .validate import check_rays, check_shape, check_t
 
 __all__ = [

@@ -240,7 +240,7 @@ def product_nodata(dtype):
     """``(file dtype, nodata)`` of a product array's dtype: float -> (float32, NaN), bool
     -> (uint8, 255), integers -> (uint16, 65535)."""
     dtype = np.dtype(dtype)
-    if dtype == bool:
+    if dtype.kind == "b":
         return np.dtype(np.uint8), BOOL_NODATA
     if dtype.kind in "iu":
         return np.dtype(np.uint16), COUNT_NODATA

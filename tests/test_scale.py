@@ -15,7 +15,8 @@ import pytest
 import algos
 import datasets_gen
 from algos import parallel
-from algos.field import _tile_max_rows, max_mipmap as _mipmap
+from algos.field import _tile_max_rows
+from algos.field import max_mipmap as _mipmap
 from bench import sweep
 from bench.sweep import first_hit_rays
 
