@@ -6,11 +6,13 @@
 
 See docs/CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the API.
 """
+from . import raster
 from .brute import brute_force_hits
 from .field import Field, HeightField, as_field
 from .georef import IUGG_MEAN_EARTH_RADIUS_M, WGS84_SEMI_MAJOR_AXIS_M
 from .intersect import HIT_OUTPUTS, STATS, Hits, intersect
 from .lattice import quantize
+from .raster import RASTERISERS
 from .reference import major_axis, reference_cells, reference_runs, runs_from_cells
 from .registry import (
     INTERSECTOR_REGISTRY,
@@ -54,7 +56,7 @@ __all__ = [
     "INTERSECTORS", "INTERSECTOR_REGISTRY", "Intersector", "get_intersector", "SURFACES",
     "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "HeightField", "as_field",
     "brute_force_hits", "WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M",
-    "DEFAULT_REFRACTION", "render", "Rendering",
+    "DEFAULT_REFRACTION", "render", "Rendering", "raster", "RASTERISERS",
     "horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
     "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS",
 ]

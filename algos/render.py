@@ -36,13 +36,16 @@ class Rendering:
     normal : float64 (height, width, 3)
         Unit surface normal at the hit, NaN on a miss.
     cells_visited, runs_visited : (height, width)
-        The intersector's per-ray statistics (``algos.intersect`` outputs "stats").
+        The intersector's per-ray statistics (``algos.intersect`` outputs "stats"); zero
+        for a rasteriser, which visits no cells per ray.
     points : float64 (height, width, 3)
         The hit points (the camera position on a miss).
     rgb : float64 (height, width, 3)
         The shaded preview in [0, 1] (:func:`shade`).
     elapsed_ns : int
-        The intersector's time for the whole image.
+        The intersector's (or rasteriser's) time for the whole image.
+    cell : int32 (height, width, 2)
+        ``(i, j)`` of the hit cell, ``(-1, -1)`` on a miss.
     """
 
     depth: np.ndarray
@@ -52,6 +55,13 @@ class Rendering:
     points: np.ndarray
     rgb: np.ndarray
     elapsed_ns: int
+    cell: np.ndarray | None = None
+
+    @property
+    def t(self) -> np.ndarray:
+        """The depth under its name in ``algos.raster.Image``, so that
+        ``algos.raster.diff_images`` compares renderings of either kind."""
+        return self.depth
 
 
 def default_camera(heights):
@@ -73,7 +83,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     heights_or_field : array (rows, cols) or Field
         What ``algos.intersect`` takes; a Field keeps its acceleration structures.
     algorithm : str
-        An intersector name (``algos.INTERSECTORS``).
+        An intersector name (``algos.INTERSECTORS``), or a rasteriser of
+        ``algos.raster.RASTERISERS`` (``zbuffer``, ``painter``, ``floating_horizon``:
+        ``triangles`` only), which draws the same image from the same camera.
     surface : str
         One of ``algos.SURFACES``.
     width, height : int
@@ -106,19 +118,31 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)
     from datasets_gen import rays as raysets
 
+    from . import raster
+
     rs = raysets.pinhole(position, look_at, fov, width, height)
-    hits = intersect(algorithm, field, rs.origins, rs.directions, surface=surface,
-                     outputs=("t", "cell", "normal", "stats"), threads=threads)
     shape = (height, width)
-    depth = hits.t.reshape(shape)  # unit directions: t is a distance
-    normal = hits.normal.reshape(height, width, 3)
-    points = rs.origins + np.where(np.isfinite(hits.t), hits.t, 0)[:, None] * rs.directions
+    if algorithm in raster.RASTERISERS:
+        if surface != "triangles":
+            raise ValueError(f"surface: the rasterisers draw 'triangles' only, got {surface!r}")
+        image = raster.render(algorithm, field, position, look_at, fov, width, height,
+                              threads=threads)
+        t, normal, cell, elapsed = image.t.ravel(), image.normal, image.cell, image.elapsed_ns
+        cells_visited = runs_visited = np.zeros(shape, dtype=np.int64)
+    else:
+        hits = intersect(algorithm, field, rs.origins, rs.directions, surface=surface,
+                         outputs=("t", "cell", "normal", "stats"), threads=threads)
+        t, normal, cell, elapsed = hits.t, hits.normal, hits.cell, hits.elapsed_ns
+        cells_visited = hits.stats["cells_visited"].reshape(shape)
+        runs_visited = hits.stats["runs_visited"].reshape(shape)
+    depth = t.reshape(shape)  # unit directions: t is a distance
+    normal = normal.reshape(height, width, 3)
+    points = rs.origins + np.where(np.isfinite(t), t, 0)[:, None] * rs.directions
     points = points.reshape(height, width, 3)
-    return Rendering(depth=depth, normal=normal,
-                     cells_visited=hits.stats["cells_visited"].reshape(shape),
-                     runs_visited=hits.stats["runs_visited"].reshape(shape), points=points,
+    return Rendering(depth=depth, normal=normal, cells_visited=cells_visited,
+                     runs_visited=runs_visited, points=points,
                      rgb=shade(depth, normal, points, position, heights, fog=fog),
-                     elapsed_ns=int(hits.elapsed_ns))
+                     elapsed_ns=int(elapsed), cell=np.asarray(cell).reshape(height, width, 2))
 
 
 def shade(z, normal, points, position, heights, fog=0.0, fog_falloff=None, sun=(315.0, 35.0)):

@@ -422,3 +422,27 @@ def test_crossover_study_runs(tmp_path):
     renderers = {r["renderer"] for r in rows}
     assert {"zbuffer", "painter", "floating_horizon", "zbuffer@threads"} <= renderers
     assert all(float(r["median_ms"]) > 0 for r in rows)
+
+
+def test_render_command_takes_rasterisers_and_diffs_them(tmp_path):
+    """``hftrace render --algorithm zbuffer --diff zbuffer dda`` writes the same channels as
+    a tracer, and the exact pair differs on no pixel of a small view."""
+    import OpenEXR
+
+    from bench.cli import main
+
+    out = str(tmp_path / "img")
+    assert main(["render", "fbm", "--size", "40", "--width", "48", "--height", "27",
+                 "--algorithm", "zbuffer", "--diff", "zbuffer", "dda", "--out", out,
+                 "--threads", "1"]) == 0
+    with OpenEXR.File(out + ".exr") as f:
+        assert set(f.channels()) == {"Z", "N.x", "N.y", "N.z", "cellsVisited", "runsVisited"}
+    from bench.cli.render import render_files
+
+    paths = render_files("fbm", size=40, algorithm="painter", width=48, height=27,
+                         out=str(tmp_path / "p"), diff=("painter", "dda"), threads=1,
+                         echo=lambda *_: None)
+    assert paths["diff"]["pixels"] == 48 * 27
+    assert paths["diff"]["cell_differs"] == 0.0
+    assert main(["render", "fbm", "--size", "8", "--algorithm", "zbuffer",
+                 "--surface", "bilinear", "--out", out]) == 2

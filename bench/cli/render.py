@@ -8,7 +8,13 @@ Outputs (``OUT`` is the path prefix, default ``results/render/render``):
 * ``OUT.png``: the shaded preview (``algos.render.shade``);
 * with ``diff=(A, B)``: ``OUT-diff.exr`` (``dZ`` = Z_A - Z_B, ``visitRatio`` =
   cellsVisited_A / cellsVisited_B) and ``OUT-diff.png``, the depth difference and a
-  log2 heatmap of the visit ratio side by side, so where runs win shows at a glance.
+  log2 heatmap of the visit ratio side by side, so where runs win shows at a glance; the
+  printed summary gives the fraction of pixels whose hit cell differs
+  (``algos.raster.diff_images``).
+
+``--algorithm`` (and either side of ``--diff``) is any intersector or any rasteriser
+(``zbuffer``, ``painter``, ``floating_horizon``); a rasteriser writes zeros in
+``cellsVisited`` and ``runsVisited``.
 """
 from __future__ import annotations
 
@@ -80,10 +86,12 @@ def render_files(dataset="fbm", size=None, seed=1, algorithm="runs", surface="tr
         write_exr(f"{out}-diff.exr", {"dZ": dz, "visitRatio": ratio})
         _diff_png(f"{out}-diff.png", dz, ratio, a, b)
         paths.update(diff_exr=f"{out}-diff.exr", diff_png=f"{out}-diff.png")
-        both = np.isfinite(dz)
-        echo(f"diff {a} - {b}: max |dZ| {np.nanmax(np.abs(dz)) if both.any() else 0:.3g}, "
-             f"{np.isnan(dz).sum()} pixels hit by one only; median visit ratio "
-             f"{np.median(ratio):.2f}; wrote {out}-diff.exr, {out}-diff.png")
+        stats = algos.raster.diff_images(first, second)
+        echo(f"diff {a} - {b}: hit cell differs on {stats['cell_differs']:.4%} of "
+             f"{stats['pixels']} pixels, {stats['hit_by_one']} hit by one only; |dZ| max "
+             f"{stats['depth_max_abs']:.3g}, median {stats['depth_median_abs']:.3g}; median "
+             f"visit ratio {np.median(ratio):.2f}; wrote {out}-diff.exr, {out}-diff.png")
+        paths["diff"] = stats
     return paths
 
 
@@ -117,11 +125,22 @@ def _diff_png(path, dz, ratio, a, b):
     plt.close(fig)
 
 
-def render_command(args):
-    """``hftrace render``: check the intersector names, then :func:`render_files`."""
-    algos.get_intersector(args.algorithm)
-    for name in args.diff or ():
+def _check_renderer(name):
+    """An intersector or a rasteriser name, else ValueError listing both."""
+    if name in algos.raster.RASTERISERS:
+        return
+    try:
         algos.get_intersector(name)
+    except ValueError:
+        raise ValueError(f"--algorithm: unknown renderer {name!r}; valid: "
+                         f"{', '.join(algos.INTERSECTORS + tuple(algos.raster.RASTERISERS))}") from None
+
+
+def render_command(args):
+    """``hftrace render``: check the renderer names, then :func:`render_files`."""
+    _check_renderer(args.algorithm)
+    for name in args.diff or ():
+        _check_renderer(name)
     render_files(dataset=args.dataset, size=args.size, seed=args.seed, algorithm=args.algorithm,
                  surface=args.surface, width=args.width, height=args.height,
                  position=args.camera, look_at=args.look_at, fov=args.fov, fog=args.fog,
@@ -138,7 +157,9 @@ def register(sub):
     p.add_argument("--size", type=positive_int, default=None)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--param", type=param, action="append", metavar="NAME=VALUE")
-    p.add_argument("--algorithm", default="runs", help="an intersector name")
+    p.add_argument("--algorithm", default="runs",
+                   help="an intersector (hftrace list) or a rasteriser: zbuffer, painter, "
+                        "floating_horizon")
     p.add_argument("--surface", default="triangles", choices=algos.SURFACES)
     p.add_argument("--width", type=positive_int, default=640)
     p.add_argument("--height", type=positive_int, default=360)
@@ -148,7 +169,8 @@ def register(sub):
     p.add_argument("--fog", type=float, default=0.0,
                    help="height-fog density sigma0 per cell at the lowest point (0: none)")
     p.add_argument("--diff", nargs=2, metavar=("A", "B"), default=None,
-                   help="also write the depth difference and step ratio of two intersectors")
+                   help="also compare two renderers (intersectors or rasterisers): the depth "
+                        "difference, the step ratio and the fraction of differing hit cells")
     default = os.path.join(results_dir("render"), "render")
     p.add_argument("--out", default=default, help=f"output path prefix (default {default})")
     p.add_argument("--threads", type=positive_int, default=None,

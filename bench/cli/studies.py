@@ -1,5 +1,5 @@
 """The studies' commands: ``bench-traverse``, ``bench-intersect``, ``reproduce``, ``scale``,
-``terrain-bench``, ``accuracy`` and ``stress``. Each calls its module in
+``terrain-bench``, ``accuracy``, ``stress`` and ``raster-vs-trace``. Each calls its module in
 ``bench.studies`` and writes under ``results/<command>/`` unless ``--out`` says otherwise.
 """
 from __future__ import annotations
@@ -82,6 +82,14 @@ def stress(args):
     return 0
 
 
+def raster_vs_trace(args):
+    """``hftrace raster-vs-trace``: bench.studies.raster_vs_trace.run."""
+    from ..studies import raster_vs_trace as study
+
+    study.run(args.out, quick=not args.full, threads=args.threads, counts=not args.no_counts)
+    return 0
+
+
 def register(sub):
     """Add the studies' commands to the sub-parsers ``sub``."""
     p = sub.add_parser("bench-traverse",
@@ -135,3 +143,14 @@ def register(sub):
     p.add_argument("--full", action="store_true")
     add_out(p, "stress")
     p.set_defaults(func=stress)
+
+    p = sub.add_parser("raster-vs-trace",
+                       help="rasterising the cells (z-buffer, painter, floating horizon) "
+                            "against tracing the pixels: the crossover")
+    p.add_argument("--full", action="store_true",
+                   help="the full tier (images to 3840x2160, fields to 8192^2: hours)")
+    p.add_argument("--threads", type=positive_int, default=None,
+                   help="threads of the threaded runs (default: every core)")
+    p.add_argument("--no-counts", action="store_true", help="skip the callgrind counts")
+    add_out(p, "raster-vs-trace")
+    p.set_defaults(func=raster_vs_trace)

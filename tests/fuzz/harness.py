@@ -1,11 +1,12 @@
 """``make fuzz``: coverage-guided fuzzing of the C entry points.
 
 Each input is a byte string that :func:`decode` turns into one call of the public API,
-``algos.traverse``, ``algos.intersect``, or (first byte >= 240) ``algos.horizon`` or
-``algos.viewshed``, with arbitrary doubles (NaN, +-inf, +-0,
-subnormals, huge values, values on and next to grid lines), grid shapes up to and just
-past the documented limits, tmin/tmax, every output mode and option. :func:`check` runs
-it and asserts the invariants:
+``algos.traverse``, ``algos.intersect``, (first byte >= 240) ``algos.horizon`` or
+``algos.viewshed``, or (first byte 0xFE) a rasteriser (``algos.raster.fuzz_one``:
+``zbuffer``, ``painter`` or ``floating_horizon`` with arbitrary cameras and fields),
+with arbitrary doubles (NaN, +-inf, +-0, subnormals, huge values, values on and next to
+grid lines), grid shapes up to and just past the documented limits, tmin/tmax, every
+output mode and option. :func:`check` runs it and asserts the invariants:
 
 * the call returns, or raises ValueError/TypeError (errors come back as errors); any other
   exception, a crash or a sanitizer report is a finding;
@@ -237,6 +238,11 @@ def check(data: bytes) -> None:
 
 
 def _check(data: bytes) -> None:
+    if data[:1] == b"\xfe":  # the rasterisers' branch (algos.raster.fuzz_one)
+        import algos.raster
+
+        algos.raster.fuzz_one(data[1:])
+        return
     case = decode(data)
     before = _frozen(case)
     try:
