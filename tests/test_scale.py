@@ -340,11 +340,15 @@ def test_cli_tiled_horizon_on_a_file_equals_the_in_memory_product(tmp_path):
          str(out)] + ([] if SANITIZED else ["--worker-memory", "300MiB"]),
         cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-3000:]
-    for a in (0, 135):
-        ref = np.degrees(algos.horizon(h.astype(np.float64), [a], 40.0)[0]).astype(np.float32)
-        got = tifffile.imread(f"{out}_horizon_az{a}.tif")
-        assert np.array_equal(got, ref), a
-        assert os.path.getsize(f"{out}_horizon_az{a}.png") > 0
+    import rasterio
+
+    with rasterio.open(f"{out}.tif") as src:
+        assert src.descriptions == ("azimuth 0", "azimuth 135")
+        assert src.tags()["units"] == "degrees"
+        for band, a in enumerate((0, 135), start=1):
+            ref = np.degrees(algos.horizon(h.astype(np.float64), [a], 40.0)[0]).astype(np.float32)
+            assert np.array_equal(src.read(band), ref), a
+    assert os.path.getsize(f"{out}.png") > 0
     no_distance = subprocess.run(
         [sys.executable, "-m", "bench.cli", "horizon", str(tmp_path / "f.tif"), "--dask",
          "local:1"], cwd=ROOT, capture_output=True, text=True)

@@ -283,8 +283,12 @@ def test_cli_products_write_files(tmp_path):
     hf = datasets_gen.load("jacksboro", size=48)
     want = T.shadows(hf, 135.0, 5.0)[::-1]  # files are north-up
     np.testing.assert_array_equal(tifffile.imread(prefix + ".tif"), want.astype(np.float32))
-    assert main(["viewshed", "fbm", "--size", "32", "--observer", "3,4", "--observer", "20,20",
-                 "--out", str(tmp_path / "vs"), "--no-progress"]) == 0
+    # a generated field has no map coordinates: pixels, counted from the north-west corner
+    assert main(["viewshed", "fbm", "--size", "32", "--observer", "3,4",
+                 "--out", str(tmp_path / "vs"), "--no-progress"]) == 2
+    assert main(["viewshed", "fbm", "--size", "32", "--observer-pixel", "3,4",
+                 "--observer-pixel", "20,20", "--out", str(tmp_path / "vs"),
+                 "--no-progress"]) == 0
     count = tifffile.imread(str(tmp_path / "vs.tif"))
     hf = datasets_gen.load("fbm", size=32, seed=1)  # the CLI's default seed
     np.testing.assert_array_equal(count, T.viewshed(hf, [[3, 4], [20, 20]]).astype(np.float32))
@@ -292,7 +296,12 @@ def test_cli_products_write_files(tmp_path):
                  "--no-progress"]) == 0
     assert main(["horizon", "fbm", "--size", "32", "--azimuths", "0,45", "--max-distance", "8",
                  "--out", str(tmp_path / "hz"), "--no-progress"]) == 0
-    assert (tmp_path / "hz_horizon_az45.tif").exists()
+    import rasterio
+
+    with rasterio.open(tmp_path / "hz.tif") as src:  # one band per azimuth
+        assert src.count == 2 and src.descriptions == ("azimuth 0", "azimuth 45")
+        want = np.degrees(T.horizon(hf, [0, 45], 8.0)).astype(np.float32)
+        np.testing.assert_array_equal(src.read(), want)
 
 
 def test_parallel_section_writes_and_resumes(tmp_path):

@@ -1,6 +1,8 @@
 """``hftrace list`` (the registered algorithms) and ``hftrace datasets list|show``."""
 from __future__ import annotations
 
+import numpy as np
+
 import algos
 
 from .args import param, positive_int
@@ -40,8 +42,10 @@ def show_dataset(args):
     h = field.heights
     print(f"name      {field.name}")
     print(f"shape     {h.shape[0]} rows x {h.shape[1]} cols ({h.shape[1] - 1} x {h.shape[0] - 1} cells)")
-    print(f"heights   [{float(h.min()):.4f}, {float(h.max()):.4f}] cells, mean {float(h.mean()):.4f}")
-    print(f"spacing   1 cell = {field.spacing:g} {field.unit}")
+    print(f"heights   [{float(np.nanmin(h)):.4f}, {float(np.nanmax(h)):.4f}] {field.height_unit}, "
+          f"mean {float(np.nanmean(h)):.4f}")
+    print(f"spacing   dx {field.dx:g}, dy {field.dy:g} {field.unit}"
+          f"{f', CRS {field.crs}' if field.crs is not None else ''}")
     print(f"sha256    {field.checksum}")
     if args.png:
         write_png(args.png, h)

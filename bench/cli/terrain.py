@@ -1,9 +1,27 @@
 """``hftrace horizon|shadows|svf|viewshed``: the terrain products of ``algos.terrain`` on a
-dataset or a file, written as GeoTIFF, EXR and PNG (north up). ``--dask`` computes them
-tile by tile on a cluster (``bench/cli/terrain_dask.py``).
+dataset or on any raster GDAL reads, written as a georeferenced GeoTIFF, a PNG with a colour
+bar and an EXR.
+
+What a user's file gets (docs/CONVENTIONS.md, "Terrain products"):
+
+* it is read through rasterio (``datasets_gen.load_file``): any compression, ``--band``,
+  scale and offset applied, voids from its nodata mask;
+* lengths (``--max-distance``, ``--observer-height``, ``--target-height``) are in the
+  unit of its pixel size (metres for a projected DEM); a file without georeferencing
+  takes ``--spacing D`` or ``DX,DY`` (default 1: cell units);
+* a geographic CRS (degrees) is refused with the ``gdalwarp`` command that fixes it, or
+  reprojected with ``--reproject utm``; rotated geotransforms are refused;
+* voids are nodata in every output and block no ray; ``--fill min|VALUE`` fills them
+  instead (explicitly);
+* outputs are written on the input's grid and orientation, with its CRS, geotransform and
+  nodata, and the product's units and parameters as tags. Horizons are in degrees.
+
+``--dask`` computes the products tile by tile on a cluster (``bench/cli/terrain_dask.py``).
 """
 from __future__ import annotations
 
+import argparse
+import math
 import os
 
 import numpy as np
@@ -12,7 +30,7 @@ import algos
 
 from .args import param, positive_int, results_dir
 
-__all__ = ["register", "terrain_product", "write_product", "load_terrain"]
+__all__ = ["register", "terrain_product", "load_terrain", "spacing_arg", "product_options"]
 
 #: The products: command -> help text
 PRODUCTS = (("horizon", "horizon angles (degrees) along azimuths"),
@@ -20,48 +38,126 @@ PRODUCTS = (("horizon", "horizon angles (degrees) along azimuths"),
             ("svf", "sky-view factor (Zaksek et al. 2011)"),
             ("viewshed", "what one or more observers see"))
 
+#: Options that describe a file, meaningless for a generated dataset
+_FILE_OPTIONS = (("band", 1), ("spacing", None), ("reproject", None), ("fill", None),
+                 ("vertical_scale", 1.0))
 
-def load_terrain(args):
-    """A HeightField from a dataset name or a file (GeoTIFF, PNG, EXR, .npy)."""
+
+def spacing_arg(text):
+    """``D`` or ``DX,DY``: a pixel size (positive lengths), as argparse type."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected D or DX,DY (lengths), got {text!r}") from None
+    if len(values) not in (1, 2) or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected D or DX,DY (positive lengths), got {text!r}")
+    return values[0] if len(values) == 1 else values
+
+
+def _fill_policy(text):
+    """(nodata_policy, fill_value) of ``--fill``: None keeps the voids."""
+    if text is None:
+        return "void", None
+    if text == "min":
+        return "fill-min", None
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"--fill: expected 'min' or a height, got {text!r}") from None
+    return "fill", value
+
+
+def _is_file_name(source):
+    """Whether ``source`` names a file rather than a dataset (a path or an extension)."""
+    return os.sep in source or (os.altsep is not None and os.altsep in source) \
+        or os.path.splitext(source)[1] != ""
+
+
+def load_terrain(args, lazy_chunks=None):
+    """The HeightField of ``args.source``: a file (any raster GDAL reads, ``.npy``, PNG,
+    EXR) or a dataset name. With ``lazy_chunks``, a lazy (dask) field read window by
+    window. Raises ValueError naming the source or the option."""
     import datasets_gen
 
     source = args.source
-    if os.path.exists(source):
-        return datasets_gen.load_file(source)
-    params = dict(args.param or [])
-    return datasets_gen.load(source, size=args.size, seed=args.seed, **params)
+    if os.path.exists(source) or _is_file_name(source):
+        if not os.path.isfile(source):
+            raise ValueError(f"source: {source} does not exist or is not a file")
+        policy, fill_value = _fill_policy(args.fill)
+        if lazy_chunks is not None:
+            for option in ("reproject", "fill"):
+                if getattr(args, option) is not None:
+                    raise ValueError(f"--{option}: not available with --dask (prepare the file "
+                                     "first, e.g. with gdalwarp, and give it as it is)")
+            return datasets_gen.open_lazy(source, chunks=lazy_chunks, band=args.band,
+                                          spacing=args.spacing,
+                                          vertical_scale=args.vertical_scale)
+        return datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
+                                      vertical_scale=args.vertical_scale,
+                                      reproject=args.reproject, nodata_policy=policy,
+                                      fill_value=fill_value)
+    known = [row["name"] for row in datasets_gen.catalogue()]
+    if source not in known:
+        raise ValueError(f"source: {source!r} is neither a file nor a dataset; datasets are "
+                         f"{', '.join(known)}")
+    for option, default in _FILE_OPTIONS:
+        if getattr(args, option) != default:
+            raise ValueError(f"--{option.replace('_', '-')}: describes a file; {source} is a "
+                             "generated or embedded dataset")
+    field = datasets_gen.load(source, size=args.size, seed=args.seed, **dict(args.param or []))
+    if lazy_chunks is not None:
+        import dask.array as da
+
+        field = algos.HeightField(
+            da.from_array(np.asarray(field.heights), chunks=lazy_chunks), field.name,
+            spacing=field.spacing, unit=field.unit, height_unit=field.height_unit,
+            crs=field.crs, transform=field.transform, north=field.north, params=field.params)
+    return field
 
 
-def _observers(args):
-    return [tuple(float(v) for v in o.split(",")) for o in args.observer]
+def observers(args, field):
+    """``[(col, row, height or None)]`` in grid coordinates of the stored array, from
+    ``--observer`` (map coordinates), ``--observer-pixel`` and ``--observers`` (a CSV);
+    default one observer at the centre."""
+    from datasets_gen.observers import parse_observer, read_observers_csv
+
+    out = [parse_observer(text, field) for text in args.observer]
+    out += [parse_observer(text, field, pixel=True) for text in args.observer_pixel]
+    if args.observers:
+        out += read_observers_csv(args.observers, field, pixel=args.observers_pixel)
+    if not out:
+        rows, cols = field.shape
+        out = [((cols - 1) / 2, (rows - 1) / 2, None)]
+    return out
 
 
 def _azimuths(args):
-    return None if not args.azimuths else [float(v) for v in args.azimuths.split(",")]
+    if not args.azimuths:
+        return None
+    try:
+        return [float(v) for v in args.azimuths.split(",")]
+    except ValueError:
+        raise ValueError(f"--azimuths: expected comma-separated degrees, got "
+                         f"{args.azimuths!r}") from None
 
 
-def terrain_product_dask(args):
-    """The product tile by tile on a Dask cluster (``terrain_dask.run_product``)."""
-    from . import terrain_dask
-
-    hf = terrain_dask.open_source(args.source, args.chunk, size=args.size, seed=args.seed,
-                                  params=dict(args.param or []))
+def product_options(args, field):
+    """The product's parameters as the user gave them (recorded in the files' tags)."""
     kind = args.command
-    options = dict(max_distance=args.max_distance, algorithm=args.algorithm,
-                   worker_memory=args.worker_memory)
+    options = dict(max_distance=args.max_distance, algorithm=args.algorithm or "auto",
+                   unit=field.unit)
     if kind == "horizon":
         options["azimuths"] = _azimuths(args) or [0.0]
     elif kind == "svf":
-        options.update(n_azimuths=args.n_azimuths, rational=args.rational)
+        az = _azimuths(args)
+        options.update(azimuths=az) if az else options.update(n_azimuths=args.n_azimuths,
+                                                               rational=args.rational)
     elif kind == "shadows":
         options.update(azimuth=args.azimuth, elevation=args.elevation)
     else:
-        options.update(observers=_observers(args), observer_height=args.observer_height,
-                       target_height=args.target_height, curvature=args.curvature,
-                       refraction=args.refraction)
-    os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
-    terrain_dask.run_product(kind, hf, args.out, args.dask, **options)
-    return 0
+        options.update(observer_height=args.observer_height, target_height=args.target_height,
+                       curvature=args.curvature, refraction=args.refraction)
+    return options
 
 
 def _bar(args, total, desc, unit):
@@ -75,96 +171,121 @@ def _bar(args, total, desc, unit):
     return bar, progress
 
 
+def _viewshed(args, field, obs, common, progress):
+    """The viewshed of the observers ``obs`` (a bool map for one, else a count), observers
+    of one height in one ``algos.viewshed`` call."""
+    heights = [args.observer_height if h is None else h for _, _, h in obs]
+    count = None
+    done = 0
+    for height in dict.fromkeys(heights):
+        group = [(c, r) for (c, r, _), h in zip(obs, heights) if h == height]
+        seen = algos.viewshed(field, group, height, args.target_height, args.max_distance,
+                              curvature=args.curvature, refraction=args.refraction,
+                              progress=lambda k, _n, base=done: progress(base + k, len(obs)),
+                              **common)
+        done += len(group)
+        seen = seen.astype(np.uint16)
+        count = seen if count is None else count + seen
+    return count > 0 if len(obs) == 1 else count
+
+
 def terrain_product(args):
-    """Compute one product with ``algos`` and write it (:func:`write_product`)."""
+    """Compute one product with ``algos`` and write it (module docstring)."""
     if args.dask:
+        from .terrain_dask import terrain_product_dask
+
         return terrain_product_dask(args)
 
-    hf = load_terrain(args)
-    kind = args.command
-    common = dict(algorithm=args.algorithm, threads=args.threads)
-    spacing = hf.spacing if hf.unit != "cell" else None
-    md = args.max_distance
-    if kind in ("horizon", "svf"):
-        az = _azimuths(args)
-        n = len(az) if az else (args.n_azimuths if kind == "svf" else 1)
-        bar, progress = _bar(args, n, f"{kind} {hf.name}", "azimuth")
-        with bar:
-            if kind == "svf":
-                result = algos.sky_view_factor(hf, args.n_azimuths, md, rational=args.rational,
-                                               azimuths=az, progress=progress, **common)
-            else:
-                az = az or [0.0]
-                angles = algos.horizon(hf, az, md, progress=progress, **common)
-        if kind == "svf":
-            outputs = {"svf": (result, "cividis", 0.0, 1.0)}
-        else:
-            outputs = {f"horizon_az{a:g}": (np.degrees(angles[k]), "magma", None, None)
-                       for k, a in enumerate(az)}
-    elif kind == "shadows":
-        result = algos.shadows(hf, args.azimuth, args.elevation, max_distance=md, **common)
-        outputs = {"shadows": (result.astype(np.float32), "gray_r", 0.0, 1.0)}
-    else:
-        observers = _observers(args) or [((hf.shape[1] - 1) / 2, (hf.shape[0] - 1) / 2)]
-        bar, progress = _bar(args, len(observers), f"viewshed {hf.name}", "observer")
-        with bar:
-            seen = algos.viewshed(hf, observers, args.observer_height, args.target_height, md,
-                                  curvature=args.curvature, refraction=args.refraction,
-                                  progress=progress, **common)
-        outputs = {"viewshed": (seen.astype(np.float32), "Greens", 0.0,
-                                float(max(len(observers), 1)))}
-    flip = (hf.params or {}).get("north") == "+y"
-    os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
-    for name, (array, cmap, lo, hi) in outputs.items():
-        shown = array[::-1] if flip else array  # files are written north-up
-        prefix = args.out if len(outputs) == 1 else f"{args.out}_{name}"
-        paths = write_product(prefix, shown, spacing=spacing, cmap=cmap, vmin=lo, vmax=hi)
-        finite = array[np.isfinite(array)]
-        print(f"{name}: {hf.name} {hf.shape[0]}x{hf.shape[1]}, min {finite.min():.4g}, "
-              f"mean {finite.mean():.4g}, max {finite.max():.4g} -> {', '.join(paths)}")
-    return 0
-
-
-def write_product(prefix, array, *, spacing=None, cmap="viridis", vmin=None, vmax=None,
-                  title=""):
-    """prefix.tif (GeoTIFF-style float32 with the pixel scale), prefix.exr and prefix.png
-    (a colour map). Returns the three paths."""
-    import tifffile
-    from matplotlib import colormaps
-    from PIL import Image
+    from datasets_gen.raster import save_product
 
     from .render import write_exr
 
-    data = np.asarray(array, dtype=np.float32)
-    extratags = []
-    if spacing:
-        extratags.append((33550, "d", 3, (float(spacing), float(spacing), 0.0), False))
-    tifffile.imwrite(prefix + ".tif", data, extratags=extratags)
-    write_exr(prefix + ".exr", {"Y": data})
-    lo = float(np.nanmin(data)) if vmin is None else vmin
-    hi = float(np.nanmax(data)) if vmax is None else vmax
-    norm = (data - lo) / (hi - lo) if hi > lo else np.zeros_like(data)
-    rgba = colormaps[cmap](np.clip(norm, 0, 1))
-    Image.fromarray(np.round(rgba[..., :3] * 255).astype(np.uint8)).save(prefix + ".png")
-    return [prefix + ".tif", prefix + ".exr", prefix + ".png"]
+    field = load_terrain(args)
+    kind = args.command
+    common = dict(algorithm=args.algorithm, threads=args.threads)
+    md = args.max_distance
+    params = product_options(args, field)
+    band_names, marks, border, cmap = None, None, None, "viridis"
+    if kind in ("horizon", "svf"):
+        az = _azimuths(args)
+        n = len(az) if az else (args.n_azimuths if kind == "svf" else 1)
+        bar, progress = _bar(args, n, f"{kind} {field.name}", "azimuth")
+        with bar:
+            if kind == "svf":
+                result = algos.sky_view_factor(field, args.n_azimuths, md, rational=args.rational,
+                                               azimuths=az, progress=progress, **common)
+                product, units, cmap = "sky_view_factor", "1", "cividis"
+            else:
+                az = az or [0.0]
+                result = np.degrees(algos.horizon(field, az, md, progress=progress, **common))
+                product, units, cmap, border = "horizon", "degrees", "magma", -90.0
+                band_names = [f"azimuth {a:g}" for a in az]
+    elif kind == "shadows":
+        result = algos.shadows(field, args.azimuth, args.elevation, max_distance=md, **common)
+        product, units, cmap = "shadows", "1 = in shadow", "gray_r"
+    else:
+        obs = observers(args, field)
+        bar, progress = _bar(args, len(obs), f"viewshed {field.name}", "observer")
+        with bar:
+            result = _viewshed(args, field, obs, common, progress)
+        marks = [(c, r) for c, r, _ in obs]
+        params["observers"] = [[round(c, 6), round(r, 6)] + ([h] if h is not None else [])
+                               for c, r, h in obs]
+        product = "viewshed"
+        units = "1 = visible" if len(obs) == 1 else "observers that see the vertex"
+        cmap = "Greens"
+    os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
+    paths = save_product(args.out, result, field, product=product, units=units, params=params,
+                         band_names=band_names, observers=marks, cmap=cmap, border=border)
+    values = np.asarray(result, dtype=np.float32)
+    channels = ({"Y": values} if values.ndim == 2
+                else {name.replace(" ", "_"): v for name, v in zip(band_names, values)})
+    write_exr(args.out + ".exr", channels)
+    paths.append(args.out + ".exr")
+    valid = values[np.isfinite(values)] if field.nodata_mask is None else \
+        values[..., ~np.asarray(field.nodata_mask)]
+    valid = valid[np.isfinite(valid)]
+    summary = (f"min {valid.min():.4g}, mean {valid.mean():.4g}, max {valid.max():.4g}"
+               if valid.size else "no valid vertex")
+    voids = 0 if field.nodata_mask is None else int(np.count_nonzero(field.nodata_mask))
+    print(f"{product} ({units}): {field.name} {field.shape[0]}x{field.shape[1]}"
+          f"{f', {voids} void vertices (nodata)' if voids else ''}, {summary} -> "
+          f"{', '.join(paths)}")
+    return 0
 
 
 def register(sub):
     """Add horizon, shadows, svf and viewshed to the sub-parsers ``sub``."""
     for kind, text in PRODUCTS:
-        p = sub.add_parser(kind, help=f"{text}: GeoTIFF, EXR and PNG")
+        p = sub.add_parser(kind, help=f"{text}: GeoTIFF, PNG and EXR")
         p.add_argument("source", nargs="?", default="jacksboro",
-                       help="a dataset name (hftrace datasets list) or a file (default jacksboro)")
-        p.add_argument("--size", type=positive_int, default=None)
-        p.add_argument("--seed", type=int, default=1)
-        p.add_argument("--param", type=param, action="append", metavar="NAME=VALUE")
+                       help="a raster file (any format GDAL reads; .npy, PNG, EXR) or a "
+                            "dataset name (hftrace datasets list); default jacksboro")
+        p.add_argument("--band", type=positive_int, default=1, help="the raster band (1-based)")
+        p.add_argument("--spacing", type=spacing_arg, default=None, metavar="D|DX,DY",
+                       help="pixel size of a file without georeferencing, in the unit of its "
+                            "heights (default 1: cell units)")
+        p.add_argument("--vertical-scale", type=float, default=1.0,
+                       help="factor on the file's heights (e.g. 0.3048 for feet on a metre grid)")
+        p.add_argument("--reproject", choices=("utm",), default=None,
+                       help="reproject a geographic (degrees) raster to the UTM zone of its "
+                            "centre (bilinear); without it such a file is refused")
+        p.add_argument("--fill", default=None, metavar="min|VALUE",
+                       help="fill the voids (nodata) with the lowest height or VALUE; default: "
+                            "voids stay nodata in the outputs and block no ray")
+        p.add_argument("--size", type=positive_int, default=None, help="dataset size")
+        p.add_argument("--seed", type=int, default=1, help="dataset seed")
+        p.add_argument("--param", type=param, action="append", metavar="NAME=VALUE",
+                       help="dataset parameter")
         p.add_argument("--algorithm", default=None, help="default: chosen by measurement")
         p.add_argument("--threads", type=positive_int, default=None,
                        help="default: every core in the affinity")
         p.add_argument("--max-distance", type=float, default=None,
-                       help="in the field's unit (metres for jacksboro)")
+                       help="in the unit of the pixel size (metres for a projected DEM and "
+                            "jacksboro); default unlimited")
         default = os.path.join(results_dir(kind), kind)
-        p.add_argument("--out", default=default, help=f"output path prefix (default {default})")
+        p.add_argument("--out", default=default,
+                       help=f"output path prefix: PREFIX.tif, .png, .exr (default {default})")
         p.add_argument("--no-progress", action="store_true")
         p.add_argument("--dask", default=None, metavar="ADDRESS",
                        help="tile by tile on a Dask cluster (a scheduler address, or local:N "
@@ -175,20 +296,35 @@ def register(sub):
         p.add_argument("--worker-memory", default=None, metavar="BYTES",
                        help="--dask local:N: memory limit per worker, e.g. 600MiB")
         if kind == "horizon":
-            p.add_argument("--azimuths", default=None, help="comma-separated degrees (default 0)")
+            p.add_argument("--azimuths", default=None,
+                           help="comma-separated degrees clockwise from north (default 0)")
         if kind == "svf":
             p.add_argument("--n-azimuths", type=positive_int, default=16)
             p.add_argument("--azimuths", default=None, help="comma-separated degrees")
             p.add_argument("--rational", action="store_true",
                            help="nearest rational azimuths: the exact sweep applies")
         if kind == "shadows":
-            p.add_argument("--azimuth", type=float, default=315.0)
-            p.add_argument("--elevation", type=float, default=30.0)
+            p.add_argument("--azimuth", type=float, default=315.0, help="the sun's, degrees")
+            p.add_argument("--elevation", type=float, default=30.0, help="the sun's, degrees")
         if kind == "viewshed":
-            p.add_argument("--observer", action="append", default=[], metavar="X,Y",
-                           help="grid coordinates (repeatable; default the centre)")
-            p.add_argument("--observer-height", type=float, default=1.75)
-            p.add_argument("--target-height", type=float, default=0.0)
-            p.add_argument("--curvature", action="store_true")
-            p.add_argument("--refraction", type=float, default=0.13)
+            p.add_argument("--observer", action="append", default=[], metavar="X,Y[,HEIGHT]",
+                           help="map coordinates in the file's CRS (repeatable); HEIGHT above "
+                                "the ground overrides --observer-height")
+            p.add_argument("--observer-pixel", action="append", default=[],
+                           metavar="COL,ROW[,HEIGHT]",
+                           help="a pixel: column from the west edge, row from the north edge, "
+                                "the same on every input (repeatable)")
+            p.add_argument("--observers", default=None, metavar="CSV",
+                           help="a CSV file of x,y[,height] lines (map coordinates)")
+            p.add_argument("--observers-pixel", action="store_true",
+                           help="--observers holds pixels (col,row[,height])")
+            p.add_argument("--observer-height", type=float, default=1.75,
+                           help="above the ground, in the unit of the pixel size")
+            p.add_argument("--target-height", type=float, default=0.0,
+                           help="above the ground, in the unit of the pixel size")
+            p.add_argument("--curvature", action="store_true",
+                           help="Earth curvature and refraction (as gdal_viewshed, r.viewshed)")
+            p.add_argument("--refraction", type=float, default=algos.DEFAULT_REFRACTION,
+                           help=f"refraction coefficient (default 1/7 = "
+                                f"{algos.DEFAULT_REFRACTION:.5f}, as GDAL and GRASS)")
         p.set_defaults(func=terrain_product, command=kind)

@@ -1,137 +1,165 @@
 """``hftrace horizon|shadows|svf|viewshed SOURCE --dask ADDRESS``: terrain products tile by
 tile on a Dask cluster, for fields larger than the memory of any one worker.
 
-The source is read lazily (``datasets_gen.open_lazy``: each task memory-maps the file
-and copies its own window), the products run with a halo of ``max_distance``
-(``algos.tiled``), and every finished tile is written straight into a float32 GeoTIFF
-(uncompressed, memory-mapped for writing) by the worker that computed it; nothing of
-field size passes through the driver. A small PNG preview is read back by striding.
+The source is read lazily (``datasets_gen.open_lazy``: each task reads its own window
+through rasterio), the products run with a halo of ``max_distance`` (``algos.tiled``),
+and every finished tile is written straight into the output GeoTIFF by the worker that
+computed it (``datasets_gen.raster.create_product`` and ``write_window``, one
+``distributed.Lock`` per file, since GDAL rewrites whole compressed tiles); nothing of
+field size passes through the driver. The file has the input's grid, CRS, geotransform
+and nodata, as in memory; a PNG preview is drawn from a decimated read.
 """
 from __future__ import annotations
 
-import dataclasses
 import os
 import time
 
 import numpy as np
 
 import algos
-import datasets_gen
 
-__all__ = ["TiffTarget", "run_product", "open_source"]
+from .terrain import _azimuths, load_terrain, observers, product_options
+
+__all__ = ["GeoTiffTarget", "run_product", "terrain_product_dask"]
 
 
-class TiffTarget:
-    """A ``dask.array.store`` target: an existing uncompressed float32 GeoTIFF that each
-    write opens for update (pickles as its path, so any worker can write its tile)."""
+class GeoTiffTarget:
+    """A ``dask.array.store`` target: band ``band`` of an existing GeoTIFF that each write
+    opens for update (pickles as its path, so any worker can write its tile)."""
 
-    def __init__(self, path):
+    def __init__(self, path, band=1):
         self.path = os.fspath(path)
+        self.band = band
 
     def __setitem__(self, key, value):
-        import tifffile
+        from datasets_gen.raster import write_window
 
-        image = tifffile.memmap(self.path, mode="r+")
-        image[key] = value
-        image.flush()
-        del image
+        rows, cols = key
+        write_window(self.path, value, rows.start or 0, cols.start or 0, band=self.band)
 
 
-def create_tiff(path, shape, spacing=None):
-    """An uncompressed float32 GeoTIFF of ``shape``, filled with NaN (the pixel scale tag
-    when ``spacing`` is known)."""
-    import tifffile
+def preview_png(tif_path, png_path, *, product, units, params, cmap, border=None,
+                max_side=2048):
+    """A PNG of band 1 of a (possibly huge) GeoTIFF, read decimated to at most
+    ``max_side`` samples a side; returns the array drawn (NaN at nodata)."""
+    import rasterio
 
-    extratags = [(33550, "d", 3, (float(spacing), float(spacing), 0.0), False)] if spacing else []
-    image = tifffile.memmap(path, shape=shape, dtype=np.float32, extratags=extratags)
-    step = max(1, (1 << 22) // shape[1])
-    for r0 in range(0, shape[0], step):
-        image[r0:r0 + step] = np.nan
-    image.flush()
-    del image
+    from datasets_gen.preview import product_png
 
-
-def preview_png(tif_path, png_path, cmap, vmin, vmax, max_side=2048):
-    """A colour-mapped PNG of a (possibly huge) GeoTIFF, read with a stride."""
-    import tifffile
-    from matplotlib import colormaps
-    from PIL import Image
-
-    image = tifffile.memmap(tif_path, mode="r")
-    stride = max(1, -(-max(image.shape) // max_side))
-    data = np.asarray(image[::stride, ::stride], dtype=np.float32)
-    lo = float(np.nanmin(data)) if vmin is None else vmin
-    hi = float(np.nanmax(data)) if vmax is None else vmax
-    norm = (data - lo) / (hi - lo) if hi > lo else np.zeros_like(data)
-    rgba = colormaps[cmap](np.clip(np.nan_to_num(norm), 0, 1))
-    Image.fromarray(np.round(rgba[..., :3] * 255).astype(np.uint8)).save(png_path)
+    with rasterio.open(tif_path) as src:
+        stride = max(1, -(-max(src.height, src.width) // max_side))
+        shape = (-(-src.height // stride), -(-src.width // stride))
+        data = src.read(1, out_shape=shape, masked=True).astype(np.float64).filled(np.nan)
+    product_png(png_path, data, None, product=product, units=units, params=params,
+                cmap=cmap, border=border)
     return data
 
 
-def open_source(source, chunk, size=None, seed=1, params=None):
-    """A HeightField with lazy (dask) heights: a file read window by window, or a
-    dataset generated in memory and then chunked."""
+def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_azimuths=16,
+                rational=False, azimuth=315.0, elevation=30.0, observers=(),
+                observer_height=1.75, target_height=0.0, curvature=False,
+                refraction=algos.DEFAULT_REFRACTION, algorithm=None, worker_memory=None,
+                params=None, echo=print):
+    """Compute one product of the lazy ``field`` on the cluster at ``address``
+    (``local:N``: a LocalCluster of N single-threaded workers, each limited to
+    ``worker_memory``); write ``out``.tif (a band per azimuth for horizons) and
+    ``out``.png. ``observers`` are ``(col, row, height or None)`` in grid coordinates.
+    Returns the paths written."""
     import dask.array as da
+    from distributed import Lock
 
-    if os.path.exists(source):
-        return datasets_gen.open_lazy(source, chunks=chunk)
-    hf = datasets_gen.load(source, size=size, seed=seed, **(params or {}))
-    return dataclasses.replace(hf, heights=da.from_array(np.asarray(hf.heights), chunks=chunk))
-
-
-def run_product(kind, hf, out, address, *, max_distance, azimuths=(0.0,), n_azimuths=16,
-                rational=False, azimuth=315.0, elevation=30.0, observers=(), observer_height=1.75,
-                target_height=0.0, curvature=False, refraction=0.13, algorithm=None,
-                worker_memory=None, echo=print):
-    """Compute one product on the cluster at ``address`` (``local:N``: a LocalCluster of
-    N single-threaded workers, each limited to ``worker_memory``); write ``out``.tif
-    (north-up) and ``out``.png. Returns the paths written."""
-    import dask.array as da
+    from datasets_gen.raster import create_product
 
     from ..sweep import dask_client
 
     if max_distance is None:
         raise ValueError("--max-distance: a tiled (dask) product needs a finite distance "
                          "(it is the tiles' halo)")
-    spacing = hf.spacing if hf.unit != "cell" else None
-    flip = (hf.params or {}).get("north") == "+y"
     common = dict(algorithm=algorithm, threads=1)  # one thread per worker
+    band_names = border = None
     if kind == "horizon":
-        products = {f"horizon_az{a:g}": (da.degrees(algos.horizon(hf, [a], max_distance, **common)[0]),
-                                         "magma", None, None) for a in azimuths}
+        layers = [da.degrees(algos.horizon(field, [a], max_distance, **common)[0])
+                  for a in azimuths]
+        product, units, cmap, border = "horizon", "degrees", "magma", -90.0
+        band_names = [f"azimuth {a:g}" for a in azimuths]
     elif kind == "svf":
-        products = {"svf": (algos.sky_view_factor(hf, n_azimuths, max_distance, rational=rational,
-                                                  **common), "cividis", 0.0, 1.0)}
+        layers = [algos.sky_view_factor(field, n_azimuths, max_distance, rational=rational,
+                                        **common)]
+        product, units, cmap = "sky_view_factor", "1", "cividis"
     elif kind == "shadows":
-        products = {"shadows": (algos.shadows(hf, azimuth, elevation, max_distance=max_distance,
-                                              **common), "gray_r", 0.0, 1.0)}
+        layers = [algos.shadows(field, azimuth, elevation, max_distance=max_distance,
+                                **common)]
+        product, units, cmap = "shadows", "1 = in shadow", "gray_r"
     else:
-        rows, cols = hf.shape
-        obs = list(observers) or [((cols - 1) / 2, (rows - 1) / 2)]
-        seen = algos.viewshed(hf, obs, observer_height, target_height, max_distance,
-                              curvature=curvature, refraction=refraction, **common)
-        products = {"viewshed": (seen, "Greens", 0.0, float(len(obs)))}
+        rows, cols = field.shape
+        obs = list(observers) or [((cols - 1) / 2, (rows - 1) / 2, None)]
+        heights = [observer_height if h is None else h for _, _, h in obs]
+        count = None
+        for height in dict.fromkeys(heights):
+            group = [(c, r) for (c, r, _), h in zip(obs, heights) if h == height]
+            seen = algos.viewshed(field, group, height, target_height, max_distance,
+                                  curvature=curvature, refraction=refraction, **common)
+            seen = seen.astype(np.uint16)
+            count = seen if count is None else count + seen
+        layers = [count > 0 if len(obs) == 1 else count]
+        product = "viewshed"
+        units = "1 = visible" if len(obs) == 1 else "observers that see the vertex"
+        cmap = "Greens"
     client, cluster = dask_client(address, memory_limit=worker_memory)
-    paths = []
+    path = out + ".tif"
     try:
-        for name, (lazy, cmap, lo, hi) in products.items():
-            prefix = out if len(products) == 1 else f"{out}_{name}"
-            lazy = lazy.astype(np.float32)
-            if flip:
-                lazy = lazy[::-1]  # files are written north-up
-            create_tiff(prefix + ".tif", lazy.shape, spacing)
-            start = time.perf_counter()
-            da.store(lazy, TiffTarget(prefix + ".tif"), lock=False, compute=True)
-            seconds = time.perf_counter() - start
-            shown = preview_png(prefix + ".tif", prefix + ".png", cmap, lo, hi)
-            finite = shown[np.isfinite(shown)]
-            echo(f"{name}: {hf.name} {hf.shape[0]}x{hf.shape[1]} on {address} in {seconds:.1f} s "
-                 f"({lazy.numblocks[0] * lazy.numblocks[1]} tiles), preview min "
-                 f"{finite.min():.4g}, mean {finite.mean():.4g}, max {finite.max():.4g} -> "
-                 f"{prefix}.tif, {prefix}.png")
-            paths += [prefix + ".tif", prefix + ".png"]
+        dtype = np.float32 if layers[0].dtype.kind == "f" else layers[0].dtype
+        create_product(path, field, dtype=dtype, product=product, units=units, params=params,
+                       count=len(layers))
+        start = time.perf_counter()
+        lock = Lock(os.path.abspath(path))
+        # voids (NaN heights of a lazy file, or the field's mask) are written as nodata
+        voids = field.nodata_mask if field.nodata_mask is not None else da.isnan(field.heights)
+        for band, lazy in enumerate(layers, start=1):
+            lazy = da.where(voids, np.nan, lazy.astype(np.float32))
+            if field.north == "+y":
+                lazy = lazy[::-1]  # the file is north-up, as the in-memory writer's
+            da.store(lazy, GeoTiffTarget(path, band), lock=lock, compute=True)
+        seconds = time.perf_counter() - start
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
-    return paths
+    shown = preview_png(path, out + ".png", product=product, units=units, params=params or {},
+                        cmap=cmap, border=border)
+    if band_names:
+        import rasterio
+
+        with rasterio.open(path, "r+") as dst:
+            for k, name in enumerate(band_names, start=1):
+                dst.set_band_description(k, name)
+    finite = shown[np.isfinite(shown)]
+    summary = (f"preview min {finite.min():.4g}, mean {finite.mean():.4g}, max "
+               f"{finite.max():.4g}" if finite.size else "no valid vertex in the preview")
+    tiles = layers[0].numblocks[0] * layers[0].numblocks[1]
+    echo(f"{product} ({units}): {field.name} {field.shape[0]}x{field.shape[1]} on {address} "
+         f"in {seconds:.1f} s ({tiles} tiles), {summary} -> {path}, {out}.png")
+    return [path, out + ".png"]
+
+
+def terrain_product_dask(args):
+    """``--dask``: the command's product tile by tile (:func:`run_product`)."""
+    field = load_terrain(args, lazy_chunks=args.chunk)
+    kind = args.command
+    options = dict(max_distance=args.max_distance, algorithm=args.algorithm,
+                   worker_memory=args.worker_memory, params=product_options(args, field))
+    if kind == "horizon":
+        options["azimuths"] = _azimuths(args) or [0.0]
+    elif kind == "svf":
+        if _azimuths(args):
+            raise ValueError("--azimuths: not available with --dask for svf; use --n-azimuths")
+        options.update(n_azimuths=args.n_azimuths, rational=args.rational)
+    elif kind == "shadows":
+        options.update(azimuth=args.azimuth, elevation=args.elevation)
+    else:
+        options.update(observers=observers(args, field), observer_height=args.observer_height,
+                       target_height=args.target_height, curvature=args.curvature,
+                       refraction=args.refraction)
+    os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
+    run_product(kind, field, args.out, args.dask, **options)
+    return 0

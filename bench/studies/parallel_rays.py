@@ -150,7 +150,7 @@ def products_figure(hf, path, sun=(135.0, 15.0), echo=print):
 
     h = hf.heights
     # display north up: fields whose rows run north (jacksboro) are flipped by the products
-    north_up = (lambda a: a[::-1]) if (hf.params or {}).get("north") == "+y" else (lambda a: a)
+    north_up = (lambda a: a[::-1]) if hf.north == "+y" else (lambda a: a)
     ours_sh = T.shadows(hf, sun[0], sun[1])
     march_sh = T.horizon(hf, sun[0], algorithm="march")[0] > math.radians(sun[1])
     svf = T.sky_view_factor(hf, 16, rational=True)

@@ -130,7 +130,7 @@ def hit_group(field, r, methods, n, repeats, seed):
 
 def observer_up(hf, observer):
     """The observer's (x, y) in the north-up array (rows flipped when north is +y)."""
-    if (hf.params or {}).get("north") == "+y":
+    if hf.north == "+y":
         return observer[0], hf.shape[0] - 1 - observer[1]
     return observer
 

@@ -94,9 +94,9 @@ def run_targets(out_dir="results/terrain-bench", size=2048, repeats=3, sample=16
             ours = T.viewshed(hf, observer, observer_height=1.75, threads=1)
             times.append(time.perf_counter() - t0)
         stats = dict(T.LAST_STATS.__dict__)
-        ours_up = ours[::-1] if (hf.params or {}).get("north") == "+y" else ours
+        ours_up = ours[::-1] if hf.north == "+y" else ours
         up_obs = observer_up(hf, observer)
-        hu = h[::-1] if (hf.params or {}).get("north") == "+y" else h
+        hu = h[::-1] if hf.north == "+y" else h
         lines += [f"## {label}: viewshed from one observer at the centre, 1.75 m", "",
                   f"- hftrace `{stats['algorithm']}`: {np.median(times):.2f} s (median of "
                   f"{repeats}); {100 * ours.mean():.2f} % visible; "

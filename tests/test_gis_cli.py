@@ -1,0 +1,177 @@
+"""The terrain commands on a user's own files (issue 19): ``hftrace svf their_dem.tif``
+gives a georeferenced, nodata-aware result equal to the API's on the same file, or a
+one-line refusal that says how to fix the input. Every GeoTIFF is made here with rasterio.
+"""
+import math
+
+import numpy as np
+import pytest
+
+import algos
+import datasets_gen
+from bench.cli import main
+
+rasterio = pytest.importorskip("rasterio")
+from affine import Affine  # noqa: E402  (rasterio's dependency)
+
+UTM15 = "EPSG:32615"
+NORTH_UP = Affine(30.0, 0.0, 600000.0, 0.0, -30.0, 3650000.0)
+
+
+def write_tif(path, data, *, crs=UTM15, transform=NORTH_UP, nodata=None, **options):
+    data = np.asarray(data)
+    with rasterio.open(path, "w", driver="GTiff", height=data.shape[0], width=data.shape[1],
+                       count=1, dtype=data.dtype.name, crs=crs, transform=transform,
+                       nodata=nodata, **options) as dst:
+        dst.write(data, 1)
+    return str(path)
+
+
+def dem(rows=40, cols=48, seed=5):
+    """A fBm DEM in metres (a few hundred metres of relief over 30 m pixels)."""
+    return (datasets_gen.load("fbm", size=(rows, cols), seed=seed).heights * 8.0).astype(np.float32)
+
+
+def run(args, capsys):
+    code = main(args)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_svf_of_a_dem_with_voids_is_georeferenced_and_equals_the_api(tmp_path, capsys):
+    h = dem()
+    h[10:13, 20:24] = -9999.0
+    path = write_tif(tmp_path / "dem.tif", h, nodata=-9999.0, compress="lzw", predictor=3)
+    out = str(tmp_path / "svf")
+    code, stdout, stderr = run(["svf", path, "--n-azimuths", "8", "--max-distance", "600",
+                                "--out", out, "--no-progress"], capsys)
+    assert code == 0, stderr
+    assert "12 void vertices" in stdout
+    field = datasets_gen.load_file(path)
+    want = algos.sky_view_factor(field, 8, 600.0)
+    with rasterio.open(out + ".tif") as src, rasterio.open(path) as dem_file:
+        assert src.crs == dem_file.crs and src.transform == dem_file.transform
+        assert src.tags()["units"] == "1" and src.tags()["product"] == "sky_view_factor"
+        assert src.tags()["max_distance"] == "600.0"
+        got = src.read(1, masked=True)
+    assert got.mask[10:13, 20:24].all() and got.mask.sum() == 12
+    np.testing.assert_array_equal(got.filled(np.nan), want.astype(np.float32))
+    assert (tmp_path / "svf.png").stat().st_size > 0
+
+
+def test_horizon_in_metres_from_a_file_without_georeferencing(tmp_path, capsys):
+    """The issue's first row through the CLI: a 30 m cliff one 30 m pixel away is 45 deg."""
+    h = np.zeros((5, 5), np.float32)
+    h[:, 3:] = 30
+    np.save(tmp_path / "cliff.npy", h)
+    out = str(tmp_path / "hz")
+    code, _, stderr = run(["horizon", str(tmp_path / "cliff.npy"), "--spacing", "30",
+                           "--azimuths", "90", "--out", out, "--no-progress"], capsys)
+    assert code == 0, stderr
+    with rasterio.open(out + ".tif") as src:
+        assert src.tags()["units"] == "degrees"
+        assert src.read(1)[2, 2] == pytest.approx(45.0, abs=1e-5)
+
+
+def test_rectangular_pixels_and_south_up_keep_their_grid(tmp_path, capsys):
+    h = dem()
+    south_up = Affine(10.0, 0.0, 600000.0, 0.0, 20.0, 3640000.0)  # 10 m x 20 m, rows north
+    path = write_tif(tmp_path / "rect.tif", h, transform=south_up)
+    out = str(tmp_path / "sh")
+    code, _, stderr = run(["shadows", path, "--azimuth", "200", "--elevation", "20",
+                           "--out", out, "--no-progress"], capsys)
+    assert code == 0, stderr
+    field = datasets_gen.load_file(path)
+    assert (field.dx, field.dy, field.north) == (10.0, 20.0, "+y")
+    with rasterio.open(out + ".tif") as src:
+        assert src.transform == south_up  # the input's grid and orientation
+        np.testing.assert_array_equal(src.read(1), algos.shadows(field, 200, 20).astype(np.uint8))
+
+
+def test_geographic_dem_is_refused_with_the_fix_or_reprojected(tmp_path, capsys):
+    h = dem()
+    path = write_tif(tmp_path / "geo.tif", h, crs="EPSG:4326",
+                     transform=Affine(1 / 1200, 0, -94.0, 0, -1 / 1200, 33.0))
+    code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--out",
+                           str(tmp_path / "a"), "--no-progress"], capsys)
+    assert code == 2 and "gdalwarp -t_srs EPSG:32615" in stderr
+    assert "Traceback" not in stderr and len(stderr.strip().splitlines()) == 1
+    code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--reproject", "utm", "--out",
+                           str(tmp_path / "b"), "--no-progress"], capsys)
+    assert code == 0, stderr
+    with rasterio.open(tmp_path / "b.tif") as src:
+        assert src.crs.to_epsg() == 32615
+
+
+def test_rotated_geotransform_is_refused(tmp_path, capsys):
+    rotated = Affine.rotation(10.0) @ Affine(30.0, 0, 0, 0, -30.0, 0)
+    path = write_tif(tmp_path / "rot.tif", dem(), transform=Affine.translation(6e5, 3.65e6) @ rotated)
+    code, _, stderr = run(["svf", path, "--out", str(tmp_path / "r"), "--no-progress"], capsys)
+    assert code == 2 and "rotat" in stderr.lower()
+
+
+def test_observers_in_map_coordinates_pixels_and_csv_agree(tmp_path, capsys):
+    h = dem()
+    path = write_tif(tmp_path / "dem.tif", h)
+    # the vertex of pixel (col 7, row 5) is the pixel's centre in map coordinates
+    x, y = NORTH_UP @ (7 + 0.5, 5 + 0.5)
+    outs = {}
+    for name, extra in (("map", ["--observer", f"{x},{y}"]),
+                        ("pixel", ["--observer-pixel", "7,5"])):
+        out = str(tmp_path / name)
+        code, _, stderr = run(["viewshed", path, *extra, "--observer-height", "10",
+                               "--out", out, "--no-progress"], capsys)
+        assert code == 0, stderr
+        with rasterio.open(out + ".tif") as src:
+            outs[name] = src.read(1)
+    np.testing.assert_array_equal(outs["map"], outs["pixel"])
+    field = datasets_gen.load_file(path)
+    want = algos.viewshed(field, (7.0, 5.0), 10.0)
+    np.testing.assert_array_equal(outs["map"], want.astype(np.uint8))
+    (tmp_path / "obs.csv").write_text(f"x,y,height\n{x},{y},10\n{x + 300},{y - 300}\n")
+    code, _, stderr = run(["viewshed", path, "--observers", str(tmp_path / "obs.csv"),
+                           "--out", str(tmp_path / "csv"), "--no-progress"], capsys)
+    assert code == 0, stderr
+    with rasterio.open(tmp_path / "csv.tif") as src:
+        count = src.read(1)
+    both = (algos.viewshed(field, (7.0, 5.0), 10.0).astype(np.uint16)
+            + algos.viewshed(field, (17.0, 15.0), 1.75))
+    np.testing.assert_array_equal(count, both)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--observer", "1,2,3,4"], "--observer '1,2,3,4': expected X,Y"),
+    (["--observer-pixel", "900,2"], "observer pixel 900,2: outside"),
+    (["--observer", "0,0"], "observer 0,0: outside dem.tif"),
+])
+def test_observer_errors_echo_what_was_typed(tmp_path, capsys, args, message):
+    path = write_tif(tmp_path / "dem.tif", dem())
+    code, _, stderr = run(["viewshed", path, *args, "--out", str(tmp_path / "v"),
+                           "--no-progress"], capsys)
+    assert code == 2 and message in stderr and "Traceback" not in stderr
+
+
+def test_missing_file_and_unknown_dataset_say_which(tmp_path, capsys):
+    code, _, stderr = run(["svf", str(tmp_path / "nope.tif")], capsys)
+    assert code == 2 and "nope.tif does not exist" in stderr
+    code, _, stderr = run(["svf", "nosuchdataset"], capsys)
+    assert code == 2 and "neither a file nor a dataset" in stderr
+    code, _, stderr = run(["svf", "fbm", "--spacing", "30"], capsys)
+    assert code == 2 and "--spacing: describes a file" in stderr
+
+
+def test_fill_is_explicit(tmp_path, capsys):
+    h = dem()
+    h[4, 4] = -9999.0
+    path = write_tif(tmp_path / "dem.tif", h, nodata=-9999.0)
+    code, stdout, stderr = run(["horizon", path, "--azimuths", "45", "--fill", "min", "--out",
+                                str(tmp_path / "f"), "--no-progress"], capsys)
+    assert code == 0, stderr
+    assert "void" not in stdout
+    with rasterio.open(tmp_path / "f.tif") as src:
+        assert not src.read(1, masked=True).mask.any()
+    field = datasets_gen.load_file(path, nodata_policy="fill-min")
+    with rasterio.open(tmp_path / "f.tif") as src:
+        np.testing.assert_array_equal(
+            src.read(1), np.degrees(algos.horizon(field, [45])[0]).astype(np.float32))
+    assert not math.isnan(float(field.heights[4, 4]))
