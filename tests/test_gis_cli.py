@@ -3,6 +3,9 @@ gives a georeferenced, nodata-aware result equal to the API's on the same file, 
 one-line refusal that says how to fix the input. Every GeoTIFF is made here with rasterio.
 """
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -175,3 +178,24 @@ def test_fill_is_explicit(tmp_path, capsys):
         np.testing.assert_array_equal(
             src.read(1), np.degrees(algos.horizon(field, [45])[0]).astype(np.float32))
     assert not math.isnan(float(field.heights[4, 4]))
+
+
+def test_dask_path_keeps_voids_as_nodata(tmp_path):
+    """``--dask`` reads the file through rasterio windows (the nodata value is a void, not
+    a height) and writes the georeferenced product with nodata at the voids."""
+    h = dem(rows=60, cols=50)
+    h[30:33, 10:14] = -9999.0
+    path = write_tif(tmp_path / "dem.tif", h, nodata=-9999.0)
+    out = str(tmp_path / "hz")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    done = subprocess.run([sys.executable, "-m", "bench.cli", "horizon", path, "--dask",
+                           "local:1", "--max-distance", "300", "--chunk", "32", "--azimuths",
+                           "90", "--out", out, "--no-progress"], cwd=root,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    want = np.degrees(algos.horizon(datasets_gen.load_file(path), [90], 300.0)[0])
+    with rasterio.open(out + ".tif") as src, rasterio.open(path) as dem_file:
+        assert src.crs == dem_file.crs and src.transform == dem_file.transform
+        got = src.read(1, masked=True)
+    assert got.mask[30:33, 10:14].all() and got.mask.sum() == 12
+    np.testing.assert_array_equal(got.filled(np.nan), want.astype(np.float32))
