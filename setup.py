@@ -15,6 +15,9 @@ from setuptools import Extension, setup
 SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
            "terrain.c", "raster.c"]
 
+HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h",
+           "terrain.h"]
+
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
 link_args = []
 macros = [("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")]
@@ -41,7 +44,7 @@ setup(
             define_macros=macros,
             extra_compile_args=compile_args,
             extra_link_args=link_args,
-            depends=[os.path.join("cext", name) for name in ("hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h")],
+            depends=[os.path.join("cext", name) for name in HEADERS],
         )
     ]
 )

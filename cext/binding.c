@@ -390,7 +390,7 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "fine_level: outside the mipmap");
         return NULL;
     }
-    b.fine_level = fine_level;
+    b.floor_level = fine_level;
     if (!get_array(o_t, "t", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
     b.t = (double *)p;
     if (!get_array(o_cell, "cell", NPY_INT32, 2 * n, 1, 1, &p, NULL)) return NULL;

@@ -32,7 +32,8 @@ typedef struct {
     int mip_levels;
     const float *mip[HF_MAX_MIP_LEVELS];
     int32_t mip_cols[HF_MAX_MIP_LEVELS];
-    int fine_level; /* runs_maxmip: tile level the runs walk */
+    int floor_level; /* the maxmip kernels: the level whose tiles are walked cell by cell or
+                        run by run (the public option fine_level) */
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;
