@@ -13,7 +13,7 @@ import numpy
 from setuptools import Extension, setup
 
 SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
-           "terrain.c", "raster.c"]
+           "terrain.c", "raster.c", "cone.c"]
 
 HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h",
            "terrain.h"]

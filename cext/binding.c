@@ -265,7 +265,9 @@ PyDoc_STRVAR(intersect_doc,
              "First hits of a batch; returns the elapsed nanoseconds of the C loop.\n"
              "Private: use algos.intersect.");
 
-static PyObject *intersect(PyObject *self, PyObject *args) {
+/* intersect and intersect_cone: the batch from `args`, with the cone structure (NULL
+ * but for intersect_cone), each cone array checked to (rows - 1, cols - 1) float32. */
+static PyObject *intersect_with(PyObject *args, PyObject *o_cone_top, PyObject *o_cone_slope) {
     int kernel, surface, cull_cells, fine_level, status, k;
     double hmin, hmax;
     long long max_denominator;
@@ -278,7 +280,6 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     void *p;
     timed_section section;
     long long elapsed_ns;
-    (void)self;
     if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights, &o_cellmax,
                           &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins, &o_directions, &o_tmin,
                           &o_tmax, &cull_cells, &max_denominator, &o_pattern, &o_march, &fine_level,
@@ -319,6 +320,13 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     } else if (!get_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) {
         return NULL;
     }
+    if ((o_cone_top != NULL) != (kernel == HF_HIT_CONE)) {
+        PyErr_SetString(PyExc_ValueError, "cone: only intersect_cone runs the cone kernel");
+        return NULL;
+    }
+    if (o_cone_top != NULL && (!get_f32(o_cone_top, "cone_top", 2, shape, &b.cone_top) ||
+                               !get_f32(o_cone_slope, "cone_slope", 2, shape, &b.cone_slope)))
+        return NULL;
     b.hmin = hmin;
     b.hmax = hmax;
     b.surface = surface;
@@ -410,6 +418,11 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         return NULL;
     }
     return PyLong_FromLongLong(elapsed_ns);
+}
+
+static PyObject *intersect(PyObject *self, PyObject *args) {
+    (void)self;
+    return intersect_with(args, NULL, NULL);
 }
 
 PyDoc_STRVAR(quantize_doc, "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
@@ -924,6 +937,28 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     return PyLong_FromLongLong(elapsed_ns);
 }
 
+/* ---- cone step mapping (issue 22) ----------------------------------------------------- */
+
+PyDoc_STRVAR(intersect_cone_doc,
+             "intersect_cone(cone_top, cone_slope, kernel, surface, heights, ...) -> int\n\n"
+             "intersect() for the cone kernel: the cone structure (two float32 arrays of\n"
+             "shape (rows - 1, cols - 1), algos/cone.py) before intersect()'s arguments.\n"
+             "Private: use algos.intersect.");
+
+static PyObject *intersect_cone(PyObject *self, PyObject *args) {
+    PyObject *rest, *result;
+    (void)self;
+    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 2) {
+        PyErr_SetString(PyExc_TypeError, "intersect_cone: expected cone_top, cone_slope, ...");
+        return NULL;
+    }
+    rest = PyTuple_GetSlice(args, 2, PyTuple_GET_SIZE(args));
+    if (rest == NULL) return NULL;
+    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0), PyTuple_GET_ITEM(args, 1));
+    Py_DECREF(rest);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"walk", walk, METH_VARARGS, walk_doc},
     {"intersect", intersect, METH_VARARGS, intersect_doc},
@@ -935,6 +970,7 @@ static PyMethodDef methods[] = {
     {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
     {"raster", raster, METH_VARARGS, raster_doc},
+    {"intersect_cone", intersect_cone, METH_VARARGS, intersect_cone_doc},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,

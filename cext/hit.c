@@ -292,6 +292,7 @@ static hf_hit_walk walk_of(int kernel) {
     case HF_RUNS_PERIODIC: return hf_batch_runs_periodic_hit;
     case HF_HIT_DDA_MAXMIP: return hf_batch_dda_hit;
     case HF_HIT_RUNS_MAXMIP: return hf_batch_runs_hit;
+    case HF_HIT_CONE: return hf_batch_dda_hit;
     default: return NULL;
     }
 }
@@ -302,11 +303,13 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
                          kernel == HF_HIT_MARCH_BINARY;
     const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP;
+    const int cone = kernel == HF_HIT_CONE;
     int64_t ray;
     if (walk == NULL && !marching) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
+    if (cone && (b->cone_top == NULL || b->cone_slope == NULL)) return HF_ERR_ARGUMENT;
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
     b->bad_ray = -1;
@@ -383,6 +386,8 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                                       (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
             } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(&h)) {
                 maxmip_tight(&h, b);
+            } else if (cone && !hf_on_grid_line(&h)) {
+                hf_cone_hit(&h, b->cone_top, b->cone_slope);
             } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(&h)) {
                 hf_mipmap m;
                 m.levels = b->mip;
@@ -397,8 +402,8 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                     }
                 }
             } else {
-                /* (a maxmip kernel on a grid line, where neighbouring tiles matter, walks
-                 * every cell with its base kernel) */
+                /* (a maxmip or cone kernel on a grid line, where neighbouring cells
+                 * matter, walks every cell with its base kernel) */
                 const int status =
                     walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&pattern : NULL);
                 if (status != HF_OK) {

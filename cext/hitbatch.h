@@ -12,7 +12,8 @@ enum hf_hit_kernel {
     HF_HIT_MARCH_LINEAR = 8,
     HF_HIT_MARCH_GROWING = 9,
     HF_HIT_MARCH_BINARY = 10,
-    HF_N_HIT_KERNELS = 11
+    HF_HIT_CONE = 11,
+    HF_N_HIT_KERNELS = 12
 };
 
 #define HF_MAX_MIP_LEVELS 32
@@ -34,6 +35,8 @@ typedef struct {
     int32_t mip_cols[HF_MAX_MIP_LEVELS];
     int floor_level; /* the maxmip kernels: the level whose tiles are walked cell by cell or
                         run by run (the public option fine_level) */
+    /* cone: the cone over each cell (cone.c), NULL for the other kernels */
+    const float *cone_top, *cone_slope;
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;
@@ -50,5 +53,8 @@ typedef struct {
 } hf_hit_batch;
 
 int hf_intersect_batch(int kernel, hf_hit_batch *batch);
+
+/* cone: the first hit of one clipped ray (1: found), cone.c. */
+int hf_cone_hit(hf_hit *h, const float *cone_top, const float *cone_slope);
 
 #endif

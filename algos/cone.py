@@ -1,0 +1,94 @@
+"""The cone structure of the ``cone`` intersector: cone step mapping (Dummer 2006) made
+exact (``cext/cone.c`` walks it).
+
+For every cell ``c`` two float32 numbers:
+
+* ``top[c]`` (``T_c``): the highest cell maximum (``Field.cellmax_for``) among ``c`` and
+  its 8 neighbours;
+* ``slope[c]`` (``k_c >= 0``): a cone slope such that every surface point ``q`` of the
+  field satisfies ``s(q) <= T_c + k_c * d(q, c)``, with ``d`` the Chebyshev distance from
+  ``q`` to the closed square of ``c``.
+
+Why it holds: a point of a cell at Chebyshev ring ``n >= 2`` around ``c`` lies at least
+``n - 1`` from ``c`` and at most as high as the maximum ``B_n(c)`` of the cell maxima
+within ring ``n``; cells of rings 0 and 1 are covered by ``T_c``. So
+
+    k_c = max(0, max_{n = 2..R} (B_n(c) - T_c) / (n - 1), (max cellmax - T_c) / R)
+
+works, the last term covering every ring beyond ``R`` (``CONE_RADIUS``). ``B_n`` is
+``T`` dilated ``n - 1`` times by the 3 x 3 maximum, so the build costs ``R`` passes over
+the field. The slope is computed in float64 and rounded *up* to float32 (after a relative
+widening of 2^-30), so the stored cone never cuts into the surface; the kernel's step
+keeps a further margin for its own rounding. The cone is the widest of this form, not the
+per-texel widest cone of Dummer's precomputation (which is quadratic in the field size):
+it is built from cell maxima, so one structure serves all four surfaces (the ``plane3``
+one from its own bounds).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["CONE_RADIUS", "cone_for", "build_cone"]
+
+#: rings searched exactly; beyond them the field's highest cell bounds the cone
+CONE_RADIUS = 32
+
+
+def _dilate(a: np.ndarray) -> np.ndarray:
+    """The maximum over each cell's 3 x 3 neighbourhood (cells outside the grid ignored)."""
+    rows = a.copy()
+    np.maximum(rows[:, 1:], a[:, :-1], out=rows[:, 1:])
+    np.maximum(rows[:, :-1], a[:, 1:], out=rows[:, :-1])
+    out = rows.copy()
+    np.maximum(out[1:], rows[:-1], out=out[1:])
+    np.maximum(out[:-1], rows[1:], out=out[:-1])
+    return out
+
+
+def build_cone(cellmax: np.ndarray, radius: int = CONE_RADIUS) -> tuple[np.ndarray, np.ndarray]:
+    """The cone structure of a cell-maximum array.
+
+    Parameters
+    ----------
+    cellmax : ndarray, shape (ny, nx), float32
+        An upper bound of each cell's surface (``algos.Field.cellmax_for``).
+    radius : int
+        Rings searched exactly, >= 2.
+
+    Returns
+    -------
+    top, slope : ndarray, shape (ny, nx), float32
+        ``T_c`` and ``k_c`` of the module docstring; ``slope`` is finite and >= 0.
+
+    Raises
+    ------
+    ValueError
+        If ``cellmax`` is not a 2D array or ``radius`` < 2.
+    """
+    m = np.asarray(cellmax, dtype=np.float32)
+    if m.ndim != 2 or m.size == 0:
+        raise ValueError(f"cellmax: expected a non-empty 2D array, got shape {m.shape}")
+    if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 2:
+        raise ValueError(f"radius: expected an integer >= 2, got {radius!r}")
+    top = _dilate(m)
+    top64 = top.astype(np.float64)
+    slope = np.zeros(m.shape, dtype=np.float64)
+    ring_max = top
+    for n in range(2, int(radius) + 1):
+        ring_max = _dilate(ring_max)  # max over the cells within ring n
+        np.maximum(slope, (ring_max - top64) / (n - 1), out=slope)
+    np.maximum(slope, (float(m.max()) - top64) / radius, out=slope)
+    # round up: a relative widening, then the next float32 above where rounding went down
+    slope *= 1.0 + 2.0 ** -30
+    slope32 = slope.astype(np.float32)
+    low = slope32.astype(np.float64) < slope
+    slope32[low] = np.nextafter(slope32[low], np.float32(np.inf))
+    return np.ascontiguousarray(top), np.ascontiguousarray(slope32)
+
+
+def cone_for(field, kind: str = "corners"):
+    """The cone structure of ``field`` for a bound kind (``algos.field.bound_kind``),
+    built on first use and kept in the field (``build_stats["cone"]`` or
+    ``["cone/plane3"]`` record its seconds and bytes)."""
+    key = "cone" if kind == "corners" else f"cone/{kind}"
+    return field._build(key, lambda: build_cone(field.cellmax_for(kind)))

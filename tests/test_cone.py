@@ -1,0 +1,151 @@
+"""The cone intersector (cone step mapping made exact, ``algos.cone`` and ``cext/cone.c``):
+the structure's guarantee checked cell pair by cell pair, the hits against the cell walk
+and the brute force (grazing rays, where cones collapse, included), and bad input.
+
+The registry cross-checks (tests/test_intersect.py, tests/test_hit_pin.py) cover it too."""
+import numpy as np
+import pytest
+
+import algos
+from algos import _kernels
+from algos.cone import build_cone, cone_for
+from datasets_gen import fields
+
+
+def _ring_distance(shape):
+    """Chebyshev ring distance between every pair of cells: (ny*nx, ny*nx)."""
+    ny, nx = shape
+    j, i = np.divmod(np.arange(ny * nx), nx)
+    return np.maximum(np.abs(i[:, None] - i[None, :]), np.abs(j[:, None] - j[None, :]))
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("radius", [2, 3, 32])
+def test_every_cell_maximum_lies_below_every_cone(seed, radius):
+    """For cells c and a at ring n: cellmax[a] <= top[c] + slope[c] * max(0, n - 1), in
+    float64: the guarantee the kernel's steps rely on (module docstring of algos.cone),
+    including rings beyond the searched radius."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    shape = (int(rng.integers(1, 14)), int(rng.integers(1, 14)))
+    scale = 10.0 ** rng.uniform(-3, 3)
+    cellmax = (rng.standard_normal(shape) * scale).astype(np.float32)
+    top, slope = build_cone(cellmax, radius)
+    assert top.dtype == slope.dtype == np.float32 and top.shape == slope.shape == shape
+    assert np.all(slope >= 0) and np.all(np.isfinite(slope))
+    n = _ring_distance(shape)
+    bound = (top.ravel().astype(np.float64)[:, None]
+             + slope.ravel().astype(np.float64)[:, None] * np.maximum(n - 1, 0))
+    worst = np.argmax(cellmax.ravel()[None, :] - bound)
+    c, a = np.unravel_index(worst, bound.shape)
+    assert np.all(cellmax.ravel()[None, :] <= bound), (
+        f"seed={seed} radius={radius} shape={shape}: cell {a} (max {cellmax.ravel()[a]!r}) "
+        f"above the cone of cell {c} (top {top.ravel()[c]!r}, slope {slope.ravel()[c]!r})")
+
+
+def test_cone_is_tight_on_a_single_peak():
+    """A single peak of height 10 on a flat field: the cone of a cell 5 rings away has
+    its top at 0 and slope 10 / (5 - 1), rounded up by at most a few float32 ulps."""
+    cellmax = np.zeros((21, 21), np.float32)
+    cellmax[10, 10] = 10.0
+    top, slope = build_cone(cellmax, 32)
+    assert top[10, 5] == 0.0
+    assert 2.5 <= slope[10, 5] <= np.nextafter(np.nextafter(np.float32(2.5), np.float32(3)),
+                                               np.float32(3))
+    assert top[10, 9] == 10.0 and slope[10, 9] == 0.0  # the peak's neighbours: flat top
+
+
+def _grazing_rays(fld, n, seed):
+    """Rays a hair above the surface at their start, nearly horizontal: cones collapse."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    rows, cols = fld.heights.shape
+    x = rng.uniform(1, cols - 2, n)
+    y = rng.uniform(1, rows - 2, n)
+    i, j = np.floor(x).astype(int), np.floor(y).astype(int)
+    z = fld.cellmax[j, i].astype(float) + 10.0 ** rng.uniform(-9, -1, n)
+    angle = rng.uniform(0, 2 * np.pi, n)
+    d = np.column_stack([np.cos(angle), np.sin(angle), -(10.0 ** rng.uniform(-6, -1, n))])
+    return np.column_stack([x, y, z]), d
+
+
+@pytest.mark.parametrize("surface", algos.SURFACES)
+@pytest.mark.parametrize("field_name", ["fbm", "terraces", "spike"])
+def test_cone_equals_the_cell_walk_bit_for_bit(surface, field_name):
+    """Steep, bench-like and grazing rays: t and cell equal dda's (the cell walk whose
+    cells the cone kernel finishes with), and the cone does skip."""
+    H = fields.generate(field_name, (97, 130), seed=5, amplitude=30.0, scale=40.0) \
+        if field_name != "spike" else fields.generate("spike", (97, 130), height=30.0, radius=20.0)
+    fld = algos.Field(H)
+    from bench.sweep import first_hit_rays
+
+    groups = [first_hit_rays(fld, r, 200, seed=3 + r) for r in (1, 5, 100)]
+    groups.append(_grazing_rays(fld, 300, 9))
+    steps = 0
+    for o, d in groups:
+        cone = algos.intersect("cone", fld, o, d, surface=surface,
+                               outputs=("t", "cell", "stats"))
+        walk = algos.intersect("dda", fld, o, d, surface=surface, outputs=("t", "cell"))
+        differ = np.nonzero((cone.t != walk.t) | np.any(cone.cell != walk.cell, axis=1))[0]
+        if len(differ):
+            k = differ[0]
+            raise AssertionError(
+                f"cone vs dda on {field_name}/{surface}: {len(differ)} rays differ; first: "
+                f"origin={o[k].tolist()!r} direction={d[k].tolist()!r} "
+                f"dda t={walk.t[k]!r} cell={walk.cell[k].tolist()} cone t={cone.t[k]!r} "
+                f"cell={cone.cell[k].tolist()}")
+        steps += int(cone.stats["tiles_skipped"].sum())
+    assert steps > 0, "the cone never stepped"
+
+
+def test_grazing_rays_match_the_brute_force():
+    H = fields.generate("fbm", (40, 50), seed=11, amplitude=8.0, scale=16.0)
+    fld = algos.Field(H)
+    o, d = _grazing_rays(fld, 200, 4)
+    for surface in algos.SURFACES:
+        t_ref, _ = algos.brute_force_hits(H, o, d, surface)
+        got = algos.intersect("cone", fld, o, d, surface=surface).t
+        assert np.array_equal(np.isfinite(got), np.isfinite(t_ref)), surface
+        hit = np.isfinite(t_ref)
+        assert np.all(np.abs(got[hit] - t_ref[hit]) <= 1e-9 * (1 + np.abs(t_ref[hit]))), surface
+
+
+def test_the_structure_is_built_once_and_recorded():
+    fld = algos.Field(fields.generate("fbm", (33, 41), seed=3, amplitude=6.0, scale=16.0))
+    first = cone_for(fld)
+    assert cone_for(fld) is first
+    algos.intersect("cone", fld, [[1.0, 1.0, 20.0]], [[1.0, 0.5, -1.0]])
+    assert fld.build_stats["cone"]["bytes"] == 2 * 4 * 32 * 40
+    algos.intersect("cone", fld, [[1.0, 1.0, 20.0]], [[1.0, 0.5, -1.0]], surface="plane3")
+    assert "cone/plane3" in fld.build_stats
+
+
+def test_bad_structure_input():
+    with pytest.raises(ValueError, match="radius"):
+        build_cone(np.zeros((3, 3), np.float32), 1)
+    with pytest.raises(ValueError, match="cellmax"):
+        build_cone(np.zeros(5, np.float32))
+
+
+def test_the_binding_checks_the_cone_arrays():
+    """The C entry refuses the cone kernel without its structure, a structure for another
+    kernel, and arrays of the wrong shape or dtype."""
+    from algos.intersect import _Prepared
+    from algos.registry import get_intersector
+
+    fld = algos.Field(np.zeros((5, 6)))
+    o, d = np.array([[0.5, 0.5, 1.0]]), np.array([[1.0, 0.0, -0.1]])
+    run = _Prepared(get_intersector("cone"), fld, "triangles", o, d, None, None, ("t",),
+                    {"cull_cells": True})
+    top, slope = run.cone
+    with pytest.raises(ValueError, match="cone"):
+        _kernels.intersect(*run.args)
+    plain = _Prepared(get_intersector("dda"), fld, "triangles", o, d, None, None, ("t",),
+                      {"cull_cells": True})
+    with pytest.raises(ValueError, match="cone"):
+        _kernels.intersect_cone(top, slope, *plain.args)
+    with pytest.raises(ValueError, match="cone_top"):
+        _kernels.intersect_cone(top[:, :-1].copy(), slope, *run.args)
+    with pytest.raises(TypeError, match="cone_slope"):
+        _kernels.intersect_cone(top, slope.astype(np.float64), *run.args)
+    with pytest.raises(TypeError):
+        _kernels.intersect_cone(top)
+    assert _kernels.intersect_cone(top, slope, *run.args) >= 0
