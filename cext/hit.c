@@ -299,6 +299,7 @@ static hf_hit_walk walk_of(int kernel) {
 
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_pattern pattern;
+    hf_direction direction_cache; /* the exact walks' per-direction set-up, across rays */
     const hf_hit_walk walk = walk_of(kernel);
     const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
                          kernel == HF_HIT_MARCH_BINARY;
@@ -310,6 +311,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
     if (cone && (b->cone_top == NULL || b->cone_slope == NULL)) return HF_ERR_ARGUMENT;
+    direction_cache.valid = 0;
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
     b->bad_ray = -1;
@@ -372,6 +374,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                 hi = (double)nextafterf((float)t1, INFINITY);
             }
             b2.max_denominator = b->max_denominator;
+            b2.direction_cache = &direction_cache;
             b2.pattern = b->pattern;
             sink.hit = &h;
             if (marching) {
