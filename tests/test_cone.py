@@ -149,3 +149,39 @@ def test_the_binding_checks_the_cone_arrays():
     with pytest.raises(TypeError):
         _kernels.intersect_cone(top)
     assert _kernels.intersect_cone(top, slope, *run.args) >= 0
+
+
+def _fuzz_harness():
+    """The fuzz harness module (bench/fuzz.py, moving to tests/fuzz/harness.py)."""
+    try:
+        from tests.fuzz import harness
+        return harness
+    except ImportError:
+        from bench import fuzz
+        return fuzz
+
+
+def test_fuzz_hook_holds_on_the_corpus_and_random_inputs():
+    """tests/fuzz_cone.check_cone, the hook for the fuzz harness, on the committed corpus
+    and a seeded batch of random inputs: the cone kernel gives dda's hits on every
+    decoded first-hit case."""
+    import os
+    import warnings
+
+    from tests.fuzz_cone import check_cone
+
+    fuzz = _fuzz_harness()
+    rng = np.random.Generator(np.random.PCG64(22))
+    paths = sorted(os.path.join(root, name) for root, _, names in os.walk(fuzz.CORPUS)
+                   for name in names)
+    inputs = [open(p, "rb").read() for p in paths]
+    inputs += [rng.bytes(int(rng.integers(0, 600))) for _ in range(1500)]
+    checked = 0
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for data in inputs:
+            case = fuzz.decode(data)
+            if case["op"] == "intersect":
+                check_cone(case, fuzz._call)
+                checked += 1
+    assert checked > 300
