@@ -1,5 +1,9 @@
-"""The cone structure of the ``cone`` intersector: cone step mapping (Dummer 2006) made
-exact (``cext/cone.c`` walks it).
+"""The cone structures: ``cone``, cone step mapping (Dummer 2006) made exact, and
+``cone_relaxed``, relaxed cone stepping (Policarpo & Oliveira 2007), approximate by design
+(``cext/cone.c`` builds the relaxed one and walks the exact one; ``cext/hit.c`` marches
+the relaxed one).
+
+The exact cone.
 
 For every cell ``c`` two float32 numbers:
 
@@ -28,7 +32,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CONE_RADIUS", "cone_for", "build_cone"]
+from . import _kernels
+
+__all__ = ["CONE_RADIUS", "RELAXED_RADIUS", "cone_for", "build_cone", "relaxed_cone_for",
+           "build_relaxed_cone"]
 
 #: rings searched exactly; beyond them the field's highest cell bounds the cone
 CONE_RADIUS = 32
@@ -92,3 +99,51 @@ def cone_for(field, kind: str = "corners"):
     ``["cone/plane3"]`` record its seconds and bytes)."""
     key = "cone" if kind == "corners" else f"cone/{kind}"
     return field._build(key, lambda: build_cone(field.cellmax_for(kind)))
+
+
+#: rings of destinations each relaxed cone is built from
+RELAXED_RADIUS = 4
+
+
+def build_relaxed_cone(cellmax: np.ndarray, radius: int = RELAXED_RADIUS) -> np.ndarray:
+    """Relaxed cone slopes (Policarpo & Oliveira 2007) over the cell maxima.
+
+    The relaxed cone of cell ``s`` has its apex at the centre of ``s`` at height
+    ``cellmax[s]``; its slope (height per unit of horizontal Euclidean distance) is the
+    smallest that keeps out every point where a ray from the field's top above ``s``,
+    through the top of a cell within ``radius`` rings, comes back out of the solid
+    (followed in half-cell steps; ``cext/cone.c``). So a ray inside the cone crosses the
+    surface at most once, up to that sampling and the window: the cone is a heuristic
+    bound, and the kernel that steps by it is approximate.
+
+    Parameters
+    ----------
+    cellmax : ndarray, shape (ny, nx), float32
+    radius : int
+        1 to 64; the build costs about ``(2 radius + 1)^2 * 4 radius`` steps per cell.
+
+    Returns
+    -------
+    ndarray, shape (ny, nx), float32, >= 0
+
+    Raises
+    ------
+    ValueError
+        If ``cellmax`` is not 2D or ``radius`` is out of range.
+    """
+    m = np.ascontiguousarray(cellmax, dtype=np.float32)
+    if m.ndim != 2 or m.size == 0:
+        raise ValueError(f"cellmax: expected a non-empty 2D array, got shape {m.shape}")
+    if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or \
+            not 1 <= radius <= 64:
+        raise ValueError(f"radius: expected an integer in [1, 64], got {radius!r}")
+    slope = np.zeros(m.shape, dtype=np.float32)
+    _kernels.cone_relaxed_slopes(m, int(radius), slope)
+    return slope
+
+
+def relaxed_cone_for(field, kind: str = "corners") -> np.ndarray:
+    """The relaxed cone slopes of ``field`` for a bound kind, built on first use and kept
+    (``build_stats["cone_relaxed"]``)."""
+    key = "cone_relaxed" if kind == "corners" else f"cone_relaxed/{kind}"
+    return field._build(key, lambda: build_relaxed_cone(field.cellmax_for(kind)))

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field as dc_field
 import numpy as np
 
 from . import _kernels
-from .cone import cone_for
+from .cone import cone_for, relaxed_cone_for
 from .field import Field, as_field, bound_kind
 from .parallel import resolve_threads, run_ranges, split
 from .registry import SURFACES, get_intersector
@@ -225,7 +225,12 @@ class _Prepared:
             mip = None
         cellmax = None if lean else fld.cellmax_for(kind)
         # the cone kernel's structure (algos.cone), passed before the common arguments
-        self.cone = cone_for(fld, kind) if "cone" in uses else None
+        if "cone" in uses:
+            self.cone = cone_for(fld, kind)
+        elif "cone_relaxed" in uses:
+            self.cone = (None, relaxed_cone_for(fld, kind))
+        else:
+            self.cone = None
         q = int(opts.get("max_denominator") or 0)
         pattern = np.zeros(q + 1, np.int32) if q else None
         march = (int(opts.get("march_steps", 128)), int(opts.get("march_refinements", 16)),

@@ -171,6 +171,13 @@ INTERSECTOR_REGISTRY.update({
         summary="cone step mapping made exact: safe steps through per-cell cones over the "
                 "cell maxima, an exact cell walk where a cone is narrower than a cell",
         citation="Dummer 2006"),
+    "cone_relaxed": Intersector(
+        "cone_relaxed", 12, "march", "approximate", None, ("cellmax", "cone_relaxed"),
+        dict(march_steps=256, march_refinements=16),
+        summary="relaxed cone stepping: steps to the side of relaxed cones over the cell "
+                "maxima (at most march_steps), then march_refinements halvings; misses "
+                "ridges a step crosses whole",
+        citation="Policarpo & Oliveira 2007"),
     "march_linear": Intersector(
         "march_linear", 8, "march", "approximate", None, (), dict(_MARCH),
         summary="fixed-step ray marching: march_steps equal steps over the clipped span"),

@@ -320,13 +320,22 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone_top, PyObject *
     } else if (!get_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) {
         return NULL;
     }
-    if ((o_cone_top != NULL) != (kernel == HF_HIT_CONE)) {
-        PyErr_SetString(PyExc_ValueError, "cone: only intersect_cone runs the cone kernel");
+    if ((o_cone_slope != NULL) != (kernel == HF_HIT_CONE || kernel == HF_HIT_CONE_RELAXED)) {
+        PyErr_SetString(
+            PyExc_ValueError,
+            "cone: only intersect_cone runs the cone kernels, and it runs nothing else");
         return NULL;
     }
-    if (o_cone_top != NULL && (!get_f32(o_cone_top, "cone_top", 2, shape, &b.cone_top) ||
-                               !get_f32(o_cone_slope, "cone_slope", 2, shape, &b.cone_slope)))
-        return NULL;
+    if (o_cone_slope != NULL) {
+        /* cone: top and slope; cone_relaxed: slope only (its apex is the cell maximum) */
+        if ((kernel == HF_HIT_CONE) != (o_cone_top != Py_None)) {
+            PyErr_SetString(PyExc_ValueError, "cone_top: required by cone, None for cone_relaxed");
+            return NULL;
+        }
+        if (o_cone_top != Py_None && !get_f32(o_cone_top, "cone_top", 2, shape, &b.cone_top))
+            return NULL;
+        if (!get_f32(o_cone_slope, "cone_slope", 2, shape, &b.cone_slope)) return NULL;
+    }
     b.hmin = hmin;
     b.hmax = hmax;
     b.surface = surface;
@@ -941,8 +950,9 @@ static PyObject *raster(PyObject *self, PyObject *args) {
 
 PyDoc_STRVAR(intersect_cone_doc,
              "intersect_cone(cone_top, cone_slope, kernel, surface, heights, ...) -> int\n\n"
-             "intersect() for the cone kernel: the cone structure (two float32 arrays of\n"
-             "shape (rows - 1, cols - 1), algos/cone.py) before intersect()'s arguments.\n"
+             "intersect() for the cone kernels: the cone structure (float32 arrays of\n"
+             "shape (rows - 1, cols - 1), algos/cone.py; cone_top None for cone_relaxed)\n"
+             "before intersect()'s arguments.\n"
              "Private: use algos.intersect.");
 
 static PyObject *intersect_cone(PyObject *self, PyObject *args) {
@@ -959,6 +969,50 @@ static PyObject *intersect_cone(PyObject *self, PyObject *args) {
     return result;
 }
 
+PyDoc_STRVAR(cone_relaxed_slopes_doc,
+             "cone_relaxed_slopes(cellmax, radius, slope) -> int\n\n"
+             "Fill slope (float32, the shape of cellmax) with the relaxed cone slope of every\n"
+             "cell (Policarpo & Oliveira 2007, cext/cone.c) from the destinations within\n"
+             "radius rings (1 to 64); returns the elapsed nanoseconds. Private: use\n"
+             "algos.cone.");
+
+static PyObject *cone_relaxed_slopes(PyObject *self, PyObject *args) {
+    PyObject *o_cellmax, *o_slope;
+    int radius;
+    const float *cellmax;
+    float *slope;
+    npy_intp shape[2];
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OiO", &o_cellmax, &radius, &o_slope)) return NULL;
+    if (!PyArray_Check(o_cellmax) || PyArray_NDIM((PyArrayObject *)o_cellmax) != 2) {
+        PyErr_SetString(PyExc_TypeError, "cellmax: expected a 2D numpy array");
+        return NULL;
+    }
+    shape[0] = PyArray_DIM((PyArrayObject *)o_cellmax, 0);
+    shape[1] = PyArray_DIM((PyArrayObject *)o_cellmax, 1);
+    if (shape[0] < 1 || shape[1] < 1 || shape[0] >= HF_MAX_GRID_SIDE ||
+        shape[1] >= HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "cellmax: each side must be in [1, 2^24 - 1]");
+        return NULL;
+    }
+    if (radius < 1 || radius > 64) {
+        PyErr_Format(PyExc_ValueError, "radius: expected 1 to 64, got %d", radius);
+        return NULL;
+    }
+    if (!get_f32(o_cellmax, "cellmax", 2, shape, &cellmax)) return NULL;
+    if (!get_f32(o_slope, "slope", 2, shape, (const float **)&slope)) return NULL;
+    if (!PyArray_ISWRITEABLE((PyArrayObject *)o_slope)) {
+        PyErr_SetString(PyExc_ValueError, "slope: must be writable");
+        return NULL;
+    }
+    timed_begin(&section);
+    hf_cone_relaxed_build(cellmax, (int32_t)shape[0], (int32_t)shape[1], radius, slope);
+    elapsed_ns = timed_end(&section);
+    return PyLong_FromLongLong(elapsed_ns);
+}
+
 static PyMethodDef methods[] = {
     {"walk", walk, METH_VARARGS, walk_doc},
     {"intersect", intersect, METH_VARARGS, intersect_doc},
@@ -971,6 +1025,7 @@ static PyMethodDef methods[] = {
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
     {"raster", raster, METH_VARARGS, raster_doc},
     {"intersect_cone", intersect_cone, METH_VARARGS, intersect_cone_doc},
+    {"cone_relaxed_slopes", cone_relaxed_slopes, METH_VARARGS, cone_relaxed_slopes_doc},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,

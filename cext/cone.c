@@ -101,3 +101,64 @@ int hf_cone_hit(hf_hit *h, const float *cone_top, const float *cone_slope) {
     }
     return 0;
 }
+
+/* ---- relaxed cones (Policarpo & Oliveira 2007), approximate by design -----------------
+ * The relaxed cone of a cell s has its apex at the centre of s at the cell's maximum M_s
+ * and is the widest circular cone that keeps out every point where a ray entering the
+ * solid leaves it again: for each destination cell d within `radius` rings, the ray from
+ * the field's top above the centre of s through (centre of d, M_d) is followed past d in
+ * half-cell steps while it stays at or below the cell maxima; the point E where it comes
+ * out (or leaves the window) bounds the cone's slope by (z_E - M_s) / |E - s|. A viewing
+ * ray inside such a cone crosses the surface at most once (up to the half-cell sampling
+ * and the window), so a step to the cone's side may end inside the solid, and a binary
+ * search then finds the crossing. Slopes are vertical per horizontal (Euclidean). */
+void hf_cone_relaxed_build(const float *cellmax, int32_t ny, int32_t nx, int32_t radius,
+                           float *slope) {
+    const int64_t n_cells = (int64_t)ny * nx;
+    double top = -(double)INFINITY;
+    int64_t c;
+    int32_t si, sj;
+    for (c = 0; c < n_cells; ++c) top = (double)cellmax[c] > top ? (double)cellmax[c] : top;
+    for (sj = 0; sj < ny; ++sj) {
+        for (si = 0; si < nx; ++si) {
+            const double apex = (double)cellmax[(int64_t)sj * nx + si];
+            const double sx = si + 0.5, sy = sj + 0.5;
+            double k = 0;
+            int32_t di, dj, step;
+            for (dj = sj - radius; dj <= sj + radius; ++dj) {
+                for (di = si - radius; di <= si + radius; ++di) {
+                    double length, ux, uy, drop, px, py, pz;
+                    if (dj < 0 || dj >= ny || di < 0 || di >= nx || (di == si && dj == sj))
+                        continue;
+                    pz = (double)cellmax[(int64_t)dj * nx + di];
+                    if (!(pz < top)) continue; /* the ray from the top would not descend */
+                    px = di + 0.5;
+                    py = dj + 0.5;
+                    length = sqrt((px - sx) * (px - sx) + (py - sy) * (py - sy));
+                    ux = (px - sx) / length;
+                    uy = (py - sy) / length;
+                    drop = (top - pz) / length; /* the ray's fall per unit of horizontal travel */
+                    /* past d, in half cells, while the ray stays inside the solid */
+                    for (step = 0; step < 4 * radius + 4; ++step) {
+                        int32_t ci, cj;
+                        px += 0.5 * ux;
+                        py += 0.5 * uy;
+                        pz -= 0.5 * drop;
+                        ci = (int32_t)floor(px);
+                        cj = (int32_t)floor(py);
+                        if (ci < 0 || ci >= nx || cj < 0 || cj >= ny) break;
+                        if (ci < si - radius || ci > si + radius || cj < sj - radius ||
+                            cj > sj + radius)
+                            break;
+                        if (pz > (double)cellmax[(int64_t)cj * nx + ci]) break;
+                    }
+                    if (pz > apex) {
+                        const double h = sqrt((px - sx) * (px - sx) + (py - sy) * (py - sy));
+                        if (h > 0 && (pz - apex) / h > k) k = (pz - apex) / h;
+                    }
+                }
+            }
+            slope[(int64_t)sj * nx + si] = (float)k;
+        }
+    }
+}

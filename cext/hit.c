@@ -166,6 +166,59 @@ static void march(hf_hit *h, const hf_hit_batch *b, int kernel) {
     hf_hit_at(h, t, i, j, -1, su, sv);
 }
 
+/* cone_relaxed (Policarpo & Oliveira 2007; approximate by design): from a point above the
+ * surface the ray steps to the side of the relaxed cone of the cell below it (cone.c),
+ * at least half a cell, until a sample lies at or below the surface; march_refinements
+ * halvings then narrow the bracket. A ray that crosses a ridge and comes out again
+ * within one step misses it: that is the error the accuracy study measures. */
+static void march_relaxed_cone(hf_hit *h, const hf_hit_batch *b) {
+    const int32_t nx = h->cols - 1;
+    const double speed = sqrt(h->dx * h->dx + h->dy * h->dy);
+    double t = h->t0, prev = h->t0, su, sv, gap;
+    int32_t i, j, k;
+    int inside = 0;
+    gap = field_gap(h, t, &i, &j, &su, &sv);
+    if (gap <= 0) {
+        hf_hit_at(h, t, i, j, -1, su, sv);
+        return;
+    }
+    for (k = 0; k < b->march_steps && t < h->t1; ++k) {
+        const int64_t cell = (int64_t)j * nx + i;
+        const double z = h->oz + t * h->dz, apex = (double)h->cellmax[cell];
+        const double rate = (double)b->cone_slope[cell] * speed - h->dz;
+        /* at least half a cell (a vertical ray: down to the surface sampled here) */
+        double step = speed > 0 ? 0.5 / speed : gap / -h->dz;
+        if (z > apex) {
+            if (!(rate > 0)) return; /* rises out of every relaxed cone: taken as a miss */
+            if ((z - apex) / rate > step) step = (z - apex) / rate;
+        }
+        prev = t;
+        t = t + step < h->t1 ? t + step : h->t1;
+        h->tiles_skipped += 1;
+        h->cells_tested += 1;
+        gap = field_gap(h, t, &i, &j, &su, &sv);
+        if (gap <= 0) {
+            inside = 1;
+            break;
+        }
+    }
+    if (!inside) return;
+    {
+        /* halve the bracket [prev (outside), t (inside)] */
+        double lo = prev, hi = t;
+        for (k = 0; k < b->march_refinements; ++k) {
+            const double mid = 0.5 * (lo + hi);
+            h->cells_tested += 1;
+            if (field_gap(h, mid, &i, &j, &su, &sv) <= 0)
+                hi = mid;
+            else
+                lo = mid;
+        }
+        (void)field_gap(h, hi, &i, &j, &su, &sv);
+        hf_hit_at(h, hi, i, j, -1, su, sv);
+    }
+}
+
 /* ---- max-mipmap skipping (Tevs, Ihrke & Seidel 2008) ------------------------------------
  * Level 0 holds the cell maxima; level k the maxima of 2x2 blocks of level k-1 (the last
  * row/column of an odd size stands alone), so every size works. From the current cell the
@@ -305,12 +358,15 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                          kernel == HF_HIT_MARCH_BINARY;
     const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP;
     const int cone = kernel == HF_HIT_CONE;
+    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     int64_t ray;
-    if (walk == NULL && !marching) return HF_ERR_ARGUMENT;
+    if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
     if (cone && (b->cone_top == NULL || b->cone_slope == NULL)) return HF_ERR_ARGUMENT;
+    if (relaxed && (b->cone_slope == NULL || b->cellmax == NULL || b->march_steps < 1))
+        return HF_ERR_ARGUMENT;
     direction_cache.valid = 0;
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
@@ -379,6 +435,8 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
             sink.hit = &h;
             if (marching) {
                 march(&h, b, kernel);
+            } else if (relaxed) {
+                march_relaxed_cone(&h, b);
             } else if (t0 == t1) {
                 /* a single parameter (the ray touches the box there, or is already below
                  * hmin when it enters): test that point directly */

@@ -13,7 +13,8 @@ enum hf_hit_kernel {
     HF_HIT_MARCH_GROWING = 9,
     HF_HIT_MARCH_BINARY = 10,
     HF_HIT_CONE = 11,
-    HF_N_HIT_KERNELS = 12
+    HF_HIT_CONE_RELAXED = 12,
+    HF_N_HIT_KERNELS = 13
 };
 
 #define HF_MAX_MIP_LEVELS 32
@@ -35,7 +36,8 @@ typedef struct {
     int32_t mip_cols[HF_MAX_MIP_LEVELS];
     int floor_level; /* the maxmip kernels: the level whose tiles are walked cell by cell or
                         run by run (the public option fine_level) */
-    /* cone: the cone over each cell (cone.c), NULL for the other kernels */
+    /* cone: the cone over each cell (cone.c); cone_relaxed: cone_slope only (its apex is
+     * the cell maximum); NULL for the other kernels */
     const float *cone_top, *cone_slope;
     /* runs_periodic */
     int64_t max_denominator;
@@ -56,5 +58,10 @@ int hf_intersect_batch(int kernel, hf_hit_batch *batch);
 
 /* cone: the first hit of one clipped ray (1: found), cone.c. */
 int hf_cone_hit(hf_hit *h, const float *cone_top, const float *cone_slope);
+
+/* cone_relaxed: the relaxed cone slope of every cell of an ny x nx grid of cell maxima,
+ * from the destinations within `radius` rings (cone.c). */
+void hf_cone_relaxed_build(const float *cellmax, int32_t ny, int32_t nx, int32_t radius,
+                           float *slope);
 
 #endif

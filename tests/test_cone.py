@@ -185,3 +185,91 @@ def test_fuzz_hook_holds_on_the_corpus_and_random_inputs():
                 check_cone(case, fuzz._call)
                 checked += 1
     assert checked > 300
+
+
+# ---- cone_relaxed (Policarpo & Oliveira 2007): approximate by design ----------------------
+
+def _relaxed_reference(cellmax, radius):
+    """The relaxed cone slopes by the definition in algos.cone.build_relaxed_cone, in plain
+    Python: the readable twin of cext/cone.c's build."""
+    ny, nx = cellmax.shape
+    m = cellmax.astype(float)
+    top = m.max()
+    out = np.zeros((ny, nx))
+    for sj in range(ny):
+        for si in range(nx):
+            centre = np.array([si + 0.5, sj + 0.5])
+            best = 0.0
+            for dj in range(max(0, sj - radius), min(ny, sj + radius + 1)):
+                for di in range(max(0, si - radius), min(nx, si + radius + 1)):
+                    if (di, dj) == (si, sj) or not m[dj, di] < top:
+                        continue
+                    p = np.array([di + 0.5, dj + 0.5])
+                    length = float(np.sqrt(((p - centre) ** 2).sum()))
+                    unit, drop, z = (p - centre) / length, (top - m[dj, di]) / length, m[dj, di]
+                    for _ in range(4 * radius + 4):
+                        p, z = p + 0.5 * unit, z - 0.5 * drop
+                        ci, cj = int(np.floor(p[0])), int(np.floor(p[1]))
+                        if not (0 <= ci < nx and 0 <= cj < ny) or \
+                                abs(ci - si) > radius or abs(cj - sj) > radius or z > m[cj, ci]:
+                            break
+                    if z > m[sj, si]:
+                        best = max(best, (z - m[sj, si]) / float(np.sqrt(((p - centre) ** 2).sum())))
+            out[sj, si] = best
+    return out
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_relaxed_slopes_equal_the_definition(seed):
+    from algos.cone import build_relaxed_cone
+
+    rng = np.random.Generator(np.random.PCG64(seed))
+    cellmax = (rng.standard_normal((9, 11)) * 3).astype(np.float32)
+    for radius in (1, 3):
+        got = build_relaxed_cone(cellmax, radius)
+        want = _relaxed_reference(cellmax, radius)
+        assert got.dtype == np.float32 and np.all(got >= 0)
+        assert np.allclose(got, want, rtol=1e-6, atol=1e-6), (seed, radius, np.abs(got - want).max())
+    assert not build_relaxed_cone(np.zeros((4, 5), np.float32), 3).any()  # flat: no slope
+
+
+def test_relaxed_error_is_small_and_shrinks_with_halvings():
+    """Approximate by design: measured against the brute force on bench-like rays, where
+    nearly every ray agrees on hit or miss and more halvings give smaller errors."""
+    from bench.sweep import first_hit_rays
+
+    H = fields.generate("fbm", (97, 130), seed=5, amplitude=30.0, scale=40.0)
+    fld = algos.Field(H)
+    o, d = first_hit_rays(fld, 5, 300, seed=8)
+    t_ref, _ = algos.brute_force_hits(H, o, d, "triangles")
+    medians = []
+    for halvings in (4, 16):
+        got = algos.intersect("cone_relaxed", fld, o, d, march_refinements=halvings).t
+        agree = np.isfinite(got) == np.isfinite(t_ref)
+        assert agree.mean() > 0.95
+        both = np.isfinite(got) & np.isfinite(t_ref)
+        medians.append(float(np.median(np.abs(got[both] - t_ref[both]))))
+    assert medians[1] < medians[0] / 100
+
+
+def test_the_binding_checks_the_relaxed_structure():
+    from algos.cone import build_relaxed_cone, relaxed_cone_for
+    from algos.intersect import _Prepared
+    from algos.registry import get_intersector
+
+    fld = algos.Field(np.zeros((5, 6)))
+    o, d = np.array([[0.5, 0.5, 1.0]]), np.array([[1.0, 0.0, -0.1]])
+    run = _Prepared(get_intersector("cone_relaxed"), fld, "triangles", o, d, None, None, ("t",),
+                    {"march_steps": 8, "march_refinements": 4})
+    slope = relaxed_cone_for(fld)
+    with pytest.raises(ValueError, match="cone_top"):
+        _kernels.intersect_cone(slope, slope, *run.args)
+    with pytest.raises(ValueError, match="cone"):
+        _kernels.intersect(*run.args)
+    assert _kernels.intersect_cone(None, slope, *run.args) >= 0
+    with pytest.raises(ValueError, match="radius"):
+        build_relaxed_cone(np.zeros((3, 3), np.float32), 65)
+    with pytest.raises(ValueError, match="radius"):
+        _kernels.cone_relaxed_slopes(np.zeros((3, 3), np.float32), 0, np.zeros((3, 3), np.float32))
+    with pytest.raises(ValueError, match="slope"):
+        _kernels.cone_relaxed_slopes(np.zeros((3, 3), np.float32), 2, np.zeros((3, 4), np.float32))
