@@ -5,13 +5,14 @@ the relaxed one).
 
 The exact cone.
 
-For every cell ``c`` two float32 numbers:
+For every cell ``c`` two float32 numbers, stored side by side (shape ``(ny, nx, 2)``, 8
+bytes per cell, so one cache line serves both):
 
-* ``top[c]`` (``T_c``): the highest cell maximum (``Field.cellmax_for``) among ``c`` and
-  its 8 neighbours;
-* ``slope[c]`` (``k_c >= 0``): a cone slope such that every surface point ``q`` of the
-  field satisfies ``s(q) <= T_c + k_c * d(q, c)``, with ``d`` the Chebyshev distance from
-  ``q`` to the closed square of ``c``.
+* ``top`` (``cone[..., 0]``, ``T_c``): the highest cell maximum (``Field.cellmax_for``)
+  among ``c`` and its 8 neighbours;
+* ``slope`` (``cone[..., 1]``, ``k_c >= 0``): a cone slope such that every surface point
+  ``q`` of the field satisfies ``s(q) <= T_c + k_c * d(q, c)``, with ``d`` the Chebyshev
+  distance from ``q`` to the closed square of ``c``.
 
 Why it holds: a point of a cell at Chebyshev ring ``n >= 2`` around ``c`` lies at least
 ``n - 1`` from ``c`` and at most as high as the maximum ``B_n(c)`` of the cell maxima
@@ -52,7 +53,7 @@ def _dilate(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def build_cone(cellmax: np.ndarray, radius: int = CONE_RADIUS) -> tuple[np.ndarray, np.ndarray]:
+def build_cone(cellmax: np.ndarray, radius: int = CONE_RADIUS) -> np.ndarray:
     """The cone structure of a cell-maximum array.
 
     Parameters
@@ -64,8 +65,9 @@ def build_cone(cellmax: np.ndarray, radius: int = CONE_RADIUS) -> tuple[np.ndarr
 
     Returns
     -------
-    top, slope : ndarray, shape (ny, nx), float32
-        ``T_c`` and ``k_c`` of the module docstring; ``slope`` is finite and >= 0.
+    ndarray, shape (ny, nx, 2), float32
+        ``[..., 0]``: ``T_c``, ``[..., 1]``: ``k_c`` of the module docstring (>= 0; a
+        slope past float32's range is +inf, which the kernel never steps by).
 
     Raises
     ------
@@ -90,7 +92,7 @@ def build_cone(cellmax: np.ndarray, radius: int = CONE_RADIUS) -> tuple[np.ndarr
     slope32 = slope.astype(np.float32)
     low = slope32.astype(np.float64) < slope
     slope32[low] = np.nextafter(slope32[low], np.float32(np.inf))
-    return np.ascontiguousarray(top), np.ascontiguousarray(slope32)
+    return np.ascontiguousarray(np.stack([top, slope32], axis=-1))
 
 
 def cone_for(field, kind: str = "corners"):

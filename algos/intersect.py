@@ -228,7 +228,7 @@ class _Prepared:
         if "cone" in uses:
             self.cone = cone_for(fld, kind)
         elif "cone_relaxed" in uses:
-            self.cone = (None, relaxed_cone_for(fld, kind))
+            self.cone = relaxed_cone_for(fld, kind)
         else:
             self.cone = None
         q = int(opts.get("max_denominator") or 0)
@@ -272,7 +272,7 @@ class _Prepared:
 
     def _kernel(self, args) -> int:
         if self.cone is not None:
-            return _kernels.intersect_cone(*self.cone, *args)
+            return _kernels.intersect_cone(self.cone, *args)
         return _kernels.intersect(*args)
 
     @property

@@ -266,8 +266,9 @@ PyDoc_STRVAR(intersect_doc,
              "Private: use algos.intersect.");
 
 /* intersect and intersect_cone: the batch from `args`, with the cone structure (NULL
- * but for intersect_cone), each cone array checked to (rows - 1, cols - 1) float32. */
-static PyObject *intersect_with(PyObject *args, PyObject *o_cone_top, PyObject *o_cone_slope) {
+ * but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for cone,
+ * (rows - 1, cols - 1) for cone_relaxed. */
+static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
     int kernel, surface, cull_cells, fine_level, status, k;
     double hmin, hmax;
     long long max_denominator;
@@ -320,21 +321,20 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone_top, PyObject *
     } else if (!get_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) {
         return NULL;
     }
-    if ((o_cone_slope != NULL) != (kernel == HF_HIT_CONE || kernel == HF_HIT_CONE_RELAXED)) {
+    if ((o_cone != NULL) != (kernel == HF_HIT_CONE || kernel == HF_HIT_CONE_RELAXED)) {
         PyErr_SetString(
             PyExc_ValueError,
             "cone: only intersect_cone runs the cone kernels, and it runs nothing else");
         return NULL;
     }
-    if (o_cone_slope != NULL) {
-        /* cone: top and slope; cone_relaxed: slope only (its apex is the cell maximum) */
-        if ((kernel == HF_HIT_CONE) != (o_cone_top != Py_None)) {
-            PyErr_SetString(PyExc_ValueError, "cone_top: required by cone, None for cone_relaxed");
+    if (o_cone != NULL) {
+        /* cone: top and slope side by side; cone_relaxed: slopes (its apex: the cell max) */
+        npy_intp cone_shape[3];
+        cone_shape[0] = shape[0];
+        cone_shape[1] = shape[1];
+        cone_shape[2] = 2;
+        if (!get_f32(o_cone, "cone", kernel == HF_HIT_CONE ? 3 : 2, cone_shape, &b.cone))
             return NULL;
-        }
-        if (o_cone_top != Py_None && !get_f32(o_cone_top, "cone_top", 2, shape, &b.cone_top))
-            return NULL;
-        if (!get_f32(o_cone_slope, "cone_slope", 2, shape, &b.cone_slope)) return NULL;
     }
     b.hmin = hmin;
     b.hmax = hmax;
@@ -431,7 +431,7 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone_top, PyObject *
 
 static PyObject *intersect(PyObject *self, PyObject *args) {
     (void)self;
-    return intersect_with(args, NULL, NULL);
+    return intersect_with(args, NULL);
 }
 
 PyDoc_STRVAR(quantize_doc, "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
@@ -949,22 +949,23 @@ static PyObject *raster(PyObject *self, PyObject *args) {
 /* ---- cone step mapping (issue 22) ----------------------------------------------------- */
 
 PyDoc_STRVAR(intersect_cone_doc,
-             "intersect_cone(cone_top, cone_slope, kernel, surface, heights, ...) -> int\n\n"
-             "intersect() for the cone kernels: the cone structure (float32 arrays of\n"
-             "shape (rows - 1, cols - 1), algos/cone.py; cone_top None for cone_relaxed)\n"
-             "before intersect()'s arguments.\n"
+             "intersect_cone(cone, kernel, surface, heights, ...) -> int\n\n"
+             "intersect() for the cone kernels: the cone structure (algos/cone.py; float32\n"
+             "of shape (rows - 1, cols - 1, 2) for cone, (rows - 1, cols - 1) for\n"
+             "cone_relaxed) before intersect()'s arguments.\n"
              "Private: use algos.intersect.");
 
 static PyObject *intersect_cone(PyObject *self, PyObject *args) {
     PyObject *rest, *result;
     (void)self;
-    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 2) {
-        PyErr_SetString(PyExc_TypeError, "intersect_cone: expected cone_top, cone_slope, ...");
+    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
+        PyErr_SetString(PyExc_TypeError,
+                        "intersect_cone: expected cone, then intersect()'s arguments");
         return NULL;
     }
-    rest = PyTuple_GetSlice(args, 2, PyTuple_GET_SIZE(args));
+    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
     if (rest == NULL) return NULL;
-    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0), PyTuple_GET_ITEM(args, 1));
+    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0));
     Py_DECREF(rest);
     return result;
 }

@@ -30,7 +30,7 @@
 #define HF_CONE_MIN_CELLS 1.0
 #endif
 
-int hf_cone_hit(hf_hit *h, const float *cone_top, const float *cone_slope) {
+int hf_cone_hit(hf_hit *h, const float *cone) {
     const int32_t nx = h->cols - 1, ny = h->rows - 1;
     const int descending = h->dz < 0;
     const int fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
@@ -51,10 +51,10 @@ int hf_cone_hit(hf_hit *h, const float *cone_top, const float *cone_slope) {
         const double mx = has_x ? hf_face_t((int64_t)i + fx, ox, inv_x) : inf;
         const double my = has_y ? hf_face_t((int64_t)j + fy, oy, inv_y) : inf;
         const double t_out = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
-        {
-            /* the cone over this cell */
-            const double z = oz + t * dz, top = (double)cone_top[cell];
-            const double slope = (double)cone_slope[cell];
+        const double z = oz + t * dz, top = (double)cone[2 * cell];
+        if (z > top) {
+            /* above the cone's top: how far the cone over this cell lets the ray go */
+            const double slope = (double)cone[2 * cell + 1];
             const double margin =
                 0x1p-40 * (1.0 + fabs(z) + fabs(top) + slope * (position_scale + speed * fabs(t)));
             const double gap = z - top - margin;

@@ -185,7 +185,7 @@ static void march_relaxed_cone(hf_hit *h, const hf_hit_batch *b) {
     for (k = 0; k < b->march_steps && t < h->t1; ++k) {
         const int64_t cell = (int64_t)j * nx + i;
         const double z = h->oz + t * h->dz, apex = (double)h->cellmax[cell];
-        const double rate = (double)b->cone_slope[cell] * speed - h->dz;
+        const double rate = (double)b->cone[cell] * speed - h->dz;
         /* at least half a cell (a vertical ray: down to the surface sampled here) */
         double step = speed > 0 ? 0.5 / speed : gap / -h->dz;
         if (z > apex) {
@@ -364,8 +364,8 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
-    if (cone && (b->cone_top == NULL || b->cone_slope == NULL)) return HF_ERR_ARGUMENT;
-    if (relaxed && (b->cone_slope == NULL || b->cellmax == NULL || b->march_steps < 1))
+    if (cone && b->cone == NULL) return HF_ERR_ARGUMENT;
+    if (relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
         return HF_ERR_ARGUMENT;
     direction_cache.valid = 0;
     pattern.p = pattern.q = pattern.position_step = 0;
@@ -448,7 +448,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
             } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(&h)) {
                 maxmip_tight(&h, b);
             } else if (cone && !hf_on_grid_line(&h)) {
-                hf_cone_hit(&h, b->cone_top, b->cone_slope);
+                hf_cone_hit(&h, b->cone);
             } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(&h)) {
                 hf_mipmap m;
                 m.levels = b->mip;

@@ -12,6 +12,7 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include "mipmap.h"
 #include "surfaces.h"
 
 enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 };
@@ -96,9 +97,7 @@ static inline float hf_rmq_query(const hf_rmq *q, int32_t line, int32_t lo, int3
  * rule ([k, k+1) moving forward or along the axis, (k, k+1] moving back), clamped into
  * the grid: where a walk starts, or lands after a skip. */
 static inline int32_t hf_cell_at(double o, double d, double t, int32_t n) {
-    const double x = o + t * d;
-    const double c = d < 0 ? ceil(x) - 1 : floor(x);
-    const int64_t k = (int64_t)(c < -1e9 ? -1e9 : (c > 1e9 ? 1e9 : c));
+    const int64_t k = hf_index_of(o + t * d, d >= 0);
     return (int32_t)(k < 0 ? 0 : (k > n - 1 ? n - 1 : k));
 }
 

@@ -36,9 +36,10 @@ typedef struct {
     int32_t mip_cols[HF_MAX_MIP_LEVELS];
     int floor_level; /* the maxmip kernels: the level whose tiles are walked cell by cell or
                         run by run (the public option fine_level) */
-    /* cone: the cone over each cell (cone.c); cone_relaxed: cone_slope only (its apex is
-     * the cell maximum); NULL for the other kernels */
-    const float *cone_top, *cone_slope;
+    /* cone: (ny, nx, 2), each cell's cone top and slope side by side (one cache line holds
+     * both); cone_relaxed: (ny, nx) slopes (its apex is the cell maximum); NULL for the
+     * other kernels (cone.c) */
+    const float *cone;
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;
@@ -57,7 +58,7 @@ typedef struct {
 int hf_intersect_batch(int kernel, hf_hit_batch *batch);
 
 /* cone: the first hit of one clipped ray (1: found), cone.c. */
-int hf_cone_hit(hf_hit *h, const float *cone_top, const float *cone_slope);
+int hf_cone_hit(hf_hit *h, const float *cone);
 
 /* cone_relaxed: the relaxed cone slope of every cell of an ny x nx grid of cell maxima,
  * from the destinations within `radius` rings (cone.c). */

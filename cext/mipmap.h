@@ -15,6 +15,17 @@
 #include <math.h>
 #include <stdint.h>
 
+/* The index of the cell holding coordinate x along one axis, by the forward rule: [k, k+1)
+ * moving forward (or along the axis), (k, k+1] moving back; x is clamped to +-2^30 first
+ * (every grid lies inside; NaN goes to -2^30), so the conversion is always defined. floor and ceil
+ * by truncation: without SSE4.1 they would be library calls. */
+static inline int64_t hf_index_of(double x, int forward) {
+    const double c = x >= -1073741824.0 ? (x <= 1073741824.0 ? x : 1073741824.0) : -1073741824.0;
+    const int64_t k = (int64_t)c;            /* c rounded toward zero */
+    if (forward) return k - ((double)k > c); /* floor(c) */
+    return k + ((double)k < c) - 1;          /* ceil(c) - 1 */
+}
+
 /* The grid coordinate of the exit face of tile `tile` at `level` along one axis. */
 static inline int64_t hf_tile_face(int64_t tile, int level, int forward) {
     return (tile + forward) << level;
@@ -49,13 +60,10 @@ static inline void hf_tile_cells(int64_t tile, int level, int64_t n, int64_t *lo
 static inline int64_t hf_tile_next_cell(int exits_here, int64_t tile, int level, int64_t n,
                                         int forward, double x) {
     int64_t lo, hi, c;
-    double k;
     if (exits_here) return forward ? (tile + 1) << level : (tile << level) - 1;
     hf_tile_cells(tile, level, n, &lo, &hi);
-    k = forward ? floor(x) : ceil(x) - 1;
-    /* far outside (or NaN): clamped before the conversion, never undefined */
-    c = k >= (double)lo ? (k <= (double)hi ? (int64_t)k : hi) : lo;
-    return c;
+    c = hf_index_of(x, forward);
+    return c < lo ? lo : (c > hi ? hi : c);
 }
 
 #endif

@@ -29,8 +29,9 @@ def test_every_cell_maximum_lies_below_every_cone(seed, radius):
     shape = (int(rng.integers(1, 14)), int(rng.integers(1, 14)))
     scale = 10.0 ** rng.uniform(-3, 3)
     cellmax = (rng.standard_normal(shape) * scale).astype(np.float32)
-    top, slope = build_cone(cellmax, radius)
-    assert top.dtype == slope.dtype == np.float32 and top.shape == slope.shape == shape
+    cone = build_cone(cellmax, radius)
+    assert cone.dtype == np.float32 and cone.shape == shape + (2,)
+    top, slope = cone[..., 0], cone[..., 1]
     assert np.all(slope >= 0) and np.all(np.isfinite(slope))
     n = _ring_distance(shape)
     bound = (top.ravel().astype(np.float64)[:, None]
@@ -47,7 +48,8 @@ def test_cone_is_tight_on_a_single_peak():
     its top at 0 and slope 10 / (5 - 1), rounded up by at most a few float32 ulps."""
     cellmax = np.zeros((21, 21), np.float32)
     cellmax[10, 10] = 10.0
-    top, slope = build_cone(cellmax, 32)
+    cone = build_cone(cellmax, 32)
+    top, slope = cone[..., 0], cone[..., 1]
     assert top[10, 5] == 0.0
     assert 2.5 <= slope[10, 5] <= np.nextafter(np.nextafter(np.float32(2.5), np.float32(3)),
                                                np.float32(3))
@@ -113,7 +115,7 @@ def test_the_structure_is_built_once_and_recorded():
     first = cone_for(fld)
     assert cone_for(fld) is first
     algos.intersect("cone", fld, [[1.0, 1.0, 20.0]], [[1.0, 0.5, -1.0]])
-    assert fld.build_stats["cone"]["bytes"] == 2 * 4 * 32 * 40
+    assert fld.build_stats["cone"]["bytes"] == 2 * 4 * 32 * 40  # 8 bytes per cell
     algos.intersect("cone", fld, [[1.0, 1.0, 20.0]], [[1.0, 0.5, -1.0]], surface="plane3")
     assert "cone/plane3" in fld.build_stats
 
@@ -135,20 +137,22 @@ def test_the_binding_checks_the_cone_arrays():
     o, d = np.array([[0.5, 0.5, 1.0]]), np.array([[1.0, 0.0, -0.1]])
     run = _Prepared(get_intersector("cone"), fld, "triangles", o, d, None, None, ("t",),
                     {"cull_cells": True})
-    top, slope = run.cone
+    cone = run.cone
     with pytest.raises(ValueError, match="cone"):
         _kernels.intersect(*run.args)
     plain = _Prepared(get_intersector("dda"), fld, "triangles", o, d, None, None, ("t",),
                       {"cull_cells": True})
     with pytest.raises(ValueError, match="cone"):
-        _kernels.intersect_cone(top, slope, *plain.args)
-    with pytest.raises(ValueError, match="cone_top"):
-        _kernels.intersect_cone(top[:, :-1].copy(), slope, *run.args)
-    with pytest.raises(TypeError, match="cone_slope"):
-        _kernels.intersect_cone(top, slope.astype(np.float64), *run.args)
+        _kernels.intersect_cone(cone, *plain.args)
+    with pytest.raises(ValueError, match="cone"):
+        _kernels.intersect_cone(cone[:, :-1].copy(), *run.args)
+    with pytest.raises(TypeError, match="cone"):
+        _kernels.intersect_cone(cone[..., 0].copy(), *run.args)
+    with pytest.raises(TypeError, match="cone"):
+        _kernels.intersect_cone(cone.astype(np.float64), *run.args)
     with pytest.raises(TypeError):
-        _kernels.intersect_cone(top)
-    assert _kernels.intersect_cone(top, slope, *run.args) >= 0
+        _kernels.intersect_cone()
+    assert _kernels.intersect_cone(cone, *run.args) >= 0
 
 
 def _fuzz_harness():
@@ -262,11 +266,11 @@ def test_the_binding_checks_the_relaxed_structure():
     run = _Prepared(get_intersector("cone_relaxed"), fld, "triangles", o, d, None, None, ("t",),
                     {"march_steps": 8, "march_refinements": 4})
     slope = relaxed_cone_for(fld)
-    with pytest.raises(ValueError, match="cone_top"):
-        _kernels.intersect_cone(slope, slope, *run.args)
+    with pytest.raises(TypeError, match="cone"):
+        _kernels.intersect_cone(np.stack([slope, slope], axis=-1), *run.args)
     with pytest.raises(ValueError, match="cone"):
         _kernels.intersect(*run.args)
-    assert _kernels.intersect_cone(None, slope, *run.args) >= 0
+    assert _kernels.intersect_cone(slope, *run.args) >= 0
     with pytest.raises(ValueError, match="radius"):
         build_relaxed_cone(np.zeros((3, 3), np.float32), 65)
     with pytest.raises(ValueError, match="radius"):
