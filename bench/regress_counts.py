@@ -147,7 +147,10 @@ def measure(echo=print, only=None) -> dict:
                     first_hit_rays=FIRST_HIT_RAYS, traversal_rays=TRAVERSAL_RAYS,
                     cases=todo)
         out = os.path.join(tmp, "cg.out")
+        # collect only inside the batch entries: the structures' builds (the cone_relaxed
+        # build is C) run in the extension too, before the first batch's dump
         cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+               "--toggle-collect=hf_intersect_batch", "--toggle-collect=hf_walk_batch",
                "--branch-sim=yes", "--dump-before=hf_intersect_batch",
                "--dump-before=hf_walk_batch", "--dump-after=hf_intersect_batch",
                "--dump-after=hf_walk_batch", sys.executable, "-c", _CHILD, json.dumps(spec)]

@@ -353,6 +353,7 @@ static hf_hit_walk walk_of(int kernel) {
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_pattern pattern;
     hf_direction direction_cache; /* the exact walks' per-direction set-up, across rays */
+    int parallel;
     const hf_hit_walk walk = walk_of(kernel);
     const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
                          kernel == HF_HIT_MARCH_BINARY;
@@ -368,6 +369,17 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     if (relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
         return HF_ERR_ARGUMENT;
     direction_cache.valid = 0;
+    {
+        /* parallel rays (one horizontal direction for the whole batch) share the exact
+         * walks' per-direction set-up; other batches set up each ray afresh, as sharing
+         * would only add the comparison */
+        for (ray = 1; ray < b->n_rays; ++ray) {
+            if (b->directions[3 * ray] != b->directions[0] ||
+                b->directions[3 * ray + 1] != b->directions[1])
+                break;
+        }
+        parallel = ray >= b->n_rays;
+    }
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
     b->bad_ray = -1;
@@ -430,7 +442,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                 hi = (double)nextafterf((float)t1, INFINITY);
             }
             b2.max_denominator = b->max_denominator;
-            b2.direction_cache = &direction_cache;
+            b2.direction_cache = parallel ? &direction_cache : NULL;
             b2.pattern = b->pattern;
             sink.hit = &h;
             if (marching) {

@@ -68,9 +68,8 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
 
 /* The exact line's per-direction share (issue 22, item 5): the lattice scale, octant and
  * slope of one rounded direction (with runs_periodic's best rational for
- * max_denominator > 0), computed once and reused while consecutive rays of a batch share
- * the direction bit for bit (parallel rays: shadows, orthographic views). hf_line_exact
- * is hf_direction_setup followed by hf_line_from_direction. */
+ * max_denominator > 0), set up once and reused while consecutive rays of a batch share
+ * the direction bit for bit (parallel rays: shadows, orthographic views). */
 struct hf_direction {
     double key[2]; /* the direction it was set up for, and its max_denominator */
     int64_t key_max_denominator;
@@ -80,11 +79,10 @@ struct hf_direction {
 };
 typedef struct hf_direction hf_direction;
 
-void hf_direction_setup(const double direction[2], int64_t max_denominator, hf_direction *dir);
-int hf_direction_matches(const hf_direction *dir, const double direction[2],
-                         int64_t max_denominator);
-int hf_line_from_direction(const hf_direction *dir, const double origin[2], double tmin,
-                           double tmax, int32_t nx, int32_t ny, hf_line *line);
+/* hf_line_exact with the direction's share kept in `shared` (lattice.c). */
+int hf_line_shared(hf_direction *shared, const double origin[2], const double direction[2],
+                   double tmin, double tmax, int32_t nx, int32_t ny, int64_t max_denominator,
+                   hf_line *line);
 
 /* ---- Output sink --------------------------------------------------------------------
  * Kernels report cells (cell kernels) or runs (run kernels); the sink turns either into
@@ -385,18 +383,13 @@ HF_INLINE int hf_ray_end(hf_batch *b, int64_t ray, hf_sink *s, const int mode) {
 HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
                              int64_t max_denominator, int runs, hf_line *L, hf_frame *f, hf_cull *c,
                              int *status) {
-    const double *direction = b->directions + 2 * ray;
-    hf_direction local, *dir = b->direction_cache;
-    int nonempty;
     /* the per-direction set-up: shared with the previous ray when the batch keeps one */
-    if (dir == NULL) {
-        dir = &local;
-        hf_direction_setup(direction, max_denominator, dir);
-    } else if (!hf_direction_matches(dir, direction, max_denominator)) {
-        hf_direction_setup(direction, max_denominator, dir);
-    }
-    nonempty = hf_line_from_direction(dir, b->origins + 2 * ray, hf_tmin(b, ray), hf_tmax(b, ray),
-                                      b->nx, b->ny, L);
+    const int nonempty =
+        b->direction_cache != NULL
+            ? hf_line_shared(b->direction_cache, b->origins + 2 * ray, b->directions + 2 * ray,
+                             hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, max_denominator, L)
+            : hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray, hf_tmin(b, ray),
+                            hf_tmax(b, ray), b->nx, b->ny, max_denominator, L);
     *status = hf_ray_begin(b, ray, s, mode, !L->swap);
     if (*status != HF_OK || !nonempty) return 0;
     *f = hf_frame_of(L);

@@ -185,7 +185,8 @@ static int64_t min64(int64_t a, int64_t b) {
 
 /* The part of the exact line that depends on the direction alone (and on
  * max_denominator): its lattice scale, the rounded direction's octant and slope. */
-void hf_direction_setup(const double direction[2], int64_t max_denominator, hf_direction *dir) {
+HF_INLINE void direction_setup(const double direction[2], int64_t max_denominator,
+                               hf_direction *dir) {
     int64_t D[2];
     int k, major;
     dir->key[0] = direction[0];
@@ -212,22 +213,8 @@ void hf_direction_setup(const double direction[2], int64_t max_denominator, hf_d
     }
 }
 
-int hf_direction_matches(const hf_direction *dir, const double direction[2],
-                         int64_t max_denominator) {
-    /* bit for bit: -0.0 and 0.0 give the same line, but need not be told apart */
-    return dir->valid && memcmp(dir->key, direction, sizeof dir->key) == 0 &&
-           dir->key_max_denominator == max_denominator;
-}
-
-int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
-                  int32_t nx, int32_t ny, int64_t max_denominator, hf_line *L) {
-    hf_direction dir;
-    hf_direction_setup(direction, max_denominator, &dir);
-    return hf_line_from_direction(&dir, origin, tmin, tmax, nx, ny, L);
-}
-
-int hf_line_from_direction(const hf_direction *dir, const double origin[2], double tmin,
-                           double tmax, int32_t nx, int32_t ny, hf_line *L) {
+HF_INLINE int line_from_direction(const hf_direction *dir, const double origin[2], double tmin,
+                                  double tmax, int32_t nx, int32_t ny, hf_line *L) {
     int64_t O[2];
     int32_t n[2];
     int k, scale, major;
@@ -324,4 +311,24 @@ int hf_line_from_direction(const hf_direction *dir, const double origin[2], doub
     L->b0 = (int32_t)b0;
     L->b1 = (int32_t)b1;
     return 1;
+}
+
+/* The exact line of one ray, its direction's share set up afresh. */
+int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
+                  int32_t nx, int32_t ny, int64_t max_denominator, hf_line *L) {
+    hf_direction dir;
+    direction_setup(direction, max_denominator, &dir);
+    return line_from_direction(&dir, origin, tmin, tmax, nx, ny, L);
+}
+
+/* The same, the direction's share taken from `shared` when it was set up for this very
+ * direction (bit for bit: -0.0 and 0.0 give one line but need not be told apart) and
+ * max_denominator, else set up there for the rays that follow. */
+int hf_line_shared(hf_direction *shared, const double origin[2], const double direction[2],
+                   double tmin, double tmax, int32_t nx, int32_t ny, int64_t max_denominator,
+                   hf_line *L) {
+    if (!(shared->valid && memcmp(shared->key, direction, sizeof shared->key) == 0 &&
+          shared->key_max_denominator == max_denominator))
+        direction_setup(direction, max_denominator, shared);
+    return line_from_direction(shared, origin, tmin, tmax, nx, ny, L);
 }
