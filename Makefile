@@ -105,22 +105,29 @@ sanitize:
 clean:
 	rm -rf $(VENV) build *.egg-info algos/*.so
 
-# Fuzzing (tests/fuzz/harness.py, atheris) in its own sanitized copy of the tree, like `sanitize`.
-# It mutates a working copy of the committed corpus; a finding is written to
-# tests/data/fuzz_corpus/crashes/ (commit it: tests/test_fuzz.py replays it). Under the
-# preloaded ASan runtime atheris gets no coverage feedback (libasan supplies the coverage
-# callbacks), so the corpus is grown by a coverage-guided run without sanitizers:
-#   .venv/bin/python -m tests.fuzz.harness --seconds 600 build/new-corpus tests/data/fuzz_corpus
+# Fuzzing (tests/fuzz/harness.py, atheris) in its own copy of the tree, like `sanitize`, built by
+# clang with -fsanitize=fuzzer-no-link,address,undefined (setup.py, HFTRACE_FUZZ=1): the C
+# kernels carry libFuzzer's coverage counters, and atheris' asan_with_fuzzer.so, preloaded,
+# supplies both the ASan runtime and libFuzzer, so the corpus grows on coverage of the C
+# code itself. It mutates a working copy of the committed corpus (files counted before and
+# after); a finding is written to tests/data/fuzz_corpus/crashes/ (commit it:
+# tests/test_fuzz.py replays it). Needs clang (.ci/run installs it from apt-get).
 FUZZ_TREE := build/fuzz
 FUZZ_SECONDS ?= 60
 FUZZ_RUNS ?= -1
+FUZZ_CC ?= clang
 fuzz:
 	rm -rf $(FUZZ_TREE) && mkdir -p $(FUZZ_TREE)
 	git ls-files -co --exclude-standard | grep -v '^build/' | tar cf - -T - | tar xf - -C $(FUZZ_TREE)
 	cd $(FUZZ_TREE) && $(PYTHON) -m venv .venv && .venv/bin/python -m pip install --quiet --upgrade pip
-	cd $(FUZZ_TREE) && HFTRACE_SANITIZE=1 .venv/bin/python -m pip install --quiet -e ".[fuzz]"
+	cd $(FUZZ_TREE) && HFTRACE_FUZZ=1 CC=$(FUZZ_CC) LDSHARED="$(FUZZ_CC) -shared" .venv/bin/python -m pip install --quiet -e ".[fuzz]"
+	cd $(FUZZ_TREE) && nm -D algos/_kernels*.so | grep -q __sanitizer_cov_8bit_counters_init \
+		|| (echo "fuzz: the extension carries no libFuzzer coverage counters" >&2; exit 1)
 	mkdir -p $(FUZZ_TREE)/work-corpus && find tests/data/fuzz_corpus -maxdepth 1 -type f -exec cp {} $(FUZZ_TREE)/work-corpus/ \;
-	cd $(FUZZ_TREE) && LD_PRELOAD="$(ASAN_LIB) $(STDCXX_LIB)" ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
+	@echo "fuzz: corpus before: $$(ls $(FUZZ_TREE)/work-corpus | wc -l) files"
+	cd $(FUZZ_TREE) && LD_PRELOAD="$$(.venv/bin/python -c 'import atheris; print(atheris.path())')/asan_with_fuzzer.so $(STDCXX_LIB)" \
+		ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 \
 		UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 PYTHONWARNINGS=ignore \
 		.venv/bin/python -m tests.fuzz.harness --seconds $(FUZZ_SECONDS) --runs $(FUZZ_RUNS) \
 		--crashes $(CURDIR)/tests/data/fuzz_corpus/crashes work-corpus
+	@echo "fuzz: corpus after: $$(ls $(FUZZ_TREE)/work-corpus | wc -l) files"

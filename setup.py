@@ -4,6 +4,12 @@ Environment switches:
   HFTRACE_DEBUG=1     -O0 -g and the kernels' invariant checks (HF_DEBUG)
   HFTRACE_SANITIZE=1  HFTRACE_DEBUG plus AddressSanitizer and UndefinedBehaviorSanitizer
                       (run Python with LD_PRELOAD of libasan; see `make sanitize`)
+  HFTRACE_FUZZ=1      the fuzzing copy (`make fuzz`): clang (CC and LDSHARED default to it),
+                      -O1 -g, the kernels' invariant checks, and
+                      -fsanitize=fuzzer-no-link,address,undefined, so libFuzzer (atheris) gets
+                      coverage from the C code itself; run Python with LD_PRELOAD of
+                      atheris' asan_with_fuzzer.so, which supplies the sanitizer runtime and
+                      the coverage callbacks
 Otherwise: -O3, C99, no fast-math (the float kernels must round as IEEE 754 says).
 """
 import os
@@ -13,7 +19,10 @@ import numpy
 from setuptools import Extension, setup
 
 SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
-           "terrain.c", "raster.c"]
+           "terrain.c", "raster.c", "cone.c"]
+
+HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h",
+           "terrain.h"]
 
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
 link_args = []
@@ -23,6 +32,17 @@ if os.environ.get("HFTRACE_DEBUG") == "1" or os.environ.get("HFTRACE_SANITIZE") 
     macros.append(("HF_DEBUG", "1"))
 else:
     compile_args += ["-O3"]
+if os.environ.get("HFTRACE_FUZZ") == "1":
+    # coverage instrumentation (sancov) for libFuzzer, without linking libFuzzer itself:
+    # atheris brings it, preloaded with its ASan runtime
+    os.environ.setdefault("CC", "clang")
+    os.environ.setdefault("LDSHARED", "clang -shared")
+    fuzz = ["-fsanitize=fuzzer-no-link,address,undefined", "-fno-sanitize-recover=undefined",
+            "-fno-wrapv", "-fno-omit-frame-pointer"]
+    compile_args = [a for a in compile_args if a != "-O3"] + ["-O1", "-g", "-UNDEBUG"] + fuzz
+    link_args += ["-fsanitize=address,undefined"]
+    if ("HF_DEBUG", "1") not in macros:
+        macros.append(("HF_DEBUG", "1"))
 if os.environ.get("HFTRACE_SANITIZE") == "1":
     sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined", "-fno-wrapv",
                 "-fno-omit-frame-pointer"]
@@ -41,8 +61,7 @@ setup(
             define_macros=macros,
             extra_compile_args=compile_args,
             extra_link_args=link_args,
-            depends=[os.path.join("cext", name)
-                     for name in ("hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h")],
+            depends=[os.path.join("cext", name) for name in HEADERS],
         )
     ]
 )

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field as dc_field
 import numpy as np
 
 from . import _kernels
+from .cone import cone_for, relaxed_cone_for
 from .field import HeightField, as_field, bound_kind
 from .parallel import resolve_threads, run_ranges, split
 from .registry import SURFACES, get_intersector
@@ -200,6 +201,13 @@ class _Prepared:
         else:
             mip = None
         cellmax = None if lean else fld.cellmax_for(kind)
+        # the cone kernel's structure (algos.cone), passed before the common arguments
+        if "cone" in uses:
+            self.cone = cone_for(fld, kind)
+        elif "cone_relaxed" in uses:
+            self.cone = relaxed_cone_for(fld, kind)
+        else:
+            self.cone = None
         q = int(opts.get("max_denominator") or 0)
         pattern = np.zeros(q + 1, np.int32) if q else None
         march = (int(opts.get("march_steps", 128)), int(opts.get("march_refinements", 16)),
@@ -226,7 +234,7 @@ class _Prepared:
         if args[self._SCRATCH] is not None:
             args[self._SCRATCH] = np.zeros_like(args[self._SCRATCH])
         try:
-            return _kernels.intersect(*args)
+            return self._kernel(args)
         except RuntimeError as exc:
             raise RuntimeError(f"{exc} (ray index counted from ray {a})") from None
 
@@ -234,10 +242,15 @@ class _Prepared:
         """Trace the batch; the elapsed ns: the C clock on one thread, else the wall time
         of the whole pool."""
         if len(split(self.n, self.threads)) == 1:
-            return _kernels.intersect(*self.args)
+            return self._kernel(self.args)
         start = time.perf_counter_ns()
         run_ranges(self.n, self.threads, self._part)
         return time.perf_counter_ns() - start
+
+    def _kernel(self, args) -> int:
+        if self.cone is not None:
+            return _kernels.intersect_cone(self.cone, *args)
+        return _kernels.intersect(*args)
 
     @property
     def outputs(self):

@@ -114,7 +114,8 @@ class Intersector:
         The C intersector (``cext/hitbatch.h``); None for a peer run from Python.
     kind : str
         ``"traversal"`` (a 2D traversal plus per-cell tests), ``"maxmip"``,
-        ``"march"`` (ray marching) or ``"peer"``.
+        ``"cone"`` (cone step mapping, ``algos.cone``), ``"march"`` (ray marching) or
+        ``"peer"``.
     accuracy : str
         ``"exact"``: exact traversal, float64 surface tests; equals the brute force up
         to ``|dt| <= 1e-9 (1 + |t|)``. ``"float64"``/``"float32"``: the traversal's own
@@ -165,6 +166,18 @@ INTERSECTOR_REGISTRY.update({
         summary="maximum-mipmap tile skipping, exact runs inside 2^fine_level tiles "
                 "(run culling off by default: the mipmap already rejects what it would)",
         citation="Tevs, Ihrke & Seidel 2008; Henning & Stephenson 2004"),
+    "cone": Intersector(
+        "cone", 11, "cone", "float64", "dda", ("cellmax", "cone"), dict(cull_cells=True),
+        summary="cone step mapping made exact: safe steps through per-cell cones over the "
+                "cell maxima, an exact cell walk where a cone is narrower than a cell",
+        citation="Dummer 2006"),
+    "cone_relaxed": Intersector(
+        "cone_relaxed", 12, "march", "approximate", None, ("cellmax", "cone_relaxed"),
+        dict(march_steps=256, march_refinements=16),
+        summary="relaxed cone stepping: steps to the side of relaxed cones over the cell "
+                "maxima (at most march_steps), then march_refinements halvings; misses "
+                "ridges a step crosses whole",
+        citation="Policarpo & Oliveira 2007"),
     "march_linear": Intersector(
         "march_linear", 8, "march", "approximate", None, (), dict(_MARCH),
         summary="fixed-step ray marching: march_steps equal steps over the clipped span"),

@@ -265,7 +265,10 @@ PyDoc_STRVAR(intersect_doc,
              "First hits of a batch; returns the elapsed nanoseconds of the C loop.\n"
              "Private: use algos.intersect.");
 
-static PyObject *intersect(PyObject *self, PyObject *args) {
+/* intersect and intersect_cone: the batch from `args`, with the cone structure (NULL
+ * but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for cone,
+ * (rows - 1, cols - 1) for cone_relaxed. */
+static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
     int kernel, surface, cull_cells, fine_level, status, k;
     double hmin, hmax;
     long long max_denominator;
@@ -278,7 +281,6 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     void *p;
     timed_section section;
     long long elapsed_ns;
-    (void)self;
     if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights, &o_cellmax,
                           &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins, &o_directions, &o_tmin,
                           &o_tmax, &cull_cells, &max_denominator, &o_pattern, &o_march, &fine_level,
@@ -318,6 +320,21 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         b.cellmax = NULL;
     } else if (!get_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) {
         return NULL;
+    }
+    if ((o_cone != NULL) != (kernel == HF_HIT_CONE || kernel == HF_HIT_CONE_RELAXED)) {
+        PyErr_SetString(
+            PyExc_ValueError,
+            "cone: only intersect_cone runs the cone kernels, and it runs nothing else");
+        return NULL;
+    }
+    if (o_cone != NULL) {
+        /* cone: top and slope side by side; cone_relaxed: slopes (its apex: the cell max) */
+        npy_intp cone_shape[3];
+        cone_shape[0] = shape[0];
+        cone_shape[1] = shape[1];
+        cone_shape[2] = 2;
+        if (!get_f32(o_cone, "cone", kernel == HF_HIT_CONE ? 3 : 2, cone_shape, &b.cone))
+            return NULL;
     }
     b.hmin = hmin;
     b.hmax = hmax;
@@ -390,7 +407,7 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "fine_level: outside the mipmap");
         return NULL;
     }
-    b.fine_level = fine_level;
+    b.floor_level = fine_level;
     if (!get_array(o_t, "t", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
     b.t = (double *)p;
     if (!get_array(o_cell, "cell", NPY_INT32, 2 * n, 1, 1, &p, NULL)) return NULL;
@@ -410,6 +427,11 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
         return NULL;
     }
     return PyLong_FromLongLong(elapsed_ns);
+}
+
+static PyObject *intersect(PyObject *self, PyObject *args) {
+    (void)self;
+    return intersect_with(args, NULL);
 }
 
 PyDoc_STRVAR(quantize_doc, "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
@@ -955,6 +977,74 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     return PyLong_FromLongLong(elapsed_ns);
 }
 
+/* ---- cone step mapping (issue 22) ----------------------------------------------------- */
+
+PyDoc_STRVAR(intersect_cone_doc,
+             "intersect_cone(cone, kernel, surface, heights, ...) -> int\n\n"
+             "intersect() for the cone kernels: the cone structure (algos/cone.py; float32\n"
+             "of shape (rows - 1, cols - 1, 2) for cone, (rows - 1, cols - 1) for\n"
+             "cone_relaxed) before intersect()'s arguments.\n"
+             "Private: use algos.intersect.");
+
+static PyObject *intersect_cone(PyObject *self, PyObject *args) {
+    PyObject *rest, *result;
+    (void)self;
+    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
+        PyErr_SetString(PyExc_TypeError,
+                        "intersect_cone: expected cone, then intersect()'s arguments");
+        return NULL;
+    }
+    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
+    if (rest == NULL) return NULL;
+    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0));
+    Py_DECREF(rest);
+    return result;
+}
+
+PyDoc_STRVAR(cone_relaxed_slopes_doc,
+             "cone_relaxed_slopes(cellmax, radius, slope) -> int\n\n"
+             "Fill slope (float32, the shape of cellmax) with the relaxed cone slope of every\n"
+             "cell (Policarpo & Oliveira 2007, cext/cone.c) from the destinations within\n"
+             "radius rings (1 to 64); returns the elapsed nanoseconds. Private: use\n"
+             "algos.cone.");
+
+static PyObject *cone_relaxed_slopes(PyObject *self, PyObject *args) {
+    PyObject *o_cellmax, *o_slope;
+    int radius;
+    const float *cellmax;
+    float *slope;
+    npy_intp shape[2];
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OiO", &o_cellmax, &radius, &o_slope)) return NULL;
+    if (!PyArray_Check(o_cellmax) || PyArray_NDIM((PyArrayObject *)o_cellmax) != 2) {
+        PyErr_SetString(PyExc_TypeError, "cellmax: expected a 2D numpy array");
+        return NULL;
+    }
+    shape[0] = PyArray_DIM((PyArrayObject *)o_cellmax, 0);
+    shape[1] = PyArray_DIM((PyArrayObject *)o_cellmax, 1);
+    if (shape[0] < 1 || shape[1] < 1 || shape[0] >= HF_MAX_GRID_SIDE ||
+        shape[1] >= HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "cellmax: each side must be in [1, 2^24 - 1]");
+        return NULL;
+    }
+    if (radius < 1 || radius > 64) {
+        PyErr_Format(PyExc_ValueError, "radius: expected 1 to 64, got %d", radius);
+        return NULL;
+    }
+    if (!get_f32(o_cellmax, "cellmax", 2, shape, &cellmax)) return NULL;
+    if (!get_f32(o_slope, "slope", 2, shape, (const float **)&slope)) return NULL;
+    if (!PyArray_ISWRITEABLE((PyArrayObject *)o_slope)) {
+        PyErr_SetString(PyExc_ValueError, "slope: must be writable");
+        return NULL;
+    }
+    timed_begin(&section);
+    hf_cone_relaxed_build(cellmax, (int32_t)shape[0], (int32_t)shape[1], radius, slope);
+    elapsed_ns = timed_end(&section);
+    return PyLong_FromLongLong(elapsed_ns);
+}
+
 static PyMethodDef methods[] = {
     {"walk", walk, METH_VARARGS, walk_doc},
     {"intersect", intersect, METH_VARARGS, intersect_doc},
@@ -966,6 +1056,8 @@ static PyMethodDef methods[] = {
     {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
     {"raster", raster, METH_VARARGS, raster_doc},
+    {"intersect_cone", intersect_cone, METH_VARARGS, intersect_cone_doc},
+    {"cone_relaxed_slopes", cone_relaxed_slopes, METH_VARARGS, cone_relaxed_slopes_doc},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,

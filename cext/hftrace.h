@@ -63,6 +63,9 @@ typedef struct {
     int64_t out_rows;          /* M, the capacity of out in rows                       */
     uint64_t *checksums;       /* VISIT, RUNFOLD: per ray                              */
     int64_t bad_ray;           /* on error: the ray that caused it                     */
+    /* the exact kernels' per-direction set-up, kept across consecutive rays of one
+     * direction (internal.h); NULL: set up every ray afresh */
+    struct hf_direction *direction_cache;
 } hf_batch;
 
 /* Run one kernel over a batch in one mode. Returns an hf_status. Thread-safe; no

@@ -9,6 +9,7 @@
 #include <string.h>
 #include "hitbatch.h"
 #include "internal.h"
+#include "mipmap.h"
 
 /* ---- clipping ----------------------------------------------------------------------- */
 /* [t0, t1] of the ray inside the box; returns 0 when empty. entry_axis: the face that
@@ -88,30 +89,26 @@ static double field_gap(hf_hit *h, double t, int32_t *ci, int32_t *cj, double *s
     h11 = hf_height(h, i + 1, j + 1);
     switch (h->surface) {
     case HF_FLAT:
-        s = (h00 + h10 + h01 + h11) / 4.0;
+        s = hf_flat_height(h00, h10, h01, h11);
         *su = 0;
         *sv = 0;
         break;
     case HF_PLANE3:
-        *su = h10 - h00;
-        *sv = h01 - h00;
-        s = h00 + *su * u + *sv * v;
+        hf_plane3_slopes(h00, h10, h01, su, sv);
+        s = hf_plane_height(h00, *su, *sv, u, v);
         break;
     case HF_TRIANGLES:
-        if (u >= v) {
-            *su = h10 - h00;
-            *sv = h11 - h10;
-        } else {
-            *su = h11 - h01;
-            *sv = h01 - h00;
-        }
-        s = h00 + *su * u + *sv * v;
+        if (u >= v)
+            hf_lower_triangle_slopes(h00, h10, h11, su, sv);
+        else
+            hf_upper_triangle_slopes(h00, h01, h11, su, sv);
+        s = hf_plane_height(h00, *su, *sv, u, v);
         break;
     default: {
-        const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
-        s = h00 + a * u + b * v + c * u * v;
-        *su = a + c * v;
-        *sv = b + c * u;
+        const hf_bilinear q = hf_bilinear_of(h00, h10, h01, h11);
+        s = hf_bilinear_height(h00, &q, u, v);
+        *su = q.a + q.c * v;
+        *sv = q.b + q.c * u;
     }
     }
     *ci = i;
@@ -169,6 +166,59 @@ static void march(hf_hit *h, const hf_hit_batch *b, int kernel) {
     hf_hit_at(h, t, i, j, -1, su, sv);
 }
 
+/* cone_relaxed (Policarpo & Oliveira 2007; approximate by design): from a point above the
+ * surface the ray steps to the side of the relaxed cone of the cell below it (cone.c),
+ * at least half a cell, until a sample lies at or below the surface; march_refinements
+ * halvings then narrow the bracket. A ray that crosses a ridge and comes out again
+ * within one step misses it: that is the error the accuracy study measures. */
+static void march_relaxed_cone(hf_hit *h, const hf_hit_batch *b) {
+    const int32_t nx = h->cols - 1;
+    const double speed = sqrt(h->dx * h->dx + h->dy * h->dy);
+    double t = h->t0, prev = h->t0, su, sv, gap;
+    int32_t i, j, k;
+    int inside = 0;
+    gap = field_gap(h, t, &i, &j, &su, &sv);
+    if (gap <= 0) {
+        hf_hit_at(h, t, i, j, -1, su, sv);
+        return;
+    }
+    for (k = 0; k < b->march_steps && t < h->t1; ++k) {
+        const int64_t cell = (int64_t)j * nx + i;
+        const double z = h->oz + t * h->dz, apex = (double)h->cellmax[cell];
+        const double rate = (double)b->cone[cell] * speed - h->dz;
+        /* at least half a cell (a vertical ray: down to the surface sampled here) */
+        double step = speed > 0 ? 0.5 / speed : gap / -h->dz;
+        if (z > apex) {
+            if (!(rate > 0)) return; /* rises out of every relaxed cone: taken as a miss */
+            if ((z - apex) / rate > step) step = (z - apex) / rate;
+        }
+        prev = t;
+        t = t + step < h->t1 ? t + step : h->t1;
+        h->tiles_skipped += 1;
+        h->cells_tested += 1;
+        gap = field_gap(h, t, &i, &j, &su, &sv);
+        if (gap <= 0) {
+            inside = 1;
+            break;
+        }
+    }
+    if (!inside) return;
+    {
+        /* halve the bracket [prev (outside), t (inside)] */
+        double lo = prev, hi = t;
+        for (k = 0; k < b->march_refinements; ++k) {
+            const double mid = 0.5 * (lo + hi);
+            h->cells_tested += 1;
+            if (field_gap(h, mid, &i, &j, &su, &sv) <= 0)
+                hi = mid;
+            else
+                lo = mid;
+        }
+        (void)field_gap(h, hi, &i, &j, &su, &sv);
+        hf_hit_at(h, hi, i, j, -1, su, sv);
+    }
+}
+
 /* ---- max-mipmap skipping (Tevs, Ihrke & Seidel 2008) ------------------------------------
  * Level 0 holds the cell maxima; level k the maxima of 2x2 blocks of level k-1 (the last
  * row/column of an odd size stands alone), so every size works. From the current cell the
@@ -177,27 +227,16 @@ static void march(hf_hit *h, const hf_hit_batch *b, int kernel) {
  * skipped, and walks the tiles of a floor level cell by cell (dda_maxmip, below) or run
  * by run (runs_maxmip, runs.c). Cell indices are carried as integers and clamped into the
  * current tile, so rounding never stalls the walk. */
-static int32_t clamp32(int64_t v, int64_t lo, int64_t hi) {
-    return (int32_t)(v < lo ? lo : (v > hi ? hi : v));
-}
-
-/* cell index along one axis at parameter t, by the forward rule, clamped */
-static int32_t cell_at(double o, double d, double t, int32_t n) {
-    const double x = o + t * d;
-    const double c = d < 0 ? ceil(x) - 1 : floor(x);
-    return clamp32((int64_t)(c < -1e9 ? -1e9 : (c > 1e9 ? 1e9 : c)), 0, n - 1);
-}
-
 /* dda_maxmip: the walk stops descending at `floor_level`, whose 2^floor x 2^floor tiles
  * it walks cell by cell with face parameters computed directly (no drift: the exact
  * interval's own expressions). A cell is culled by z at its exit face (descending) or at its entry
  * (else): for a descending ray that is exactly the exact test's cull, so only the cells it passes
  * pay for the interval and the surface test. A skipped tile is left by an integer step on its exit
  * axis, the other index recomputed at the exit and clamped into the tile just left. */
-static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
+static int maxmip_tight(hf_hit *h, const hf_hit_batch *b) {
     const int32_t nx = h->cols - 1, ny = h->rows - 1;
     const int top = b->mip_levels - 1;
-    const int F = floor_level < top ? floor_level : top;
+    const int floor_level = b->floor_level < top ? b->floor_level : top;
     const int descending = h->dz < 0;
     const int32_t sx = h->dx > 0 ? 1 : -1, sy = h->dy > 0 ? 1 : -1;
     const int32_t fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
@@ -208,37 +247,43 @@ static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
     const float *cellmax = h->cellmax;
     const int cull = h->cull_cells;
     double t = h->t0;
-    int32_t i = cell_at(h->ox, h->dx, t, nx), j = cell_at(h->oy, h->dy, t, ny);
-    int L = F + 1 < top ? F + 1 : top;
+    int32_t i = hf_cell_at(h->ox, h->dx, t, nx), j = hf_cell_at(h->oy, h->dy, t, ny);
+    int level = floor_level + 1 < top ? floor_level + 1 : top;
     int64_t guard;
     for (guard = 0; guard <= 4 * ((int64_t)nx + ny) + 64; ++guard) {
-        const int32_t ti = i >> L, tj = j >> L;
-        const double tx = has_x ? ((double)(((int64_t)ti + fx) << L) - ox) * inv_x : inf;
-        const double ty = has_y ? ((double)(((int64_t)tj + fy) << L) - oy) * inv_y : inf;
-        double te = t1;
+        const int32_t tile_i = i >> level, tile_j = j >> level;
+        const double t_exit_x = has_x ? hf_face_t(hf_tile_face(tile_i, level, fx), ox, inv_x) : inf;
+        const double t_exit_y = has_y ? hf_face_t(hf_tile_face(tile_j, level, fy), oy, inv_y) : inf;
+        double t_exit = t1;
         int axis = -1;
-        if (tx < te) {
-            te = tx;
+        if (t_exit_x < t_exit) {
+            t_exit = t_exit_x;
             axis = 0;
         }
-        if (ty < te) {
-            te = ty;
+        if (t_exit_y < t_exit) {
+            t_exit = t_exit_y;
             axis = 1;
-        } else if (ty == te && axis == 0)
+        } else if (t_exit_y == t_exit && axis == 0)
             axis = 2;
-        if (oz + (descending ? te : t) * dz >
-            (double)b->mip[L][(int64_t)tj * b->mip_cols[L] + ti]) {
+        if (hf_tile_zlow(oz, dz, descending, t, t_exit) >
+            (double)b->mip[level][(int64_t)tile_j * b->mip_cols[level] + tile_i]) {
             /* skip the tile, then try one level coarser */
             h->tiles_skipped += 1;
-        } else if (L > F) {
-            --L;
+        } else if (level > floor_level) {
+            --level;
             continue;
         } else {
             /* walk the floor tile cell by cell; mx, my: the exit faces of the current
              * cell, recomputed only on the axis that stepped */
-            const int32_t ilo = ti << F, jlo = tj << F;
-            const uint32_t iw = (uint32_t)((((int64_t)ti + 1) << F) < nx ? (1 << F) : nx - ilo) - 1;
-            const uint32_t jw = (uint32_t)((((int64_t)tj + 1) << F) < ny ? (1 << F) : ny - jlo) - 1;
+            const int32_t ilo = tile_i << floor_level, jlo = tile_j << floor_level;
+            const uint32_t iw =
+                (uint32_t)((((int64_t)tile_i + 1) << floor_level) < nx ? (1 << floor_level)
+                                                                       : nx - ilo) -
+                1;
+            const uint32_t jw =
+                (uint32_t)((((int64_t)tile_j + 1) << floor_level) < ny ? (1 << floor_level)
+                                                                       : ny - jlo) -
+                1;
             double t_in = t;
             double mx = has_x ? ((double)(i + fx) - ox) * inv_x : inf;
             double my = has_y ? ((double)(j + fy) - oy) * inv_y : inf;
@@ -269,30 +314,22 @@ static int maxmip_tight(hf_hit *h, const hf_hit_batch *b, int floor_level) {
             }
             if ((uint32_t)i >= (uint32_t)nx || (uint32_t)j >= (uint32_t)ny) return 0;
             t = t_in > t ? t_in : t;
-            L = F + 1 < top ? F + 1 : top;
+            level = floor_level + 1 < top ? floor_level + 1 : top;
             continue;
         }
-        if (!(te < t1)) return 0;
+        if (!(t_exit < t1)) return 0;
         {
-            /* into the next tile at level L */
-            const int64_t size = (int64_t)1 << L;
-            int64_t ni = i, nj = j;
-            if (axis == 0 || axis == 2)
-                ni = h->dx > 0 ? ((int64_t)ti + 1) * size : (int64_t)ti * size - 1;
-            else
-                ni = clamp32(cell_at(ox, h->dx, te, nx), (int64_t)ti * size,
-                             ((int64_t)ti + 1) * size - 1);
-            if (axis == 1 || axis == 2)
-                nj = h->dy > 0 ? ((int64_t)tj + 1) * size : (int64_t)tj * size - 1;
-            else
-                nj = clamp32(cell_at(oy, h->dy, te, ny), (int64_t)tj * size,
-                             ((int64_t)tj + 1) * size - 1);
+            /* into the next tile at this level */
+            const int64_t ni = hf_tile_next_cell(axis == 0 || axis == 2, tile_i, level, nx,
+                                                 h->dx >= 0, ox + t_exit * h->dx);
+            const int64_t nj = hf_tile_next_cell(axis == 1 || axis == 2, tile_j, level, ny,
+                                                 h->dy >= 0, oy + t_exit * h->dy);
             if (axis < 0 || ni < 0 || ni >= nx || nj < 0 || nj >= ny) return 0;
             i = (int32_t)ni;
             j = (int32_t)nj;
-            t = te > t ? te : t;
+            t = t_exit > t ? t_exit : t;
         }
-        if (L < top) ++L;
+        if (level < top) ++level;
     }
     return 0;
 }
@@ -308,21 +345,41 @@ static hf_hit_walk walk_of(int kernel) {
     case HF_RUNS_PERIODIC: return hf_batch_runs_periodic_hit;
     case HF_HIT_DDA_MAXMIP: return hf_batch_dda_hit;
     case HF_HIT_RUNS_MAXMIP: return hf_batch_runs_hit;
+    case HF_HIT_CONE: return hf_batch_dda_hit;
     default: return NULL;
     }
 }
 
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_pattern pattern;
+    hf_direction direction_cache; /* the exact walks' per-direction set-up, across rays */
+    int parallel;
     const hf_hit_walk walk = walk_of(kernel);
     const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
                          kernel == HF_HIT_MARCH_BINARY;
     const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP;
+    const int cone = kernel == HF_HIT_CONE;
+    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     int64_t ray;
-    if (walk == NULL && !marching) return HF_ERR_ARGUMENT;
+    if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
+    if (cone && b->cone == NULL) return HF_ERR_ARGUMENT;
+    if (relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
+        return HF_ERR_ARGUMENT;
+    direction_cache.valid = 0;
+    {
+        /* parallel rays (one horizontal direction for the whole batch) share the exact
+         * walks' per-direction set-up; other batches set up each ray afresh, as sharing
+         * would only add the comparison */
+        for (ray = 1; ray < b->n_rays; ++ray) {
+            if (b->directions[3 * ray] != b->directions[0] ||
+                b->directions[3 * ray + 1] != b->directions[1])
+                break;
+        }
+        parallel = ray >= b->n_rays;
+    }
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
     b->bad_ray = -1;
@@ -385,26 +442,31 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                 hi = (double)nextafterf((float)t1, INFINITY);
             }
             b2.max_denominator = b->max_denominator;
+            b2.direction_cache = parallel ? &direction_cache : NULL;
             b2.pattern = b->pattern;
             sink.hit = &h;
             if (marching) {
                 march(&h, b, kernel);
+            } else if (relaxed) {
+                march_relaxed_cone(&h, b);
             } else if (t0 == t1) {
                 /* a single parameter (the ray touches the box there, or is already below
                  * hmin when it enters): test that point directly */
-                const int32_t i = cell_at(h.ox, h.dx, t0, b->cols - 1);
-                const int32_t j = cell_at(h.oy, h.dy, t0, b->rows - 1);
+                const int32_t i = hf_cell_at(h.ox, h.dx, t0, b->cols - 1);
+                const int32_t j = hf_cell_at(h.oy, h.dy, t0, b->rows - 1);
                 h.cells_visited += 1;
                 (void)hf_surface_test(&h, i, j, t0, t0,
                                       (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
             } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(&h)) {
-                maxmip_tight(&h, b, b->fine_level);
+                maxmip_tight(&h, b);
+            } else if (cone && !hf_on_grid_line(&h)) {
+                hf_cone_hit(&h, b->cone);
             } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(&h)) {
                 hf_mipmap m;
                 m.levels = b->mip;
                 m.cols = b->mip_cols;
                 m.n_levels = b->mip_levels;
-                m.floor_level = b->fine_level;
+                m.floor_level = b->floor_level;
                 {
                     const int status = hf_runs_maxmip_hit(&b2, &sink, &m);
                     if (status != HF_OK) {
@@ -413,8 +475,8 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                     }
                 }
             } else {
-                /* (a maxmip kernel on a grid line, where neighbouring tiles matter, walks
-                 * every cell with its base kernel) */
+                /* (a maxmip or cone kernel on a grid line, where neighbouring cells
+                 * matter, walks every cell with its base kernel) */
                 const int status =
                     walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&pattern : NULL);
                 if (status != HF_OK) {

@@ -10,7 +10,10 @@
 #define HFTRACE_HIT_H
 
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
+#include "mipmap.h"
+#include "surfaces.h"
 
 enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 };
 
@@ -90,6 +93,14 @@ static inline float hf_rmq_query(const hf_rmq *q, int32_t line, int32_t lo, int3
     return best;
 }
 
+/* The cell index along one axis (n cells) holding the ray at parameter t, by the forward
+ * rule ([k, k+1) moving forward or along the axis, (k, k+1] moving back), clamped into
+ * the grid: where a walk starts, or lands after a skip. */
+static inline int32_t hf_cell_at(double o, double d, double t, int32_t n) {
+    const int64_t k = hf_index_of(o + t * d, d >= 0);
+    return (int32_t)(k < 0 ? 0 : (k > n - 1 ? n - 1 : k));
+}
+
 /* ---- the surface of one cell ----------------------------------------------------------- */
 static inline double hf_height(const hf_hit *h, int32_t i, int32_t j) {
     return (double)h->heights[(int64_t)j * h->cols + i];
@@ -108,65 +119,6 @@ static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_
     return 1;
 }
 
-/* f(t) = z(t) - s(x(t), y(t)) is linear on [ta, tb] with end values fa, fb (fa > 0):
- * the root, kept inside the interval. */
-static inline double hf_linear_root(double ta, double tb, double fa, double fb) {
-    double t = ta + (tb - ta) * (fa / (fa - fb));
-    if (!(t >= ta)) t = ta; /* also catches NaN from a degenerate interval */
-    if (t > tb) t = tb;
-    return t;
-}
-
-/* The smallest tau in [0, len] with a tau^2 + b tau + c <= 0, given c > 0; -1 if none.
- * Robust where the quadratic degenerates to a linear one and near double roots, and a
- * sign change the closed forms lose to rounding (a root an ulp past the end) is found by
- * bisection. */
-static inline double hf_quadratic_first(double a, double b, double c, double len) {
-    const double scale = fabs(b) * fabs(b) + 4.0 * fabs(a * c);
-    const double slack = 1e-12 * (len > 1 ? len : 1);
-    double best = -1.0;
-    int k;
-    if (fabs(a) * len <= 1e-14 * (fabs(b) + fabs(c) / (len > 0 ? len : 1.0))) {
-        /* effectively linear: b tau + c */
-        if (b < 0) {
-            const double t = -c / b;
-            if (t <= len + slack) best = t < len ? t : len;
-        }
-    } else {
-        double disc = b * b - 4.0 * a * c, roots[2];
-        int n = 0;
-        /* a tangent touch: a discriminant lost in rounding counts as a double root */
-        if (disc < 0 && disc > -1e-12 * scale) disc = 0;
-        if (disc >= 0) {
-            /* the stable pair of formulas: no cancellation between b and sqrt(disc) */
-            const double q = -0.5 * (b + (b >= 0 ? sqrt(disc) : -sqrt(disc)));
-            if (q != 0) roots[n++] = c / q;
-            roots[n++] = q / a;
-        }
-        for (k = 0; k < n; ++k) {
-            const double t = roots[k];
-            if (t >= -slack && t <= len + slack) {
-                const double tc = t < 0 ? 0 : (t > len ? len : t);
-                if (best < 0 || tc < best) best = tc;
-            }
-        }
-    }
-    if (best < 0 && (a * len + b) * len + c <= 0) {
-        /* the end is at or below the surface but no root was found: bisect the change */
-        double lo = 0, hi = len;
-        for (k = 0; k < 200; ++k) {
-            const double mid = 0.5 * (lo + hi);
-            if (mid <= lo || mid >= hi) break;
-            if ((a * mid + b) * mid + c <= 0)
-                hi = mid;
-            else
-                lo = mid;
-        }
-        best = hi;
-    }
-    return best;
-}
-
 /* Test cell (i, j) on [ta, tb]. `wall` is the axis of the vertical wall the ray meets
  * at ta if it is already below the surface there (0 x, 1 y), or -1 when that is not a
  * wall (a start inside the solid). Returns 1 on a hit. */
@@ -179,51 +131,50 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     h->cells_tested += 1;
     switch (h->surface) {
     case HF_FLAT: {
-        const double c = (h00 + h10 + h01 + h11) / 4.0;
+        const double c = hf_flat_height(h00, h10, h01, h11);
         if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
         if (zb <= c) return hf_hit_at(h, hf_linear_root(ta, tb, za - c, zb - c), i, j, -1, 0, 0);
         return 0;
     }
     case HF_PLANE3: {
-        const double a = h10 - h00, b = h01 - h00;
-        const double fa = za - (h00 + a * ua + b * va);
-        const double fb = zb - (h00 + a * ub + b * vb);
-        if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, a, b);
-        if (fb <= 0) return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, a, b);
+        double a, b;
+        hf_plane3_slopes(h00, h10, h01, &a, &b);
+        {
+            const double fa = za - hf_plane_height(h00, a, b, ua, va);
+            const double fb = zb - hf_plane_height(h00, a, b, ub, vb);
+            if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, a, b);
+            if (fb <= 0) return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, a, b);
+        }
         return 0;
     }
     case HF_TRIANGLES: {
-        /* lower triangle u >= v: s = h00 + (h10-h00) u + (h11-h10) v
-         * upper triangle u <  v: s = h00 + (h11-h01) u + (h01-h00) v */
-        const double la = h10 - h00, lb = h11 - h10, ua_ = h11 - h01, ub_ = h01 - h00;
-        double t_split = tb, f_split, fa;
-        int lower_first = (ua - va) > 0 || ((ua - va) == 0 && (ub - vb) >= 0);
+        /* the first triangle the ray is over at ta (lower: u >= v), then the other one
+         * past the diagonal u = v */
+        const int lower_first = (ua - va) > 0 || ((ua - va) == 0 && (ub - vb) >= 0);
         const double w = (h->dx - h->dy);
+        double su1, sv1, su2, sv2, t_split = tb, f_split, fa;
+        if (lower_first) {
+            hf_lower_triangle_slopes(h00, h10, h11, &su1, &sv1);
+            hf_upper_triangle_slopes(h00, h01, h11, &su2, &sv2);
+        } else {
+            hf_upper_triangle_slopes(h00, h01, h11, &su1, &sv1);
+            hf_lower_triangle_slopes(h00, h10, h11, &su2, &sv2);
+        }
         /* where the ray crosses the diagonal u = v inside (ta, tb) */
         if (w != 0) {
             const double ts = ta - (ua - va) / w;
             if (ts > ta && ts < tb) t_split = ts;
         }
-        if (lower_first)
-            fa = za - (h00 + la * ua + lb * va);
-        else
-            fa = za - (h00 + ua_ * ua + ub_ * va);
-        if (fa <= 0) {
-            return lower_first ? hf_hit_at(h, ta, i, j, wall, la, lb)
-                               : hf_hit_at(h, ta, i, j, wall, ua_, ub_);
-        }
+        fa = za - hf_plane_height(h00, su1, sv1, ua, va);
+        if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, su1, sv1);
         {
             /* first piece [ta, t_split] on the first triangle; one shared value at the
              * split so the diagonal is watertight */
             const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
             const double zs = h->oz + t_split * h->dz;
-            f_split =
-                lower_first ? zs - (h00 + la * us + lb * vs) : zs - (h00 + ua_ * us + ub_ * vs);
-            if (f_split <= 0) {
-                const double t = hf_linear_root(ta, t_split, fa, f_split);
-                return lower_first ? hf_hit_at(h, t, i, j, -1, la, lb)
-                                   : hf_hit_at(h, t, i, j, -1, ua_, ub_);
-            }
+            f_split = zs - hf_plane_height(h00, su1, sv1, us, vs);
+            if (f_split <= 0)
+                return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), i, j, -1, su1, sv1);
         }
         if (t_split < tb) {
             /* second piece [t_split, tb] on the other triangle. Its own value at the split
@@ -232,35 +183,27 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
              * first plane's value may round a hair above it, is the case this catches). */
             const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
             const double zs = h->oz + t_split * h->dz;
-            const double f_split2 =
-                lower_first ? zs - (h00 + ua_ * us + ub_ * vs) : zs - (h00 + la * us + lb * vs);
-            const double fb =
-                lower_first ? zb - (h00 + ua_ * ub + ub_ * vb) : zb - (h00 + la * ub + lb * vb);
-            if (f_split2 <= 0) {
-                return lower_first ? hf_hit_at(h, t_split, i, j, -1, ua_, ub_)
-                                   : hf_hit_at(h, t_split, i, j, -1, la, lb);
-            }
-            if (fb <= 0) {
-                const double t = hf_linear_root(t_split, tb, f_split2, fb);
-                return lower_first ? hf_hit_at(h, t, i, j, -1, ua_, ub_)
-                                   : hf_hit_at(h, t, i, j, -1, la, lb);
-            }
+            const double f_split2 = zs - hf_plane_height(h00, su2, sv2, us, vs);
+            const double fb = zb - hf_plane_height(h00, su2, sv2, ub, vb);
+            if (f_split2 <= 0) return hf_hit_at(h, t_split, i, j, -1, su2, sv2);
+            if (fb <= 0)
+                return hf_hit_at(h, hf_linear_root(t_split, tb, f_split2, fb), i, j, -1, su2, sv2);
         }
         return 0;
     }
     default: { /* HF_BILINEAR: s = h00 + a u + b v + c u v, quadratic along the ray */
-        const double a = h10 - h00, b = h01 - h00, c = h00 - h10 - h01 + h11;
-        const double fa = za - (h00 + a * ua + b * va + c * ua * va);
-        const double qa = -c * h->dx * h->dy;
-        const double qb = h->dz - a * h->dx - b * h->dy - c * (ua * h->dy + va * h->dx);
+        const hf_bilinear q = hf_bilinear_of(h00, h10, h01, h11);
+        const double fa = za - hf_bilinear_height(h00, &q, ua, va);
+        const double qa = -q.c * h->dx * h->dy;
+        const double qb = h->dz - q.a * h->dx - q.b * h->dy - q.c * (ua * h->dy + va * h->dx);
         double tau, t, u, v;
-        if (fa <= 0) { return hf_hit_at(h, ta, i, j, wall, a + c * va, b + c * ua); }
+        if (fa <= 0) { return hf_hit_at(h, ta, i, j, wall, q.a + q.c * va, q.b + q.c * ua); }
         tau = hf_quadratic_first(qa, qb, fa, tb - ta);
         if (tau < 0) return 0;
         t = ta + tau;
         u = h->ox + t * h->dx - i;
         v = h->oy + t * h->dy - j;
-        return hf_hit_at(h, t, i, j, -1, a + c * v, b + c * u);
+        return hf_hit_at(h, t, i, j, -1, q.a + q.c * v, q.b + q.c * u);
     }
     }
 }

@@ -12,7 +12,9 @@ enum hf_hit_kernel {
     HF_HIT_MARCH_LINEAR = 8,
     HF_HIT_MARCH_GROWING = 9,
     HF_HIT_MARCH_BINARY = 10,
-    HF_N_HIT_KERNELS = 11
+    HF_HIT_CONE = 11,
+    HF_HIT_CONE_RELAXED = 12,
+    HF_N_HIT_KERNELS = 13
 };
 
 #define HF_MAX_MIP_LEVELS 32
@@ -32,7 +34,12 @@ typedef struct {
     int mip_levels;
     const float *mip[HF_MAX_MIP_LEVELS];
     int32_t mip_cols[HF_MAX_MIP_LEVELS];
-    int fine_level; /* runs_maxmip: tile level the runs walk */
+    int floor_level; /* the maxmip kernels: the level whose tiles are walked cell by cell or
+                        run by run (the public option fine_level) */
+    /* cone: (ny, nx, 2), each cell's cone top and slope side by side (one cache line holds
+     * both); cone_relaxed: (ny, nx) slopes (its apex is the cell maximum); NULL for the
+     * other kernels (cone.c) */
+    const float *cone;
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;
@@ -49,5 +56,13 @@ typedef struct {
 } hf_hit_batch;
 
 int hf_intersect_batch(int kernel, hf_hit_batch *batch);
+
+/* cone: the first hit of one clipped ray (1: found), cone.c. */
+int hf_cone_hit(hf_hit *h, const float *cone);
+
+/* cone_relaxed: the relaxed cone slope of every cell of an ny x nx grid of cell maxima,
+ * from the destinations within `radius` rings (cone.c). */
+void hf_cone_relaxed_build(const float *cellmax, int32_t ny, int32_t nx, int32_t radius,
+                           float *slope);
 
 #endif

@@ -66,6 +66,24 @@ typedef struct {
 int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
                   int32_t nx, int32_t ny, int64_t max_denominator, hf_line *line);
 
+/* The exact line's per-direction share (issue 22, item 5): the lattice scale, octant and
+ * slope of one rounded direction (with runs_periodic's best rational for
+ * max_denominator > 0), set up once and reused while consecutive rays of a batch share
+ * the direction bit for bit (parallel rays: shadows, orthographic views). */
+struct hf_direction {
+    double key[2]; /* the direction it was set up for, and its max_denominator */
+    int64_t key_max_denominator;
+    int valid, vertical;
+    int scale, swap, mirror_major, mirror_minor;
+    int64_t time_major, slope_major, slope_minor;
+};
+typedef struct hf_direction hf_direction;
+
+/* hf_line_exact with the direction's share kept in `shared` (lattice.c). */
+int hf_line_shared(hf_direction *shared, const double origin[2], const double direction[2],
+                   double tmin, double tmax, int32_t nx, int32_t ny, int64_t max_denominator,
+                   hf_line *line);
+
 /* ---- Output sink --------------------------------------------------------------------
  * Kernels report cells (cell kernels) or runs (run kernels); the sink turns either into
  * what the mode asks for. The mode is a compile-time constant at every call site, so
@@ -365,9 +383,13 @@ HF_INLINE int hf_ray_end(hf_batch *b, int64_t ray, hf_sink *s, const int mode) {
 HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mode,
                              int64_t max_denominator, int runs, hf_line *L, hf_frame *f, hf_cull *c,
                              int *status) {
+    /* the per-direction set-up: shared with the previous ray when the batch keeps one */
     const int nonempty =
-        hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray, hf_tmin(b, ray),
-                      hf_tmax(b, ray), b->nx, b->ny, max_denominator, L);
+        b->direction_cache != NULL
+            ? hf_line_shared(b->direction_cache, b->origins + 2 * ray, b->directions + 2 * ray,
+                             hf_tmin(b, ray), hf_tmax(b, ray), b->nx, b->ny, max_denominator, L)
+            : hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray, hf_tmin(b, ray),
+                            hf_tmax(b, ray), b->nx, b->ny, max_denominator, L);
     *status = hf_ray_begin(b, ray, s, mode, !L->swap);
     if (*status != HF_OK || !nonempty) return 0;
     *f = hf_frame_of(L);
@@ -378,17 +400,22 @@ HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mod
 #define HF_DEFINE_BATCH(NAME, WALK)                                        \
     HF_INLINE int NAME##_loop(hf_batch *b, const int mode, void *ctx) {    \
         int64_t ray;                                                       \
-        int status;                                                        \
+        int status = HF_OK;                                                \
         hf_sink sink;                                                      \
+        hf_direction shared;                                               \
+        struct hf_direction *caller_cache = b->direction_cache;            \
+        shared.valid = 0;                                                  \
+        if (caller_cache == NULL) b->direction_cache = &shared;            \
         for (ray = 0; ray < b->n_rays; ++ray) {                            \
             status = WALK(b, ray, &sink, mode, ctx);                       \
             if (status == HF_OK) status = hf_ray_end(b, ray, &sink, mode); \
             if (status != HF_OK) {                                         \
                 b->bad_ray = ray;                                          \
-                return status;                                             \
+                break;                                                     \
             }                                                              \
         }                                                                  \
-        return HF_OK;                                                      \
+        b->direction_cache = caller_cache;                                 \
+        return status;                                                     \
     }                                                                      \
     int NAME##_hit(hf_batch *b, hf_sink *sink, void *ctx) {                \
         return WALK(b, 0, sink, HF_MODE_HIT, ctx);                         \

@@ -183,9 +183,39 @@ static int64_t min64(int64_t a, int64_t b) {
     return a < b ? a : b;
 }
 
-int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
-                  int32_t nx, int32_t ny, int64_t max_denominator, hf_line *L) {
-    int64_t O[2], D[2];
+/* The part of the exact line that depends on the direction alone (and on
+ * max_denominator): its lattice scale, the rounded direction's octant and slope. */
+HF_INLINE void direction_setup(const double direction[2], int64_t max_denominator,
+                               hf_direction *dir) {
+    int64_t D[2];
+    int k, major;
+    dir->key[0] = direction[0];
+    dir->key[1] = direction[1];
+    dir->key_max_denominator = max_denominator;
+    dir->valid = 1;
+    dir->vertical = direction[0] == 0.0 && direction[1] == 0.0;
+    if (dir->vertical) return;
+    dir->scale = direction_scale(direction[0], direction[1]);
+    for (k = 0; k < 2; ++k) D[k] = (int64_t)round_even(scale2(direction[k], dir->scale));
+    /* octant reduction: major = larger |D| (x on a tie); mirror negative travel */
+    major = (D[1] > D[0] ? D[1] : -D[1]) > (D[0] > 0 ? D[0] : -D[0]) ? 1 : 0;
+    dir->swap = major;
+    dir->mirror_major = D[major] < 0;
+    dir->mirror_minor = D[1 - major] < 0;
+    dir->time_major = D[major] < 0 ? -D[major] : D[major];
+    dir->slope_major = dir->time_major;
+    dir->slope_minor = D[1 - major] < 0 ? -D[1 - major] : D[1 - major];
+    if (max_denominator > 0) {
+        int64_t p, q;
+        hf_best_rational(dir->slope_minor, dir->slope_major, max_denominator, &p, &q);
+        dir->slope_major = q;
+        dir->slope_minor = p;
+    }
+}
+
+HF_INLINE int line_from_direction(const hf_direction *dir, const double origin[2], double tmin,
+                                  double tmax, int32_t nx, int32_t ny, hf_line *L) {
+    int64_t O[2];
     int32_t n[2];
     int k, scale, major;
     hf_param lo, hi;
@@ -200,7 +230,7 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
     for (k = 0; k < 2; ++k) O[k] = (int64_t)round_even(origin[k] * (double)HF_ONE);
 
     /* vertical ray: the one cell under the origin, by the forward rule */
-    if (direction[0] == 0.0 && direction[1] == 0.0) {
+    if (dir->vertical) {
         const int64_t i = (int64_t)hf_floor_div(O[0], one);
         const int64_t j = (int64_t)hf_floor_div(O[1], one);
         if (i < 0 || i >= nx || j < 0 || j >= ny) return 0;
@@ -219,27 +249,19 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
         return 1;
     }
 
-    scale = direction_scale(direction[0], direction[1]);
-    for (k = 0; k < 2; ++k) D[k] = (int64_t)round_even(scale2(direction[k], scale));
-
-    /* octant reduction: major = larger |D| (x on a tie); mirror negative travel */
-    major = (D[1] > D[0] ? D[1] : -D[1]) > (D[0] > 0 ? D[0] : -D[0]) ? 1 : 0;
+    /* the direction's share, from the set-up */
+    scale = dir->scale;
+    major = dir->swap;
     L->swap = major;
     L->n_major = n[major];
     L->n_minor = n[1 - major];
-    L->mirror_major = D[major] < 0;
-    L->mirror_minor = D[1 - major] < 0;
+    L->mirror_major = dir->mirror_major;
+    L->mirror_minor = dir->mirror_minor;
     L->o_major = L->mirror_major ? (int64_t)n[major] * HF_ONE - O[major] : O[major];
     L->o_minor = L->mirror_minor ? (int64_t)n[1 - major] * HF_ONE - O[1 - major] : O[1 - major];
-    L->time_major = D[major] < 0 ? -D[major] : D[major];
-    L->slope_major = L->time_major;
-    L->slope_minor = D[1 - major] < 0 ? -D[1 - major] : D[1 - major];
-    if (max_denominator > 0) {
-        int64_t p, q;
-        hf_best_rational(L->slope_minor, L->slope_major, max_denominator, &p, &q);
-        L->slope_major = q;
-        L->slope_minor = p;
-    }
+    L->time_major = dir->time_major;
+    L->slope_major = dir->slope_major;
+    L->slope_minor = dir->slope_minor;
 
     /* tau = t * 2^(16 - scale) */
     lo = param_from_t(tmin, HF_FRAC_BITS - scale);
@@ -289,4 +311,24 @@ int hf_line_exact(const double origin[2], const double direction[2], double tmin
     L->b0 = (int32_t)b0;
     L->b1 = (int32_t)b1;
     return 1;
+}
+
+/* The exact line of one ray, its direction's share set up afresh. */
+int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
+                  int32_t nx, int32_t ny, int64_t max_denominator, hf_line *L) {
+    hf_direction dir;
+    direction_setup(direction, max_denominator, &dir);
+    return line_from_direction(&dir, origin, tmin, tmax, nx, ny, L);
+}
+
+/* The same, the direction's share taken from `shared` when it was set up for this very
+ * direction (bit for bit: -0.0 and 0.0 give one line but need not be told apart) and
+ * max_denominator, else set up there for the rays that follow. */
+int hf_line_shared(hf_direction *shared, const double origin[2], const double direction[2],
+                   double tmin, double tmax, int32_t nx, int32_t ny, int64_t max_denominator,
+                   hf_line *L) {
+    if (!(shared->valid && memcmp(shared->key, direction, sizeof shared->key) == 0 &&
+          shared->key_max_denominator == max_denominator))
+        direction_setup(direction, max_denominator, shared);
+    return line_from_direction(shared, origin, tmin, tmax, nx, ny, L);
 }

@@ -20,6 +20,7 @@
  * crossing, which is computed directly with one 128-bit division; the recurrence then
  * carries (c, R) from run to run in int64 (R < 2^47). */
 #include "internal.h"
+#include "mipmap.h"
 
 /* ---- runs: the exact recurrence ------------------------------------------------------
  * The runs of a line with B = slope_minor > 0, from its start-clipped first run to its
@@ -178,7 +179,7 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
     hf_cull cull;
     run_walker w;
     hf_hit *h = s->hit;
-    int status, L_level, F;
+    int status, level, floor_level;
     int64_t guard;
     const int top = m->n_levels - 1;
     const int descending = h->dz < 0;
@@ -187,7 +188,7 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
     const double inf = (double)INFINITY;
     double t = h->t0;
     if (!hf_exact_begin(b, 0, s, HF_MODE_HIT, 0, 1, &L, &f, &cull, &status)) return status;
-    F = m->floor_level < top ? m->floor_level : top;
+    floor_level = m->floor_level < top ? m->floor_level : top;
     w.L = &L;
     w.row = L.b0;
     w.first = w.pos = L.a0;
@@ -200,29 +201,31 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
         walker_crossing(&L, (int64_t)L.b0 + 1, w.W, &w.column, &w.R);
     }
     walker_set_last(&w);
-    L_level = F + 1 < top ? F + 1 : top;
+    level = floor_level + 1 < top ? floor_level + 1 : top;
     for (guard = 0; guard <= (int64_t)(top + 2) * (2 * ((int64_t)b->nx + b->ny) + 4); ++guard) {
         /* the walker's cell in grid indices, and its tile at this level */
         const int32_t major = f.base_major + f.sign_major * w.pos;
         const int32_t minor = f.base_minor + f.sign_minor * w.row;
         const int32_t i = f.swap ? minor : major, j = f.swap ? major : minor;
-        const int32_t ti = i >> L_level, tj = j >> L_level;
-        const double tx =
-            has_x ? ((double)(((int64_t)ti + fx) << L_level) - h->ox) * h->inv_dx : inf;
-        const double ty =
-            has_y ? ((double)(((int64_t)tj + fy) << L_level) - h->oy) * h->inv_dy : inf;
-        const double te = tx < ty ? (tx < h->t1 ? tx : h->t1) : (ty < h->t1 ? ty : h->t1);
-        const float tile_max = m->levels[L_level][(int64_t)tj * m->cols[L_level] + ti];
+        const int32_t tile_i = i >> level, tile_j = j >> level;
+        const double t_exit_x =
+            has_x ? hf_face_t(hf_tile_face(tile_i, level, fx), h->ox, h->inv_dx) : inf;
+        const double t_exit_y =
+            has_y ? hf_face_t(hf_tile_face(tile_j, level, fy), h->oy, h->inv_dy) : inf;
+        const double t_exit = t_exit_x < t_exit_y ? (t_exit_x < h->t1 ? t_exit_x : h->t1)
+                                                  : (t_exit_y < h->t1 ? t_exit_y : h->t1);
+        const float tile_max = m->levels[level][(int64_t)tile_j * m->cols[level] + tile_i];
         int32_t cmax, rmax;
-        if (!(h->oz + (descending ? te : t) * h->dz > (double)tile_max) && L_level > F) {
-            --L_level;
+        if (!(hf_tile_zlow(h->oz, h->dz, descending, t, t_exit) > (double)tile_max) &&
+            level > floor_level) {
+            --level;
             continue;
         }
         {
             /* the tile's last column and row in the reduced frame */
-            const int64_t size = (int64_t)1 << L_level;
-            const int64_t lo_major = (int64_t)(major >> L_level) << L_level;
-            const int64_t lo_minor = (int64_t)(minor >> L_level) << L_level;
+            const int64_t size = (int64_t)1 << level;
+            const int64_t lo_major = (int64_t)(major >> level) << level;
+            const int64_t lo_minor = (int64_t)(minor >> level) << level;
             cmax = (int32_t)(f.sign_major > 0
                                  ? (lo_major + size <= L.n_major ? lo_major + size : L.n_major) -
                                        1 - f.base_major
@@ -232,10 +235,10 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
                                        1 - f.base_minor
                                  : f.base_minor - lo_minor);
         }
-        if (h->oz + (descending ? te : t) * h->dz > (double)tile_max) {
+        if (hf_tile_zlow(h->oz, h->dz, descending, t, t_exit) > (double)tile_max) {
             h->tiles_skipped += 1;
             if (walker_leave(&w, cmax, rmax)) break;
-            if (L_level < top) ++L_level;
+            if (level < top) ++level;
         } else {
             /* the floor tile: its segment of each run */
             int ended = 0;
@@ -257,9 +260,9 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
                 if (w.row > rmax || w.first > cmax) break;
             }
             if (ended) break;
-            L_level = F + 1 < top ? F + 1 : top;
+            level = floor_level + 1 < top ? floor_level + 1 : top;
         }
-        t = te > t ? te : t;
+        t = t_exit > t ? t_exit : t;
     }
     hf_cull_end(&cull, s, HF_MODE_HIT);
     return HF_OK;

@@ -3,6 +3,8 @@
  * for viewsheds. See terrain.h for the contracts and algos/terrain.py for the maths. */
 #include <math.h>
 #include <stdlib.h>
+#include "mipmap.h"
+#include "surfaces.h"
 #include "terrain.h"
 
 #define HZ_INF HUGE_VAL
@@ -18,26 +20,22 @@ static double surface_at(const double *H, int64_t rows, int64_t cols, double x, 
     double u = x - (double)i, v = y - (double)j;
     const double *c = H + j * cols + i;
     double h00 = c[0], h10 = c[1], h01 = c[cols], h11 = c[cols + 1];
-    /* barycentric weights, all >= 0: exact at the corners and no cancellation on the
-     * edges, where a clamped cell puts the footprint's border */
-    if (u >= v) return h00 * (1.0 - u) + h10 * (u - v) + h11 * v;
-    return h00 * (1.0 - v) + h01 * (v - u) + h11 * u;
+    /* barycentric: exact on the edges, where a clamped cell puts the footprint's border */
+    return hf_triangles_barycentric(h00, h10, h01, h11, u, v);
 }
 
 /* The surface on the vertical grid line x = X (an integer) at height y. */
 static double on_column(const double *H, int64_t rows, int64_t cols, int64_t X, double y) {
     int64_t j = clamp64((int64_t)floor(y), 0, rows - 2);
     double w = y - (double)j;
-    double a = H[j * cols + X], b = H[(j + 1) * cols + X];
-    return a * (1.0 - w) + b * w; /* exact at both ends (w = 1 on the top border) */
+    return hf_lerp_ends(H[j * cols + X], H[(j + 1) * cols + X], w); /* w = 1 on the top border */
 }
 
 /* The surface on the horizontal grid line y = Y at x. */
 static double on_row(const double *H, int64_t cols, int64_t Y, double x) {
     int64_t i = clamp64((int64_t)floor(x), 0, cols - 2);
     double w = x - (double)i;
-    double a = H[Y * cols + i], b = H[Y * cols + i + 1];
-    return a * (1.0 - w) + b * w;
+    return hf_lerp_ends(H[Y * cols + i], H[Y * cols + i + 1], w);
 }
 
 /* ---- shared pattern ----------------------------------------------------------------- */
@@ -60,8 +58,7 @@ void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz
         for (int64_t e0 = 0; e0 < n; e0 += chunk) {
             int64_t e1 = e0 + chunk < n ? e0 + chunk : n;
             for (int64_t e = e0; e < e1; e++) {
-                double a = base[off_a[e]];
-                double s = a + (base[off_b[e]] - a) * w[e];
+                double s = hf_lerp(base[off_a[e]], base[off_b[e]], w[e]);
                 double r = (s - h) * inv_t[e];
                 best = r > best ? r : best;
             }
@@ -72,9 +69,9 @@ void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz
         }
         if (p->end_k >= 0 && n_valid > p->end_k + 1) {
             int64_t k = p->end_k;
-            double a = base[off_a[k]], sa = a + (base[off_b[k]] - a) * w[k];
-            double b = base[off_a[k + 1]], sb = b + (base[off_b[k + 1]] - b) * w[k + 1];
-            double r = (sa + (sb - sa) * p->end_f - h) * p->end_inv_t;
+            double sa = hf_lerp(base[off_a[k]], base[off_b[k]], w[k]);
+            double sb = hf_lerp(base[off_a[k + 1]], base[off_b[k + 1]], w[k + 1]);
+            double r = (hf_lerp(sa, sb, p->end_f) - h) * p->end_inv_t;
             best = r > best ? r : best;
         }
         out[v] = best;
@@ -103,8 +100,7 @@ static void sweep_line(const double *H, int64_t rows, int64_t cols, int64_t q, i
                 last++;
         }
         for (int64_t e = last; e >= 0; e--) {
-            double a = H[base + rel_a[e]];
-            double sp = a + (H[base + rel_b[e]] - a) * w[e];
+            double sp = hf_lerp(H[base + rel_a[e]], H[base + rel_b[e]], w[e]);
             double tp = (double)m + tfrac[e];
             while (top >= 2 && (hs[top - 1] - sp) * (ht[top - 2] - tp) <=
                                    (hs[top - 2] - sp) * (ht[top - 1] - tp))
@@ -225,49 +221,40 @@ static double exit_value(const double *H, int64_t rows, int64_t cols, const walk
 typedef int (*skip_test)(const void *ctx, double tile_max, double t_in, double t_exit);
 
 static int try_skip(const double *H, int64_t rows, int64_t cols, const walk_ray *r,
-                    const hf_hz_mip *mip, int *level, int64_t *ci, int64_t *cj, double *t_in,
+                    const hf_hz_mip *mip, int *level_io, int64_t *ci, int64_t *cj, double *t_in,
                     double *s_in, double t_end, skip_test test, const void *ctx) {
     int top = mip->n_levels - 1;
-    int L = *level + 1 < top ? *level + 1 : top;
-    for (; L >= 0; L--) {
-        int64_t tx = *ci >> L, ty = *cj >> L;
-        double m = mip->data[mip->offset[L] + ty * mip->cols[L] + tx];
-        int64_t X1 = r->sx > 0 ? ((tx + 1) << L) : (tx << L);
-        int64_t Y1 = r->sy > 0 ? ((ty + 1) << L) : (ty << L);
-        double tXe, tYe, te;
+    int level = *level_io + 1 < top ? *level_io + 1 : top;
+    for (; level >= 0; level--) {
+        int64_t tile_i = *ci >> level, tile_j = *cj >> level;
+        double m = mip->data[mip->offset[level] + tile_j * mip->cols[level] + tile_i];
+        /* the exit faces, on the footprint's border at the latest */
+        int64_t X1 = hf_tile_face(tile_i, level, r->sx > 0);
+        int64_t Y1 = hf_tile_face(tile_j, level, r->sy > 0);
+        double t_exit_x, t_exit_y, t_exit;
         if (X1 > r->nx) X1 = r->nx;
         if (Y1 > r->ny) Y1 = r->ny;
-        tXe = r->sx ? ((double)X1 - r->ox) * r->inv_dx : HZ_INF;
-        tYe = r->sy ? ((double)Y1 - r->oy) * r->inv_dy : HZ_INF;
-        te = tXe < tYe ? tXe : tYe;
-        if (te > t_end) te = t_end;
-        if (!test(ctx, m, *t_in, te)) continue;
-        *level = L;
-        *t_in = te;
-        if (te >= t_end) return 2; /* the rest of the ray is covered */
+        t_exit_x = r->sx ? hf_face_t(X1, r->ox, r->inv_dx) : HZ_INF;
+        t_exit_y = r->sy ? hf_face_t(Y1, r->oy, r->inv_dy) : HZ_INF;
+        t_exit = t_exit_x < t_exit_y ? t_exit_x : t_exit_y;
+        if (t_exit > t_end) t_exit = t_end;
+        if (!test(ctx, m, *t_in, t_exit)) continue;
+        *level_io = level;
+        *t_in = t_exit;
+        if (t_exit >= t_end) return 2; /* the rest of the ray is covered */
         /* the surface where the ray leaves the tile: the next cell's entry */
-        *s_in = exit_value(H, rows, cols, r, X1, Y1, tXe, tYe);
-        {
-            int64_t lo_x = tx << L, hi_x = ((tx + 1) << L) - 1;
-            int64_t lo_y = ty << L, hi_y = ((ty + 1) << L) - 1;
-            if (hi_x > r->nx - 1) hi_x = r->nx - 1;
-            if (hi_y > r->ny - 1) hi_y = r->ny - 1;
-            if (tXe <= tYe) {
-                *ci = r->sx > 0 ? X1 : X1 - 1;
-            } else {
-                double x = r->ox + te * r->dx;
-                *ci = clamp64(r->sx < 0 ? (int64_t)ceil(x) - 1 : (int64_t)floor(x), lo_x, hi_x);
-            }
-            if (tYe <= tXe) {
-                *cj = r->sy > 0 ? Y1 : Y1 - 1;
-            } else {
-                double y = r->oy + te * r->dy;
-                *cj = clamp64(r->sy < 0 ? (int64_t)ceil(y) - 1 : (int64_t)floor(y), lo_y, hi_y);
-            }
-        }
+        *s_in = exit_value(H, rows, cols, r, X1, Y1, t_exit_x, t_exit_y);
+        /* (through the last tile's exit face the next index is the footprint's edge: the
+         * walk ends there) */
+        *ci = t_exit_x <= t_exit_y
+                  ? (r->sx > 0 ? X1 : X1 - 1)
+                  : hf_tile_next_cell(0, tile_i, level, r->nx, r->sx >= 0, r->ox + t_exit * r->dx);
+        *cj = t_exit_y <= t_exit_x
+                  ? (r->sy > 0 ? Y1 : Y1 - 1)
+                  : hf_tile_next_cell(0, tile_j, level, r->ny, r->sy >= 0, r->oy + t_exit * r->dy);
         return 1;
     }
-    *level = 0;
+    *level_io = 0;
     return 0;
 }
 
@@ -307,7 +294,7 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols, co
             double u = r->ox + td * r->dx - (double)ci;
             const double *c = H + cj * cols + ci;
             u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
-            sd = c[0] + (c[cols + 1] - c[0]) * u;
+            sd = hf_lerp(c[0], c[cols + 1], u);
             if (td < t_end && visit(ctx, td, sd, 0.0)) break;
         } else {
             td = -HZ_INF;

@@ -37,6 +37,8 @@ import numpy as np
 
 import algos
 
+from .cone_cases import check_cone
+
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
 INTERSECTORS = tuple(n for n in algos.INTERSECTOR_REGISTRY if n != "embree")
 EXACT_TRAVERSALS = ("midpoint", "runs")
@@ -287,6 +289,7 @@ def _check(data: bytes) -> None:
             if other != case["kernel"]:
                 got = _call(case, other)
                 assert _same(got.t, t), f"{case['kernel']} and {other} differ: {t} {got.t}"
+    check_cone(case, _call)  # the cone kernel gives dda's hits (tests/fuzz/cone_cases.py)
 
 
 def main(argv=None):
@@ -305,8 +308,8 @@ def main(argv=None):
         sys.exit("fuzz: atheris is not installed (pip install -e '.[fuzz]'; `make fuzz` does it)")
     crashes = args.crashes
     os.makedirs(crashes, exist_ok=True)
-    # coverage of the Python side (decoding, validation, dispatch) guides the search;
-    # the C extension is built by gcc, which has no libFuzzer instrumentation
+    # coverage of the Python side (decoding, validation, dispatch) guides the search, and
+    # under `make fuzz` the C extension's own libFuzzer counters (clang's fuzzer-no-link)
     atheris.instrument_all()
     fuzzer_args = [sys.argv[0], f"-max_total_time={args.seconds}", f"-runs={args.runs}",
                    f"-artifact_prefix={crashes}{os.sep}", "-max_len=4096", "-print_final_stats=1",
