@@ -919,12 +919,17 @@ def _to_dataarray(template, compute, product, attrs, extra_dim=None):
     if extra_dim is not None:
         dims = (extra_dim[0],) + tuple(dims)
         coords[extra_dim[0]] = np.asarray(extra_dim[1], dtype=float)
+    # the input's nodata value describes its heights, not the product: voids are NaN in a
+    # float product, and a bool or count product has no fill value
+    kept = {k: v for k, v in template.attrs.items() if k not in ("_FillValue", "nodata",
+                                                                 "missing_value")}
     out = xr.DataArray(values, dims=dims, coords=coords, name=product,
-                       attrs={**template.attrs, "product": product,
-                              **{k: v for k, v in attrs.items()}})
+                       attrs={**kept, "product": product, **{k: v for k, v in attrs.items()}})
     crs = getattr(getattr(template, "rio", None), "crs", None) if hasattr(template, "rio") else None
     if crs is not None:
         out = out.rio.write_crs(crs)
+        out = out.rio.write_nodata(np.nan if np.dtype(out.dtype).kind == "f" else None,
+                                   encoded=False)
     return out
 
 

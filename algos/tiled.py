@@ -76,7 +76,9 @@ def tiled_product(product, heights, max_distance, spacing, dtype, **kwargs):
         halo_depth(None)
     md = float(max_distance)
     dx, dy = pixel if pixel is not None else (1.0, 1.0)
-    depth = {0: halo_depth(md / dy), 1: halo_depth(md / dx)}
+    # no data lies beyond the array: a halo of the whole array is as good as a deeper one
+    depth = {0: min(halo_depth(md / dy), arr.shape[0] - 1),
+             1: min(halo_depth(md / dx), arr.shape[1] - 1)}
     # every chunk at least as deep as the halo (map_overlap takes neighbours only)
     if any(max(c) < depth[axis] for axis, c in enumerate(arr.chunks)):
         arr = arr.rechunk(tuple(max(depth[axis], max(c)) for axis, c in enumerate(arr.chunks)))

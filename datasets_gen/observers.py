@@ -73,12 +73,12 @@ def read_observers_csv(path, field, *, pixel=False):
     if not os.path.isfile(path):
         raise ValueError(f"observers: {path} does not exist or is not a file")
     out = []
-    with open(path, newline="") as f:
+    with open(path, newline="", encoding="utf-8-sig") as f:  # a BOM (spreadsheets) is no text
         for number, line in enumerate(csv.reader(f), start=1):
             if not line or all(not c.strip() for c in line):
                 continue
-            if number == 1 and not _numeric(line[0]):
-                continue  # a header
+            if number == 1 and all(any(ch.isalpha() for ch in c) for c in line if c.strip()):
+                continue  # a header: words only
             try:
                 out.append(parse_observer(",".join(line), field, pixel=pixel))
             except ValueError as exc:

@@ -184,6 +184,12 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
         transform = ds.transform
         if georef:
             check_axis_aligned(transform, f"{path}: transform")
+        if georef and ds.crs is None:
+            # a pixel size without a unit: 30 (metres?) and 1/3600 (degrees?) look alike
+            raise ValueError(f"{path}: has a geotransform (pixel size {abs(transform.a):g} x "
+                             f"{abs(transform.e):g}) but no CRS, so the unit of its lengths "
+                             "is unknown; assign its CRS first, e.g. gdal_edit.py -a_srs "
+                             f"EPSG:32633 {path} (with the file's real EPSG code)")
         scale = float(ds.scales[band - 1] if ds.scales else 1.0)
         offset = float(ds.offsets[band - 1] if ds.offsets else 0.0)
         file_nodata = ds.nodatavals[band - 1]

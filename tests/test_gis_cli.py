@@ -199,3 +199,87 @@ def test_dask_path_keeps_voids_as_nodata(tmp_path):
         got = src.read(1, masked=True)
     assert got.mask[30:33, 10:14].all() and got.mask.sum() == 12
     np.testing.assert_array_equal(got.filled(np.nan), want.astype(np.float32))
+
+
+# ---- found by a new user's trial (pinned) ------------------------------------------------
+
+def test_dask_south_up_equals_in_memory_and_halo_may_exceed_the_raster(tmp_path):
+    h = dem(rows=40, cols=36)
+    south_up = Affine(20.0, 0.0, 600000.0, 0.0, 20.0, 3640000.0)
+    path = write_tif(tmp_path / "su.tif", h, transform=south_up)
+    out = str(tmp_path / "hz")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    done = subprocess.run([sys.executable, "-m", "bench.cli", "horizon", path, "--dask",
+                           "local:1", "--max-distance", "5000", "--chunk", "16", "--azimuths",
+                           "0,180", "--out", out, "--no-progress"], cwd=root,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    want = np.degrees(algos.horizon(datasets_gen.load_file(path), [0, 180], 5000.0))
+    with rasterio.open(out + ".tif") as src:
+        assert src.transform == south_up
+        np.testing.assert_array_equal(src.read(), want.astype(np.float32))
+
+
+def test_out_never_overwrites_the_input_and_takes_names_or_folders(tmp_path, capsys):
+    path = write_tif(tmp_path / "dem.tif", dem())
+    code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--out", str(tmp_path / "dem")],
+                          capsys)
+    assert code == 2 and "is the input file" in stderr
+    code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--no-progress", "--out",
+                           str(tmp_path / "named.tif")], capsys)
+    assert code == 0 and (tmp_path / "named.tif").exists() and (tmp_path / "named.png").exists()
+    code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--no-progress", "--out",
+                           str(tmp_path / "folder") + os.sep], capsys)
+    assert code == 0 and (tmp_path / "folder" / "svf.tif").exists()
+    code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--no-progress", "--out",
+                           "/proc/no/such/place"], capsys)
+    assert code == 2 and "Traceback" not in stderr and len(stderr.strip().splitlines()) == 1
+
+
+def test_observer_csv_with_a_byte_order_mark_keeps_every_line(tmp_path, capsys):
+    path = write_tif(tmp_path / "dem.tif", dem())
+    x, y = NORTH_UP @ (7 + 0.5, 5 + 0.5)
+    (tmp_path / "bom.csv").write_bytes(f"\ufeff{x},{y}\r\n{x + 300},{y - 300}\r\n".encode())
+    code, _, stderr = run(["viewshed", path, "--observers", str(tmp_path / "bom.csv"),
+                           "--out", str(tmp_path / "v"), "--no-progress"], capsys)
+    assert code == 0, stderr
+    with rasterio.open(tmp_path / "v.tif") as src:
+        assert src.tags()["observers"].count("[") == 3  # the list and two observers
+    (tmp_path / "semi.csv").write_text(f"{x};{y}\n")
+    code, _, stderr = run(["viewshed", path, "--observers", str(tmp_path / "semi.csv"),
+                           "--out", str(tmp_path / "w"), "--no-progress"], capsys)
+    assert code == 2 and "line 1" in stderr
+
+
+def test_a_viewshed_needs_an_observer_and_negative_coordinates_parse(tmp_path, capsys):
+    west = Affine(30.0, 0.0, -1000000.0, 0.0, -30.0, 4000000.0)  # negative eastings (EPSG:3857)
+    path = write_tif(tmp_path / "west.tif", dem(), crs="EPSG:3857", transform=west)
+    code, _, stderr = run(["viewshed", path, "--out", str(tmp_path / "a")], capsys)
+    assert code == 2 and "at least one observer" in stderr
+    x, y = west @ (4.5, 6.5)
+    code, _, stderr = run(["viewshed", path, "--observer", f"{x},{y}", "--out",
+                           str(tmp_path / "b"), "--no-progress"], capsys)
+    assert code == 0, stderr
+
+
+def test_a_geotransform_without_crs_is_refused(tmp_path, capsys):
+    path = write_tif(tmp_path / "nocrs.tif", dem(), crs=None,
+                     transform=Affine(1 / 3600, 0, -99.0, 0, -1 / 3600, 37.0))
+    code, _, stderr = run(["svf", path, "--out", str(tmp_path / "a")], capsys)
+    assert code == 2 and "no CRS" in stderr and "gdal_edit.py -a_srs" in stderr
+
+
+def test_dataarray_products_carry_no_stale_nodata(tmp_path):
+    rioxarray = pytest.importorskip("rioxarray")
+    h = dem()
+    h[3, 3] = -9999.0
+    path = write_tif(tmp_path / "dem.tif", h, nodata=-9999.0)
+    da_in = rioxarray.open_rasterio(path, masked=True).squeeze(drop=True)
+    svf = algos.sky_view_factor(da_in, 4)
+    assert math.isnan(svf.rio.nodata) and np.isnan(svf.values[3, 3])
+    seen = algos.viewshed(da_in, (10.0, 10.0))
+    assert seen.rio.nodata is None
+    seen.astype(np.uint8).rio.to_raster(tmp_path / "seen.tif")
+    svf.rio.to_raster(tmp_path / "svf.tif")
+    with rasterio.open(tmp_path / "svf.tif") as src:
+        assert src.read(1, masked=True).mask[3, 3]

@@ -39,15 +39,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Options whose value may start with a minus sign (a western longitude, a negative
+#: easting): argparse would take ``--observer -12345,4099535`` for two options
+_SIGNED_VALUES = ("--observer", "--observer-pixel", "--camera", "--look-at", "--azimuths")
+
+
+def _join_signed_values(argv):
+    """``--observer -1,2`` as ``--observer=-1,2`` (see :data:`_SIGNED_VALUES`)."""
+    out, k = [], 0
+    while k < len(argv):
+        if argv[k] in _SIGNED_VALUES and k + 1 < len(argv) and len(argv[k + 1]) > 1 \
+                and argv[k + 1][0] == "-" and (argv[k + 1][1].isdigit() or argv[k + 1][1] == "."):
+            out.append(f"{argv[k]}={argv[k + 1]}")
+            k += 2
+        else:
+            out.append(argv[k])
+            k += 1
+    return out
+
+
 def main(argv=None) -> int:
-    """Run one ``hftrace`` command; the exit status (2 on a ValueError or TypeError, whose
-    message is printed as ``hftrace: error: ...``)."""
+    """Run one ``hftrace`` command; the exit status (2 on a ValueError, TypeError or
+    OSError, whose message is printed as one line ``hftrace: error: ...``)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_join_signed_values(list(sys.argv[1:] if argv is None else argv)))
     try:
         return args.func(args)
     except (ValueError, TypeError) as exc:
         print(f"hftrace: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # an unwritable --out, a full disk: the path and the reason
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"hftrace: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `hftrace datasets list | head`
         sys.stderr.close()

@@ -92,10 +92,20 @@ def load_terrain(args, lazy_chunks=None):
             return datasets_gen.open_lazy(source, chunks=lazy_chunks, band=args.band,
                                           spacing=args.spacing,
                                           vertical_scale=args.vertical_scale)
-        return datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
-                                      vertical_scale=args.vertical_scale,
-                                      reproject=args.reproject, nodata_policy=policy,
-                                      fill_value=fill_value)
+        field = datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
+                                       vertical_scale=args.vertical_scale,
+                                       reproject=args.reproject, nodata_policy=policy,
+                                       fill_value=fill_value)
+        if field.unit == "cell":
+            import sys
+
+            print(f"hftrace: note: {source} has no georeferencing and no --spacing: its "
+                  "heights are taken in multiples of the pixel size (cell units)",
+                  file=sys.stderr)
+        return field
+    for option, default in (("size", None), ("seed", 1), ("param", None)):
+        if getattr(args, option) != default and os.path.isfile(source):
+            raise ValueError(f"--{option}: describes a generated dataset, not the file {source}")
     known = [row["name"] for row in datasets_gen.catalogue()]
     if source not in known:
         raise ValueError(f"source: {source!r} is neither a file nor a dataset; datasets are "
@@ -115,6 +125,35 @@ def load_terrain(args, lazy_chunks=None):
     return field
 
 
+def check_options(args):
+    """Options that contradict each other are refused; defaults that depend on others are
+    filled in (``--n-azimuths`` 16 unless ``--azimuths`` names them)."""
+    if args.command == "svf":
+        if args.azimuths and args.n_azimuths is not None:
+            raise ValueError("--n-azimuths: --azimuths already names the azimuths; give one "
+                             "of the two")
+        if args.n_azimuths is None:
+            args.n_azimuths = 16
+
+
+def output_prefix(args):
+    """``--out`` as a path prefix: a trailing product extension (``.tif``, ``.png``,
+    ``.exr``) is dropped, and a folder (an existing one, or a path ending in a separator)
+    gets the command's name inside it. Raises ValueError when an output would overwrite
+    the input file."""
+    out = args.out
+    if out.endswith(os.sep) or os.path.isdir(out):
+        out = os.path.join(out, args.command)
+    stem, ext = os.path.splitext(out)
+    if ext.lower() in (".tif", ".tiff", ".png", ".exr"):
+        out = stem
+    source = os.path.abspath(args.source) if os.path.exists(args.source) else None
+    for ext in (".tif", ".png", ".exr"):
+        if source is not None and os.path.abspath(out + ext) == source:
+            raise ValueError(f"--out: {out + ext} is the input file; choose another name")
+    return out
+
+
 def observers(args, field):
     """``[(col, row, height or None)]`` in grid coordinates of the stored array, from
     ``--observer`` (map coordinates), ``--observer-pixel`` and ``--observers`` (a CSV);
@@ -126,8 +165,8 @@ def observers(args, field):
     if args.observers:
         out += read_observers_csv(args.observers, field, pixel=args.observers_pixel)
     if not out:
-        rows, cols = field.shape
-        out = [((cols - 1) / 2, (rows - 1) / 2, None)]
+        raise ValueError("--observer: give at least one observer (--observer X,Y in map "
+                         "coordinates, --observer-pixel COL,ROW, or --observers FILE.csv)")
     return out
 
 
@@ -200,6 +239,8 @@ def terrain_product(args):
 
     from .render import write_exr
 
+    check_options(args)
+    args.out = output_prefix(args)
     field = load_terrain(args)
     kind = args.command
     common = dict(algorithm=args.algorithm, threads=args.threads)
@@ -299,7 +340,8 @@ def register(sub):
             p.add_argument("--azimuths", default=None,
                            help="comma-separated degrees clockwise from north (default 0)")
         if kind == "svf":
-            p.add_argument("--n-azimuths", type=positive_int, default=16)
+            p.add_argument("--n-azimuths", type=positive_int, default=None,
+                           help="equally spaced azimuths from north (default 16)")
             p.add_argument("--azimuths", default=None, help="comma-separated degrees")
             p.add_argument("--rational", action="store_true",
                            help="nearest rational azimuths: the exact sweep applies")

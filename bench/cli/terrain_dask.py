@@ -18,7 +18,7 @@ import numpy as np
 
 import algos
 
-from .terrain import _azimuths, load_terrain, observers, product_options
+from .terrain import _azimuths, check_options, load_terrain, observers, output_prefix, product_options
 
 __all__ = ["GeoTiffTarget", "run_product", "terrain_product_dask"]
 
@@ -117,8 +117,10 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
         voids = field.nodata_mask if field.nodata_mask is not None else da.isnan(field.heights)
         for band, lazy in enumerate(layers, start=1):
             lazy = da.where(voids, np.nan, lazy.astype(np.float32))
-            if field.north == "+y":
-                lazy = lazy[::-1]  # the file is north-up, as the in-memory writer's
+            if field.transform is None and field.north == "+y":
+                # a field without a geotransform is written north-up (as the in-memory
+                # writer does); a georeferenced one on its own grid, rows as stored
+                lazy = lazy[::-1]
             da.store(lazy, GeoTiffTarget(path, band), lock=lock, compute=True)
         seconds = time.perf_counter() - start
     finally:
@@ -144,6 +146,8 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
 
 def terrain_product_dask(args):
     """``--dask``: the command's product tile by tile (:func:`run_product`)."""
+    check_options(args)
+    args.out = output_prefix(args)
     field = load_terrain(args, lazy_chunks=args.chunk)
     kind = args.command
     options = dict(max_distance=args.max_distance, algorithm=args.algorithm,
