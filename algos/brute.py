@@ -157,7 +157,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
 def brute_force_hits(heights, origins, directions, surface="triangles", tmin=None, tmax=None):
     """(t, cell) of the first hit of every ray, testing every cell; t = inf on a miss.
 
-    Same conventions as ``algos.intersect`` (CONVENTIONS.md, "The first hit"); a
+    Same conventions as ``algos.intersect`` (docs/CONVENTIONS.md, "The first hit"); a
     :class:`algos.HeightField` gives its cell heights.
     """
     H = heights.cell_heights if isinstance(heights, HeightField) else \

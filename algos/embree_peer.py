@@ -1,7 +1,7 @@
 """Embree (through ``embreex``) on the same triangles: ground truth and the peer to beat.
 
 Cell (i, j) becomes the triangles (i,j)(i+1,j)(i+1,j+1) and (i,j)(i+1,j+1)(i,j+1) with
-vertex (i, j, H[j, i]) (CONVENTIONS.md), so primitive ``2 (j nx + i) + k`` is triangle
+vertex (i, j, H[j, i]) (docs/CONVENTIONS.md), so primitive ``2 (j nx + i) + k`` is triangle
 k of cell (i, j). Embree computes in float32. Its scene is built once per Field; the
 build time and the process's resident-memory growth during the build (Embree does not
 report its own bytes through embreex) are recorded in ``field.build_stats["embree"]``.

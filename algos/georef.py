@@ -1,7 +1,7 @@
 """Where a grid lies on the Earth: Earth radii, pixel sizes from a geotransform, map
 coordinates <-> grid coordinates.
 
-Grid coordinates are those of CONVENTIONS.md: vertex ``(i, j)`` is the sample
+Grid coordinates are those of docs/CONVENTIONS.md: vertex ``(i, j)`` is the sample
 ``H[j, i]`` (column i, row j of the array as stored). A georeferenced raster's affine
 geotransform maps *pixel-corner* coordinates ``(col, row)`` to map ``(x, y)``; its
 samples sit at pixel centres, so vertex ``(i, j)`` is at map

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numbers
 import time
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
+from dataclasses import field as dc_field
 
 import numpy as np
 
@@ -125,7 +126,7 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     Hits
         The smallest ``t`` in ``[t0, t1]`` with ``z(t) <= s(x(t), y(t))``, where
         ``[t0, t1]`` is ``[tmin, tmax]`` clipped to the box ``[0, cols-1] x
-        [0, rows-1]`` (CONVENTIONS.md, "The first hit"); a ray that starts inside the
+        [0, rows-1]`` (docs/CONVENTIONS.md, "The first hit"); a ray that starts inside the
         solid hits at ``t0``. ``flat`` and ``plane3`` jump at cell borders, so their hits
         can lie on vertical walls.
     """

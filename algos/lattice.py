@@ -1,7 +1,7 @@
 """The fixed-point lattice of the exact kernels.
 
 An exact kernel first rounds the ray's ``(x, y)`` onto a lattice, then walks the rounded
-ray exactly (CONVENTIONS.md, "Exactness"):
+ray exactly (docs/CONVENTIONS.md, "Exactness"):
 
 * origin: each component is rounded to the nearest multiple of ``2**-16`` cell
   (ties to even);
@@ -11,8 +11,8 @@ ray exactly (CONVENTIONS.md, "Exactness"):
   back, leaves the meaning of ``t`` (and so of ``tmin``/``tmax``) unchanged.
 
 So a ray whose components are multiples of ``2**-16`` with ``|o| <= 2**30`` and
-``max |d| < 2**15`` is unchanged (directions are limited to ``|d| <= 2**1000``), and any other direction keeps 31 significant bits in
-its larger component. ``-0.0`` becomes ``0.0``. :func:`quantize` is the NumPy twin of
+``max |d| < 2**15`` is unchanged (directions are limited to ``|d| <= 2**1000``), and any
+other direction keeps 31 significant bits in its larger component. ``-0.0`` becomes ``0.0``. :func:`quantize` is the NumPy twin of
 ``hf_quantize_ray`` in ``cext/lattice.c``; the tests check that they agree bit for bit.
 """
 from __future__ import annotations

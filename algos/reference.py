@@ -2,7 +2,7 @@
 
 It is deliberately a different algorithm from every kernel in ``cext/``. The kernels walk
 an integer recurrence in a reduced octant; this module works straight from the
-definition in ``CONVENTIONS.md``: it lists every parameter ``t`` at which the ray crosses
+definition in ``docs/CONVENTIONS.md``: it lists every parameter ``t`` at which the ray crosses
 an x or y grid line, merges the two lists, and evaluates the half-open cell rule at the
 start of each piece. Nothing is incremental, so a rounding or stepping bug in a kernel
 cannot be mirrored here.
@@ -93,7 +93,7 @@ def reference_cells(origin, direction, shape, tmin=0.0, tmax=float("inf")):
     Returns
     -------
     list of (i, j)
-        Postconditions (CONVENTIONS.md): the cells containing ``p(t)`` for ``t`` in
+        Postconditions (docs/CONVENTIONS.md): the cells containing ``p(t)`` for ``t`` in
         ``[t0, t1)`` in order of ``t``, where ``[t0, t1)`` is ``[tmin, tmax)`` clipped to
         the box ``[0, nx] x [0, ny]``; cells are half-open toward the direction of
         travel (``-0.0`` counts as ``0``); at an exact vertex crossing both indices

@@ -100,7 +100,7 @@ def get_traversal(name: str) -> Traversal:
 
 
 # ---- intersectors --------------------------------------------------------------------
-#: Cell surfaces (CONVENTIONS.md, "Cell surfaces"), in the C enum's order.
+#: Cell surfaces (docs/CONVENTIONS.md, "Cell surfaces"), in the C enum's order.
 SURFACES = ("flat", "plane3", "triangles", "bilinear")
 
 

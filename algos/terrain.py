@@ -1,5 +1,5 @@
 """Terrain products from parallel rays: horizon angles, cast shadows, sky-view factor and
-viewsheds, on the two-triangle surface (CONVENTIONS.md, "Terrain products").
+viewsheds, on the two-triangle surface (docs/CONVENTIONS.md, "Terrain products").
 
 The maths
 ---------
@@ -88,10 +88,10 @@ import numpy as np
 from . import _kernels
 from .field import HeightField, is_dask, is_dataarray, max_mipmap
 from .georef import WGS84_SEMI_MAJOR_AXIS_M
-from .validate import check_length, check_spacing
 from .parallel import resolve_threads, run_ranges
-from .tiled import tiled_product, tiled_viewshed
 from .terrain_ref import line_of_sight_exact, surface_exact
+from .tiled import tiled_product, tiled_viewshed
+from .validate import check_length, check_spacing
 
 __all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
            "azimuth_direction", "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "TerrainAlgorithm",

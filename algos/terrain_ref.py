@@ -2,7 +2,7 @@
 
 They share nothing with the kernels: no patterns, no frames, no walks. Each one lists every
 point where a straight line crosses a grid line x = k, y = k or a cell diagonal x - y = k
-(CONVENTIONS.md: the two triangles of cell (i, j) meet on u = v), evaluates the
+(docs/CONVENTIONS.md: the two triangles of cell (i, j) meet on u = v), evaluates the
 two-triangle surface there with :class:`fractions.Fraction`, and compares.
 
 Why the breakpoints suffice. Along a line the surface is linear between consecutive

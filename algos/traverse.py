@@ -30,7 +30,7 @@ MAX_DENOMINATOR = _kernels.MAX_DENOMINATOR
 _MODE = {"count": 0, "cells": 1, "runs": 2, "visit": 3, "runfold": 4}
 #: Output modes of :func:`traverse`.
 OUTPUTS = ("cells", "runs", "count")
-#: Timed workloads of :func:`walk_timed` (CONVENTIONS.md, "Workloads").
+#: Timed workloads of :func:`walk_timed` (docs/CONVENTIONS.md, "Workloads").
 WORKLOADS = {"visit": "visit", "runs": "runfold"}
 
 
@@ -131,7 +131,9 @@ class _Batch:
         whole pool."""
 
         def part(a, b):
-            cut = lambda x: None if x is None or np.ndim(x) == 0 else x[a:b]
+            def cut(x):  # a per-ray array's range; a scalar or None as it is
+                return None if x is None or np.ndim(x) == 0 else x[a:b]
+
             pattern = None if self.pattern is None else np.zeros_like(self.pattern)
             try:
                 return _kernels.walk(

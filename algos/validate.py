@@ -2,7 +2,7 @@
 
 Each validator either returns the argument converted to what the C layer expects or
 raises ``ValueError``/``TypeError`` whose message names the argument and the offending
-ray, sample or value (CONVENTIONS.md, "Public API"). Nothing here is specific to one
+ray, sample or value (docs/CONVENTIONS.md, "Public API"). Nothing here is specific to one
 kernel family.
 """
 from __future__ import annotations

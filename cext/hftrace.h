@@ -1,6 +1,6 @@
 /* hftrace: 2D grid traversal kernels for height-field ray tracing.
  *
- * Conventions (binding): ../shared/spec/CONVENTIONS.md, mirrored in README.md.
+ * Conventions (binding): docs/CONVENTIONS.md, mirrored in README.md.
  * Cell (i, j) is [i, i+1] x [j, j+1]; cells are half-open toward the direction of travel.
  *
  * The C layer trusts its arguments: the Python wrapper (algos/traverse.py) validates

@@ -1,5 +1,5 @@
 /* First hits on a height field: the per-cell surface tests and per-run culling that the
- * traversal walks call in HF_MODE_HIT (surfaces and rules: CONVENTIONS.md).
+ * traversal walks call in HF_MODE_HIT (surfaces and rules: docs/CONVENTIONS.md).
  *
  * The traversal decides which cells are visited and in which order (each kernel its own
  * way); every surface test runs in float64 on the caller's 3D ray over the parameter

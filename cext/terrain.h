@@ -1,6 +1,6 @@
 /* Terrain products on the two-triangle surface: horizon angles and line of sight.
  *
- * Conventions: ../shared/spec/CONVENTIONS.md ("Terrain products"). Heights are float64,
+ * Conventions: docs/CONVENTIONS.md ("Terrain products"). Heights are float64,
  * (rows, cols), C order, H[j * cols + i] the height of vertex (i, j). The surface is the
  * two-triangle one, split on the diagonal u = v, or, in a mirrored frame, on u + v = 1.
  *

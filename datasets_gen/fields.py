@@ -1,7 +1,7 @@
 """Seeded synthetic height fields.
 
 Every generator returns a float32 array ``H`` of shape ``(rows, cols)`` (``H[j, i]`` is
-the height at grid point ``(x=i, y=j)``, CONVENTIONS.md) in cell units: one unit of
+the height at grid point ``(x=i, y=j)``, docs/CONVENTIONS.md) in cell units: one unit of
 height is one cell's width.
 
 Determinism: the same name, parameters and seed give identical bytes on any machine

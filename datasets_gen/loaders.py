@@ -1,7 +1,7 @@
 """Height fields from files, and the embedded real terrain.
 
 Units. A height field's heights are in the same linear unit as its pixel size
-(CONVENTIONS.md, "Grid and heights"). Georeferenced rasters (GeoTIFF, VRT and every
+(docs/CONVENTIONS.md, "Grid and heights"). Georeferenced rasters (GeoTIFF, VRT and every
 other format GDAL reads, through :mod:`datasets_gen.raster`) carry their pixel size,
 CRS, orientation and nodata; the other files (``.npy``, ``.npz``, PNG, JPEG, OpenEXR)
 take ``spacing`` (default 1: cell units) and their heights as they are, times
