@@ -89,23 +89,53 @@ def flush_caches(nbytes: int | None = None) -> None:
 
 
 def interleaved(jobs: dict[str, Callable[[], int]], repeats: int,
-                flush: bool = True) -> dict[str, np.ndarray]:
+                flush: bool = True, errors: dict | None = None,
+                time_limit_ns: dict | None = None) -> dict[str, np.ndarray]:
     """Run each job ``repeats`` times, interleaved and rotated; each job returns its own
     elapsed nanoseconds (measured in C). One untimed warm-up round comes first. With
     ``flush`` the caches are evicted before every timed run: interleaving on the same
     rays otherwise hands each job the lines its predecessor loaded (measured: `dda`
-    right after Embree, whose BVH evicts the field, took 1.9x its time after `midpoint`)."""
+    right after Embree, whose BVH evicts the field, took 1.9x its time after `midpoint`).
+
+    With ``errors`` (a dict), a job that raises, or takes longer than its entry of
+    ``time_limit_ns`` (name -> ns) in one call, is dropped from the rotation and
+    ``errors[name]`` says why; the other jobs go on, and the result holds only the jobs
+    that finished every repeat. Without it an exception propagates."""
     names = list(jobs)
-    for name in names:  # warm-up: branch predictors, page faults
-        jobs[name]()
+    limits = time_limit_ns or {}
+
+    def call(name):
+        if errors is None:
+            return jobs[name]()
+        try:
+            elapsed = jobs[name]()
+        except Exception as exc:  # a kernel's failure is its row's error, not the run's
+            errors[name] = f"{type(exc).__name__}: {exc}".strip()
+            names.remove(name)
+            return None
+        limit = limits.get(name)
+        if limit is not None and elapsed > limit:
+            errors[name] = (f"exceeded the time limit: one call took {elapsed / 1e9:.3g} s, "
+                            f"limit {limit / 1e9:.3g} s")
+            names.remove(name)
+            return None
+        return elapsed
+
+    for name in list(names):  # warm-up: branch predictors, page faults
+        call(name)
     times = {name: [] for name in names}
     for rep in range(repeats):
-        shift = rep % len(names)
-        for name in names[shift:] + names[:shift]:
+        order = list(names)
+        shift = rep % max(len(order), 1)
+        for name in order[shift:] + order[:shift]:
+            if name not in names:
+                continue
             if flush:
                 flush_caches()
-            times[name].append(jobs[name]())
-    return {name: np.asarray(v, dtype=np.float64) for name, v in times.items()}
+            elapsed = call(name)
+            if elapsed is not None:
+                times[name].append(elapsed)
+    return {name: np.asarray(times[name], dtype=np.float64) for name in names}
 
 
 def _bootstrap(stat: Callable[[np.ndarray], float], samples: Sequence[np.ndarray],

@@ -39,9 +39,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _warn(text):
+    print(text, file=sys.stderr)
+
+
 def main(argv=None) -> int:
-    """Run one ``hftrace`` command; the exit status (2 on a ValueError or TypeError, whose
-    message is printed as ``hftrace: error: ...``)."""
+    """Run one ``hftrace`` command; the exit status: 2 on a user error (a ValueError,
+    TypeError or unreadable file, printed as one line ``hftrace: error: ...``, never a
+    traceback), 130 on Ctrl-C (with how to resume). The kernels of installed packages'
+    ``hftrace.kernels`` entry points are registered first (``algos.plugins``)."""
+    from algos.plugins import load_entry_points
+
+    load_entry_points(warn=_warn)
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -49,8 +58,27 @@ def main(argv=None) -> int:
     except (ValueError, TypeError) as exc:
         print(f"hftrace: error: {exc}", file=sys.stderr)
         return 2
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"hftrace: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        resumable = "--resume" in {a.option_strings[0] for a in _actions(parser, args)}
+        again = " ".join(sys.argv[1:] if argv is None else argv)
+        hint = (f"; every finished group is kept: `hftrace {again} --resume` continues"
+                if resumable and "--resume" not in again.split() else "")
+        print(f"\nhftrace: interrupted{hint}", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # e.g. `hftrace datasets list | head`
         sys.stderr.close()
         return 0
+
+
+def _actions(parser, args):
+    """The options of the sub-command that ran (to tell whether it can resume)."""
+    for action in parser._subparsers._group_actions:
+        sub = action.choices.get(args.command)
+        if sub is not None:
+            return [a for a in sub._actions if a.option_strings]
+    return []
 
 
