@@ -551,6 +551,9 @@ def _measure_isolated(field, label, workload, surface, r, names, rays, repeats, 
     receive, send = ctx.Pipe(duplex=False)
 
     def child():
+        import faulthandler
+
+        faulthandler.disable()  # the parent reports the signal in one line
         try:
             send.send(("rows", measure_group(field, label, workload, surface, r,
                                              [BASELINE] + names, rays, repeats, seed)))
