@@ -251,7 +251,11 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
         part = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1]) &
                   (df["run_length"] == "random")]
         if not part.empty:
-            by_ds = part.pivot_table(index="dataset", columns="algorithm", values="speedup", sort=False)
+            part = part.assign(text=[ratio_text(s, lo, hi) + (" †" if c else "")
+                                     for s, lo, hi, c in zip(part["speedup"], part["speedup_ci_low"],
+                                                             part["speedup_ci_high"], part["contended"])])
+            by_ds = part.pivot(index="dataset", columns="algorithm", values="text").fillna("")
+            by_ds = by_ds.loc[list(dict.fromkeys(part["dataset"]))]
             by_ds = by_ds[[c for c in dict.fromkeys(part["algorithm"]) if c in by_ds.columns]]
             lines += ["## By dataset: first hit on triangles over random azimuths", "",
                       _markdown(by_ds, first="dataset"), ""]

@@ -73,6 +73,7 @@ def contention(before: dict, after: dict) -> dict:
     other = None
     if before["busy"] is not None and after["busy"] is not None and wall > 0:
         other = max(0.0, (after["busy"] - before["busy"]) - (after["own"] - before["own"])) / wall
+        other = min(other, float(os.cpu_count() or 1))  # clock-tick granularity on short spans
     try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:
