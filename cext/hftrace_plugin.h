@@ -26,7 +26,7 @@
 #include <stdint.h>
 
 #define HFTRACE_PLUGIN_ABI 1
-#define HFTRACE_PLUGIN_OK 0
+#define HFTRACE_PLUGIN_OK  0
 
 /* What the library holds. Strings are static and NUL-terminated. */
 typedef struct {
@@ -55,9 +55,9 @@ int hftrace_traverse(int64_t nx, int64_t ny, int64_t n, const double *origins,
  * `surface` (enum above) of the height field heights (rows, cols) float32. Store the ray
  * parameter of the first hit in t[ray] (+infinity on a miss) and the hit cell (i, j) in
  * hit_cells[2 * ray], hit_cells[2 * ray + 1] (-1 on a miss). */
-int hftrace_first_hit(const float *heights, int64_t rows, int64_t cols, int surface,
-                      int64_t n, const double *origins, const double *directions,
-                      const double *tmin, const double *tmax, double *t, int32_t *hit_cells);
+int hftrace_first_hit(const float *heights, int64_t rows, int64_t cols, int surface, int64_t n,
+                      const double *origins, const double *directions, const double *tmin,
+                      const double *tmax, double *t, int32_t *hit_cells);
 
 /* The visit checksum's fold: a rotate-xor chain over the cell keys (i << 32) | j, the
  * same as the built-in kernels', so a plugin that visits the same cells in the same order

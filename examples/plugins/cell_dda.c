@@ -12,10 +12,12 @@
 static const hftrace_plugin_info INFO = {
     HFTRACE_PLUGIN_ABI, "cell_dda_c", "traversal", 0, "", "plain cell DDA in C (examples/plugins)"};
 
-const hftrace_plugin_info *hftrace_plugin(void) { return &INFO; }
+const hftrace_plugin_info *hftrace_plugin(void) {
+    return &INFO;
+}
 
-static void walk(int64_t nx, int64_t ny, const double o[2], const double d[2], double t0,
-                 double t1, uint64_t *hash, int64_t *count) {
+static void walk(int64_t nx, int64_t ny, const double o[2], const double d[2], double t0, double t1,
+                 uint64_t *hash, int64_t *count) {
     double t_max[2], t_delta[2];
     int64_t cell[2], step[2], size[2] = {nx, ny};
     for (int a = 0; a < 2; a++) { /* slab clipping to [0, size] */
