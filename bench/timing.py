@@ -160,10 +160,20 @@ def _bootstrap(stat: Callable[[np.ndarray], float], samples: Sequence[np.ndarray
     return float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))
 
 
+def _resamples(rng, n: int, n_boot: int) -> np.ndarray:
+    """(n_boot, n) bootstrap indices: the same draws, in the same order, as ``n_boot``
+    successive ``rng.integers(0, n, n)`` calls (one call, vectorised)."""
+    return rng.integers(0, n, (n_boot, n))
+
+
 def median_ci(x: np.ndarray, n_boot: int = 2000, seed: int = 0):
-    """Median and its bootstrap 95 % interval."""
-    low, high = _bootstrap(np.median, [x], n_boot, seed)
-    return float(np.median(x)), low, high
+    """Median and its bootstrap 95 % interval (vectorised over the resamples: the
+    per-resample loop had cost more than the timed calls of a group)."""
+    x = np.asarray(x, dtype=np.float64)
+    rng = np.random.Generator(np.random.PCG64(seed))
+    values = np.median(x[_resamples(rng, len(x), n_boot)], axis=1)
+    return (float(np.median(x)), float(np.percentile(values, 2.5)),
+            float(np.percentile(values, 97.5)))
 
 
 def ratio_ci(numerator: np.ndarray, denominator: np.ndarray, n_boot: int = 2000,
@@ -177,10 +187,9 @@ def ratio_ci(numerator: np.ndarray, denominator: np.ndarray, n_boot: int = 2000,
 
     if paired:
         rng = np.random.Generator(np.random.PCG64(seed))
-        values = np.empty(n_boot)
-        for k in range(n_boot):
-            idx = rng.integers(0, len(numerator), len(numerator))
-            values[k] = stat(numerator[idx], denominator[idx])
+        idx = _resamples(rng, len(numerator), n_boot)
+        num, den = np.asarray(numerator, np.float64), np.asarray(denominator, np.float64)
+        values = np.median(num[idx], axis=1) / np.median(den[idx], axis=1)
         low, high = float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))
     else:
         low, high = _bootstrap(stat, [numerator, denominator], n_boot, seed)

@@ -285,3 +285,20 @@ def test_user_errors_are_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sweep, "run_sweep", interrupted)
     assert main(["sweep", str(toml), "--out", str(tmp_path / "o")]) == 130
     assert "--resume" in capsys.readouterr().err
+
+
+def test_entry_points_register_kernels(monkeypatch, registered, capsys):
+    """A package's ``hftrace.kernels`` entry point is called by the ``hftrace`` command, so
+    ``hftrace list`` shows its kernel; a failing one is one warning line."""
+    import importlib.metadata as md
+
+    from examples.plugins import numpy_dda as module
+
+    points = [md.EntryPoint("theirs", "examples.plugins.numpy_dda:register", plugins.ENTRY_POINT_GROUP),
+              md.EntryPoint("broken", "no_such_module:register", plugins.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(md, "entry_points", lambda group=None: points if group else {})
+    registered.append("numpy_dda")
+    assert main(["list"]) == 0
+    out, err = capsys.readouterr()
+    assert "numpy_dda" in out and module.numpy_dda is algos.TRAVERSAL_REGISTRY["numpy_dda"].plugin.fn
+    assert "entry point 'broken'" in err and err.count("\n") == 1
