@@ -302,3 +302,33 @@ def test_entry_points_register_kernels(monkeypatch, registered, capsys):
     out, err = capsys.readouterr()
     assert "numpy_dda" in out and module.numpy_dda is algos.TRAVERSAL_REGISTRY["numpy_dda"].plugin.fn
     assert "entry point 'broken'" in err and err.count("\n") == 1
+
+
+def test_reproduce_presets_and_new_run_directory(tmp_path, monkeypatch, quiet_flush):
+    """The default preset is the headline (first hit on triangles by run length, 24
+    groups); the former quick preset is `standard`; a rerun writes a new directory."""
+    from bench.studies import reproduce as R
+    from bench.sweep import SweepConfig, groups
+
+    head = R.preset()
+    assert head.workloads == ["first_hit"] and head.surfaces == ["triangles"]
+    assert len(groups(head)) == 24 and len(groups(R.preset(name="standard"))) == 144
+    assert R.preset(full=True).rays == 3000
+    with pytest.raises(ValueError, match="--preset: unknown preset 'quick'"):
+        R.preset(name="quick")
+    tiny = SweepConfig(name="reproduce", rays=24, repeats=3, seed=1, workloads=["first_hit"],
+                       surfaces=["triangles"], run_lengths=[2],
+                       datasets=[{"name": "fbm", "size": 32, "seed": 1}])
+    monkeypatch.setattr(R, "preset", lambda full=False, name=None, kernels=None:
+                        SweepConfig(**{**tiny.__dict__, "algorithms": kernels}))
+    monkeypatch.chdir(tmp_path)
+    lines = []
+    R.run(progress=False, counts=False, kernels=["dda", "runs"], echo=lines.append)
+    assert lines[0].startswith("hftrace reproduce (headline preset): 1 groups") and "min" in lines[0]
+    R.run(progress=False, counts=False, kernels=["dda", "runs"], echo=lines.append)
+    assert (tmp_path / "results" / "reproduce" / "results.csv").exists()
+    assert (tmp_path / "results" / "reproduce.2" / "results.csv").exists()
+    import json
+
+    env = json.load(open(tmp_path / "results" / "reproduce" / "env.json"))
+    assert 0 < env["run"]["timed_share"] <= 1 and env["reproduce"]["wall_s"] > 0
