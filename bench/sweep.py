@@ -597,8 +597,8 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
 
     Refuses to replace an existing results.csv unless ``resume`` (then the kept rows must
     match the config and the code's commit: :func:`_pending`). With ``isolate`` the
-    plugin kernels of each group (``algos.plugins``) are measured in a child process
-    next to their own baseline run, so a crash is contained; without it they are
+    plugin kernels of each group (``algos.plugins``) are measured each in a child
+    process next to its own baseline run, so a crash is contained; without it they are
     interleaved with the built-in kernels. Each row records the machine's load
     (``bench.load``); the run's totals go into ``env.json`` under ``"run"``."""
     from algos import plugins
@@ -623,8 +623,8 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
             isolated = [n for n in names if n not in own and n in missing]
             measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
                                      cfg.repeats, cfg.seed)
-            if isolated:
-                measured += _measure_isolated(field_, label, workload, surface, r, isolated,
+            for name in isolated:  # one child per plugin: a crash takes only its rows
+                measured += _measure_isolated(field_, label, workload, surface, r, [name],
                                               cfg.rays, cfg.repeats, cfg.seed)
             timed += measured[0]["timed_s"]
             contended += bool(measured[0]["contended"])

@@ -112,19 +112,22 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
                 if os.path.exists(os.path.join(out_dir, old)):
                     os.remove(os.path.join(out_dir, old))
     if out_dir is None:
-        # the default directory is never overwritten: a rerun writes a new run directory
-        out_dir = base = os.path.join("results", cfg.name)
-        k = 1
-        while not resume and os.path.exists(os.path.join(out_dir, "results.csv")):
-            k += 1
-            out_dir = f"{base}.{k}"
-        if out_dir != base:
-            echo(f"{base} holds an earlier run (kept); writing {out_dir} "
-                 f"(`--resume` continues {base} instead)")
+        # the default directory is never overwritten: a rerun writes a new run directory,
+        # and --resume continues the latest one
+        base = os.path.join("results", cfg.name)
+        runs = [base] + [f"{base}.{k}" for k in range(2, 1000)]
+        used = [d for d in runs if os.path.exists(os.path.join(d, "results.csv"))]
+        if resume:
+            out_dir = used[-1] if used else base
+        else:
+            out_dir = next(d for d in runs if not os.path.exists(os.path.join(d, "results.csv")))
+            if out_dir != base:
+                echo(f"{base} holds an earlier run (kept); writing {out_dir} "
+                     f"(`--resume` continues the latest run directory)")
     wall0 = time.perf_counter()
     n_groups = len(groups(cfg))
     minutes = estimate_seconds(cfg, name, counts) / 60
-    echo(f"hftrace reproduce ({name} preset): {n_groups} groups on {len(cfg.datasets)} "
+    echo(f"hftrace reproduce ({name} preset): {n_groups} group{'s' if n_groups != 1 else ''} on {len(cfg.datasets)} "
          f"datasets, expected about {minutes:.0f} min on a 2-core machine "
          f"(phases: measure{', counts' if counts else ''}"
          f"{', parallel rays' if name != 'headline' else ''}, reports) -> {out_dir}")
