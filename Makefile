@@ -59,6 +59,7 @@ reproduce: $(PEERS_STAMP)
 # of `scale --part big` are not committed: big.md says how to make them.
 reports: $(PEERS_STAMP)
 	$(BIN)/hftrace reproduce --publish
+	$(BIN)/hftrace reproduce --preset standard --publish
 	$(BIN)/hftrace bench-traverse --out reports/bench_traverse
 	$(BIN)/hftrace bench-intersect --out reports/bench_intersect
 	$(BIN)/python -m bench.cost_report reports/bench_traverse

@@ -24,6 +24,8 @@ from .registry import (
     Traversal,
     get_intersector,
     get_traversal,
+    register_intersector,
+    register_traversal,
 )
 from .render import Rendering, render
 from .terrain import (
@@ -58,5 +60,5 @@ __all__ = [
     "brute_force_hits", "WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M",
     "DEFAULT_REFRACTION", "render", "Rendering", "raster", "RASTERISERS",
     "horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
-    "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS",
+    "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "register_intersector", "register_traversal",
 ]

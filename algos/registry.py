@@ -8,7 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 __all__ = ["Traversal", "TRAVERSAL_REGISTRY", "TRAVERSALS", "get_traversal", "Intersector",
-           "INTERSECTOR_REGISTRY", "INTERSECTORS", "get_intersector", "SURFACES"]
+           "INTERSECTOR_REGISTRY", "INTERSECTORS", "get_intersector", "SURFACES",
+           "register_traversal", "register_intersector"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,8 @@ class Traversal:
     exact_when: str = ""
     citation: str = ""
     summary: str = ""
+    #: a registered plugin's calling details (``algos.plugins.Plugin``); None when built in
+    plugin: object = None
 
 
 TRAVERSAL_REGISTRY: dict[str, Traversal] = {
@@ -114,8 +117,8 @@ class Intersector:
         The C intersector (``cext/hitbatch.h``); None for a peer run from Python.
     kind : str
         ``"traversal"`` (a 2D traversal plus per-cell tests), ``"maxmip"``,
-        ``"cone"`` (cone step mapping, ``algos.cone``), ``"march"`` (ray marching) or
-        ``"peer"``.
+        ``"cone"`` (cone step mapping, ``algos.cone``), ``"march"`` (ray marching),
+        ``"peer"`` or ``"plugin"`` (registered through ``algos.plugins``).
     accuracy : str
         ``"exact"``: exact traversal, float64 surface tests; equals the brute force up
         to ``|dt| <= 1e-9 (1 + |t|)``. ``"float64"``/``"float32"``: the traversal's own
@@ -136,6 +139,8 @@ class Intersector:
     surfaces: tuple = SURFACES
     summary: str = ""
     citation: str = ""
+    #: a registered plugin's calling details (``algos.plugins.Plugin``); None when built in
+    plugin: object = None
 
 
 _CULL = {"cull_cells": True}
@@ -207,3 +212,17 @@ def get_intersector(name: str) -> Intersector:
         raise ValueError(
             f"name: unknown intersector {name!r}; valid names are {', '.join(INTERSECTORS)}"
         ) from None
+
+
+def register_traversal(*args, **kwargs):
+    """Register a plugin traversal: :func:`algos.plugins.register_traversal`."""
+    from .plugins import register_traversal as register
+
+    return register(*args, **kwargs)
+
+
+def register_intersector(*args, **kwargs):
+    """Register a plugin first-hit intersector: :func:`algos.plugins.register_intersector`."""
+    from .plugins import register_intersector as register
+
+    return register(*args, **kwargs)

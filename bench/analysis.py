@@ -17,12 +17,59 @@ import pandas as pd
 PAPER = {1.0: 1.0, 2.0: 1.1, 25.0: 1.8, "random": 1.25}
 PRIMARY = ("first_hit", "triangles")
 
+#: A speedup whose 95 % interval is wider than this fraction of the speedup, or spans
+#: 1.0, is printed as inconclusive, never as a finding.
+INCONCLUSIVE_WIDTH = 0.25
+#: The kernels the plots show by default (plugins always join them; ``all_kernels``
+#: shows every one).
+PLOT_KERNELS = ("dda_f32", "midpoint", "runs", "runs_maxmip", "dda_maxmip", "embree")
+#: The kernels whose confidence band the speedup plot draws (plugins too, up to 4 bands).
+BAND_KERNELS = ("runs", "runs_maxmip")
+
+
+def verdict(speedup, low, high, width=INCONCLUSIVE_WIDTH) -> str:
+    """``"faster"``, ``"slower"`` or ``"inconclusive"`` (the interval [low, high] spans
+    1.0, is wider than ``width`` times the speedup, or is missing)."""
+    values = [float(v) for v in (speedup, low, high)]
+    if not all(np.isfinite(values)) or values[0] <= 0:
+        return "inconclusive"
+    s, lo, hi = values
+    if lo <= 1.0 <= hi or (hi - lo) > width * s:
+        return "inconclusive"
+    return "faster" if s > 1.0 else "slower"
+
+
+def ratio_text(speedup, low, high, fmt="{:.2f}") -> str:
+    """``1.23x [1.20, 1.27]``, followed by "inconclusive" when :func:`verdict` says so."""
+    if not np.isfinite(float(speedup)):
+        return ""
+    text = f"{fmt.format(float(speedup))} [{fmt.format(float(low))}, {fmt.format(float(high))}]"
+    return text + (" inconclusive" if verdict(speedup, low, high) == "inconclusive" else "")
+
 
 def load(path) -> pd.DataFrame:
     """A results.csv as a DataFrame: run lengths kept as text ("random" among numbers),
     the 2D workloads' empty surface as "-"."""
-    df = pd.read_csv(path, dtype={"run_length": str, "surface": str})
+    if not os.path.isfile(path):
+        raise ValueError(f"results: {path} does not exist")
+    try:
+        df = pd.read_csv(path, dtype={"run_length": str, "surface": str})
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise ValueError(f"results: {path} is not a readable CSV ({exc})") from None
+    needed = {"algorithm", "workload", "surface", "dataset", "run_length", "speedup",
+              "speedup_ci_low", "speedup_ci_high", "ns_per_ray", "agree"}
+    missing = sorted(needed - set(df.columns))
+    if missing:
+        raise ValueError(f"results: {path} is not a results.csv of hftrace (no column "
+                         f"{', '.join(missing)})")
     df["surface"] = df["surface"].fillna("-")
+    if "contended" in df.columns:
+        df["contended"] = df["contended"].astype(str).str.lower().isin(("true", "1"))
+    else:
+        df["contended"] = False
+    if "error" not in df.columns:
+        df["error"] = ""
+    df["error"] = df["error"].astype(object).fillna("").astype(str)
     return df
 
 
@@ -55,6 +102,29 @@ def pivot(df, workload, surface, value="speedup"):
     return table[[c for c in order if c in table.columns]]
 
 
+def pivot_ci(df, workload, surface) -> pd.DataFrame:
+    """Like :func:`pivot`, each cell the text of :func:`ratio_text`: the geometric mean
+    over datasets of the speedup and of its interval's bounds (an interval for the
+    typical dataset), "inconclusive" when it spans 1.0 or is wider than
+    :data:`INCONCLUSIVE_WIDTH` of the speedup, and a dagger when any of its groups ran
+    under contention (``bench.load``)."""
+    part = df[(df["workload"] == workload) & (df["surface"] == surface)]
+    if part.empty:
+        return pd.DataFrame()
+    cells = {}
+    for (r, name), g in part.groupby(["run_length", "algorithm"], sort=False):
+        text = ratio_text(_geomean(g["speedup"]), _geomean(g["speedup_ci_low"]),
+                          _geomean(g["speedup_ci_high"]))
+        if text and bool(g["contended"].any()):
+            text += " †"
+        if not text and (g["error"] != "").any():
+            text = "error"
+        cells.setdefault(name, {})[r] = text
+    table = pd.DataFrame(cells)
+    table = table.loc[sorted(table.index, key=_r_value)]
+    return table.fillna("")
+
+
 def _markdown(table, first="r", paper=False, fmt="{:.2f}"):
     cols = list(table.columns)
     head = [first] + (["paper"] if paper else []) + cols
@@ -77,10 +147,13 @@ def targets(df) -> list[str]:
     if table.empty:
         return ["- no first_hit/triangles rows: targets not evaluated"]
 
-    def value(r, name):
-        for idx in table.index:
-            if _r_label(idx) == r and name in table.columns:
-                return float(table.loc[idx, name])
+    lows = pivot(df, *PRIMARY, value="speedup_ci_low")
+    highs = pivot(df, *PRIMARY, value="speedup_ci_high")
+
+    def value(r, name, t=table):
+        for idx in t.index:
+            if _r_label(idx) == r and name in t.columns:
+                return float(t.loc[idx, name])
         return np.nan
 
     runs_names = [n for n in ("runs", "runs_maxmip") if n in table.columns]
@@ -88,10 +161,16 @@ def targets(df) -> list[str]:
         for r, goal, word in (("25", 1.8, "at r = 25"), ("random", 1.25, "over random azimuths"),
                               ("1", 1.0, "at r = 1 (not slower)")):
             best = max(runs_names, key=lambda n: value(r, n) if np.isfinite(value(r, n)) else -1)
-            v = value(r, best)
+            v, lo, hi = value(r, best), value(r, best, lows), value(r, best, highs)
             if np.isfinite(v):
-                out.append(f"- `{best}` {word}: {v:.2f}x dda (target >= {goal}): "
-                           f"**{'met' if v >= goal else 'missed'}**")
+                if verdict(v, lo, hi) == "inconclusive":
+                    decided = "inconclusive (the interval spans 1.0 or is too wide)"
+                elif lo <= goal <= hi:
+                    decided = "inconclusive (the interval contains the target)"
+                else:
+                    decided = "met" if v >= goal else "missed"
+                out.append(f"- `{best}` {word}: {v:.2f}x [{lo:.2f}, {hi:.2f}] dda (target >= "
+                           f"{goal}): **{decided}**")
     if "embree" in table.columns:
         exact = [n for n in table.columns if n in _exact_names()]
         ratios = []
@@ -163,11 +242,20 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
     table = pivot(df, *PRIMARY)
     if not table.empty:
         lines += ["## The paper's measure: first hit on triangles, by mean run length", "",
-                  _markdown(table, paper=True), ""]
+                  "Each cell: speedup [95 % interval] (geometric means over datasets of the "
+                  "groups' medians and bootstrap bounds). A speedup whose interval spans 1.0 "
+                  f"or is wider than {INCONCLUSIVE_WIDTH:.0%} of it is marked inconclusive: "
+                  "it is not a finding. † marks a cell with a group measured while other "
+                  "processes used the CPUs (`contended`).", "",
+                  _markdown(pivot_ci(df, *PRIMARY), paper=True), ""]
         part = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1]) &
                   (df["run_length"] == "random")]
         if not part.empty:
-            by_ds = part.pivot_table(index="dataset", columns="algorithm", values="speedup", sort=False)
+            part = part.assign(text=[ratio_text(s, lo, hi) + (" †" if c else "")
+                                     for s, lo, hi, c in zip(part["speedup"], part["speedup_ci_low"],
+                                                             part["speedup_ci_high"], part["contended"])])
+            by_ds = part.pivot(index="dataset", columns="algorithm", values="text").fillna("")
+            by_ds = by_ds.loc[list(dict.fromkeys(part["dataset"]))]
             by_ds = by_ds[[c for c in dict.fromkeys(part["algorithm"]) if c in by_ds.columns]]
             lines += ["## By dataset: first hit on triangles over random azimuths", "",
                       _markdown(by_ds, first="dataset"), ""]
@@ -192,6 +280,18 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
         label = workload if surface == "-" else f"{workload}, {surface}"
         lines += [f"## Workload: {label}", "", _markdown(t), ""]
     lines += cost_model(df, counts)
+    lines += load_section(df, env)
+    errors = df[df["error"] != ""]
+    if not errors.empty:
+        lines += ["## Kernel errors", "",
+                  "These kernels failed or claimed exactness they did not have; their rows "
+                  "have no speedup (a wrong exact claim keeps its timings). The other rows "
+                  "are unaffected.", "", "| algorithm | dataset | workload | r | error |",
+                  "|---|---|---|---|---|"]
+        for _, row in errors.iterrows():
+            lines.append(f"| {row['algorithm']} | {row['dataset']} | {row['workload']} | "
+                         f"{_r_label(row['run_length'])} | {row['error']} |")
+        lines.append("")
     agree = df[df["agree"] < 1.0]
     if not agree.empty:
         worst = agree.groupby("algorithm")["agree"].min()
@@ -200,6 +300,28 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
         lines += [f"| {a} | {100 * v:.2f} % |" for a, v in worst.items()]
         lines.append("")
     return "\n".join(lines)
+
+
+def load_section(df, env=None) -> list:
+    """The machine's load while the rows were measured (``bench.load``)."""
+    if "other_cpu" not in df.columns or df["other_cpu"].isna().all():
+        return []
+    groups = df.drop_duplicates(["dataset", "workload", "surface", "run_length"])
+    n, bad = len(groups), int(groups["contended"].sum())
+    lines = ["## Load while measuring", "",
+             f"{bad} of {n} groups ran under contention (other processes used more than "
+             "0.5 cores on average, or the load average exceeded the CPUs; `bench/load.py`). "
+             f"Other processes' CPU use: median {groups['other_cpu'].median():.2f} cores, "
+             f"largest {groups['other_cpu'].max():.2f}; 1-minute load average from "
+             f"{groups['load_before'].min():.2f} to {groups['load_after'].max():.2f}."]
+    run = (env or {}).get("run")
+    if run:
+        lines.append(f"The sweep took {run['wall_s']:.0f} s, {100 * (run['timed_share'] or 0):.0f} % "
+                     "of it inside timed calls.")
+    if bad:
+        lines.append("**Ratios from contended groups are less trustworthy; rerun on a quiet "
+                     "machine before quoting them.**")
+    return lines + [""]
 
 
 def _style(name):
@@ -211,9 +333,37 @@ def _style(name):
     return {"exact": "-", "float64": "--", "float32": "--", "approximate": ":"}.get(accuracy, "-.")
 
 
-def plot_speedup(df, path, workload="first_hit", surface="triangles"):
+def plot_kernels(names, all_kernels=False) -> list:
+    """The kernels a plot shows: :data:`PLOT_KERNELS` and every plugin, or all of them."""
+    import algos
+
+    names = [n for n in names if n != "dda"]
+    if all_kernels:
+        return names
+    plugins = {n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.plugin is not None}
+    plugins |= {n for n, t in algos.TRAVERSAL_REGISTRY.items() if t.plugin is not None}
+    return [n for n in names if n in PLOT_KERNELS or n in plugins or n not in _builtin_names()]
+
+
+def _builtin_names():
+    import algos
+
+    return {n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.plugin is None} | \
+        {n for n, t in algos.TRAVERSAL_REGISTRY.items() if t.plugin is None}
+
+
+def _colours(n):
+    import matplotlib.pyplot as plt
+
+    cmap = plt.get_cmap("tab10" if n <= 10 else "tab20")
+    return [cmap(k % cmap.N) for k in range(max(n, 1))]
+
+
+def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernels=False):
     """Speedup over dda against mean run length for one workload and surface, one line per
-    algorithm (geometric mean over datasets), saved as a PNG at ``path``."""
+    algorithm (geometric mean over datasets), saved as a PNG at ``path``. By default the
+    kernels of :data:`PLOT_KERNELS` and every plugin (``all_kernels`` for all), with a
+    95 % band only for :data:`BAND_KERNELS` and plugins (at most four bands)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -224,10 +374,13 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles"):
     fig, ax = plt.subplots(figsize=(9, 5.5), dpi=120)
     if part.empty:
         ax.text(0.5, 0.5, "no rows", ha="center")
-    names = [n for n in dict.fromkeys(part["algorithm"]) if n != "dda"]
-    colours = plt.get_cmap("tab20")(np.linspace(0, 1, max(len(names), 1), endpoint=False))
-    for colour, name in zip(colours, names):
-        rows = part[part["algorithm"] == name]
+    names = plot_kernels(dict.fromkeys(part["algorithm"]), all_kernels)
+    builtin = _builtin_names()
+    banded = [n for n in names if n in BAND_KERNELS or n not in builtin][:4]
+    for colour, name in zip(_colours(len(names)), names):
+        rows = part[(part["algorithm"] == name) & np.isfinite(part["speedup"].astype(float))]
+        if rows.empty:
+            continue
         g = rows.groupby("run_length")
         r = np.array(sorted(g.groups, key=_r_value), dtype=object)
         x = np.array([_r_value(v) for v in r])
@@ -235,8 +388,9 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles"):
         lo = np.array([_geomean(g.get_group(v)["speedup_ci_low"]) for v in r])
         hi = np.array([_geomean(g.get_group(v)["speedup_ci_high"]) for v in r])
         style = _style(name)
-        line, = ax.plot(x, y, marker="o", ms=3, label=name, color=colour, ls=style, lw=1.6)
-        ax.fill_between(x, lo, hi, color=colour, alpha=0.10, linewidth=0)
+        ax.plot(x, y, marker="o", ms=3, label=name, color=colour, ls=style, lw=1.6)
+        if name in banded:
+            ax.fill_between(x, lo, hi, color=colour, alpha=0.15, linewidth=0)
     px = [k for k in PAPER if k != "random"]
     ax.plot(px, [PAPER[k] for k in px], "k*", ms=12, label="Henning & Stephenson 2004")
     ax.axhline(PAPER["random"], color="k", ls=":", lw=1)
@@ -244,9 +398,10 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles"):
     ax.axhline(1.0, color="grey", lw=0.8)
     ax.set_xscale("log")
     ax.set_xlabel("mean run length r (log)")
-    ax.set_ylabel("speedup over dda (median ratio, 95 % CI band)")
-    ax.set_title(f"{workload} on {surface}: run length vs speedup "
-                 "(solid exact, dashed float, dotted marching)")
+    ax.set_ylabel("speedup over dda (median ratio)")
+    bands = ", ".join(banded) if banded else "none"
+    ax.set_title(f"{workload} on {surface}: run length vs speedup\n"
+                 f"(solid exact, dashed float, dotted marching; 95 % bands: {bands})", fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
@@ -254,8 +409,9 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles"):
     plt.close(fig)
 
 
-def plot_cost(df, path):
-    """ns/ray against cells/ray: O(n) walkers climb with n, run walkers with n/r."""
+def plot_cost(df, path, all_kernels=False):
+    """ns/ray against cells/ray: O(n) walkers climb with n, run walkers with n/r. The same
+    kernels as :func:`plot_speedup` (and ``dda``), one colour each, a legend per panel."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -264,14 +420,20 @@ def plot_cost(df, path):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), dpi=120)
     for ax, (workload, surface) in zip(axes, (("visit", "-"), PRIMARY)):
         part = df[(df["workload"] == workload) & (df["surface"] == surface)]
-        for name in dict.fromkeys(part["algorithm"]):
+        names = ["dda"] + plot_kernels(dict.fromkeys(part["algorithm"]), all_kernels)
+        names = [n for n in names if n in set(part["algorithm"])]
+        for colour, name in zip(_colours(len(names)), names):
             rows = part[part["algorithm"] == name]
-            ax.scatter(rows["cells_per_ray"], rows["ns_per_ray"], s=10, label=name)
+            ax.scatter(rows["cells_per_ray"], rows["ns_per_ray"], s=12, label=name,
+                       color=colour, marker="os^Dv<>p*h"[names.index(name) % 10])
         ax.set_xlabel("cells per ray")
         ax.set_ylabel("ns per ray")
         ax.set_title(workload if surface == "-" else f"{workload}, {surface}")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=7)
+        if names:
+            ax.legend(fontsize=7)
+        else:
+            ax.text(0.5, 0.5, "no rows", ha="center", transform=ax.transAxes)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -306,13 +468,18 @@ def cost_model(df, counts=None) -> list:
     return lines
 
 
-def write_reports(csv_path, out_dir=None, title="hftrace reproduce") -> dict:
-    """speedup.md, run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV."""
+def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels=False) -> dict:
+    """speedup.md, run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV
+    (``all_kernels``: every kernel in the plots, not the default subset). ``ValueError``
+    when the CSV is missing or not a results.csv."""
     out_dir = out_dir or os.path.dirname(os.path.abspath(csv_path))
     os.makedirs(out_dir, exist_ok=True)
     df = load(csv_path)
     env_path = os.path.join(os.path.dirname(os.path.abspath(csv_path)), "env.json")
-    env = json.load(open(env_path)) if os.path.exists(env_path) else None
+    try:
+        env = json.load(open(env_path)) if os.path.exists(env_path) else None
+    except (OSError, ValueError):
+        env = None
     paths = {"speedup": os.path.join(out_dir, "speedup.md"),
              "plot": os.path.join(out_dir, "run_length_vs_speedup.png"),
              "cost": os.path.join(out_dir, "ns_per_ray_vs_cells.png")}
@@ -321,6 +488,6 @@ def write_reports(csv_path, out_dir=None, title="hftrace reproduce") -> dict:
     counts = read_counts(os.path.join(os.path.dirname(os.path.abspath(csv_path)), "counts.csv"))
     with open(paths["speedup"], "w") as f:
         f.write(speedup_markdown(df, env, title, counts=counts))
-    plot_speedup(df, paths["plot"])
-    plot_cost(df, paths["cost"])
+    plot_speedup(df, paths["plot"], all_kernels=all_kernels)
+    plot_cost(df, paths["cost"], all_kernels=all_kernels)
     return paths

@@ -26,24 +26,44 @@ def read_counts(path: str) -> dict:
 
 
 def write_counts(path: str, kernels, dataset="fbm", size=1024, r=25, rays=300,
-                 surface="triangles", resume=False, echo=print) -> bool:
-    """Count every kernel in ``kernels`` (the peer excluded) into ``path``; False when
-    valgrind is missing."""
+                 surface="triangles", resume=False, echo=print, workers=1,
+                 progress=False) -> bool:
+    """Count every kernel in ``kernels`` (the peer and plugins excluded: callgrind counts
+    only inside hftrace's own C batch entry) into ``path``; False when valgrind is
+    missing. ``workers`` callgrind processes run at once (run them only when nothing is
+    being timed); rows are appended as each kernel finishes."""
     if not callgrind_available():
         echo("counts: valgrind not found; no instruction counts (apt-get install valgrind)")
         return False
+    import algos
+
     done = read_counts(path) if resume else {}
     if not resume and os.path.exists(path):
         os.remove(path)
+    todo = [k for k in kernels if k != "embree" and k not in done and
+            k in algos.INTERSECTOR_REGISTRY and algos.INTERSECTOR_REGISTRY[k].plugin is None]
+    skipped = [k for k in kernels if k in algos.INTERSECTOR_REGISTRY and
+               algos.INTERSECTOR_REGISTRY[k].plugin is not None]
+    if skipped and echo:
+        echo(f"counts: no instruction counts for plugins ({', '.join(skipped)}): callgrind "
+             "collects inside hftrace's C entry only; `valgrind --tool=callgrind` on your own "
+             "library gives them")
     new = not os.path.exists(path)
-    with open(path, "a", newline="") as f:
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    bar = None
+    if progress and todo:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(todo), unit="kernel", desc="counts (callgrind)", dynamic_ncols=True)
+    with open(path, "a", newline="") as f, ThreadPoolExecutor(max(1, workers)) as pool:
         writer = csv.DictWriter(f, fieldnames=FIELDS)
         if new:
             writer.writeheader()
-        for kernel in kernels:
-            if kernel == "embree" or kernel in done:
-                continue
-            p = profile(kernel, dataset=dataset, size=size, r=r, rays=rays, surface=surface)
+        futures = {pool.submit(profile, kernel, dataset=dataset, size=size, r=r, rays=rays,
+                               surface=surface): kernel for kernel in todo}
+        for future in as_completed(futures):
+            kernel, p = futures[future], future.result()
             writer.writerow(dict(kernel=kernel, dataset=dataset, size=size, r=r, rays=rays,
                                  surface=surface,
                                  instructions_per_ray=round(p["instructions_per_ray"], 1),
@@ -51,5 +71,11 @@ def write_counts(path: str, kernels, dataset="fbm", size=1024, r=25, rays=300,
                                  branches_per_cell=round(p["branches_per_cell"], 2),
                                  mispredicts_per_cell=round(p["mispredicts_per_cell"], 3)))
             f.flush()
-            echo(f"counts: {kernel} {p['instructions_per_cell']:.1f} instructions/cell")
+            if bar is not None:
+                bar.set_postfix_str(kernel)
+                bar.update(1)
+            elif echo:
+                echo(f"counts: {kernel} {p['instructions_per_cell']:.1f} instructions/cell")
+    if bar is not None:
+        bar.close()
     return True

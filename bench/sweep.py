@@ -23,10 +23,14 @@ Config (TOML or dict), every key checked before any work starts:
     size = 1024
     seed = 1
     params = { octaves = 6 }          # generator parameters
+
+Every key, its type, default and meaning: ``docs/sweeps.md``; examples in ``examples/``.
+An unknown key is an error naming it and the closest valid key.
 """
 from __future__ import annotations
 
 import csv
+import difflib
 import math
 import os
 import time
@@ -39,6 +43,7 @@ import datasets_gen
 from algos.intersect import prepare_timed_intersect
 from datasets_gen import rays as raysets
 
+from . import load as machine_load
 from .report import RowWriter
 from .timing import environment, interleaved, median_ci, ratio_ci, write_json
 
@@ -51,14 +56,22 @@ BASELINE = "dda"
 COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "run_length",
            "rays", "cells_per_ray", "runs_per_ray", "ns_per_ray", "ns_per_ray_ci_low",
            "ns_per_ray_ci_high", "speedup", "speedup_ci_low", "speedup_ci_high",
-           "ns_per_cell", "ns_per_run", "agree", "repeats", "seed"]
+           "ns_per_cell", "ns_per_run", "agree", "repeats", "seed", "contended",
+           "other_cpu", "load_before", "load_after", "timed_s", "wall_s", "commit", "error"]
 _KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
-         "run_lengths", "datasets"}
+         "run_lengths", "datasets", "plugins"}
 _DATASET_KEYS = {"name", "size", "seed", "params"}
 
 
 class ConfigError(ValueError):
     """A sweep configuration that cannot run; the message names the key."""
+
+
+def _unknown_key(where, key, valid):
+    """The error for an unknown config key: names it and the closest valid key."""
+    close = difflib.get_close_matches(str(key), sorted(valid), n=1, cutoff=0.5)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    return ConfigError(f"{where}{key}: unknown key; {hint}valid keys are {', '.join(sorted(valid))}")
 
 
 @dataclass
@@ -76,6 +89,7 @@ class SweepConfig:
     surfaces: list = field(default_factory=lambda: ["triangles"])
     run_lengths: list = field(default_factory=lambda: [1, 2, 5, 25, 100, "random"])
     datasets: list = field(default_factory=lambda: [{"name": "fbm", "size": 1024, "seed": 1}])
+    plugins: list = field(default_factory=list)
 
 
 def _check_int(key, value, low):
@@ -102,8 +116,22 @@ def load_config(source) -> SweepConfig:
         data = dict(source)
     unknown = set(data) - _KEYS
     if unknown:
-        raise ConfigError(f"{sorted(unknown)[0]}: unknown key; valid keys are {', '.join(sorted(_KEYS))}")
+        raise _unknown_key("", sorted(unknown)[0], _KEYS)
     cfg = SweepConfig(**{k: v for k, v in data.items()})
+    if not isinstance(cfg.plugins, list) or not all(isinstance(p, str) for p in cfg.plugins):
+        raise ConfigError("plugins: expected a list of strings (library paths or module:callable)")
+    if cfg.plugins:
+        from algos.plugins import load_plugin_spec
+
+        base = os.path.dirname(os.path.abspath(os.fspath(source))) \
+            if isinstance(source, (str, os.PathLike)) else os.getcwd()
+        for k, spec in enumerate(cfg.plugins):
+            if spec.endswith((".so", ".dylib", ".dll")) and not os.path.isabs(spec):
+                spec = os.path.join(base, spec)
+            try:
+                load_plugin_spec(spec)
+            except ValueError as exc:
+                raise ConfigError(f"plugins[{k}]: {exc}") from None
     if not isinstance(cfg.name, str) or not cfg.name or "/" in cfg.name:
         raise ConfigError(f"name: expected a plain directory name, got {cfg.name!r}")
     _check_int("rays", cfg.rays, 8)
@@ -134,7 +162,7 @@ def load_config(source) -> SweepConfig:
             raise ConfigError(f"{where}: expected a table with name, size, seed, params")
         extra = set(ds) - _DATASET_KEYS
         if extra:
-            raise ConfigError(f"{where}.{sorted(extra)[0]}: unknown key; valid: {', '.join(sorted(_DATASET_KEYS))}")
+            raise _unknown_key(f"{where}.", sorted(extra)[0], _DATASET_KEYS)
         name = ds.get("name")
         if name not in datasets_gen.GENERATORS and name not in datasets_gen.EMBEDDED:
             raise ConfigError(f"{where}.name: unknown dataset {name!r}")
@@ -149,8 +177,10 @@ def load_config(source) -> SweepConfig:
                    else datasets_gen.EMBEDDED[name][1])
         for p in params:
             if p not in allowed:
-                raise ConfigError(f"{where}.params.{p}: not a parameter of {name}; it takes "
-                                  f"{', '.join(allowed) or 'none'}")
+                close = difflib.get_close_matches(str(p), list(allowed), n=1, cutoff=0.5)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise ConfigError(f"{where}.params.{p}: not a parameter of {name}{hint}; it "
+                                  f"takes {', '.join(allowed) or 'none'}")
     return cfg
 
 
@@ -172,6 +202,8 @@ def row_key(row) -> tuple:
 def _algorithms(cfg, workload):
     names = algos.TRAVERSALS if workload != "first_hit" else algos.INTERSECTORS
     chosen = [n for n in (cfg.algorithms or names) if n in names]
+    if workload == "runs":  # plugins fold cells (visit); the runs workload folds runs
+        chosen = [n for n in chosen if algos.TRAVERSAL_REGISTRY[n].plugin is None]
     if BASELINE not in chosen:
         chosen.insert(0, BASELINE)
     return chosen
@@ -220,57 +252,146 @@ def hit_agreement(t, reference, tolerance) -> float:
     return float(np.mean((hit == ref_hit) & close))
 
 
+def _prepare(name, workload, field, o, d, shape, surface, mode):
+    """(run, output) of one kernel, built in or plugin (``algos.plugins``)."""
+    from algos import plugins
+
+    if plugins.is_plugin(name, workload):
+        if workload == "first_hit":
+            return plugins.prepare_timed_first_hit(name, field.heights, o, d, surface)
+        return plugins.prepare_timed_traversal(name, o, d, shape)
+    if workload == "first_hit":
+        return prepare_timed_intersect(name, field, o, d, surface=surface)
+    run, sums = algos.prepare_timed(name, o, d, shape, mode)
+    return run, (lambda s=sums: s.copy())
+
+
+def _time_limits(names, workload):
+    """name -> ns a single call of a plugin may take."""
+    from algos import plugins
+
+    table = algos.INTERSECTOR_REGISTRY if workload == "first_hit" else algos.TRAVERSAL_REGISTRY
+    return {n: int(table[n].plugin.time_limit * 1e9) for n in names
+            if plugins.is_plugin(n, workload)}
+
+
+#: The current field's rays by (kind, r, n, seed) and references by (workload, surface,
+#: r, n, seed): groups of other surfaces or workloads reuse them instead of drawing again.
+_RAYS: dict = {"field": None, "rays": {}, "refs": {}}
+
+
+def _group_rays(field, workload, surface, r, rays, seed):
+    """(origins, directions, cells per ray, runs per ray, reference output) of a group,
+    the rays drawn once per field, run length and kind (2D or first hit) and reused."""
+    if _RAYS["field"] is not field:
+        _RAYS.update(field=field, rays={}, refs={})
+    rows_, cols_ = field.heights.shape
+    shape = (cols_ - 1, rows_ - 1)
+    kind = "3d" if workload == "first_hit" else "2d"
+    key = (kind, str(r), rays, seed)
+    if key not in _RAYS["rays"]:
+        _RAYS["rays"][key] = (first_hit_rays(field, r, rays, seed) if kind == "3d"
+                              else traversal_rays(shape, r, rays, seed))
+    o, d = _RAYS["rays"][key]
+    ref_key = (workload, surface) + key
+    if ref_key not in _RAYS["refs"]:
+        if workload == "first_hit":
+            ref = algos.intersect("runs", field, o, d, surface=surface, outputs=("t", "stats"))
+            value = (float(ref.stats["cells_visited"].mean()),
+                     float(ref.stats["runs_visited"].mean()), ref.t)
+        else:
+            counts = algos.traverse("midpoint", o, d, shape, output="count")
+            mode = "visit" if workload == "visit" else "runs"
+            ref_run, ref_sums = algos.prepare_timed("midpoint", o, d, shape, mode)
+            ref_run()
+            value = (float(counts.cells.mean()), float(counts.runs.mean()), ref_sums)
+        _RAYS["refs"][ref_key] = value
+    return (o, d) + _RAYS["refs"][ref_key]
+
+
 def measure_group(field, label, workload, surface, r, names, rays, repeats, seed,
                   keep_samples=False):
     """Rows for one group: every algorithm on the same rays, interleaved. With
     ``keep_samples`` each row also holds ``ratio_samples``, the per-repeat paired ratios
-    time(baseline) / time(algorithm)."""
+    time(baseline) / time(algorithm).
+
+    Each row also records the machine's load while the group ran (``bench.load``:
+    ``contended``, ``other_cpu``, ``load_before``, ``load_after``), the group's time
+    inside timed calls (``timed_s``) and its wall time (``wall_s``). A kernel that fails
+    (raises, returns an error status, exceeds its time limit) gets a row with ``error``
+    set and no timings; the other rows are kept. A plugin that claims to be exact and
+    disagrees with the reference gets an error too. Only a failing baseline fails the
+    group (``RuntimeError``)."""
+    from algos import plugins
+
+    before = machine_load.snapshot()
+    wall0 = time.perf_counter()
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
-    jobs, outputs = {}, {}
-    if workload == "first_hit":
-        o, d = first_hit_rays(field, r, rays, seed)
-        ref = algos.intersect("runs", field, o, d, surface=surface, outputs=("t", "stats"))
-        cells = float(ref.stats["cells_visited"].mean())
-        runs = float(ref.stats["runs_visited"].mean())
-        for name in names:
-            jobs[name], outputs[name] = prepare_timed_intersect(name, field, o, d, surface=surface)
-        reference = ref.t
-    else:
-        o, d = traversal_rays(shape, r, rays, seed)
-        counts = algos.traverse("midpoint", o, d, shape, output="count")
-        cells, runs = float(counts.cells.mean()), float(counts.runs.mean())
-        mode = "visit" if workload == "visit" else "runs"
-        for name in names:
-            run, sums = algos.prepare_timed(name, o, d, shape, mode)
-            jobs[name], outputs[name] = run, (lambda s=sums: s.copy())
-        ref_run, ref_sums = algos.prepare_timed("midpoint", o, d, shape, mode)
-        ref_run()
-        reference = ref_sums
-    times = interleaved(jobs, repeats)
+    mode = "visit" if workload == "visit" else "runs"
+    o, d, cells, runs, reference = _group_rays(field, workload, surface, r, rays, seed)
+    jobs, outputs, errors = {}, {}, {}
+    for name in names:
+        try:
+            jobs[name], outputs[name] = _prepare(name, workload, field, o, d, shape, surface, mode)
+        except Exception as exc:
+            if not plugins.is_plugin(name, workload):
+                raise
+            errors[name] = f"{type(exc).__name__}: {exc}"
+    times = interleaved(jobs, repeats, errors=errors,
+                        time_limit_ns=_time_limits(names, workload))
+    if BASELINE not in times:
+        raise RuntimeError(f"{label} {workload} r={r}: the baseline {BASELINE} failed: "
+                           f"{errors.get(BASELINE)}")
+    timed = sum(float(v.sum()) for v in times.values()) / 1e9
+    load = machine_load.contention(before, machine_load.snapshot())
+    wall = time.perf_counter() - wall0
     out = []
     for name in names:
+        common = dict(algorithm=name, baseline=BASELINE, workload=workload, surface=surface,
+                      dataset=label, grid=f"{shape[0]}x{shape[1]}", run_length=r, rays=rays,
+                      cells_per_ray=round(cells, 2), runs_per_ray=round(runs, 2),
+                      repeats=repeats, seed=seed, timed_s=round(timed, 4),
+                      wall_s=round(wall, 4), error="", **load)
+        error = errors.get(name)
+        got = None
+        if error is None:
+            try:
+                got = outputs[name]()
+            except Exception as exc:
+                error = f"{type(exc).__name__}: {exc}"
+        if error is not None:
+            nan = math.nan
+            out.append(dict(common, ns_per_ray=nan, ns_per_ray_ci_low=nan,
+                            ns_per_ray_ci_high=nan, speedup=nan, speedup_ci_low=nan,
+                            speedup_ci_high=nan, ns_per_cell=nan, ns_per_run=nan, agree=nan,
+                            error=error))
+            continue
         per_ray = times[name] / rays
         median, low, high = median_ci(per_ray, seed=seed)
         speedup, s_low, s_high = ratio_ci(times[BASELINE], times[name], seed=seed)
-        got = outputs[name]()
         if workload == "first_hit":
             agree = hit_agreement(got, reference, 1e-4 if name == "embree" else 1e-9)
         else:
             agree = float(np.mean(got == reference))
+        if plugins.is_plugin(name, workload) and _claims_exact(name, workload) and agree < 1.0:
+            common["error"] = (f"claims to be exact but agrees with the exact reference on "
+                               f"{100 * agree:.2f} % of rays")
         out.append(dict(
-            algorithm=name, baseline=BASELINE, workload=workload, surface=surface,
-            dataset=label, grid=f"{shape[0]}x{shape[1]}", run_length=r, rays=rays,
-            cells_per_ray=round(cells, 2), runs_per_ray=round(runs, 2),
-            ns_per_ray=round(median, 2), ns_per_ray_ci_low=round(low, 2),
+            common, ns_per_ray=round(median, 2), ns_per_ray_ci_low=round(low, 2),
             ns_per_ray_ci_high=round(high, 2), speedup=round(speedup, 4),
             speedup_ci_low=round(s_low, 4), speedup_ci_high=round(s_high, 4),
             ns_per_cell=round(median / cells, 4) if cells else math.nan,
             ns_per_run=round(median / runs, 4) if runs else math.nan,
-            agree=round(agree, 6), repeats=repeats, seed=seed))
+            agree=round(agree, 6)))
         if keep_samples:
             out[-1]["ratio_samples"] = (times[BASELINE] / times[name]).tolist()
     return out
+
+
+def _claims_exact(name, workload):
+    table = algos.INTERSECTOR_REGISTRY if workload == "first_hit" else algos.TRAVERSAL_REGISTRY
+    return bool(table[name].plugin.exact)
 
 
 def read_rows(path) -> list[dict]:
@@ -287,14 +408,37 @@ def load_field(ds) -> algos.Field:
                                          **ds.get("params", {})).heights)
 
 
-def _pending(cfg, out_dir, resume):
-    """(results.csv path, the groups still to measure with their missing algorithms);
-    without ``resume`` an old results.csv is removed."""
+def _pending(cfg, out_dir, resume, commit=None):
+    """(results.csv path, the groups still to measure with their missing algorithms).
+
+    Without ``resume`` a results.csv that holds rows is never replaced: ``ValueError``
+    says to resume or to choose another ``--out``. With ``resume`` the kept rows must have
+    been measured with this config's rays, repeats and seed and, when ``commit`` is given
+    and the rows record one, the same code commit; otherwise ``ValueError`` names the
+    mismatch (nothing is measured or removed)."""
     os.makedirs(out_dir, exist_ok=True)
     csv_path = os.path.join(out_dir, "results.csv")
-    done = {row_key(r) for r in read_rows(csv_path)} if resume else set()
-    if not resume and os.path.exists(csv_path):
-        os.remove(csv_path)
+    kept = read_rows(csv_path)
+    if kept and not resume:
+        raise ValueError(f"--out: {csv_path} already holds {len(kept)} rows; rerun with "
+                         "--resume to continue that run, or choose another --out "
+                         "(results are never replaced)")
+    labels = {dataset_label(ds) for ds in cfg.datasets}
+    for k, row in enumerate(kept):
+        if row.get("dataset") not in labels:
+            continue
+        for key in ("rays", "repeats", "seed"):
+            if str(row.get(key)) != str(getattr(cfg, key)):
+                raise ValueError(
+                    f"--resume: row {k + 1} of {csv_path} was measured with {key} = "
+                    f"{row.get(key)}, the config says {getattr(cfg, key)}; choose another "
+                    "--out (or restore the config) rather than mix them")
+        if commit and row.get("commit") and row["commit"] != commit:
+            raise ValueError(
+                f"--resume: row {k + 1} of {csv_path} was measured at commit "
+                f"{row['commit']}, the code is at {commit}; choose another --out to "
+                "measure this code")
+    done = {row_key(r) for r in kept}
     todo = []
     for ds, workload, surface, r, names in groups(cfg):
         label = dataset_label(ds)
@@ -312,11 +456,11 @@ def _bar(progress, total, desc):
     return tqdm(total=total, unit="group", desc=desc, dynamic_ncols=True)
 
 
-def _write_group(writer, rows, missing, bar, label):
+def _write_group(writer, rows, missing, bar, label, commit=""):
     """Append a finished group's rows (only the missing algorithms'), then tick the bar."""
     for row in rows:
         if row["algorithm"] in missing:
-            writer.write(row)
+            writer.write(dict(row, commit=commit))
     if bar is not None:
         bar.set_postfix_str(label)
         bar.update(1)
@@ -360,7 +504,8 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
     loses no finished group and ``resume`` skips it; a killed worker's task is rerun by
     the scheduler and its rows are written once, by the driver. Each worker's environment
     goes into env.json under "workers"."""
-    csv_path, todo = _pending(cfg, out_dir, resume)
+    commit = environment().get("git_commit", "")
+    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit)
     from dask.distributed import as_completed
 
     client, cluster = dask_client(address)
@@ -381,7 +526,8 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
                 worker = worker_env.get("hostname", "") + f" pid {worker_env.get('pid', '')}"
                 env["workers"].setdefault(worker, worker_env)
                 write_json(os.path.join(out_dir, "env.json"), env)
-                _write_group(writer, rows, missing, bar, f"{label} {workload} {surface} r={r}")
+                _write_group(writer, rows, missing, bar, f"{label} {workload} {surface} r={r}",
+                             commit=commit)
         if bar is not None:
             bar.close()
         if echo and todo:
@@ -394,24 +540,111 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
     return read_rows(csv_path)
 
 
-def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=print):
-    """Run (or resume) a sweep; returns every row of results.csv afterwards."""
-    csv_path, todo = _pending(cfg, out_dir, resume)
-    write_json(os.path.join(out_dir, "env.json"), environment())
+def _measure_isolated(field, label, workload, surface, r, names, rays, repeats, seed):
+    """The plugin kernels of ``names`` measured with the baseline in a child process
+    (fork), so a kernel that crashes its process takes only its own rows: they carry an
+    error naming the signal or exit status. The child's baseline row is dropped."""
+    import multiprocessing
+    import signal
+
+    ctx = multiprocessing.get_context("fork")
+    receive, send = ctx.Pipe(duplex=False)
+
+    def child():
+        import faulthandler
+
+        faulthandler.disable()  # the parent reports the signal in one line
+        try:
+            send.send(("rows", measure_group(field, label, workload, surface, r,
+                                             [BASELINE] + names, rays, repeats, seed)))
+        except BaseException as exc:  # reported to the parent, which keeps going
+            send.send(("error", f"{type(exc).__name__}: {exc}"))
+        finally:
+            send.close()
+
+    table = algos.INTERSECTOR_REGISTRY if workload == "first_hit" else algos.TRAVERSAL_REGISTRY
+    limit = sum(table[n].plugin.time_limit for n in names) * (repeats + 1) + 60
+    proc = ctx.Process(target=child, daemon=True)
+    proc.start()
+    send.close()
+    message = None
+    if receive.poll(limit):
+        try:
+            message = receive.recv()
+        except EOFError:
+            message = None
+    proc.join(5)
+    if proc.is_alive():
+        proc.kill()
+        proc.join()
+        reason = f"the child process exceeded the time limit ({limit:.0f} s) and was killed"
+    elif message is None:
+        code = proc.exitcode
+        reason = (f"crashed its process (signal {signal.Signals(-code).name})" if code and code < 0
+                  else f"its process exited with status {code}")
+    elif message[0] == "error":
+        reason = message[1]
+    if message is not None and message[0] == "rows":
+        return [row for row in message[1] if row["algorithm"] != BASELINE]
+    return [dict(algorithm=n, baseline=BASELINE, workload=workload, surface=surface,
+                 dataset=label, run_length=r, rays=rays, repeats=repeats, seed=seed,
+                 error=f"isolated: {reason}") for n in names]
+
+
+def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=print,
+              isolate=False):
+    """Run (or resume) a sweep; returns every row of results.csv afterwards.
+
+    Refuses to replace an existing results.csv unless ``resume`` (then the kept rows must
+    match the config and the code's commit: :func:`_pending`). With ``isolate`` the
+    plugin kernels of each group (``algos.plugins``) are measured each in a child
+    process next to its own baseline run, so a crash is contained; without it they are
+    interleaved with the built-in kernels. Each row records the machine's load
+    (``bench.load``); the run's totals go into ``env.json`` under ``"run"``."""
+    from algos import plugins
+
+    env = environment()
+    commit = env.get("git_commit", "")
+    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit)
+    env["load_before"] = machine_load.load_average()
+    write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)
     fields_cache = {}
     start = time.perf_counter()
+    timed = contended = 0
+    failed = []
     with RowWriter(csv_path, COLUMNS, append=resume) as writer:
         for ds, label, workload, surface, r, names, missing in todo:
             if label not in fields_cache:
                 fields_cache.clear()  # one field in memory at a time
                 fields_cache[label] = load_field(ds)
             field_ = fields_cache[label]
-            measured = measure_group(field_, label, workload, surface, r, names, cfg.rays,
+            own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
+            isolated = [n for n in names if n not in own and n in missing]
+            measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
                                      cfg.repeats, cfg.seed)
-            _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}")
+            for name in isolated:  # one child per plugin: a crash takes only its rows
+                measured += _measure_isolated(field_, label, workload, surface, r, [name],
+                                              cfg.rays, cfg.repeats, cfg.seed)
+            timed += measured[0]["timed_s"]
+            contended += bool(measured[0]["contended"])
+            failed += [f"{label} {workload} r={r} {row['algorithm']}: {row['error']}"
+                       for row in measured if row.get("error")]
+            _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}",
+                         commit=commit)
     if bar is not None:
         bar.close()
+    wall = time.perf_counter() - start
+    env["run"] = {"groups": len(todo), "wall_s": round(wall, 2), "timed_s": round(timed, 2),
+                  "timed_share": round(timed / wall, 4) if wall > 0 else None,
+                  "contended_groups": contended, "load_after": machine_load.load_average()}
+    write_json(os.path.join(out_dir, "env.json"), env)
     if echo and todo:
-        echo(f"{len(todo)} groups measured in {time.perf_counter() - start:.1f} s")
+        echo(f"{len(todo)} groups measured in {wall:.1f} s, {100 * timed / max(wall, 1e-9):.0f} % "
+             f"of it inside timed calls")
+        if contended:
+            echo(f"warning: {contended} of {len(todo)} groups ran while other processes used "
+                 "the CPUs (column contended): their ratios are less trustworthy")
+        for line in failed:
+            echo(f"error: {line}")
     return read_rows(csv_path)

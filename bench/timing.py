@@ -73,39 +73,82 @@ def resident_bytes() -> int:
 _EVICT: dict = {}
 
 
+#: The eviction buffer's size in units of the last-level cache (sysfs). Writing the LLC's
+#: size in new lines displaces every older line under (pseudo-)LRU replacement; the half
+#: more covers hashed set selection and lines kept by inclusive L2s.
+FLUSH_FACTOR = 1.5
+#: Bytes between the writes of a flush: one 8-byte write per 64-byte cache line.
+CACHE_LINE = 64
+
+
 def flush_caches(nbytes: int | None = None) -> None:
-    """Evict the caches: write every line of a buffer of 4x the last-level cache (at least
-    32 MiB), so the next timed run starts cold whatever ran before it. ``$HFTRACE_FLUSH_MB``
+    """Evict the caches: write one word in every cache line of a buffer of
+    :data:`FLUSH_FACTOR` times the last-level cache (at least 32 MiB), so the next timed
+    run starts cold whatever ran before it. A line is fetched and dirtied whichever word
+    is written, so the strided write evicts as much as writing every byte at an eighth of
+    the arithmetic (measured, 32 MiB L3: 14 ms per flush of 48 MiB, against 52 ms for the
+    former full write of 128 MiB; docs/METHOD.md, "Timing"). ``$HFTRACE_FLUSH_MB``
     overrides the size; 0 turns flushing off (tests that only check sweep bookkeeping)."""
     if nbytes is None and os.environ.get("HFTRACE_FLUSH_MB"):
         nbytes = int(float(os.environ["HFTRACE_FLUSH_MB"]) * (1 << 20))
         if nbytes <= 0:
             return
-    nbytes = nbytes or max(4 * last_level_cache_bytes(), 32 << 20)
+    nbytes = nbytes or max(int(FLUSH_FACTOR * last_level_cache_bytes()), 32 << 20)
     buf = _EVICT.get(nbytes)
     if buf is None:
         buf = _EVICT[nbytes] = np.zeros(nbytes // 8)
-    np.add(buf, 1.0, out=buf)
+    lines = buf[:: CACHE_LINE // 8]
+    np.add(lines, 1.0, out=lines)
 
 
 def interleaved(jobs: dict[str, Callable[[], int]], repeats: int,
-                flush: bool = True) -> dict[str, np.ndarray]:
+                flush: bool = True, errors: dict | None = None,
+                time_limit_ns: dict | None = None) -> dict[str, np.ndarray]:
     """Run each job ``repeats`` times, interleaved and rotated; each job returns its own
     elapsed nanoseconds (measured in C). One untimed warm-up round comes first. With
     ``flush`` the caches are evicted before every timed run: interleaving on the same
     rays otherwise hands each job the lines its predecessor loaded (measured: `dda`
-    right after Embree, whose BVH evicts the field, took 1.9x its time after `midpoint`)."""
+    right after Embree, whose BVH evicts the field, took 1.9x its time after `midpoint`).
+
+    With ``errors`` (a dict), a job that raises, or takes longer than its entry of
+    ``time_limit_ns`` (name -> ns) in one call, is dropped from the rotation and
+    ``errors[name]`` says why; the other jobs go on, and the result holds only the jobs
+    that finished every repeat. Without it an exception propagates."""
     names = list(jobs)
-    for name in names:  # warm-up: branch predictors, page faults
-        jobs[name]()
+    limits = time_limit_ns or {}
+
+    def call(name):
+        if errors is None:
+            return jobs[name]()
+        try:
+            elapsed = jobs[name]()
+        except Exception as exc:  # a kernel's failure is its row's error, not the run's
+            errors[name] = f"{type(exc).__name__}: {exc}".strip()
+            names.remove(name)
+            return None
+        limit = limits.get(name)
+        if limit is not None and elapsed > limit:
+            errors[name] = (f"exceeded the time limit: one call took {elapsed / 1e9:.3g} s, "
+                            f"limit {limit / 1e9:.3g} s")
+            names.remove(name)
+            return None
+        return elapsed
+
+    for name in list(names):  # warm-up: branch predictors, page faults
+        call(name)
     times = {name: [] for name in names}
     for rep in range(repeats):
-        shift = rep % len(names)
-        for name in names[shift:] + names[:shift]:
+        order = list(names)
+        shift = rep % max(len(order), 1)
+        for name in order[shift:] + order[:shift]:
+            if name not in names:
+                continue
             if flush:
                 flush_caches()
-            times[name].append(jobs[name]())
-    return {name: np.asarray(v, dtype=np.float64) for name, v in times.items()}
+            elapsed = call(name)
+            if elapsed is not None:
+                times[name].append(elapsed)
+    return {name: np.asarray(times[name], dtype=np.float64) for name in names}
 
 
 def _bootstrap(stat: Callable[[np.ndarray], float], samples: Sequence[np.ndarray],
@@ -117,10 +160,20 @@ def _bootstrap(stat: Callable[[np.ndarray], float], samples: Sequence[np.ndarray
     return float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))
 
 
+def _resamples(rng, n: int, n_boot: int) -> np.ndarray:
+    """(n_boot, n) bootstrap indices: the same draws, in the same order, as ``n_boot``
+    successive ``rng.integers(0, n, n)`` calls (one call, vectorised)."""
+    return rng.integers(0, n, (n_boot, n))
+
+
 def median_ci(x: np.ndarray, n_boot: int = 2000, seed: int = 0):
-    """Median and its bootstrap 95 % interval."""
-    low, high = _bootstrap(np.median, [x], n_boot, seed)
-    return float(np.median(x)), low, high
+    """Median and its bootstrap 95 % interval (vectorised over the resamples: the
+    per-resample loop had cost more than the timed calls of a group)."""
+    x = np.asarray(x, dtype=np.float64)
+    rng = np.random.Generator(np.random.PCG64(seed))
+    values = np.median(x[_resamples(rng, len(x), n_boot)], axis=1)
+    return (float(np.median(x)), float(np.percentile(values, 2.5)),
+            float(np.percentile(values, 97.5)))
 
 
 def ratio_ci(numerator: np.ndarray, denominator: np.ndarray, n_boot: int = 2000,
@@ -134,10 +187,9 @@ def ratio_ci(numerator: np.ndarray, denominator: np.ndarray, n_boot: int = 2000,
 
     if paired:
         rng = np.random.Generator(np.random.PCG64(seed))
-        values = np.empty(n_boot)
-        for k in range(n_boot):
-            idx = rng.integers(0, len(numerator), len(numerator))
-            values[k] = stat(numerator[idx], denominator[idx])
+        idx = _resamples(rng, len(numerator), n_boot)
+        num, den = np.asarray(numerator, np.float64), np.asarray(denominator, np.float64)
+        values = np.median(num[idx], axis=1) / np.median(den[idx], axis=1)
         low, high = float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))
     else:
         low, high = _bootstrap(stat, [numerator, denominator], n_boot, seed)

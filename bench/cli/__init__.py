@@ -58,9 +58,18 @@ def _join_signed_values(argv):
     return out
 
 
+def _warn(text):
+    print(text, file=sys.stderr)
+
+
 def main(argv=None) -> int:
-    """Run one ``hftrace`` command; the exit status (2 on a ValueError, TypeError or
-    OSError, whose message is printed as one line ``hftrace: error: ...``)."""
+    """Run one ``hftrace`` command; the exit status: 2 on a user error (a ValueError,
+    TypeError or unreadable file, printed as one line ``hftrace: error: ...``, never a
+    traceback), 130 on Ctrl-C (with how to resume). The kernels of installed packages'
+    ``hftrace.kernels`` entry points are registered first (``algos.plugins``)."""
+    from algos.plugins import load_entry_points
+
+    load_entry_points(warn=_warn)
     parser = build_parser()
     args = parser.parse_args(_join_signed_values(list(sys.argv[1:] if argv is None else argv)))
     try:
@@ -68,12 +77,28 @@ def main(argv=None) -> int:
     except (ValueError, TypeError) as exc:
         print(f"hftrace: error: {exc}", file=sys.stderr)
         return 2
-    except OSError as exc:  # an unwritable --out, a full disk: the path and the reason
+    except OSError as exc:  # an unreadable input, an unwritable --out: the path and why
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         print(f"hftrace: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        resumable = "--resume" in {a.option_strings[0] for a in _actions(parser, args)}
+        again = " ".join(sys.argv[1:] if argv is None else argv)
+        hint = (f"; every finished group is kept: `hftrace {again} --resume` continues"
+                if resumable and "--resume" not in again.split() else "")
+        print(f"\nhftrace: interrupted{hint}", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # e.g. `hftrace datasets list | head`
         sys.stderr.close()
         return 0
+
+
+def _actions(parser, args):
+    """The options of the sub-command that ran (to tell whether it can resume)."""
+    for action in parser._subparsers._group_actions:
+        sub = action.choices.get(args.command)
+        if sub is not None:
+            return [a for a in sub._actions if a.option_strings]
+    return []
 
 

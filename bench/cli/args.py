@@ -6,7 +6,7 @@ import os
 
 import algos
 
-__all__ = ["positive_int", "run_lengths", "param", "vector", "names", "results_dir",
+__all__ = ["add_plugin", "load_plugins", "positive_int", "run_lengths", "param", "vector", "names", "results_dir",
            "add_out", "add_bench_arguments"]
 
 #: Where commands write by default: ``results/<command>/`` under the current directory
@@ -91,3 +91,17 @@ def add_bench_arguments(p, command):
     p.add_argument("--algorithms", default=None,
                    help=f"comma-separated subset of {', '.join(algos.TRAVERSALS)}")
     add_out(p, command)
+
+
+def add_plugin(p):
+    """``--plugin SPEC`` (repeatable): a C plugin's library or ``module:callable``."""
+    p.add_argument("--plugin", action="append", default=None, metavar="LIB.so|module:callable",
+                   help="register a kernel first (repeatable; docs/plugins.md)")
+
+
+def load_plugins(args):
+    """Register the kernels of every ``--plugin``; ValueError names a bad one."""
+    from algos.plugins import load_plugin_spec
+
+    for spec in getattr(args, "plugin", None) or []:
+        load_plugin_spec(spec)

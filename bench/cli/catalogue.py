@@ -5,11 +5,12 @@ import numpy as np
 
 import algos
 
-from .args import param, positive_int
+from .args import add_plugin, load_plugins, param, positive_int
 
 
 def list_algorithms(args):
     """Print every traversal and intersector of the registry with its properties."""
+    load_plugins(args)
     print("traversals (algos.traverse):")
     for t in algos.TRAVERSAL_REGISTRY.values():
         exact = "exact" if t.exact else (f"exact when {t.exact_when}" if t.exact_when else t.precision)
@@ -17,6 +18,11 @@ def list_algorithms(args):
     print("intersectors (algos.intersect):")
     for a in algos.INTERSECTOR_REGISTRY.values():
         print(f"  {a.name:14s} {a.kind:9s} {a.accuracy:13s} {a.summary}")
+    from algos.plugins import plugin_names
+
+    if plugin_names():
+        print("plugins (algos.plugins; timed and checked like the built-in kernels): "
+              + ", ".join(plugin_names()))
     return 0
 
 
@@ -55,7 +61,8 @@ def show_dataset(args):
 
 def register(sub):
     """Add ``list`` and ``datasets`` to the sub-parsers ``sub``."""
-    p = sub.add_parser("list", help="list the registered algorithms")
+    p = sub.add_parser("list", help="list the registered algorithms (plugins included)")
+    add_plugin(p)
     p.set_defaults(func=list_algorithms)
 
     p = sub.add_parser("datasets", help="the catalogue of height fields")

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 
 def regress(args):
-    """Run the instruction-count gate or the time gate; its exit status."""
+    """Run the instruction-count gate or the time gate; its exit status. ``--plugin``
+    kernels join the time gate's checks of their workload."""
+    from .args import load_plugins
+
+    load_plugins(args)
     if args.metric == "instructions":
         from ..regress import instructions_gate as gate
     else:
@@ -27,4 +31,7 @@ def register(sub):
                    help="allowed fractional change (default: the baseline's; 0.01 for "
                         "instructions)")
     p.add_argument("--update", action="store_true", help="write a new baseline instead")
+    from .args import add_plugin
+
+    add_plugin(p)
     p.set_defaults(func=regress)

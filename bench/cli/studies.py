@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import algos
 
-from .args import add_bench_arguments, add_out, names, positive_int
+from .args import add_bench_arguments, add_out, add_plugin, load_plugins, names, positive_int
 
 
 def bench_traverse(args):
@@ -42,8 +42,14 @@ def reproduce(args):
     """``hftrace reproduce``: bench.studies.reproduce.run."""
     from ..studies import reproduce as study
 
+    load_plugins(args)
+    if args.full and args.preset not in (None, "full"):
+        raise ValueError(f"--full: contradicts --preset {args.preset}")
+    kernels = names(args.kernels, algos.get_intersector)
     study.run(full=args.full, out_dir=args.out, resume=args.resume,
-              progress=not args.no_progress, counts=not args.no_counts, publish=args.publish)
+              progress=not args.no_progress, counts=not args.no_counts, publish=args.publish,
+              preset_name=args.preset, kernels=kernels, isolate=args.isolate,
+              all_kernels=args.all_kernels)
     return 0
 
 
@@ -106,18 +112,31 @@ def register(sub):
     p.add_argument("--surfaces", default="triangles", help="comma-separated surfaces")
     p.set_defaults(func=bench_intersect)
 
-    p = sub.add_parser("reproduce", help="the speedup-by-run-length study (quick preset; --full)")
-    p.add_argument("--full", action="store_true", help="the paper-scale sweep")
+    p = sub.add_parser("reproduce", help="the speedup-by-run-length study (headline preset, "
+                       "<= 3 min; --preset standard; --full)")
+    p.add_argument("--full", action="store_true", help="the paper-scale sweep (--preset full)")
+    p.add_argument("--preset", choices=("headline", "standard", "full"), default=None,
+                   help="headline (default): first hit on triangles by run length, the "
+                        "paper's measure; standard: every workload and surface plus the "
+                        "parallel rays part; full: the paper-scale sweep")
+    p.add_argument("--kernels", default=None,
+                   help="comma-separated first-hit kernels to measure (dda always; plugins "
+                        "by name)")
+    p.add_argument("--isolate", action="store_true",
+                   help="measure plugin kernels in a child process (a crash is contained)")
+    p.add_argument("--all-kernels", action="store_true", help="plot every kernel")
+    add_plugin(p)
     where = p.add_mutually_exclusive_group()
     where.add_argument("--out", default=None, help="output directory (default "
-                       "results/reproduce, or results/reproduce-full with --full)")
+                       "results/reproduce; results/reproduce-standard or results/reproduce-full "
+                       "for the other presets)")
     where.add_argument("--publish", action="store_true",
-                       help="write the committed reference instead: reports/reproduce "
-                            "(reports/reproduce-full with --full) of the repository")
+                       help="write the committed reference instead: reports/reproduce-headline, "
+                            "reports/reproduce (standard) or reports/reproduce-full")
     p.add_argument("--resume", action="store_true", help="keep the rows already measured")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-counts", action="store_true",
-                   help="skip the instruction counts (callgrind, about 4 minutes)")
+                   help="skip the instruction counts (callgrind, run after the timings)")
     p.set_defaults(func=reproduce)
 
     p = sub.add_parser("scale", help="threads, growth with the grid side, and a 16384^2 field")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from .args import results_dir
+from .args import add_plugin, load_plugins, results_dir
 
 
 def run_sweep(args):
@@ -14,6 +14,7 @@ def run_sweep(args):
     from .. import sweep as engine
     from ..timing import pin_to_one_cpu
 
+    load_plugins(args)
     cfg = engine.load_config(args.config)  # fails before any work, naming the key
     out_dir = args.out or os.path.join(results_dir("sweep"), cfg.name)
     if args.dask:
@@ -22,23 +23,29 @@ def run_sweep(args):
                                      progress=not args.no_progress)
     else:
         pin_to_one_cpu()
-        rows = engine.run_sweep(cfg, out_dir, resume=args.resume, progress=not args.no_progress)
+        rows = engine.run_sweep(cfg, out_dir, resume=args.resume, progress=not args.no_progress,
+                                isolate=args.isolate)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
-                                   title=f"hftrace sweep {cfg.name}")
+                                   title=f"hftrace sweep {cfg.name}", all_kernels=args.all_kernels)
     df = analysis.load(os.path.join(out_dir, "results.csv"))
     for (workload, surface), _ in df.groupby(["workload", "surface"], sort=False):
         label = workload if surface == "-" else f"{workload}, {surface}"
         print(f"\n{label}: speedup over dda (geometric mean over datasets)")
-        print(analysis.pivot(df, workload, surface).round(2).to_string())
+        print(analysis.pivot_ci(df, workload, surface).to_string())
     print(f"\n{len(rows)} rows in {out_dir}/results.csv; tables in {paths['speedup']}")
-    return 0
+    errors = df[df["error"] != ""]
+    for _, row in errors.iterrows():
+        print(f"error: {row['algorithm']} ({row['dataset']} {row['workload']} "
+              f"r={row['run_length']}): {row['error']}")
+    return 1 if not errors.empty else 0
 
 
 def plot(args):
     """``hftrace plot``: bench.analysis.write_reports of one results.csv."""
     from .. import analysis
 
-    paths = analysis.write_reports(args.results, args.out)
+    load_plugins(args)
+    paths = analysis.write_reports(args.results, args.out, all_kernels=args.all_kernels)
     for label, path in paths.items():
         print(f"{label:8s} {path}")
     return 0
@@ -47,7 +54,7 @@ def plot(args):
 def register(sub):
     """Add ``sweep`` and ``plot`` to the sub-parsers ``sub``."""
     p = sub.add_parser("sweep", help="a custom sweep from a TOML config")
-    p.add_argument("config", help="the TOML config (see bench/sweep.py)")
+    p.add_argument("config", help="the TOML config (docs/sweeps.md; examples/*.toml)")
     p.add_argument("--out", default=None,
                    help=f"output directory (default {results_dir('sweep')}/<name>)")
     p.add_argument("--resume", action="store_true", help="skip rows already in results.csv")
@@ -55,9 +62,18 @@ def register(sub):
     p.add_argument("--dask", default=None, metavar="ADDRESS",
                    help="run each group as a task on a Dask cluster: a scheduler address, or "
                         "local:N for a LocalCluster of N single-threaded workers")
+    p.add_argument("--isolate", action="store_true",
+                   help="measure each group's plugin kernels in a child process, so a crash "
+                        "takes only their rows")
+    p.add_argument("--all-kernels", action="store_true",
+                   help="plot every kernel (default: a readable subset and every plugin)")
+    add_plugin(p)
     p.set_defaults(func=run_sweep)
 
     p = sub.add_parser("plot", help="tables and plots from a results.csv")
     p.add_argument("results", help="a results.csv of reproduce or sweep")
     p.add_argument("--out", default=None, help="output directory (default: beside the CSV)")
+    p.add_argument("--all-kernels", action="store_true",
+                   help="plot every kernel (default: a readable subset and every plugin)")
+    add_plugin(p)
     p.set_defaults(func=plot)

@@ -49,6 +49,23 @@ def key(workload, surface, r, name) -> str:
     return f"{workload}/{surface}/r={r}/{name}"
 
 
+def checks():
+    """:data:`CHECKS` with every registered plugin (``algos.plugins``) added to the checks
+    of its workload: traversals to the visit checks, intersectors to the first-hit checks
+    of the surfaces they declared (gated on time; callgrind counts only hftrace's own C)."""
+    out = []
+    for workload, surface, r, names, rays in CHECKS:
+        if workload == "first_hit":
+            extra = [n for n, a in algos.INTERSECTOR_REGISTRY.items()
+                     if a.plugin is not None and surface in a.surfaces]
+        elif workload == "visit":
+            extra = [n for n, t in algos.TRAVERSAL_REGISTRY.items() if t.plugin is not None]
+        else:
+            extra = []
+        out.append((workload, surface, r, tuple(names) + tuple(extra), rays))
+    return tuple(out)
+
+
 def measure(repeats=15, seed=7, rounds=3) -> dict[str, list]:
     """The paired per-repeat ratios of CHECKS, measured now, over ``rounds`` rounds, each
     with a freshly allocated field and fresh rays, so that one unlucky memory placement
@@ -57,10 +74,12 @@ def measure(repeats=15, seed=7, rounds=3) -> dict[str, list]:
     for round_ in range(rounds):
         heights = datasets_gen.load("fbm", size=512, seed=1).heights.copy()
         field = algos.Field(heights)
-        for workload, surface, r, names, rays in CHECKS:
+        for workload, surface, r, names, rays in checks():
             rows = measure_group(field, "fbm512", workload, surface, r, ["dda", *names], rays,
                                  repeats, seed + round_, keep_samples=True)
             for row in rows:
+                if row.get("error"):
+                    raise RuntimeError(f"{row['algorithm']}: {row['error']}")
                 if row["algorithm"] != "dda":
                     samples.setdefault(key(workload, surface, r, row["algorithm"]), []).extend(
                         round(float(v), 5) for v in row["ratio_samples"])
@@ -145,6 +164,9 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
         flag = "  REGRESSED" if any(f["ratio"] == name for f in failures) else ""
         echo(f"{name:45s} {np.median(b):9.3f} {np.median(m):9.3f} {100 * a['change']:+7.1f}% "
              f"{100 * a['detectable']:10.1f}%{flag}")
+    for name in sorted(set(measured) - set(base["samples"])):
+        echo(f"{name:45s} {'-':>9s} {np.median(measured[name]):9.3f}  not in the baseline "
+             "(--update, or --baseline FILE of your own)")
     echo(f"smallest drop this run could flag, at {100 * confidence:g} % confidence and "
          f"tolerance {100 * tol:g} %: {100 * worst:.1f} % (the noisiest ratio)")
     if failures:

@@ -17,7 +17,9 @@ import algos
 import algos.terrain as T
 import datasets_gen
 
+from ..analysis import ratio_text
 from ..report import RowWriter
+from ..timing import ratio_ci
 from .terrain import (
     HIT_METHODS,
     HORIZON_METHODS,
@@ -115,17 +117,24 @@ def run_parallel(out_dir="results/reproduce", size=None, run_lengths=RUN_LENGTHS
         methods = HORIZON_METHODS if workload == "horizon" else HIT_METHODS
         text += [f"## {title}", "",
                  _table(rows, workload, column, lambda v, d=digits: f"{v:.{d}}", methods), ""]
-    text += ["## What the periodic patterns buy", ""]
+    text += ["## What the periodic patterns buy", "",
+             "Ratios of median times with their paired bootstrap 95 % intervals; a ratio "
+             "whose interval spans 1.0 or is wider than 25 % of it is inconclusive, not a "
+             "finding.", ""]
     for r in sorted({int(x["run_length"]) for x in rows}):
-        def ns(workload, name):
-            m = [float(x["ns_per_vertex"]) for x in rows if x["workload"] == workload and
-                 int(x["run_length"]) == r and x["algorithm"] == name]
-            return m[0] if m else float("nan")
-        text.append(f"- r = {r}: `runs_periodic` {ns('first_hit', 'runs') / ns('first_hit', 'runs_periodic'):.2f}x "
+        def ratio(workload, num, den):
+            a = [x for x in rows if x["workload"] == workload and int(x["run_length"]) == r
+                 and x["algorithm"] in (num, den)]
+            got = {x["algorithm"]: x.get("ns_samples") or "" for x in a}
+            if not got.get(num) or not got.get(den):
+                return "no interval (per-repeat times not recorded): inconclusive"
+            top = np.array([float(v) for v in got[num].split(";")])
+            bottom = np.array([float(v) for v in got[den].split(";")])
+            return ratio_text(*ratio_ci(top, bottom, seed=r)).replace(" [", "x [", 1)
+        text.append(f"- r = {r}: `runs_periodic` {ratio('first_hit', 'runs', 'runs_periodic')} "
                     f"`runs` on orthographic first hits; the shared pattern "
-                    f"{ns('horizon', 'dda') / ns('horizon', 'pattern'):.2f}x and the sweep "
-                    f"{ns('horizon', 'dda') / ns('horizon', 'sweep'):.2f}x the per-vertex walk "
-                    f"on horizons.")
+                    f"{ratio('horizon', 'dda', 'pattern')} and the sweep "
+                    f"{ratio('horizon', 'dda', 'sweep')} the per-vertex walk on horizons.")
     text.append("")
     with open(os.path.join(out_dir, "parallel.md"), "w") as f:
         f.write("\n".join(text))

@@ -1,30 +1,50 @@
 """``hftrace reproduce``: the speedup-by-run-length study of Henning & Stephenson (2004),
-measured here, next to every registered algorithm and Embree.
+measured here, next to every registered algorithm (plugins included) and Embree.
 
-Presets (both seeded; every field is generated or loaded from the embedded data):
+Presets (all seeded; every field is generated or loaded from the embedded data):
 
-* quick (default, a few minutes at most here): fBm, terraces and uniform random at
+* headline (default, <= 3 minutes on 2 cores): the paper's measure only, first hit on
+  two triangles per cell by mean run length, on fBm, terraces and uniform random at
   1024^2 and the Jacksboro DEM upsampled to 2048 samples on its longer side; r in
-  {1, 2, 5, 25, 100} plus uniformly random azimuths; workloads visit, runs and first_hit
-  on all four surfaces; 1000 rays per group, 7 interleaved repeats.
-* full (``--full``): adds fBm 2048^2; r in {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus
-  random; 3000 rays, 9 repeats (about 330 groups: an estimated 20-30 minutes here).
+  {1, 2, 5, 25, 100} plus uniformly random azimuths; 1000 rays per group, 7
+  interleaved repeats: 24 groups. Writes the headline table with intervals, the
+  run-length plot, and the cost model with instruction counts of the kernels it shows.
+* standard (``--preset standard``, the former quick preset): the same fields and run
+  lengths with the workloads visit, runs and first_hit on all four surfaces (144
+  groups), then the "parallel rays" part (``bench.studies.parallel_rays``:
+  ``parallel.md``, ``parallel.csv``, ``products.png``).
+* full (``--full`` or ``--preset full``): adds fBm 2048^2; r in
+  {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus random; 3000 rays, 9 repeats (about 330
+  groups), then the parallel rays part.
 
-Both presets end with the "parallel rays" part (``bench.studies.parallel_rays``):
-every vertex's horizon along azimuths of slope 1/r, and orthographic first hits, on the
-embedded Jacksboro DEM with every method and the peers: ``parallel.md``, ``parallel.csv``
-and ``products.png``.
+Each dataset's structures and Embree scene are built once and kept on its Field for
+every group; each group's rays are drawn once; the instruction counts run after the
+timings, two callgrind processes at a time (nothing is timed then).
 """
 from __future__ import annotations
 
 import os
+import time
 
 from .. import analysis
-from ..sweep import SweepConfig, run_sweep
+from ..sweep import SweepConfig, groups, run_sweep
 from ..timing import pin_to_one_cpu
 
 #: The repository's root: ``publish`` writes its ``reports/``
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+PRESETS = ("headline", "standard", "full")
+#: Where each preset writes: results/<name> by default, reports/<published> with --publish
+#: (the standard preset keeps the committed reports/reproduce of the former quick preset).
+OUT_NAMES = {"headline": "reproduce", "standard": "reproduce-standard", "full": "reproduce-full"}
+PUBLISHED = {"headline": "reproduce-headline", "standard": "reproduce", "full": "reproduce-full"}
+#: Seconds per group measured on the 2-core machine this was written on, loaded (used for
+#: the first line's estimate): headline groups hold one workload, standard and full ones
+#: are averages over their workloads.
+SECONDS_PER_GROUP = {"headline": 5.0, "standard": 9.2, "full": 14.0}
+#: Seconds of the parallel rays part and of the instruction counts (two at a time).
+SECONDS_PARALLEL = {"headline": 0, "standard": 240, "full": 420}
+SECONDS_PER_COUNT = 20.0
 
 DATASETS_QUICK = [
     {"name": "fbm", "size": 1024, "seed": 1},
@@ -32,59 +52,123 @@ DATASETS_QUICK = [
     {"name": "uniform", "size": 1024, "seed": 1},
     {"name": "jacksboro", "size": 2048},
 ]
+RUN_LENGTHS = [1, 2, 5, 25, 100, "random"]
 
 
-def preset(full=False) -> SweepConfig:
-    """The sweep of the quick preset, or with ``full`` the paper-scale one (module
-    docstring)."""
-    if full:
+def preset(full=False, name=None, kernels=None) -> SweepConfig:
+    """The sweep of a preset (module docstring): ``name`` one of :data:`PRESETS` (default
+    headline; ``full=True`` means "full"); ``kernels`` restricts the algorithms (dda, the
+    baseline, is always measured)."""
+    name = "full" if full else (name or "headline")
+    if name not in PRESETS:
+        raise ValueError(f"--preset: unknown preset {name!r}; valid: {', '.join(PRESETS)}")
+    out = OUT_NAMES[name]
+    if name == "full":
         return SweepConfig(
-            name="reproduce-full", rays=3000, repeats=9, seed=2004,
+            name=out, rays=3000, repeats=9, seed=2004,
             workloads=["visit", "runs", "first_hit"],
             surfaces=["flat", "plane3", "triangles", "bilinear"],
             run_lengths=[1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100, "random"],
-            datasets=DATASETS_QUICK + [{"name": "fbm", "size": 2048, "seed": 1}])
-    return SweepConfig(
-        name="reproduce", rays=1000, repeats=7, seed=2004,
-        workloads=["visit", "runs", "first_hit"],
-        surfaces=["flat", "plane3", "triangles", "bilinear"],
-        run_lengths=[1, 2, 5, 25, 100, "random"], datasets=list(DATASETS_QUICK))
+            datasets=DATASETS_QUICK + [{"name": "fbm", "size": 2048, "seed": 1}],
+            algorithms=kernels)
+    if name == "standard":
+        return SweepConfig(
+            name=out, rays=1000, repeats=7, seed=2004,
+            workloads=["visit", "runs", "first_hit"],
+            surfaces=["flat", "plane3", "triangles", "bilinear"],
+            run_lengths=list(RUN_LENGTHS), datasets=list(DATASETS_QUICK), algorithms=kernels)
+    return SweepConfig(name=out, rays=1000, repeats=7, seed=2004, workloads=["first_hit"],
+                       surfaces=["triangles"], run_lengths=list(RUN_LENGTHS),
+                       datasets=list(DATASETS_QUICK), algorithms=kernels)
+
+
+def estimate_seconds(cfg, name, counts=True) -> float:
+    """The run's expected wall time here (:data:`SECONDS_PER_GROUP` and friends)."""
+    n = len(groups(cfg))
+    kernels = {k for *_, names in groups(cfg) for k in names if k != "embree"}
+    count_s = SECONDS_PER_COUNT * len(kernels) / 2 if counts else 0
+    return n * SECONDS_PER_GROUP[name] + SECONDS_PARALLEL[name] + count_s + 15
 
 
 def run(full=False, out_dir=None, resume=False, progress=True, echo=print, counts=True,
-        publish=False):
+        publish=False, preset_name=None, kernels=None, isolate=False, all_kernels=False):
     """Run the study and write its reports; returns the paths of ``analysis.write_reports``.
 
-    ``out_dir`` defaults to ``results/<preset>`` under the current directory (untracked);
-    ``publish`` writes to the committed reference, ``reports/<preset>`` of the repository,
-    instead. ``counts``: also the instruction counts (callgrind, when valgrind exists);
-    ``resume``: keep the rows already measured."""
-    cfg = preset(full)
+    ``out_dir`` defaults to ``results/<name>`` under the current directory (untracked,
+    :data:`OUT_NAMES`); ``publish`` writes to the committed reference,
+    ``reports/<name>`` of the repository (:data:`PUBLISHED`), instead. ``counts``: also
+    the instruction counts (callgrind, when valgrind exists); ``resume``: keep the rows
+    already measured; ``kernels``: a subset of algorithms; ``isolate``: plugins in a
+    child process (``bench.sweep.run_sweep``)."""
+    name = "full" if full else (preset_name or "headline")
+    cfg = preset(name=name, kernels=kernels)
     if publish and out_dir is not None:
         raise ValueError("out_dir: give either an output directory or publish, not both")
     if publish:
-        out_dir = os.path.join(REPOSITORY, "reports", cfg.name)
-    out_dir = out_dir or os.path.join("results", cfg.name)
+        # the committed reference is replaced on purpose (git keeps the former one)
+        out_dir = os.path.join(REPOSITORY, "reports", PUBLISHED[name])
+        if not resume:
+            for old in ("results.csv", "counts.csv", "parallel.csv"):
+                if os.path.exists(os.path.join(out_dir, old)):
+                    os.remove(os.path.join(out_dir, old))
+    if out_dir is None:
+        # the default directory is never overwritten: a rerun writes a new run directory,
+        # and --resume continues the latest one
+        base = os.path.join("results", cfg.name)
+        runs = [base] + [f"{base}.{k}" for k in range(2, 1000)]
+        used = [d for d in runs if os.path.exists(os.path.join(d, "results.csv"))]
+        if resume:
+            out_dir = used[-1] if used else base
+        else:
+            out_dir = next(d for d in runs if not os.path.exists(os.path.join(d, "results.csv")))
+            if out_dir != base:
+                echo(f"{base} holds an earlier run (kept); writing {out_dir} "
+                     f"(`--resume` continues the latest run directory)")
+    wall0 = time.perf_counter()
+    n_groups = len(groups(cfg))
+    minutes = estimate_seconds(cfg, name, counts) / 60
+    echo(f"hftrace reproduce ({name} preset): {n_groups} group{'s' if n_groups != 1 else ''} on {len(cfg.datasets)} "
+         f"datasets, expected about {minutes:.0f} min on a 2-core machine "
+         f"(phases: measure{', counts' if counts else ''}"
+         f"{', parallel rays' if name != 'headline' else ''}, reports) -> {out_dir}")
+    affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     pin_to_one_cpu()
-    run_sweep(cfg, out_dir, resume=resume, progress=progress, echo=echo)
+    run_sweep(cfg, out_dir, resume=resume, progress=progress, echo=echo, isolate=isolate)
+    if affinity is not None:  # nothing is timed from here on: every core may count
+        os.sched_setaffinity(0, affinity)
     if counts:
-        # the cost model's instruction counts (callgrind), next to the timings
+        # the cost model's instruction counts (callgrind) of the kernels the table shows
         from ..counts import write_counts
 
         df = analysis.load(os.path.join(out_dir, "results.csv"))
-        kernels = list(dict.fromkeys(df.loc[df["workload"] == "first_hit", "algorithm"]))
-        write_counts(os.path.join(out_dir, "counts.csv"), kernels, resume=resume, echo=echo)
-    # parallel rays at work: horizons and orthographic first hits at slopes 1/r, with
-    # every method and the peers (bench/studies/parallel_rays.py)
-    from .parallel_rays import run_parallel
+        shown = list(dict.fromkeys(df.loc[df["workload"] == "first_hit", "algorithm"]))
+        write_counts(os.path.join(out_dir, "counts.csv"), shown, resume=resume, echo=echo,
+                     workers=len(affinity or [1]), progress=progress)
+    if name != "headline":
+        # parallel rays at work: horizons and orthographic first hits at slopes 1/r, with
+        # every method and the peers (bench/studies/parallel_rays.py)
+        from .parallel_rays import run_parallel
 
-    run_parallel(out_dir=out_dir, resume=resume, echo=echo,
-                 repeats=7 if full else 5, sample=40000 if full else 20000)
+        pin_to_one_cpu()
+        run_parallel(out_dir=out_dir, resume=resume, echo=echo,
+                     repeats=7 if name == "full" else 5, sample=40000 if name == "full" else 20000)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
-                                   title=f"hftrace reproduce ({'full' if full else 'quick'} preset)")
+                                   title=f"hftrace reproduce ({name} preset)",
+                                   all_kernels=all_kernels)
+    import json
+
+    from ..timing import write_json
+
+    env_path = os.path.join(out_dir, "env.json")
+    env = json.load(open(env_path))
+    total = time.perf_counter() - wall0
+    timed = (env.get("run") or {}).get("timed_s") or 0.0
+    env["reproduce"] = {"preset": name, "wall_s": round(total, 1),
+                        "timed_share_of_total": round(timed / total, 4) if total else None}
+    write_json(env_path, env)
     with open(paths["speedup"]) as f:
         text = f.read()
     echo(text[: text.find("## Workload")] if "## Workload" in text else text)
     echo(f"wrote {out_dir}/results.csv, speedup.md, run_length_vs_speedup.png, "
-         f"ns_per_ray_vs_cells.png, env.json")
+         f"ns_per_ray_vs_cells.png, env.json; {time.perf_counter() - wall0:.0f} s in all")
     return paths

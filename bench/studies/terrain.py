@@ -31,7 +31,7 @@ HORIZON_METHODS = ("sweep", "pattern", "dda", "dda_maxmip", "march", "embree")
 HIT_METHODS = ("dda", "runs", "runs_periodic", "dda_maxmip", "runs_maxmip", "embree")
 PARALLEL_COLUMNS = ["workload", "dataset", "run_length", "azimuth", "algorithm", "vertices",
                     "ns_per_vertex", "field_seconds", "speedup_vs_dda", "max_err_deg",
-                    "p99_err_deg", "agree_1e9"]
+                    "p99_err_deg", "agree_1e9", "ns_samples"]
 
 
 
@@ -70,6 +70,11 @@ def _err(values, exact):
     return worst, float(agree), p99
 
 
+def _samples(values) -> str:
+    """Per-repeat ns per vertex, ";"-separated (the intervals of parallel.md's ratios)."""
+    return ";".join(f"{v:.4g}" for v in np.asarray(values, dtype=float))
+
+
 def horizon_group(h, azimuth, methods, sample, repeats, embree_sample=2048):
     """Time every method on one azimuth; rows with ns per vertex and error against the
     sweep (or the plain walk when the azimuth is not rational)."""
@@ -91,7 +96,8 @@ def horizon_group(h, azimuth, methods, sample, repeats, embree_sample=2048):
         out.append(dict(algorithm=name, vertices=counts[name], ns_per_vertex=per[name],
                         field_seconds=per[name] * h.size / 1e9,
                         speedup_vs_dda=per.get("dda", float("nan")) / per[name],
-                        max_err_deg=err, p99_err_deg=p99, agree_1e9=agree))
+                        max_err_deg=err, p99_err_deg=p99, agree_1e9=agree,
+                        ns_samples=_samples(times[name] / counts[name])))
     return out
 
 
@@ -123,7 +129,7 @@ def hit_group(field, r, methods, n, repeats, seed):
         out.append(dict(algorithm=name, vertices=n, ns_per_vertex=per[name],
                         field_seconds=float("nan"), speedup_vs_dda=per["dda"] / per[name],
                         max_err_deg=float("nan"), p99_err_deg=float("nan"),
-                        agree_1e9=float(np.mean(same))))
+                        agree_1e9=float(np.mean(same)), ns_samples=_samples(times[name] / n)))
     return out
 
 
