@@ -520,7 +520,10 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
         bar = _bar(progress, len(todo), f"{cfg.name} (dask)")
         start = time.perf_counter()
         with RowWriter(csv_path, COLUMNS, append=resume) as writer:
-            for future in as_completed(futures):
+            # this client's loop: as_completed otherwise tracks the futures on the default
+            # client's, and a second client in the process then waits on an event bound
+            # to another loop ("bound to a different event loop")
+            for future in as_completed(futures, loop=client.loop):
                 ds, label, workload, surface, r, names, missing = futures[future]
                 rows, worker_env = future.result()
                 worker = worker_env.get("hostname", "") + f" pid {worker_env.get('pid', '')}"
