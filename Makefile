@@ -51,7 +51,16 @@ $(PEERS_STAMP): $(STAMP)
 	-$(BIN)/python -m pip install --quiet -e ".[test,peers]"
 	touch $(PEERS_STAMP)
 
-reproduce: $(PEERS_STAMP)
+# the headline preset needs only the runtime dependencies (no test tools, no peers: the
+# standard and full presets' parallel-rays part wants `pip install -e ".[peers]"`)
+RUN_STAMP := $(VENV)/.hftrace-run
+
+$(RUN_STAMP): $(SOURCES)
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet -e .
+	touch $(RUN_STAMP)
+
+reproduce: $(RUN_STAMP)
 	$(BIN)/hftrace reproduce
 
 # The committed reference reports, each regenerated into its folder of reports/ (tens of

@@ -114,7 +114,7 @@ def pivot_ci(df, workload, surface) -> pd.DataFrame:
     cells = {}
     for (r, name), g in part.groupby(["run_length", "algorithm"], sort=False):
         text = ratio_text(_geomean(g["speedup"]), _geomean(g["speedup_ci_low"]),
-                          _geomean(g["speedup_ci_high"]))
+                          _geomean(g["speedup_ci_high"])) if name != "dda" else "1 (baseline)"
         if text and bool(g["contended"].any()):
             text += " †"
         if not text and (g["error"] != "").any():
@@ -251,9 +251,11 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
         part = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1]) &
                   (df["run_length"] == "random")]
         if not part.empty:
-            part = part.assign(text=[ratio_text(s, lo, hi) + (" †" if c else "")
-                                     for s, lo, hi, c in zip(part["speedup"], part["speedup_ci_low"],
-                                                             part["speedup_ci_high"], part["contended"])])
+            part = part.assign(text=[
+                ("1 (baseline)" if a == "dda" else ratio_text(s, lo, hi)) + (" †" if c else "")
+                for a, s, lo, hi, c in zip(part["algorithm"], part["speedup"],
+                                           part["speedup_ci_low"], part["speedup_ci_high"],
+                                           part["contended"])])
             by_ds = part.pivot(index="dataset", columns="algorithm", values="text").fillna("")
             by_ds = by_ds.loc[list(dict.fromkeys(part["dataset"]))]
             by_ds = by_ds[[c for c in dict.fromkeys(part["algorithm"]) if c in by_ds.columns]]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import csv
 import os
 
-from .profile import callgrind_available, profile
+from .profile import callgrind_available
 
 FIELDS = ["kernel", "dataset", "size", "r", "rays", "surface", "instructions_per_ray",
           "instructions_per_cell", "branches_per_cell", "mispredicts_per_cell"]
@@ -51,31 +51,37 @@ def write_counts(path: str, kernels, dataset="fbm", size=1024, r=25, rays=300,
     new = not os.path.exists(path)
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
+    from .profile import profile_many
+
+    # one callgrind run per worker, each counting its share of the kernels in turn (one
+    # interpreter start under valgrind per worker instead of one per kernel)
+    chunks = [todo[k::max(1, workers)] for k in range(max(1, workers))]
+    chunks = [c for c in chunks if c]
     bar = None
     if progress and todo:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(todo), unit="kernel", desc="counts (callgrind)", dynamic_ncols=True)
-    with open(path, "a", newline="") as f, ThreadPoolExecutor(max(1, workers)) as pool:
+        bar = tqdm(total=len(chunks), unit="callgrind run", desc="counts (callgrind)",
+                   dynamic_ncols=True)
+    with open(path, "a", newline="") as f, ThreadPoolExecutor(max(1, len(chunks))) as pool:
         writer = csv.DictWriter(f, fieldnames=FIELDS)
         if new:
             writer.writeheader()
-        futures = {pool.submit(profile, kernel, dataset=dataset, size=size, r=r, rays=rays,
-                               surface=surface): kernel for kernel in todo}
+        futures = [pool.submit(profile_many, chunk, dataset=dataset, size=size, r=r, rays=rays,
+                               surface=surface) for chunk in chunks]
         for future in as_completed(futures):
-            kernel, p = futures[future], future.result()
-            writer.writerow(dict(kernel=kernel, dataset=dataset, size=size, r=r, rays=rays,
-                                 surface=surface,
-                                 instructions_per_ray=round(p["instructions_per_ray"], 1),
-                                 instructions_per_cell=round(p["instructions_per_cell"], 2),
-                                 branches_per_cell=round(p["branches_per_cell"], 2),
-                                 mispredicts_per_cell=round(p["mispredicts_per_cell"], 3)))
+            for kernel, p in future.result().items():
+                writer.writerow(dict(kernel=kernel, dataset=dataset, size=size, r=r, rays=rays,
+                                     surface=surface,
+                                     instructions_per_ray=round(p["instructions_per_ray"], 1),
+                                     instructions_per_cell=round(p["instructions_per_cell"], 2),
+                                     branches_per_cell=round(p["branches_per_cell"], 2),
+                                     mispredicts_per_cell=round(p["mispredicts_per_cell"], 3)))
+                if echo and bar is None:
+                    echo(f"counts: {kernel} {p['instructions_per_cell']:.1f} instructions/cell")
             f.flush()
             if bar is not None:
-                bar.set_postfix_str(kernel)
                 bar.update(1)
-            elif echo:
-                echo(f"counts: {kernel} {p['instructions_per_cell']:.1f} instructions/cell")
     if bar is not None:
         bar.close()
     return True

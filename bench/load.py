@@ -9,6 +9,8 @@ this process's own from ``/proc/self/stat``), and the 1-minute load average
 :data:`CONTENDED_CORES` cores on average while it ran (a busy loop on the other core of a
 2-core machine uses 1.0), or when the load average exceeded the CPUs this process may use.
 Where ``/proc`` cannot be read (not Linux) nothing is marked and the columns stay empty.
+The counters advance in clock ticks (10 ms): over a group of a few ticks the CPU figure
+is coarse, over the seconds of a real group it is not.
 """
 from __future__ import annotations
 

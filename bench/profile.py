@@ -17,7 +17,7 @@ import subprocess
 import sys
 import tempfile
 
-__all__ = ["profile", "format_profile", "prepared_batch", "ENTRY", "callgrind_available"]
+__all__ = ["profile", "profile_many", "format_profile", "prepared_batch", "ENTRY", "callgrind_available"]
 
 #: The C entry each workload's batch runs in; only it is counted.
 ENTRY = {"first_hit": "hf_intersect_batch", "visit": "hf_walk_batch", "runs": "hf_walk_batch"}
@@ -29,6 +29,60 @@ spec = json.loads(sys.argv[1])
 run = prepared_batch(spec)
 run()
 """
+
+
+_CHILD_MANY = r"""
+import json, sys
+from bench.profile import prepared_batch
+for spec in json.loads(sys.argv[1]):
+    run = prepared_batch(spec)
+    run()
+"""
+
+
+def profile_many(kernels, dataset="fbm", size=1024, r=25, rays=300, surface="triangles",
+                 seed=2008) -> dict:
+    """First-hit counts of several kernels in one callgrind run (one interpreter start
+    instead of one per kernel): each exit of the C entry dumps its counts
+    (``--dump-after``), the i-th dump being the i-th kernel's. Returns kernel -> the
+    per-ray and per-cell values of :func:`profile`."""
+    if not callgrind_available():
+        raise RuntimeError("profile: valgrind is not installed (apt-get install valgrind)")
+    specs = [dict(kernel=k, dataset=dataset, size=size, r=r, rays=rays, surface=surface,
+                  workload="first_hit", seed=seed, options={}, parallel=False) for k in kernels]
+    if not specs:
+        return {}
+    cells, runs = _visited(specs[0])
+    entry = ENTRY["first_hit"]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "callgrind.out")
+        cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+               f"--toggle-collect={entry}", f"--dump-after={entry}", "--branch-sim=yes",
+               sys.executable, "-c", _CHILD_MANY, json.dumps(specs)]
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+        env.pop("LD_PRELOAD", None)
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        if proc.returncode != 0:
+            raise RuntimeError(f"profile: valgrind failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+        dumps = sorted((f for f in os.listdir(tmp) if re.fullmatch(r"callgrind\.out\.\d+", f)),
+                       key=lambda f: int(f.rsplit(".", 1)[1]))
+        if len(dumps) < len(specs):
+            raise RuntimeError(f"profile: expected {len(specs)} dumps, callgrind wrote {len(dumps)}")
+        parsed = [_parse(os.path.join(tmp, f)) for f in dumps[: len(specs)]]
+    result = {}
+    for spec, p in zip(specs, parsed):
+        t = p["totals"]
+        instructions = t.get("Ir", 0)
+        branches = t.get("Bc", 0) + t.get("Bi", 0)
+        mispredicts = t.get("Bcm", 0) + t.get("Bim", 0)
+        result[spec["kernel"]] = {
+            "instructions_per_ray": instructions / rays,
+            "instructions_per_cell": instructions / cells if cells else float("nan"),
+            "branches_per_cell": branches / cells if cells else float("nan"),
+            "mispredicts_per_cell": mispredicts / cells if cells else float("nan")}
+    return result
 
 
 def callgrind_available() -> bool:
