@@ -15,7 +15,8 @@ Presets (all seeded; every field is generated or loaded from the embedded data):
   ``parallel.md``, ``parallel.csv``, ``products.png``).
 * full (``--full`` or ``--preset full``): adds fBm 2048^2; r in
   {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus random; 3000 rays, 9 repeats (about 330
-  groups), then the parallel rays part.
+  groups), then the parallel rays part and the quick tier of the rasterising-against-
+  tracing study (``bench.studies.raster_vs_trace``, into ``raster_vs_trace/``).
 
 Each dataset's structures and Embree scene are built once and kept on its Field for
 every group; each group's rays are drawn once; the instruction counts run after the
@@ -152,6 +153,13 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
         pin_to_one_cpu()
         run_parallel(out_dir=out_dir, resume=resume, echo=echo,
                      repeats=7 if name == "full" else 5, sample=40000 if name == "full" else 20000)
+    if name == "full":
+        # the other road: rasterising the cells against tracing the pixels (issue 23), its
+        # quick tier (`hftrace raster-vs-trace --full` is the full one, hours)
+        from . import raster_vs_trace
+
+        raster_vs_trace.run(os.path.join(out_dir, "raster_vs_trace"), quick=True, counts=counts,
+                            echo=echo)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace reproduce ({name} preset)",
                                    all_kernels=all_kernels)
