@@ -267,6 +267,20 @@ def _checksums(result, n, name):
 
 
 # ---- timed calls (bench.sweep) ----------------------------------------------------------
+def _timed_c_call(plugin, name, args):
+    """``run()`` for a C plugin: one call of its kernel on ``args``, timed with
+    CLOCK_MONOTONIC right around the ctypes call; a non-zero status raises PluginError."""
+    def run():
+        t0 = time.monotonic_ns()
+        status = plugin.fn(*args)
+        elapsed = time.monotonic_ns() - t0
+        if status != 0:
+            raise PluginError(f"{name}: returned status {status}")
+        return elapsed
+
+    return run
+
+
 def prepare_timed_traversal(name, origins, directions, shape):
     """``(run, checksums)`` for a traversal plugin: each ``run()`` calls the kernel on the
     whole batch and returns the elapsed nanoseconds around the call (CLOCK_MONOTONIC);
@@ -282,16 +296,7 @@ def prepare_timed_traversal(name, origins, directions, shape):
         cells = np.zeros(n, dtype=np.int64)
         args = (ctypes.c_int64(nx), ctypes.c_int64(ny), ctypes.c_int64(n), _ptr(o), _ptr(d),
                 None, None, _ptr(sums), _ptr(cells))
-
-        def run():
-            t0 = time.monotonic_ns()
-            status = plugin.fn(*args)
-            elapsed = time.monotonic_ns() - t0
-            if status != 0:
-                raise PluginError(f"{name}: returned status {status}")
-            return elapsed
-
-        return run, lambda: sums.copy()
+        return _timed_c_call(plugin, name, args), lambda: sums.copy()
 
     def run():
         t0 = time.monotonic_ns()
@@ -324,16 +329,7 @@ def prepare_timed_first_hit(name, heights, origins, directions, surface):
         args = (_ptr(h), ctypes.c_int64(h.shape[0]), ctypes.c_int64(h.shape[1]),
                 ctypes.c_int(surface_id), ctypes.c_int64(n), _ptr(o), _ptr(d), None, None,
                 _ptr(t), _ptr(cells))
-
-        def run():
-            t0 = time.monotonic_ns()
-            status = plugin.fn(*args)
-            elapsed = time.monotonic_ns() - t0
-            if status != 0:
-                raise PluginError(f"{name}: returned status {status}")
-            return elapsed
-
-        return run, lambda: t.copy()
+        return _timed_c_call(plugin, name, args), lambda: t.copy()
     state = {}
     kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
 
