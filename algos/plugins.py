@@ -360,6 +360,15 @@ class _Info(ctypes.Structure):
                 ("summary", ctypes.c_char_p)]
 
 
+def _exported(lib, symbol, kind, path):
+    """The function ``symbol`` of a plugin library, or ValueError naming what is missing."""
+    try:
+        return getattr(lib, symbol)
+    except AttributeError:
+        raise ValueError(f"path: {path} declares kind {kind} but does not export "
+                         f"{symbol}") from None
+
+
 def load_c_plugin(path, name=None, time_limit=None):
     """Load a shared library that exports ``cext/hftrace_plugin.h`` and register its kernel.
 
@@ -405,21 +414,13 @@ def load_c_plugin(path, name=None, time_limit=None):
     summary = (info.summary or b"").decode() or f"C plugin {os.path.basename(path)}"
     limit = _check_limit(time_limit)
     if kind == "traversal":
-        try:
-            fn = lib.hftrace_traverse
-        except AttributeError:
-            raise ValueError(f"path: {path} declares kind traversal but does not export "
-                             "hftrace_traverse") from None
+        fn = _exported(lib, "hftrace_traverse", kind, path)
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 6
         plugin = Plugin(fn, "c", bool(info.exact), limit, path)
         return register_traversal(name, fn, plugin.exact, summary, _plugin=plugin)
     if kind == "first_hit":
-        try:
-            fn = lib.hftrace_first_hit
-        except AttributeError:
-            raise ValueError(f"path: {path} declares kind first_hit but does not export "
-                             "hftrace_first_hit") from None
+        fn = _exported(lib, "hftrace_first_hit", kind, path)
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64, ctypes.c_int,
                        ctypes.c_int64] + [ctypes.c_void_p] * 6

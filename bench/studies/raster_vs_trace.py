@@ -108,31 +108,24 @@ def _case(field, view, width, height, repeats, threads):
     position, look_at = view_camera(view, heights)
     images = {}
 
-    def raster_job(name, n_threads=1):
+    def image_job(draw, name, n_threads=1):
+        """A timed job drawing the view with ``draw`` (``raster.render`` or
+        ``raster.trace``); its image is kept for the comparisons."""
         key = name if n_threads == 1 else f"{name}@threads"
 
         def job():
-            images[key] = raster.render(name, field, position, look_at, FOV, width, height,
-                                        threads=n_threads)
+            images[key] = draw(name, field, position, look_at, FOV, width, height,
+                               threads=n_threads)
             return images[key].elapsed_ns
         return job
 
-    def trace_job(name, n_threads):
-        key = name if n_threads == 1 else f"{name}@threads"
-
-        def job():
-            images[key] = raster.trace(name, field, position, look_at, FOV, width, height,
-                                       threads=n_threads)
-            return images[key].elapsed_ns
-        return job
-
-    jobs = {name: raster_job(name) for name in raster.RASTERISERS}
+    jobs = {name: image_job(raster.render, name) for name in raster.RASTERISERS}
     for name in _available_tracers():
-        jobs[name] = trace_job(name, 1)
+        jobs[name] = image_job(raster.trace, name, 1)
     if threads != 1 and THREADED in algos.INTERSECTORS:
-        jobs[f"{THREADED}@threads"] = trace_job(THREADED, threads)
+        jobs[f"{THREADED}@threads"] = image_job(raster.trace, THREADED, threads)
     if threads != 1:
-        jobs[f"{THREADED_RASTERISER}@threads"] = raster_job(THREADED_RASTERISER, threads)
+        jobs[f"{THREADED_RASTERISER}@threads"] = image_job(raster.render, THREADED_RASTERISER, threads)
     times = interleaved(jobs, repeats)
     exact = images["zbuffer"]
     cells = exact.cell[np.isfinite(exact.t)]
