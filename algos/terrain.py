@@ -96,7 +96,7 @@ from .validate import check_length, check_spacing
 __all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
            "azimuth_direction", "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "TerrainAlgorithm",
            "MAX_SNAP_DENOMINATOR", "DEFAULT_REFRACTION", "TerrainStats", "Grid",
-           "VOID_HEIGHT"]
+           "VOID_HEIGHT", "VIEWSHED_MODES"]
 
 #: Azimuths this close to a small rational slope are taken as exactly that slope.
 MAX_SNAP_DENOMINATOR = 128
@@ -976,7 +976,7 @@ def _viewshed_one(h, ox, oy, oh, th, drop, algorithm, threads, mip, stats, scale
     rows, cols = h.shape
     z0 = _surface_float(h, ox, oy) + oh
     out = np.empty(rows * cols, dtype=np.uint8)
-    eps = 64 * np.finfo(float).eps * (scale + abs(z0) + th)
+    eps = 64 * np.finfo(float).eps * (scale + abs(z0) + abs(th))
     used = mip if algorithm == "dda_maxmip" else None
 
     def call(start, stop):
@@ -1011,29 +1011,138 @@ def _touches_void(void, x, y):
     return bool(void[j_lo:j_hi + 1, i_lo:i_hi + 1].any())
 
 
-def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_distance=None,
+#: What :func:`viewshed` returns per vertex (``mode``); see its docstring.
+VIEWSHED_MODES = ("normal", "dem", "ground", "observer", "angle")
+#: The observer's eye above the surface when ``observer_height`` is left out.
+DEFAULT_OBSERVER_HEIGHT = 1.75
+#: A uint8 viewshed with output values stores its voids as this (datasets_gen.raster).
+VIEWSHED_UINT8_NODATA = 255
+
+
+def _viewshed_threshold(h, ox, oy, z0, th, drop, kind, algorithm, threads, mip, stats):
+    """The C walk's bound per vertex (cext/terrain.h, hf_viewshed_threshold): kind 0 the
+    target top, 1 the eye; -inf where nothing lies between observer and vertex."""
+    rows, cols = h.shape
+    out = np.empty(rows * cols, dtype=np.float64)
+    used = mip if algorithm == "dda_maxmip" else None
+
+    def call(start, stop):
+        return _kernels.viewshed_threshold(h, used, ox, oy, z0, th, drop, kind, start, stop, out)
+
+    for ns, cells, skips in _run_ranges(rows * cols, threads, call):
+        stats.ns += ns
+        stats.cells += cells
+        stats.skips += skips
+    return out.reshape(rows, cols)
+
+
+def _output_value(value, name, allow_nan=False):
+    """An output value as a float: a real number, finite (NaN too where allowed)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
+                                                                     np.floating)):
+        raise TypeError(f"{name}: expected a number, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) or (allow_nan and math.isnan(v))):
+        raise ValueError(f"{name}: expected a finite number{' or NaN' if allow_nan else ''}, "
+                         f"got {value!r}")
+    return v
+
+
+def _height_above(value, name):
+    """A height above the ground as a float: any finite number (negative: below it)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: expected a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: expected a finite length (negative: below the ground), "
+                         f"got {value!r}")
+    return v
+
+
+def _thicken(heights, observer):
+    """A one-row or one-column input repeated to two rows (columns), and the slice that
+    crops a result back; ``(heights, None)`` for any other input. Along the one line the
+    repeated field's surface is the polyline through the samples, the line's own surface;
+    observers must lie on it."""
+    shape = heights.shape if isinstance(heights, HeightField) else np.shape(heights)
+    if len(shape) != 2 or min(shape) != 1 or max(shape) > _kernels.MAX_GRID_SIDE:
+        return heights, None
+    rows, cols = shape
+    for k, (x, y) in enumerate(np.atleast_2d(np.asarray(observer, dtype=np.float64))):
+        if not ((y == 0 and 0 <= x <= cols - 1) if rows == 1 else (x == 0 and 0 <= y <= rows - 1)):
+            raise ValueError(f"observer[{k}]: ({x}, {y}) outside the footprint "
+                             f"[0, {cols - 1}] x [0, {rows - 1}] of a one-"
+                             f"{'row' if rows == 1 else 'column'} raster (a line)")
+    axis = 0 if rows == 1 else 1
+    crop = (slice(0, 1), slice(None)) if axis == 0 else (slice(None), slice(0, 1))
+    if not isinstance(heights, HeightField):
+        return np.repeat(np.asarray(heights), 2, axis=axis), crop
+    f = heights
+    mask = None if f.nodata_mask is None else np.repeat(np.asarray(f.nodata_mask), 2, axis=axis)
+    return HeightField(np.repeat(np.asarray(f.heights), 2, axis=axis), f.name,
+                       spacing=f.spacing, unit=f.unit, height_unit=f.height_unit, crs=f.crs,
+                       transform=f.transform,
+                       north=None if f.transform is not None else f.north,
+                       params=f.params, nodata_mask=mask), crop
+
+
+def viewshed(heights, observer, observer_height=None, target_height=0.0, max_distance=None,
              curvature=False, refraction=DEFAULT_REFRACTION, *, algorithm=None,
              surface="triangles", spacing=None, earth_radius=WGS84_SEMI_MAJOR_AXIS_M,
-             threads=None, progress=None):
-    """Which vertices an observer sees.
+             threads=None, progress=None, mode="normal", visible_value=None,
+             invisible_value=None, out_of_range_value=None):
+    """Which vertices an observer sees, or what it would take to see them.
 
-    Vertex v is visible when the segment from (ox, oy, s(ox, oy) + observer_height) to
-    (i, j, H[j, i] + target_height) never passes strictly below the surface, and, with
-    ``max_distance``, when v lies within that horizontal distance. A line of sight is
-    unchanged by scaling x, y and z, so rectangular pixels are exact too.
+    Vertex v is visible when the segment from the eye E = (ox, oy, s(ox, oy) +
+    observer_height) to the target top (i, j, H[j, i] + target_height) never passes
+    strictly below the surface, and, with ``max_distance``, when v lies within that
+    horizontal distance. A line of sight is unchanged by scaling x, y and z, so
+    rectangular pixels are exact too.
+
+    The maths of the other modes. Let t in (0, 1) run along the segment, and let
+    (t_k, sigma_k) be its breakpoints (module docstring: the surface is linear between
+    them), sigma_k lowered by the curvature drop. The gap between segment and surface is
+    linear on every piece, so the segment clears the surface exactly when
+    z0 + (z1 - z0) t_k >= sigma_k for every k (z0 the eye, z1 the target top, lowered like
+    the surface). Raising only the target top, that reads z1 >= z0 + M with
+    M = max_k (sigma_k - z0) / t_k, the steepest slope from the eye to a breakpoint; so
+    the smallest target height h >= 0 above the ground H(v) (lowered) that is visible is
+    ``max(0, z0 + M - H(v))``, and 0 when nothing lies between. Raising only the eye,
+    it reads z0 >= N with N = max_k (sigma_k - z1 t_k) / (1 - t_k), so the smallest
+    observer height >= 0 that sees the target top is ``max(0, N - s(ox, oy))``. At those
+    heights the segment touches the surface, which counts as visible: the set of heights
+    that see v is exactly [threshold, inf). One C walk per vertex finds M or N, skipping
+    max-mipmap tiles that lie below the line the bound found so far defines
+    (``cext/terrain.c``, ``hf_viewshed_threshold``); ``algos.terrain_ref`` holds the
+    rational-arithmetic reference and the tests check both against brute force.
 
     Parameters
     ----------
     heights, spacing, algorithm, surface, threads
-        As in :func:`horizon`.
+        As in :func:`horizon`. A one-row or one-column raster is a line: its surface is
+        the polyline through its samples, and observers must lie on it.
     observer : (x, y) or (N, 2) array
         Grid coordinates (column, row; fractions allowed) of the stored array, counted the
         same way on every input; a georeferenced field converts map coordinates with
         :meth:`HeightField.map_to_grid`.
-    observer_height, target_height : float
-        Lengths above the surface, in the field's unit (metres for a metre DEM).
+    observer_height : float, optional
+        The eye above the surface, in the field's unit (default 1.75: metres for a metre
+        DEM). Negative puts the eye below the ground, as GDAL and xarray-spatial allow:
+        the surface on the ray's first linear piece (the triangle the ray leaves the
+        observer through, the peers' "observer's own cell") then does not block, and the
+        rest is as above. For heights >= 0 that piece can never block, so the rule is the
+        same for every height. Not used with ``mode="observer"``, which computes it.
+    target_height : float
+        The target above the surface, in the field's unit. Negative puts the target top
+        below the ground; as for the eye, the ray's last linear piece (the target's own
+        triangle) then does not block. Must be 0 with ``mode="dem"`` or ``"ground"``,
+        which compute it.
     max_distance : float, optional
-        Horizontal length in the field's unit; None: unlimited.
+        Horizontal length in the field's unit; None: unlimited. Vertices beyond it are
+        *out of range*.
     curvature : bool
         Lower the surface at map distance d by (1 - refraction) d^2 / (2 R), as GDAL's
         and GRASS's viewsheds do, applied at the breakpoints. Needs a real unit (spacing
@@ -1047,33 +1156,88 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
         its ``params["unit_metres"]`` (1 for a raw array: spacing in metres).
     progress : callable, optional
         Called as ``progress(done, total)`` after each observer (in memory only).
+    mode : {"normal", "dem", "ground", "observer", "angle"}
+        What each vertex gets (one observer for every mode but "normal"):
+
+        * ``"normal"``: visibility (GDAL's ``-om NORMAL``);
+        * ``"ground"``: the smallest target height >= 0 above the ground at which the
+          vertex is visible, in the field's unit (GDAL's ``-om GROUND``);
+        * ``"dem"``: that target's elevation, H(v) + the ground value, in the field's
+          unit (GDAL's ``-om DEM``);
+        * ``"observer"``: the smallest observer height >= 0 above the ground from which
+          the target top (with ``target_height``) is visible, in the field's unit:
+          xarray-spatial's ``min_observable_height``, exactly rather than by bisection;
+        * ``"angle"``: the vertical view angle from the eye to the target top, radians
+          above the horizontal, ``atan2(dz, d)`` over map distance d (curvature lowers the
+          target); +-pi/2 (0 at equal heights) at a vertex under the eye. The angle does
+          not depend on visibility: combine with ``"normal"`` for xarray-spatial's
+          output (its angle is ``90 + degrees(angle)``, -1 where invisible).
+    visible_value, invisible_value, out_of_range_value : float, optional
+        GDAL's ``-vv``, ``-iv`` and ``-ov``. In mode ``"normal"`` (one observer), giving
+        any of them returns these values instead of a bool; the others default to 1, 0
+        and 0. ``out_of_range_value`` also applies to the other modes (default NaN
+        there); the visible and invisible values do not.
 
     Returns
     -------
-    bool (rows, cols) for one observer, else uint16 (rows, cols)
-        Visible (or the count of observers that see the vertex), in the input's
-        orientation. A void vertex is False (0): the field's ``nodata_mask`` marks it, and
-        writers store it as nodata. A DataArray gives a DataArray.
+    ndarray (rows, cols), in the input's orientation
+        * ``"normal"``, no values given: bool (one observer; True visible) or uint16
+          (the count of observers that see the vertex). A void vertex is False (0): the
+          field's ``nodata_mask`` marks it, and writers store it as nodata.
+        * ``"normal"`` with values: uint8 when all three values are integers in
+          [0, 254], voids 255 (:data:`VIEWSHED_UINT8_NODATA`, the files' nodata);
+          otherwise float64, voids NaN.
+        * other modes: float64, voids NaN, out of range ``out_of_range_value``.
+
+        A DataArray gives a DataArray, with the mode, unit and values as attributes.
 
     Raises
     ------
     ValueError
         An observer outside the footprint or on a cell touching a void (its ground
-        height is unknown), and every bad argument, named.
+        height is unknown); a mode other than "normal", or output values, with several
+        observers or on a dask array (the tiled viewshed gives visibility only); and
+        every bad argument, named.
 
     A dask array (or a HeightField holding one) gives a lazy result: each observer's
     window of ``max_distance`` (finite) is cut out and computed in memory
     (:func:`algos.tiled.tiled_viewshed`).
     """
+    if mode not in VIEWSHED_MODES:
+        raise ValueError(f"mode: expected one of {', '.join(VIEWSHED_MODES)}, got {mode!r}")
+    values_given = any(v is not None for v in (visible_value, invisible_value,
+                                               out_of_range_value))
+    if mode != "normal":
+        for name, value in (("visible_value", visible_value),
+                            ("invisible_value", invisible_value)):
+            if value is not None:
+                raise ValueError(f"{name}: applies to mode='normal' only (mode={mode!r} "
+                                 "gives a number per vertex)")
     if is_dataarray(heights):
+        unit = {"normal": "1 visible, 0 not" if np.ndim(observer) == 1
+                else "observers that see the vertex", "angle": "radians",
+                "ground": "height unit", "dem": "height unit", "observer": "height unit"}[mode]
+        if mode == "normal" and values_given:
+            unit = "output values"
+        attrs = dict(units=unit, mode=mode, observer_height=_attr(observer_height),
+                     target_height=target_height, max_distance=_attr(max_distance),
+                     curvature=int(bool(curvature)), refraction=float(refraction))
+        for name, value in (("visible_value", visible_value),
+                            ("invisible_value", invisible_value),
+                            ("out_of_range_value", out_of_range_value)):
+            if value is not None:
+                attrs[name] = value
         return _to_dataarray(heights, lambda f: viewshed(
             f, observer, observer_height, target_height, max_distance, curvature, refraction,
-            algorithm=algorithm, surface=surface, earth_radius=earth_radius, threads=threads),
-            "viewshed", dict(units="1 visible, 0 not" if np.ndim(observer) == 1
-                             else "observers that see the vertex",
-                             observer_height=observer_height, target_height=target_height,
-                             max_distance=_attr(max_distance), curvature=int(bool(curvature)),
-                             refraction=float(refraction)))
+            algorithm=algorithm, surface=surface, earth_radius=earth_radius, threads=threads,
+            mode=mode, visible_value=visible_value, invisible_value=invisible_value,
+            out_of_range_value=out_of_range_value), "viewshed", attrs)
+    if is_dask(heights) or (isinstance(heights, HeightField) and is_dask(heights.heights)):
+        if mode != "normal" or values_given:
+            raise ValueError(f"mode: the tiled (dask) viewshed gives visibility only (mode "
+                             f"'normal', no output values), got mode={mode!r}"
+                             f"{' with output values' if values_given else ''}; compute "
+                             "the observer's window in memory instead")
     if is_dask(heights):
         return tiled_viewshed(viewshed, heights, observer, max_distance, spacing,
                               observer_height=observer_height, target_height=target_height,
@@ -1081,10 +1245,14 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
                               refraction=refraction, earth_radius=earth_radius,
                               threads=threads)
     _check_surface(surface)
+    heights, crop = _thicken(heights, observer)
     grid = _prepare(heights, spacing)
     h = grid.h
     given = np.asarray(observer, dtype=np.float64) if np.ndim(observer) else observer
     obs, single = _observers(given, h)
+    if not single and (mode != "normal" or values_given):
+        raise ValueError(f"observer: mode={mode!r}{' and output values' if values_given else ''}"
+                         f" need one observer, got {len(obs)} (several give a count)")
     if grid.field is not None:
         obs = np.column_stack([obs[:, 0], grid.field.north_up_row(obs[:, 1])])
     if grid.void is not None:
@@ -1093,8 +1261,12 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
                 raise ValueError(f"observer[{k}]: ({np.atleast_2d(given)[k][0]:g}, "
                                  f"{np.atleast_2d(given)[k][1]:g}) stands on a cell touching a "
                                  "void (nodata) vertex: its ground height is unknown")
-    oh = check_length(observer_height, "observer_height", allow_none=False) / grid.z_scale
-    th = check_length(target_height, "target_height", allow_none=False) / grid.z_scale
+    oh = _height_above(DEFAULT_OBSERVER_HEIGHT if observer_height is None else observer_height,
+                       "observer_height") / grid.z_scale
+    th = _height_above(target_height, "target_height") / grid.z_scale
+    if mode in ("dem", "ground") and th != 0:
+        raise ValueError(f"target_height: mode={mode!r} computes the target height; leave "
+                         f"target_height at 0, got {target_height!r}")
     md = check_length(max_distance, "max_distance")
     if not isinstance(curvature, (bool, np.bool_)):
         raise TypeError(f"curvature: expected a bool, got {curvature!r}")
@@ -1114,6 +1286,14 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
             raise ValueError(f"earth_radius: expected a positive length, got {earth_radius!r}")
         radius /= grid.unit_metres
         drop = (1.0 - r) / (2.0 * radius / grid.dx)
+    if mode == "normal":
+        vv = 1.0 if visible_value is None else _output_value(visible_value, "visible_value")
+        iv = 0.0 if invisible_value is None else _output_value(invisible_value, "invisible_value")
+        ov = 0.0 if out_of_range_value is None else _output_value(out_of_range_value,
+                                                                   "out_of_range_value")
+    else:
+        ov = math.nan if out_of_range_value is None else _output_value(
+            out_of_range_value, "out_of_range_value", allow_nan=True)
     if algorithm is None or algorithm == "auto":
         algorithm = "dda_maxmip"
     if algorithm not in VIEWSHED_ALGORITHMS:
@@ -1121,27 +1301,67 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
                          f"got {algorithm!r}")
     nthreads = resolve_threads(threads)
     stats = TerrainStats(algorithm)
-    mip = _mipmap(h) if algorithm == "dda_maxmip" else None
-    count = np.zeros(h.shape, dtype=np.uint16)
+    mip = _mipmap(h) if algorithm == "dda_maxmip" and mode not in ("angle",) else None
     jj, ii = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+
+    def in_range(ox, oy):
+        if md is None:
+            return np.ones(h.shape, dtype=bool)
+        if grid.square:
+            mdc = md / grid.dx
+            return (ii - ox) ** 2 + (jj - oy) ** 2 <= mdc * mdc
+        return ((ii - ox) * grid.dx) ** 2 + ((jj - oy) * grid.dy) ** 2 <= md * md
+
+    if mode != "normal":
+        ox, oy = (float(v) for v in obs[0])
+        ground = _surface_float(h, ox, oy)
+        z0 = ground + oh
+        sink = drop * ((ii - ox) ** 2 + (jj - oy) ** 2)  # the drop at each vertex, cells
+        with np.errstate(invalid="ignore"):
+            if mode in ("dem", "ground"):
+                m = _viewshed_threshold(h, ox, oy, z0, 0.0, drop, 0, algorithm, nthreads, mip,
+                                        stats)
+                need = np.maximum(0.0, z0 + m - (h - sink))  # -inf: nothing between, 0
+                out = need if mode == "ground" else h + need
+            elif mode == "observer":
+                n = _viewshed_threshold(h, ox, oy, z0, th, drop, 1, algorithm, nthreads, mip,
+                                        stats)
+                out = np.maximum(0.0, n - ground)
+            else:
+                dist = np.hypot((ii - ox) * grid.dx, (jj - oy) * grid.dy) / grid.z_scale
+                out = np.arctan2(h + th - sink - z0, dist)
+        if mode != "angle":
+            out = out * grid.z_scale
+        out = np.where(in_range(ox, oy), out, ov)
+        grid.voids_to(out, math.nan)
+        if progress is not None:
+            progress(1, 1)
+        LAST_STATS.__dict__.update(stats.__dict__)
+        result = np.ascontiguousarray(grid.to_north_up(out))
+        return result if crop is None else np.ascontiguousarray(result[crop])
+    count = np.zeros(h.shape, dtype=np.uint16)
     valid = h if grid.void is None else np.where(grid.void, h[~grid.void].min(), h)
     scale = _rounding_scale(valid)
     for k, (ox, oy) in enumerate(obs):
         seen = _viewshed_one(h, float(ox), float(oy), oh, th, drop, algorithm, nthreads, mip,
                              stats, scale)
-        if md is not None:
-            if grid.square:
-                mdc = md / grid.dx
-                seen &= (ii - ox) ** 2 + (jj - oy) ** 2 <= mdc * mdc
-            else:
-                seen &= ((ii - ox) * grid.dx) ** 2 + ((jj - oy) * grid.dy) ** 2 <= md * md
+        within = in_range(ox, oy)
+        if values_given:
+            values = np.where(within, np.where(seen, vv, iv), ov)
+        seen &= within
         count += seen
         if progress is not None:
             progress(k + 1, len(obs))
     grid.voids_to(count, 0)
     LAST_STATS.__dict__.update(stats.__dict__)
-    result = count.astype(bool) if single else count
-    return np.ascontiguousarray(grid.to_north_up(result))
+    if values_given:
+        small = all(v == int(v) and 0 <= v < VIEWSHED_UINT8_NODATA for v in (vv, iv, ov))
+        result = values.astype(np.uint8) if small else values
+        grid.voids_to(result, VIEWSHED_UINT8_NODATA if small else math.nan)
+    else:
+        result = count.astype(bool) if single else count
+    result = np.ascontiguousarray(grid.to_north_up(result))
+    return result if crop is None else np.ascontiguousarray(result[crop])
 
 
 # ---- timing entry for the benchmarks ------------------------------------------------------

@@ -22,7 +22,7 @@ import math
 from fractions import Fraction
 
 __all__ = ["surface_exact", "horizon_tangent_exact", "horizon_reference", "line_of_sight_exact",
-           "viewshed_reference"]
+           "viewshed_reference", "viewshed_threshold_exact"]
 
 
 def surface_exact(heights, x: Fraction, y: Fraction) -> Fraction:
@@ -145,3 +145,34 @@ def viewshed_reference(heights, observer, observer_height, target_height=0.0, dr
     return [[line_of_sight_exact(heights, (ox, oy), z0, (i, j), Fraction(heights[j][i]) + th,
                                  Fraction(drop))
              for i in range(cols)] for j in range(rows)]
+
+
+def viewshed_threshold_exact(heights, observer, z0, target, z_target, kind, drop=Fraction(0)):
+    """The bound a line of sight from (observer, z0) to (target, z_target) puts on one of
+    its ends, exactly, over the breakpoints t in (0, 1) of the segment, with the surface
+    lowered by drop * d^2 (the target top sinks with it, as in line_of_sight_exact):
+
+    * ``kind="target"``: max of (sigma - z0) / t; the segment clears the surface exactly
+      when the (lowered) target top is at least z0 + that;
+    * ``kind="observer"``: max of (sigma - z1 t) / (1 - t), z1 the lowered target top; the
+      segment clears the surface exactly when the eye is at least that.
+
+    None when the segment has no breakpoint (nothing lies between its ends)."""
+    rows, cols = len(heights), len(heights[0])
+    ox, oy = Fraction(observer[0]), Fraction(observer[1])
+    tx, ty = Fraction(target[0]), Fraction(target[1])
+    dx, dy = tx - ox, ty - oy
+    if dx == 0 and dy == 0:
+        return None
+    z0, drop = Fraction(z0), Fraction(drop)
+    length2 = dx * dx + dy * dy
+    z1 = Fraction(z_target) - drop * length2
+    best = None
+    for t in _crossings(ox, oy, dx, dy, Fraction(1), cols, rows):
+        if t >= 1:
+            continue
+        sigma = surface_exact(heights, ox + t * dx, oy + t * dy) - drop * length2 * t * t
+        r = (sigma - z0) / t if kind == "target" else (sigma - z1 * t) / (1 - t)
+        if best is None or r > best:
+            best = r
+    return best

@@ -794,6 +794,50 @@ static PyObject *viewshed(PyObject *self, PyObject *args) {
     return stats_tuple(&st, elapsed_ns);
 }
 
+PyDoc_STRVAR(
+    viewshed_threshold_doc,
+    "viewshed_threshold(heights, mip, ox, oy, z0, target_height, drop, kind, start, stop,\n"
+    "out) -> (ns, cells, skips)\n\nThe bound on the target top (kind 0) or the eye "
+    "(kind 1)\nthat a line of sight to every target vertex needs: float64 out, -inf "
+    "where\nnothing lies between. Private: use algos.viewshed(mode=...).");
+
+static PyObject *viewshed_threshold(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_mip, *o_out;
+    double ox, oy, z0, th, drop;
+    int kind;
+    long long start, stop;
+    const double *H;
+    int64_t rows, cols;
+    hf_hz_mip mip;
+    int has_mip;
+    void *out;
+    hf_hz_stats st = {0, 0};
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOdddddiLLO", &o_h, &o_mip, &ox, &oy, &z0, &th, &drop, &kind,
+                          &start, &stop, &o_out))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
+        !get_mip(o_mip, rows, cols, &mip, &has_mip))
+        return NULL;
+    if (!(ox >= 0 && ox <= (double)(cols - 1) && oy >= 0 && oy <= (double)(rows - 1)) ||
+        !isfinite(z0) || !isfinite(th) || !isfinite(drop)) {
+        PyErr_SetString(PyExc_ValueError, "observer: outside the footprint, or a non-finite value");
+        return NULL;
+    }
+    if (kind != HF_VS_TARGET && kind != HF_VS_OBSERVER) {
+        PyErr_Format(PyExc_ValueError, "kind: expected 0 (target) or 1 (observer), got %d", kind);
+        return NULL;
+    }
+    if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    timed_begin(&section);
+    hf_viewshed_threshold(H, rows, cols, has_mip ? &mip : NULL, ox, oy, z0, th, drop, kind, start,
+                          stop, (double *)out, &st);
+    elapsed_ns = timed_end(&section);
+    return stats_tuple(&st, elapsed_ns);
+}
+
 PyDoc_STRVAR(horizon_march_doc,
              "horizon_march(heights, dx, dy, step, max_distance, zmax, start, stop, out)\n"
              "-> (ns, samples, 0)\n\nThe r.horizon-style fixed-step marcher. Private: use\n"
@@ -1054,6 +1098,7 @@ static PyMethodDef methods[] = {
     {"horizon_sweep", horizon_sweep, METH_VARARGS, horizon_sweep_doc},
     {"horizon_walk", horizon_walk, METH_VARARGS, horizon_walk_doc},
     {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
+    {"viewshed_threshold", viewshed_threshold, METH_VARARGS, viewshed_threshold_doc},
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},
     {"raster", raster, METH_VARARGS, raster_doc},
     {"intersect_cone", intersect_cone, METH_VARARGS, intersect_cone_doc},

@@ -426,6 +426,69 @@ void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *m
     }
 }
 
+/* ---- viewshed thresholds ------------------------------------------------------------ */
+
+/* The segment from the eye (t = 0, height z0) to the target top (t = 1, height z1) clears
+ * a breakpoint (t, sigma) when z0 + (z1 - z0) t >= sigma. Raising the target: z1 >= z0 +
+ * (sigma - z0) / t; raising the eye: z0 >= (sigma - z1 t) / (1 - t). Each bound is one
+ * maximum over the breakpoints in (0, 1), which this walk returns. */
+typedef struct {
+    double z0, z1, drop2, best;
+    int kind;
+} threshold_ctx;
+
+static int threshold_visit(void *vctx, double t, double s, double delta) {
+    threshold_ctx *c = vctx;
+    double sigma, r;
+    if (t > 1.0 - 1e-12) return 0; /* the target itself never counts (see los_visit) */
+    sigma = s + delta - c->drop2 * t * t;
+    r = c->kind == HF_VS_TARGET ? (sigma - c->z0) / t : (sigma - c->z1 * t) / (1.0 - t);
+    if (r > c->best) c->best = r;
+    return 0;
+}
+
+/* A tile is skipped when no point of it can raise the bound: its highest surface lies on
+ * or below the line that the bound found so far defines (the lowered surface is lower). */
+static int threshold_skip(const void *vctx, double tile_max, double t_in, double t_exit) {
+    const threshold_ctx *c = vctx;
+    double slope, base, low;
+    if (c->best == -HZ_INF) return 0;
+    if (c->kind == HF_VS_TARGET) {
+        base = c->z0;
+        slope = c->best;
+    } else {
+        base = c->best;
+        slope = c->z1 - c->best;
+    }
+    low = base + slope * (slope >= 0 ? t_in : t_exit);
+    return tile_max < low;
+}
+
+void hf_viewshed_threshold(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
+                           double ox, double oy, double z0, double target_height, double drop,
+                           int kind, int64_t start, int64_t stop, double *out, hf_hz_stats *stats) {
+    const double s_observer = surface_at(H, rows, cols, ox, oy);
+    for (int64_t v = start; v < stop; v++) {
+        int64_t j = v / cols, i = v - j * cols;
+        double dx = (double)i - ox, dy = (double)j - oy;
+        walk_ray r;
+        threshold_ctx c;
+        if (dx == 0.0 && dy == 0.0) { /* no breakpoint between eye and target */
+            out[v] = -HZ_INF;
+            continue;
+        }
+        walk_init(&r, rows, cols, ox, oy, dx, dy);
+        c.kind = kind;
+        c.z0 = z0;
+        c.drop2 = drop * (dx * dx + dy * dy);
+        c.z1 = H[v] - c.drop2 + target_height; /* the target sinks with the surface */
+        c.best = -HZ_INF;
+        walk_ray_breakpoints(H, rows, cols, mip, &r, 1.0, s_observer, threshold_visit,
+                             threshold_skip, &c, stats);
+        out[v] = c.best;
+    }
+}
+
 /* ---- the r.horizon-style marcher ---------------------------------------------------- */
 
 void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,

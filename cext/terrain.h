@@ -87,6 +87,20 @@ void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *m
                  double oy, double z0, double target_height, double drop, double eps, int64_t start,
                  int64_t stop, uint8_t *out, hf_hz_stats *stats);
 
+/* Viewshed thresholds (the kinds of hf_viewshed_threshold). */
+enum { HF_VS_TARGET = 0, HF_VS_OBSERVER = 1 };
+
+/* For every target vertex in [start, stop), the maximum over the breakpoints t in (0, 1)
+ * of the segment from the observer (ox, oy, z0) to the vertex, of
+ *   HF_VS_TARGET:   (sigma - z0) / t          (the target top must reach z0 + that),
+ *   HF_VS_OBSERVER: (sigma - z1 t) / (1 - t)  (the eye must reach that),
+ * where sigma is the surface lowered by drop * d^2 and z1 = H + target_height - drop * D^2
+ * the target top (D the target's distance). -inf where the segment has no breakpoint (the
+ * observer's own vertex, or a neighbour along an edge). mip may be NULL. */
+void hf_viewshed_threshold(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
+                           double ox, double oy, double z0, double target_height, double drop,
+                           int kind, int64_t start, int64_t stop, double *out, hf_hz_stats *stats);
+
 /* The r.horizon-style marcher: samples the surface every `step` along the unit direction,
  * stopping at the footprint, at max_distance, or once (zmax - H) / distance <= best. */
 void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,

@@ -226,7 +226,7 @@ def test_heightfield_units_and_north():
     (lambda: T.shadows(np.zeros((3, 3)), 0, 95), "elevation"),
     (lambda: T.viewshed(np.zeros((3, 3)), (5, 0)), r"observer\[0\]"),
     (lambda: T.viewshed(np.zeros((3, 3)), [[0, 0], [1, np.nan]]), r"observer\[1\]"),
-    (lambda: T.viewshed(np.zeros((3, 3)), (1, 1), observer_height=-1), "observer_height"),
+    (lambda: T.viewshed(np.zeros((3, 3)), (1, 1), observer_height=np.nan), "observer_height"),
     (lambda: T.viewshed(np.zeros((3, 3)), (1, 1), curvature=True, spacing=1, refraction=2),
      "refraction"),
     (lambda: T.sky_view_factor(np.zeros((3, 3)), 0), "n_azimuths"),
