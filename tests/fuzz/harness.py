@@ -16,7 +16,9 @@ output mode and option. :func:`check` runs it and asserts the invariants:
 * cells are 8-adjacent, never repeat and lie in the grid; runs are consistent with them;
 * hits lie inside ``[tmin, tmax]`` and their cells in the grid;
 * horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9;
-  the viewshed's plain and mipmap walks agree bit for bit.
+  the viewshed's plain and mipmap walks agree bit for bit; in its other modes (every
+  ``algos.terrain.VIEWSHED_MODES``: the C threshold walk and the angle) they agree to
+  rounding, heights are >= 0 and angles in [-pi/2, pi/2].
 
 The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -138,6 +140,7 @@ def decode(data: bytes) -> dict:
 
 
 HORIZON_EXACT = tuple(n for n, a in algos.HORIZON_ALGORITHMS.items() if a.exact)
+VIEWSHED_MODES = algos.terrain.VIEWSHED_MODES
 
 
 def _decode_terrain(r: Reader, op: str) -> dict:
@@ -156,6 +159,8 @@ def _decode_terrain(r: Reader, op: str) -> dict:
         case["observer"] = [r.double(16.0), r.double(16.0)]
         case["observer_height"] = r.double(2.0) if r.byte() % 4 == 0 else abs(r.small())
         case["kernel"] = tuple(algos.VIEWSHED_ALGORITHMS)[r.byte() % 2]
+        # past the end of the input the mode is "normal": older corpus entries keep their call
+        case["mode"] = VIEWSHED_MODES[r.byte() % len(VIEWSHED_MODES)]
     return case
 
 
@@ -164,7 +169,7 @@ def _call_terrain(case, kernel):
     if case["op"] == "horizon":
         return algos.horizon(case["heights"], case["azimuth"], md, algorithm=kernel)
     return algos.viewshed(case["heights"], case["observer"], case["observer_height"],
-                          max_distance=md, algorithm=kernel)
+                          max_distance=md, algorithm=kernel, mode=case.get("mode", "normal"))
 
 
 def _check_terrain(case, result):
@@ -178,6 +183,22 @@ def _check_terrain(case, result):
                 continue
             assert np.allclose(got, result, rtol=0, atol=1e-9), \
                 f"{case['kernel']} and {other} differ"
+        return
+    mode = case.get("mode", "normal")
+    if mode != "normal":
+        # the thresholds (hf_viewshed_threshold) and angles: float64, NaN only at voids and
+        # out of range; the plain and mipmap walks agree to rounding
+        assert result.dtype == np.float64 and result.shape == case["heights"].shape
+        if mode == "angle":
+            ok = np.isnan(result) | ((result >= -math.pi / 2) & (result <= math.pi / 2))
+            assert ok.all(), "an angle out of range"
+        else:
+            assert np.all(np.isnan(result) | (result >= 0) | (mode == "dem")), "a negative height"
+        scale = 1.0 + float(np.nanmax(np.abs(case["heights"]))) + abs(case["observer_height"])
+        for other in algos.VIEWSHED_ALGORITHMS:
+            got = _call_terrain(case, other)
+            assert np.allclose(got, result, rtol=1e-7, atol=1e-7 * scale, equal_nan=True), \
+                f"{case['kernel']} and {other} differ in mode {mode}"
         return
     assert result.dtype == bool and result.shape == case["heights"].shape
     for other in algos.VIEWSHED_ALGORITHMS:
