@@ -244,9 +244,10 @@ def _to_utm(ds, raw, mask, band):
 
 def product_nodata(dtype):
     """``(file dtype, nodata)`` of a product array's dtype: float -> (float32, NaN), bool
-    -> (uint8, 255), integers -> (uint16, 65535)."""
+    and uint8 (a viewshed's output values) -> (uint8, 255), other integers -> (uint16,
+    65535)."""
     dtype = np.dtype(dtype)
-    if dtype.kind == "b":
+    if dtype.kind == "b" or dtype == np.uint8:
         return np.dtype(np.uint8), BOOL_NODATA
     if dtype.kind in "iu":
         return np.dtype(np.uint16), COUNT_NODATA

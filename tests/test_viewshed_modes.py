@@ -434,3 +434,86 @@ def test_min_observable_height_monotonicity():
     assert T.viewshed(h, (0, 2), 32.0)[2, 4]
     assert T.viewshed(h, (0, 2), 33.0)[2, 4]
     assert not T.viewshed(h, (0, 2), 31.999)[2, 4]
+
+
+# ---- the command line ----------------------------------------------------------------------
+
+def _small_tif(tmp_path):
+    rasterio = pytest.importorskip("rasterio")
+    from affine import Affine
+
+    rng = np.random.default_rng(12)
+    h = (np.cumsum(rng.normal(size=(16, 20)), axis=1) * 5).astype(np.float32)
+    h[3, 15] = -9999.0  # a void
+    path = str(tmp_path / "dem.tif")
+    with rasterio.open(path, "w", driver="GTiff", height=16, width=20, count=1,
+                       dtype="float32", crs="EPSG:32615", nodata=-9999.0,
+                       transform=Affine(30.0, 0, 600000.0, 0, -30.0, 3650000.0)) as dst:
+        dst.write(h, 1)
+    return rasterio, path
+
+
+def _run(args, capsys):
+    from bench.cli import main
+
+    code = main(args)
+    return code, capsys.readouterr()
+
+
+def test_cli_modes_and_values_end_to_end(tmp_path, capsys):
+    """hftrace viewshed --mode/-om and --visible-value/-vv etc. on a small GeoTIFF: the files
+    equal the API on the same field, and record mode, unit and values as tags."""
+    import datasets_gen
+
+    rasterio, path = _small_tif(tmp_path)
+    field = datasets_gen.load_file(path)
+    common = [path, "--observer-pixel", "6,8", "--max-distance", "240", "--no-progress"]
+    # GDAL's own spelling of the options
+    code, cap = _run(["viewshed", *common, "-vv", "200", "-iv", "7", "-ov", "3",
+                      "--out", str(tmp_path / "vals")], capsys)
+    assert code == 0, cap.err
+    want = algos_viewshed(field, 1.75, max_distance=240.0, visible_value=200, invisible_value=7,
+                          out_of_range_value=3)
+    assert want.dtype == np.uint8 and set(np.unique(want)) == {3, 7, 200, 255}
+    with rasterio.open(tmp_path / "vals.tif") as src:
+        assert src.dtypes[0] == "uint8" and src.nodata == 255
+        tags = src.tags()
+        assert tags["mode"] == "normal" and tags["visible_value"] == "200.0"
+        assert tags["invisible_value"] == "7.0" and tags["out_of_range_value"] == "3.0"
+        np.testing.assert_array_equal(src.read(1), want)
+    for mode, unit in (("ground", None), ("dem", None), ("observer", None), ("angle", "degrees")):
+        out = tmp_path / f"vs_{mode}"
+        code, cap = _run(["viewshed", *common, "--mode", mode, "--out", str(out)], capsys)
+        assert code == 0, cap.err
+        want = algos_viewshed(field, None if mode == "observer" else 1.75, max_distance=240.0,
+                              mode=mode)
+        if mode == "angle":
+            want = np.degrees(want)
+        with rasterio.open(f"{out}.tif") as src:
+            tags = src.tags()
+            assert tags["mode"] == mode
+            assert tags["units"] == (unit or field.unit), tags
+            got = src.read(1, masked=True)
+        assert got.mask[3, 15] and np.isnan(want[3, 15])
+        np.testing.assert_allclose(got.filled(np.nan), want.astype(np.float32), rtol=1e-6,
+                                   atol=1e-4, equal_nan=True, err_msg=mode)
+    assert np.isfinite(want).sum() < want.size - 1  # out of range is nodata by default
+
+
+def algos_viewshed(field, observer_height, **kwargs):
+    import algos
+
+    return algos.viewshed(field, (6.0, 8.0), observer_height, **kwargs)
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--mode", "ground", "--visible-value", "1"], "--visible-value: applies to --mode normal"),
+    (["--mode", "observer", "--observer-height", "2"], "--observer-height: --mode observer"),
+    (["--mode", "ground", "--observer-pixel", "2,2"], "--observer: --mode ground need one"),
+    (["-om", "dem", "--dask", "local:1", "--max-distance", "60"], "--mode: --dask gives"),
+])
+def test_cli_refuses_contradicting_options(tmp_path, capsys, args, match):
+    _, path = _small_tif(tmp_path)
+    code, cap = _run(["viewshed", path, "--observer-pixel", "6,8", "--no-progress",
+                      "--out", str(tmp_path / "x"), *args], capsys)
+    assert code == 2 and match in cap.err, cap.err

@@ -15,6 +15,14 @@ What a user's file gets (docs/CONVENTIONS.md, "Terrain products"):
   instead (explicitly);
 * outputs are written on the input's grid and orientation, with its CRS, geotransform and
   nodata, and the product's units and parameters as tags. Horizons are in degrees.
+* ``viewshed --mode`` chooses GDAL's outputs (``-om``): ``normal`` visibility, ``ground``
+  the smallest visible target height above the ground and ``dem`` its elevation (in the
+  pixel size's unit: metres on a projected DEM), ``observer`` the smallest observer height
+  that sees the vertex, ``angle`` the vertical view angle in degrees (the API returns
+  radians). ``--visible-value/--invisible-value/--out-of-range-value`` (GDAL's ``-vv``,
+  ``-iv``, ``-ov``, accepted under those names too) set the values of the normal mode
+  (a uint8 file when all are integers in [0, 254], else float32) and the out-of-range
+  value of the others (default nodata). The mode, unit and values are recorded as tags.
 
 ``--dask`` computes the products tile by tile on a cluster (``bench/cli/terrain_dask.py``).
 """
@@ -125,9 +133,34 @@ def load_terrain(args, lazy_chunks=None):
     return field
 
 
+def _viewshed_values(args):
+    """The viewshed's output values given on the command line, by API keyword."""
+    return {name: getattr(args, name) for name in ("visible_value", "invisible_value",
+                                                    "out_of_range_value")
+            if getattr(args, name) is not None}
+
+
 def check_options(args):
     """Options that contradict each other are refused; defaults that depend on others are
-    filled in (``--n-azimuths`` 16 unless ``--azimuths`` names them)."""
+    filled in (``--n-azimuths`` 16 unless ``--azimuths`` names them; the observer height
+    1.75 unless ``--mode observer`` computes it)."""
+    if args.command == "viewshed":
+        values = _viewshed_values(args)
+        if args.mode == "observer":
+            if args.observer_height is not None:
+                raise ValueError("--observer-height: --mode observer computes the observer "
+                                 "height; leave it out")
+        elif args.observer_height is None:
+            args.observer_height = algos.terrain.DEFAULT_OBSERVER_HEIGHT
+        if args.mode != "normal":
+            for name in ("visible_value", "invisible_value"):
+                if name in values:
+                    raise ValueError(f"--{name.replace('_', '-')}: applies to --mode normal "
+                                     f"only (--mode {args.mode} gives a number per vertex)")
+        if args.dask and (args.mode != "normal" or values):
+            raise ValueError(f"--mode: --dask gives visibility only (--mode normal without "
+                             f"output values), got --mode {args.mode}"
+                             f"{' with output values' if values else ''}")
     if args.command == "svf":
         if args.azimuths and args.n_azimuths is not None:
             raise ValueError("--n-azimuths: --azimuths already names the azimuths; give one "
@@ -195,7 +228,8 @@ def product_options(args, field):
         options.update(azimuth=args.azimuth, elevation=args.elevation)
     else:
         options.update(observer_height=args.observer_height, target_height=args.target_height,
-                       curvature=args.curvature, refraction=args.refraction)
+                       curvature=args.curvature, refraction=args.refraction,
+                       mode=getattr(args, "mode", "normal"), **_viewshed_values(args))
     return options
 
 
@@ -212,7 +246,22 @@ def _bar(args, total, desc, unit):
 
 def _viewshed(args, field, obs, common, progress):
     """The viewshed of the observers ``obs`` (a bool map for one, else a count), observers
-    of one height in one ``algos.viewshed`` call."""
+    of one height in one ``algos.viewshed`` call; with ``--mode`` other than normal, or
+    output values, the one observer's map."""
+    values = _viewshed_values(args)
+    if args.mode != "normal" or values:
+        if len(obs) != 1:
+            raise ValueError(f"--observer: --mode {args.mode}"
+                             f"{' and output values' if values else ''} need one observer, "
+                             f"got {len(obs)} (several give a count)")
+        (col, row, height), = obs
+        if args.mode == "observer" and height is not None:
+            raise ValueError("--observer: --mode observer computes the observer height; give "
+                             "the observer without one")
+        return algos.viewshed(field, (col, row), args.observer_height if height is None
+                              else height, args.target_height, args.max_distance,
+                              curvature=args.curvature, refraction=args.refraction,
+                              mode=args.mode, progress=progress, **values, **common)
     heights = [args.observer_height if h is None else h for _, _, h in obs]
     count = None
     done = 0
@@ -275,6 +324,14 @@ def terrain_product(args):
         product = "viewshed"
         units = "1 = visible" if len(obs) == 1 else "observers that see the vertex"
         cmap = "Greens"
+        if args.mode == "angle":
+            result = np.degrees(result)  # files hold degrees, as horizons
+            units, cmap = "degrees", "magma"
+        elif args.mode != "normal":
+            units, cmap = field.unit, "viridis"
+        elif _viewshed_values(args):
+            units = "output values (see the tags visible_value, invisible_value, " \
+                    "out_of_range_value)"
     os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
     paths = save_product(args.out, result, field, product=product, units=units, params=params,
                          band_names=band_names, observers=marks, cmap=cmap, border=border)
@@ -360,10 +417,26 @@ def register(sub):
                            help="a CSV file of x,y[,height] lines (map coordinates)")
             p.add_argument("--observers-pixel", action="store_true",
                            help="--observers holds pixels (col,row[,height])")
-            p.add_argument("--observer-height", type=float, default=1.75,
-                           help="above the ground, in the unit of the pixel size")
+            p.add_argument("--observer-height", type=float, default=None,
+                           help="above the ground, in the unit of the pixel size (default "
+                                "1.75; negative: below the ground)")
             p.add_argument("--target-height", type=float, default=0.0,
                            help="above the ground, in the unit of the pixel size")
+            p.add_argument("--mode", "-om", default="normal",
+                           choices=algos.terrain.VIEWSHED_MODES,
+                           help="normal: visibility; ground: the smallest visible target "
+                                "height above the ground; dem: its elevation; observer: the "
+                                "smallest observer height that sees the vertex; angle: the "
+                                "vertical view angle (degrees). As gdal_viewshed -om")
+            p.add_argument("--visible-value", "-vv", type=float, default=None,
+                           help="--mode normal: the value of a visible vertex (default 1; "
+                                "as gdal_viewshed -vv)")
+            p.add_argument("--invisible-value", "-iv", type=float, default=None,
+                           help="--mode normal: the value of a hidden vertex (default 0; "
+                                "as gdal_viewshed -iv)")
+            p.add_argument("--out-of-range-value", "-ov", type=float, default=None,
+                           help="the value beyond --max-distance (default 0 in --mode "
+                                "normal, nodata in the others; as gdal_viewshed -ov)")
             p.add_argument("--curvature", action="store_true",
                            help="Earth curvature and refraction (as gdal_viewshed, r.viewshed)")
             p.add_argument("--refraction", type=float, default=algos.DEFAULT_REFRACTION,
