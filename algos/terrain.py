@@ -30,6 +30,16 @@ surface is the linear interpolation between the two ends of the edge or diagonal
   piece, so the segment passes strictly below the surface if and only if it does at a
   breakpoint. The target vertex itself never counts. Breakpoints within a rounding bound of
   the segment are decided exactly, in rational arithmetic.
+* **Viewshed thresholds.** With breakpoints (t_k, sigma_k), t_k in (0, 1), on the segment
+  from the eye (height z0) to the target top (z1), the segment clears the surface exactly
+  when z0 + (z1 - z0) t_k >= sigma_k for all k. So the smallest target height h >= 0
+  above the ground H(v) that is visible is max(0, z0 + M - H(v)) with
+  M = max_k (sigma_k - z0) / t_k (the steepest slope from the eye to a breakpoint), and
+  the smallest observer height is max(0, N - s(o)) with
+  N = max_k (sigma_k - z1 t_k) / (1 - t_k); both are 0 when nothing lies between. At the
+  threshold the segment touches the surface, which counts as visible. One walk per
+  vertex finds M or N, skipping mipmap tiles below the line the bound so far defines
+  (:func:`viewshed`, modes "ground", "dem" and "observer").
 
 Azimuths are degrees clockwise from north, and north is the -y edge (row 0), as in
 north-up rasters. An azimuth within 1e-9 degrees of a direction with slope p/q,
@@ -65,7 +75,8 @@ Voids
 -----
 A void vertex (NaN in a raw array, ``nodata_mask`` in a HeightField) is nodata in every
 output: NaN in horizons and sky-view factors, False in shadows and single viewsheds, 0 in
-viewshed counts (their writers store nodata there: :mod:`datasets_gen.raster`).
+viewshed counts, NaN in the viewshed's other modes and 255 in its uint8 output values
+(their writers store nodata there: :mod:`datasets_gen.raster`).
 For the rays, **a void blocks nothing**: it is an infinitely deep pit. Every point of a
 cell touching a void vertex lies below anything a ray could see, except the edges between
 two valid vertices, which keep their heights (they belong to the neighbouring valid
