@@ -1074,11 +1074,13 @@ def _height_above(value, name):
 
 
 def _thicken(heights, observer):
-    """A one-row or one-column input repeated to two rows (columns), and the slice that
-    crops a result back; ``(heights, None)`` for any other input. Along the one line the
-    repeated field's surface is the polyline through the samples, the line's own surface;
-    observers must lie on it."""
-    shape = heights.shape if isinstance(heights, HeightField) else np.shape(heights)
+    """A one-row or one-column array repeated to two rows (columns), and the slice that
+    crops a result back; ``(heights, None)`` for any other input (a HeightField has two
+    samples a side at least). Along the one line the repeated field's surface is the
+    polyline through the samples, the line's own surface; observers must lie on it."""
+    if isinstance(heights, (HeightField, str, bytes, dict)) or heights is None:
+        return heights, None
+    shape = np.shape(heights)
     if len(shape) != 2 or min(shape) != 1 or max(shape) > _kernels.MAX_GRID_SIDE:
         return heights, None
     rows, cols = shape
@@ -1089,15 +1091,7 @@ def _thicken(heights, observer):
                              f"{'row' if rows == 1 else 'column'} raster (a line)")
     axis = 0 if rows == 1 else 1
     crop = (slice(0, 1), slice(None)) if axis == 0 else (slice(None), slice(0, 1))
-    if not isinstance(heights, HeightField):
-        return np.repeat(np.asarray(heights), 2, axis=axis), crop
-    f = heights
-    mask = None if f.nodata_mask is None else np.repeat(np.asarray(f.nodata_mask), 2, axis=axis)
-    return HeightField(np.repeat(np.asarray(f.heights), 2, axis=axis), f.name,
-                       spacing=f.spacing, unit=f.unit, height_unit=f.height_unit, crs=f.crs,
-                       transform=f.transform,
-                       north=None if f.transform is not None else f.north,
-                       params=f.params, nodata_mask=mask), crop
+    return np.repeat(np.asarray(heights), 2, axis=axis), crop
 
 
 def viewshed(heights, observer, observer_height=None, target_height=0.0, max_distance=None,
@@ -1133,8 +1127,9 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     Parameters
     ----------
     heights, spacing, algorithm, surface, threads
-        As in :func:`horizon`. A one-row or one-column raster is a line: its surface is
-        the polyline through its samples, and observers must lie on it.
+        As in :func:`horizon`. A one-row or one-column array is a line: its surface is
+        the polyline through its samples, and observers must lie on it (a DataArray of
+        that shape is refused: it has no pixel size along its short side).
     observer : (x, y) or (N, 2) array
         Grid coordinates (column, row; fractions allowed) of the stored array, counted the
         same way on every input; a georeferenced field converts map coordinates with
@@ -1225,12 +1220,20 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
                 raise ValueError(f"{name}: applies to mode='normal' only (mode={mode!r} "
                                  "gives a number per vertex)")
     if is_dataarray(heights):
+        if heights.ndim == 2 and min(heights.shape) == 1:
+            raise ValueError(f"heights: a one-row or one-column DataArray {heights.shape} has no "
+                             "pixel size along its short side; pass its values "
+                             "(np.asarray(heights)) with spacing=(dx, dy)")
         unit = {"normal": "1 visible, 0 not" if np.ndim(observer) == 1
                 else "observers that see the vertex", "angle": "radians",
                 "ground": "height unit", "dem": "height unit", "observer": "height unit"}[mode]
         if mode == "normal" and values_given:
             unit = "output values"
-        attrs = dict(units=unit, mode=mode, observer_height=_attr(observer_height),
+        if mode in ("ground", "dem", "observer"):
+            unit = HeightField.from_dataarray(heights).unit
+        shown = DEFAULT_OBSERVER_HEIGHT if observer_height is None and mode != "observer" \
+            else observer_height
+        attrs = dict(units=unit, mode=mode, observer_height=_attr(shown),
                      target_height=target_height, max_distance=_attr(max_distance),
                      curvature=int(bool(curvature)), refraction=float(refraction))
         for name, value in (("visible_value", visible_value),

@@ -259,7 +259,7 @@ def test_dataarray_records_mode_unit_and_values():
     assert out.shape == r.shape and out.dims == r.dims
     np.testing.assert_array_equal(out.coords["x"].values, xs)
     np.testing.assert_array_equal(out.coords["y"].values, ys)
-    assert out.attrs["mode"] == "observer" and out.attrs["units"] == "height unit"
+    assert out.attrs["mode"] == "observer" and out.attrs["units"] == "cell"
     vals = T.viewshed(r, (3.0, 2.0), 1.0, max_distance=2.0, out_of_range_value=9)
     assert vals.attrs["out_of_range_value"] == 9 and vals.dtype == np.uint8
 
@@ -517,3 +517,11 @@ def test_cli_refuses_contradicting_options(tmp_path, capsys, args, match):
     code, cap = _run(["viewshed", path, "--observer-pixel", "6,8", "--no-progress",
                       "--out", str(tmp_path / "x"), *args], capsys)
     assert code == 2 and match in cap.err, cap.err
+
+
+def test_one_row_dataarray_is_refused_with_the_way_out():
+    xr = pytest.importorskip("xarray")
+    r = xr.DataArray(np.zeros((1, 5)), coords=dict(x=np.arange(5.0), y=[0.0]), dims=["y", "x"])
+    with pytest.raises(ValueError, match="one-row or one-column DataArray .* spacing"):
+        T.viewshed(r, (2, 0), 5)
+    assert T.viewshed(np.asarray(r), (2, 0), 5, spacing=(1.0, 1.0)).all()
