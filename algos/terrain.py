@@ -1342,6 +1342,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
                                         stats)
                 out = np.maximum(0.0, n - ground)
             else:
+                stats.algorithm = "closed form"  # the angle needs no walk
                 dist = np.hypot((ii - ox) * grid.dx, (jj - oy) * grid.dy) / grid.z_scale
                 out = np.arctan2(h + th - sink - z0, dist)
         if mode != "angle":
