@@ -1061,9 +1061,10 @@ def viewshed(heights, observer, observer_height=1.75, target_height=0.0, max_dis
         An observer outside the footprint or on a cell touching a void (its ground
         height is unknown), and every bad argument, named.
 
-    A dask array (or a HeightField holding one) gives a lazy result: each observer's
-    window of ``max_distance`` (finite) is cut out and computed in memory
-    (:func:`algos.tiled.tiled_viewshed`).
+    A dask array (or a HeightField holding one) gives a lazy result chunked like it, with
+    one task per observer (its window of ``max_distance``, the whole array when unlimited,
+    computed in memory) and one per chunk (:func:`algos.tiled.tiled_viewshed`); an observer
+    on a cell touching a void raises when it is computed.
     """
     if is_dataarray(heights):
         return _to_dataarray(heights, lambda f: viewshed(
