@@ -17,13 +17,15 @@ NaN); each tile finds its own.
 A viewshed is not a tile-local product: it needs the observer's window, ``D + 1``
 samples around the observer (the whole field when D is unlimited), which one task per
 observer reads from the chunks it overlaps and computes in memory; one task per output
-chunk then takes the windows that overlap it, and the rest of the result is known without
-reading the input (out of range: not visible). :func:`tiled_viewshed` so builds
-``observers + chunks`` tasks, not one per chunk per observer.
+chunk then takes the windows (or their pieces) that overlap it, and the rest of the result
+is known without reading the input (out of range: not visible). :func:`tiled_viewshed` so
+builds ``chunks + observers`` tasks, plus a piece per chunk a window spans when it spans
+several: not one per chunk per observer.
 """
 from __future__ import annotations
 
 import math
+import operator
 from functools import partial
 
 import numpy as np
@@ -131,15 +133,16 @@ def _window_viewshed(viewshed, wrap, x, y, r0, c0, row_cuts, col_cuts, options, 
 
 
 def _viewshed_chunk(shape, dtype, cuts, *seen):
-    """One output chunk: zeros (not visible), then each observer's window result ``seen[k]``
-    cut by ``cuts[k]`` = (chunk slices, window slices) and added (a count) or or-ed (one
-    observer's bool)."""
+    """One output chunk: zeros (not visible), then each observer's window result (or its
+    piece for this chunk) ``seen[k]``, cut by ``cuts[k]`` = (chunk slices, window slices;
+    None: all of it), added (a count) or or-ed (one observer's bool) into place."""
     out = np.zeros(shape, dtype)
     for (into, take), window in zip(cuts, seen):
+        part = window if take is None else window[take]
         if dtype == np.bool_:
-            out[into] |= window[take]
+            out[into] |= part
         else:
-            out[into] += window[take]
+            out[into] += part
     return out
 
 
@@ -150,15 +153,19 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
     Observer k's task reads only the input chunks its window overlaps
     (:func:`viewshed_window`: ``max_distance`` plus a cell around the observer, the whole
     array when ``max_distance`` is None), joins them and runs ``viewshed`` (the in-memory
-    function) there, with ``spacing`` and ``**kwargs`` passed through. The task of output
-    chunk (i, j) takes the results of the observers whose windows overlap it and cuts them
-    to the chunk; every sample outside all windows is not visible, known without reading
-    the input. The graph so has ``observers + chunks`` tasks besides the input's, and
-    ``observers x chunks`` edges at most.
+    function) there, with ``spacing`` and ``**kwargs`` passed through. A window over
+    several chunks is then cut into one piece per chunk (one task each), so that a chunk
+    receives its part only. The task of output chunk (i, j) puts in place the windows or
+    pieces that overlap it; every sample outside all windows is not visible, known
+    without reading the input. Besides the input's, the graph so has ``chunks +
+    observers`` tasks plus one per (observer, chunk) pair of a window spanning several
+    chunks: at most ``2 chunks + 1`` for one observer, about ``chunks + 5 observers`` for
+    windows smaller than a chunk.
 
     With ``max_distance`` None every window is the whole array: each observer's task holds
     the field (8 bytes a sample as float64, twice while the chunks are joined) and the
-    in-memory viewshed's working arrays, on one worker.
+    in-memory viewshed's working arrays on one worker, and is cut into one piece per chunk
+    (``chunks + observers x (chunks + 1)`` tasks).
 
     Observers are in the stored array's coordinates (a line of sight does not depend on
     which way is north). An observer outside the footprint raises ValueError here; one on
@@ -185,10 +192,11 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
         heights.params)
     token = tokenize(arr.name, described, obs, single, max_distance, spacing, kwargs)
     name, window_name = f"viewshed-{token}", f"viewshed-window-{token}"
+    piece_name = f"viewshed-piece-{token}"
     row_edges, col_edges = _chunk_edges(arr.chunks[0]), _chunk_edges(arr.chunks[1])
 
     # one task per observer: the chunks its window overlaps, cut and joined, then viewshed
-    window_layer, touching = {}, {}
+    window_layer, piece_layer, touching = {}, {}, {}
     for k, (x, y) in enumerate(obs):
         r0, r1, c0, c1 = viewshed_window(x, y, md, pixel, arr.shape)
         chunk_rows = _chunk_span(row_edges, r0, r1)
@@ -201,17 +209,24 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
         window_layer[(window_name, k)] = (
             partial(_window_viewshed, viewshed, wrap, float(x), float(y), r0, c0, row_cuts,
                     col_cuts, options), blocks)
-        # where the window lands in each output chunk it overlaps
+        # where the window lands in each output chunk it overlaps; a window over several
+        # chunks is cut into one piece per chunk (a task beside it), so that each chunk's
+        # task receives its part of the window, not all of it
+        spread = len(chunk_rows) * len(chunk_cols) > 1
         for a in chunk_rows:
             top, bottom = max(r0, row_edges[a]), min(r1, row_edges[a + 1])
             for b in chunk_cols:
                 left, right = max(c0, col_edges[b]), min(c1, col_edges[b + 1])
-                cut = ((slice(top - row_edges[a], bottom - row_edges[a]),
-                        slice(left - col_edges[b], right - col_edges[b])),
-                       (slice(top - r0, bottom - r0), slice(left - c0, right - c0)))
-                touching.setdefault((a, b), []).append(((window_name, k), cut))
+                into = (slice(top - row_edges[a], bottom - row_edges[a]),
+                        slice(left - col_edges[b], right - col_edges[b]))
+                take = (slice(top - r0, bottom - r0), slice(left - c0, right - c0))
+                if spread:
+                    piece_layer[(piece_name, k, a, b)] = (operator.getitem, (window_name, k), take)
+                    touching.setdefault((a, b), []).append(((piece_name, k, a, b), (into, None)))
+                else:
+                    touching.setdefault((a, b), []).append(((window_name, k), (into, take)))
 
-    # one task per output chunk: the windows that overlap it, or zeros
+    # one task per output chunk: the windows (or pieces) that overlap it, or zeros
     chunk_layer = {}
     for a, height in enumerate(arr.chunks[0]):
         for b, width in enumerate(arr.chunks[1]):
@@ -222,5 +237,8 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
 
     graph = HighLevelGraph.from_collections(window_name, window_layer, dependencies=[arr])
     layers, dependencies = dict(graph.layers), dict(graph.dependencies)
-    layers[name], dependencies[name] = chunk_layer, {window_name}
+    if piece_layer:
+        layers[piece_name], dependencies[piece_name] = piece_layer, {window_name}
+    layers[name] = chunk_layer
+    dependencies[name] = {window_name, piece_name} if piece_layer else {window_name}
     return da.Array(HighLevelGraph(layers, dependencies), name, chunks=arr.chunks, dtype=dtype)

@@ -1,6 +1,7 @@
 """The viewshed of a dask array (``algos.tiled.tiled_viewshed``): equal to the in-memory
-``algos.viewshed`` on every sample, and a graph of ``observers + chunks`` tasks that is
-built without reading the input."""
+``algos.viewshed`` on every sample, and a graph of O(chunks) tasks (one per chunk, one per
+observer, one per piece of a window spanning several chunks) built without reading the
+input."""
 import dataclasses
 
 import numpy as np
@@ -149,18 +150,22 @@ def _tasks(lazy):
 
 
 @pytest.mark.parametrize("side", [2000, 4000])
-def test_the_graph_has_observers_plus_chunks_tasks_and_reads_nothing(side):
+def test_the_graph_has_o_of_chunks_tasks_and_reads_nothing(side):
     chunk = 100
     field = _unreadable(side, chunk)
     chunks = field.npartitions
     input_tasks = _tasks(field)
     one = algos.viewshed(field, (side / 2, side / 2), max_distance=40.0)
-    grid = [((i + 0.5) * side / 4, (j + 0.5) * side / 4) for j in range(4) for i in range(4)]
+    grid = [(250.0 + i * side / 4, 250.0 + j * side / 4) for j in range(4) for i in range(4)]
     many = algos.viewshed(field, grid, max_distance=40.0)
     unlimited = algos.viewshed(field, (side / 3, side / 5), max_distance=None)
-    for seen, observers in ((one, 1), (many, 16), (unlimited, 1)):
-        assert _tasks(seen) - input_tasks == chunks + observers
-        assert _tasks(seen) <= 3 * chunks + observers
+    # one task per chunk and per observer, and a piece per chunk of a window spanning
+    # several: the centre's window (side / 2 -+ 41, around a chunk corner) is cut in 4, the
+    # grid's (rows and columns 209:292 and so on) lie in one chunk each, the unlimited one
+    # spans all
+    for seen, extra in ((one, 1 + 4), (many, 16), (unlimited, 1 + chunks)):
+        assert _tasks(seen) - input_tasks == chunks + extra
+        assert _tasks(seen) - input_tasks <= 2 * chunks + 16
     # a chunk beyond every window is known without reading the input
     assert not one.blocks[0, 0].compute().any()
     assert not many.blocks[0, 0].compute().any()
