@@ -44,6 +44,12 @@ def halo_depth(max_distance_cells) -> int:
     return int(math.ceil(max_distance_cells)) + 1
 
 
+def _block_field(block, name, **description):
+    """A HeightField of a NumPy block, with a field's name and ``description`` (units,
+    north, parameters)."""
+    return HeightField(block, name, **description)
+
+
 def _unwrap(heights, spacing, north_up=True):
     """``(dask array, wrap, (dx, dy) or None, back, extra)`` of a dask array or a
     HeightField holding one. ``wrap(block)`` makes a product's input of a NumPy block (a
@@ -60,10 +66,11 @@ def _unwrap(heights, spacing, north_up=True):
         flip = north_up and not field.north_up
         arr = field.to_north_up(field.heights) if north_up else field.heights
 
-        def wrap(block):
-            return HeightField(block, field.name, spacing=field.spacing, unit=field.unit,
-                               height_unit=field.height_unit, params=field.params,
-                               north="-y" if (flip or field.north_up) else "+y")
+        # the field's description, not the field: a task holding wrap must not carry the
+        # lazy array (and its graph) with it
+        wrap = partial(_block_field, name=field.name, spacing=field.spacing, unit=field.unit,
+                       height_unit=field.height_unit, params=field.params,
+                       north="-y" if (flip or field.north_up) else "+y")
 
         pixel = (field.dx, field.dy) if field.unit != "cell" else None
         return arr, wrap, pixel, (field.to_north_up if flip else None), {}
