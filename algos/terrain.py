@@ -1205,9 +1205,10 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         observers or on a dask array (the tiled viewshed gives visibility only); and
         every bad argument, named.
 
-    A dask array (or a HeightField holding one) gives a lazy result: each observer's
-    window of ``max_distance`` (finite) is cut out and computed in memory
-    (:func:`algos.tiled.tiled_viewshed`).
+    A dask array (or a HeightField holding one) gives a lazy result chunked like it, with
+    one task per observer (its window of ``max_distance``, the whole array when unlimited,
+    computed in memory) and one per chunk (:func:`algos.tiled.tiled_viewshed`); an observer
+    on a cell touching a void raises when it is computed.
     """
     if mode not in VIEWSHED_MODES:
         raise ValueError(f"mode: expected one of {', '.join(VIEWSHED_MODES)}, got {mode!r}")

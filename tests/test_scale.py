@@ -253,11 +253,10 @@ def test_tiled_products_follow_a_heightfields_north_and_spacing(client):
 
 
 def test_tiled_products_need_a_finite_max_distance():
+    # the viewshed takes an unlimited one (tests/test_dask_viewshed.py)
     lazy = da.zeros((20, 20), chunks=10)
     with pytest.raises(ValueError, match="max_distance"):
         algos.horizon(lazy, [0], None)
-    with pytest.raises(ValueError, match="max_distance"):
-        algos.viewshed(lazy, (3, 3))
 
 
 # ---- Dask: sweeps --------------------------------------------------------------------

@@ -28,6 +28,7 @@ from .terrain import (
     observer_up,
     xrspatial_viewshed,
 )
+from .terrain_graph import dask_graph_sizes
 
 __all__ = ["run_targets"]
 
@@ -148,6 +149,7 @@ def run_targets(out_dir="results/terrain-bench", size=2048, repeats=3, sample=16
                 csv_rows.append(dict(g, workload="ortho_first_hit", dataset=label, run_length=r,
                                      azimuth=azimuth_for_run_length(r)))
         lines.append("")
+    lines += dask_graph_sizes(out_dir, echo=echo)
     with open(os.path.join(out_dir, "targets.md"), "w") as f:
         f.write("\n".join(lines))
     with open(os.path.join(out_dir, "targets.csv"), "w", newline="") as f:
