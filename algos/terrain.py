@@ -1073,11 +1073,10 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
                                 progress=progress)
     seen = angles > -math.pi / 2  # an azimuth with a surface point
     count = seen.sum(axis=0)
-    total = np.where(seen, math.pi / 2 - angles, 0.0).sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(count > 0, total / np.maximum(count, 1), np.nan)
-    if units == "degrees":
-        np.degrees(out, out=out)
+    mean = np.where(seen, angles, 0.0).sum(axis=0) / np.maximum(count, 1)
+    # 90 minus the mean angle (not the mean of 90 minus each): a flat plane gives 90 exactly
+    out = 90.0 - np.degrees(mean) if units == "degrees" else math.pi / 2 - mean
+    out[count == 0] = np.nan
     grid.voids_to(out, np.nan)
     return np.ascontiguousarray(grid.to_north_up(out))
 
