@@ -214,3 +214,30 @@ def test_kernels_refuse_non_finite_kappa():
         _kernels.horizon_walk(h, None, 1.0, 0.0, math.inf, 0, 9, out, math.nan)
     with pytest.raises(ValueError, match="kappa"):
         _kernels.horizon_march(h, 1.0, 0.0, 1.0, math.inf, 0.0, 0, 9, out, math.inf)
+
+
+def test_cli_horizon_with_curvature(tmp_path, capsys):
+    """``hftrace horizon --curvature``: the issue's example through the command, in
+    degrees, with the curvature recorded in the file's tags."""
+    rasterio = pytest.importorskip("rasterio")
+    from bench.cli import main
+
+    h = np.zeros((3, 700), np.float32)
+    h[:, 600] = 600.0
+    np.save(tmp_path / "plain.npy", h)
+    out = str(tmp_path / "hz")
+    code = main(["horizon", str(tmp_path / "plain.npy"), "--spacing", "100", "--azimuths", "90",
+                 "--curvature", "--out", out, "--no-progress"])
+    assert code == 0, capsys.readouterr().err
+    drop = (1 - 1 / 7) * 60000.0 ** 2 / (2 * algos.WGS84_SEMI_MAJOR_AXIS_M)
+    with rasterio.open(out + ".tif") as src:
+        tags = src.tags()
+        assert tags["units"] == "degrees" and tags["curvature"] == "True"
+        assert float(tags["refraction"]) == pytest.approx(1 / 7)
+        assert src.read(1)[1, 0] == pytest.approx(math.degrees(math.atan((600 - drop) / 60000)),
+                                                  abs=1e-5)
+    code = main(["svf", str(tmp_path / "plain.npy"), "--spacing", "100", "--n-azimuths", "4",
+                 "--out", str(tmp_path / "svf"), "--no-progress"])
+    assert code == 0
+    with rasterio.open(str(tmp_path / "svf.tif")) as src:
+        assert src.tags()["curvature"] == "False" and "refraction" not in src.tags()

@@ -165,3 +165,24 @@ def test_agrees_with_rvt_on_the_axes():
                                          svf_n_dir=4, svf_r_max=10)["opns"]
         ours = algos.openness(h, kind, 4, 10.0)
         np.testing.assert_allclose(ours[core], theirs[core], rtol=0, atol=1e-4, err_msg=kind)
+
+
+def test_cli_openness(tmp_path, capsys):
+    """``hftrace openness --kind negative``: the API's values, in degrees, kind and
+    parameters in the tags."""
+    rasterio = pytest.importorskip("rasterio")
+    from bench.cli import main
+
+    h = (np.random.default_rng(2).random((12, 14)) * 40).astype(np.float32)
+    np.save(tmp_path / "dem.npy", h)
+    out = str(tmp_path / "open")
+    code = main(["openness", str(tmp_path / "dem.npy"), "--spacing", "10", "--kind", "negative",
+                 "--n-azimuths", "8", "--max-distance", "50", "--out", out, "--no-progress"])
+    assert code == 0, capsys.readouterr().err
+    field = algos.HeightField(h, spacing=10.0, unit="m")
+    want = algos.openness(field, "negative", 8, 50.0)
+    with rasterio.open(out + ".tif") as src:
+        tags = src.tags()
+        assert tags["units"] == "degrees" and tags["kind"] == "negative"
+        assert tags["product"] == "openness_negative" and tags["n_azimuths"] == "8"
+        np.testing.assert_allclose(src.read(1), want.astype(np.float32), rtol=0, atol=1e-4)
