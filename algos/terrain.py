@@ -1,5 +1,6 @@
-"""Terrain products from parallel rays: horizon angles, cast shadows, sky-view factor and
-viewsheds, on the two-triangle surface (docs/CONVENTIONS.md, "Terrain products").
+"""Terrain products from parallel rays: horizon angles, cast shadows, sky-view factor,
+openness and viewsheds, on the two-triangle surface (docs/CONVENTIONS.md, "Terrain
+products").
 
 The maths
 ---------
@@ -31,6 +32,45 @@ surface is the linear interpolation between the two ends of the edge or diagonal
   breakpoint. The target vertex itself never counts. Breakpoints within a rounding bound of
   the segment are decided exactly, in rational arithmetic.
 
+Curvature
+---------
+With ``curvature=True`` a surface point at map distance D from the vertex is lowered by
+(1 - refraction) D^2 / (2 R), as GDAL and GRASS lower it. In cell space on square pixels
+(x = X / dx, heights z = Z / dx, so D = t dx for the cell distance t) that is kappa t^2
+with kappa = (1 - refraction) dx / (2 R), R in the field's unit. The horizon tangent is
+then the supremum of g(t) = (s(t) - H(v) - kappa t^2) / t, and on a linear piece
+s = a + b t
+
+    g(t) = (a - H(v)) / t + b - kappa t,
+
+which is no longer monotone. When a < H(v) it is concave, with g'(t) = (H(v) - a) / t^2 -
+kappa, and peaks at t* = sqrt((H(v) - a) / kappa), where g(t*) = b - 2 sqrt(kappa (H(v) -
+a)). So the supremum over a piece is at one of its ends, or at t* when t* lies inside the
+piece (when a >= H(v), g is convex or decreasing and the ends suffice). On the first
+piece a = H(v) and g = b - kappa t, whose supremum is the slope limit b at t -> 0+, as
+without curvature. The exact paths evaluate all three kinds of candidate: every
+breakpoint, every piece's interior peak (between consecutive breakpoints, the piece's end
+at max_distance included) and the first piece's slope limit, in float64; the exact
+reference (:mod:`algos.terrain_ref`) does the same in rational arithmetic, deciding
+t0 < t* < t1 exactly through the squares. The peak is computed from the piece's slope as
+b - 2 sqrt(kappa (b t0 - r0)) (r0 = s(t0) - H(v)): an error in b moves it by only
+(1 - t0 / t*) times that error, so short pieces stay accurate.
+
+Which path runs. The shared pattern and the per-vertex walks ("pattern", "dda",
+"dda_maxmip") take kappa and remain exact. The early stop of the pattern and the marcher
+and the max-mipmap's tile skips stay valid, since the lowered surface never rises above
+the unlowered maximum; a walk that skips a tile visits the tile's exit, so that the next
+piece has its start. The marcher ("march", a baseline) lowers each sample. The rational
+sweep is not extended: for a line through vertices, with s the position along it and
+w = z - kappa s^2, the lowered ratio from O to T at distance d is (w_T - w_O) / d +
+2 kappa s_O, so the horizon is a tangent to the upper hull of w, but w is piecewise
+concave (not piecewise linear) and its hull is no longer the hull of the breakpoints.
+``algorithm=None`` therefore routes curvature to "pattern" (max_distance <= 384 cells) or
+"dda_maxmip", and an explicit "sweep" (or the "embree" peer) raises; ``LAST_STATS``
+names the path that ran. A negative kappa raises the surface instead (the mirror of a
+lowered surface, for negative openness): there is no interior peak (g is convex on every
+piece), and the early stop and tile skips are turned off.
+
 Azimuths are degrees clockwise from north, and north is the -y edge (row 0), as in
 north-up rasters. An azimuth within 1e-9 degrees of a direction with slope p/q,
 q <= :data:`MAX_SNAP_DENOMINATOR`, is taken as exactly that direction by every method.
@@ -42,7 +82,8 @@ Heights are in the same linear unit as the pixel size ``spacing = (dx, dy)`` (or
 number for square pixels): metres over a metre grid. A raw array without ``spacing`` is
 in cell units (``spacing=1``); a :class:`~algos.field.HeightField` or a DataArray carries
 its own. ``max_distance``, ``observer_height`` and ``target_height`` are lengths in that
-unit; angles come back in radians.
+unit; angles come back in radians (``horizon(units="degrees")`` for degrees; openness
+defaults to degrees).
 
 The kernels work in cell space: x = X / dx, y = Y / dy, z = Z / dx for map coordinates
 (X east, Y along the rows, Z up). On square pixels this is one uniform scale, which
@@ -809,11 +850,10 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         The unit of the angles returned (and of a DataArray's ``units`` attribute).
     curvature : bool
         Lower the surface for the earth's curvature and refraction. Default False: the
-        horizon-based products of RVT (sky-view factor, openness) and xarray-spatial have
-        no curvature, and over the radii they are used at it is negligible (the drop is
-        0.07 m at 1 km, 6.7 m at 10 km); GRASS r.horizon applies it by default, so pass
-        True to compare with it. Needs a real unit (spacing given or carried) and square
-        pixels.
+        horizon-based products of RVT (sky-view factor, openness) have no curvature, and
+        over the radii they are used at it is negligible (the drop is 0.07 m at 1 km,
+        6.7 m at 10 km); GRASS r.horizon applies it by default, so pass True to compare
+        with it. Needs a real unit (spacing given or carried) and square pixels.
     refraction : float
         The refraction coefficient in [0, 1); default 1/7, GDAL's and GRASS's
         (:data:`DEFAULT_REFRACTION`).
@@ -893,8 +933,8 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
         As in :func:`horizon` (``max_distance`` a length in the field's unit).
     curvature, refraction, earth_radius
         As in :func:`horizon`: the surface lowered for the earth's curvature. Default
-        False (GDAL's and RVT's shadow tools have none); long shadows at a low sun over
-        tens of kilometres are where it matters.
+        False, as the horizon; it matters for long shadows at a low sun, over tens of
+        kilometres.
     azimuth : float
         Degrees clockwise from north.
     elevation : float
