@@ -138,7 +138,7 @@ __all__ = ["horizon", "shadows", "sky_view_factor", "openness", "viewshed",
            "rational_azimuths",
            "azimuth_direction", "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "TerrainAlgorithm",
            "MAX_SNAP_DENOMINATOR", "DEFAULT_REFRACTION", "TerrainStats", "Grid",
-           "VOID_HEIGHT"]
+           "VOID_HEIGHT", "ANGLE_UNITS", "OPENNESS_KINDS", "CURVATURE_REFUSED"]
 
 #: Azimuths this close to a small rational slope are taken as exactly that slope.
 MAX_SNAP_DENOMINATOR = 128
@@ -842,7 +842,8 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
         rational in cell space, the distance unlimited and curvature off, else "pattern"
         for max_distance <= 384 cells and "dda_maxmip" beyond (chosen by measurement).
-        ``algos.terrain.LAST_STATS.algorithm`` names the one that ran. With curvature, "sweep" and "embree" raise (:data:`CURVATURE_REFUSED`).
+        ``algos.terrain.LAST_STATS.algorithm`` names the one that ran. With curvature,
+        "sweep" and "embree" raise (:data:`CURVATURE_REFUSED`).
     spacing : float or (dx, dy), optional
         The pixel size of a raw array, in the unit of its heights; None means cell units.
         A HeightField carries its own (giving a different one raises).

@@ -241,3 +241,17 @@ def test_cli_horizon_with_curvature(tmp_path, capsys):
     assert code == 0
     with rasterio.open(str(tmp_path / "svf.tif")) as src:
         assert src.tags()["curvature"] == "False" and "refraction" not in src.tags()
+
+
+def test_dask_tiles_apply_curvature_as_in_memory():
+    da = pytest.importorskip("dask.array")
+    h = _random_field(31, shape=(24, 26))
+    want_h = algos.horizon(h, [30.0, 200.0], 5.0, spacing=1.0, curvature=True,
+                           earth_radius=20.0, units="degrees")
+    got_h = algos.horizon(da.from_array(h, chunks=(10, 12)), [30.0, 200.0], 5.0, spacing=1.0,
+                          curvature=True, earth_radius=20.0, units="degrees").compute()
+    np.testing.assert_allclose(got_h, want_h, rtol=0, atol=1e-12)
+    want = algos.sky_view_factor(h, 8, 5.0, spacing=1.0, curvature=True, earth_radius=20.0)
+    got = algos.sky_view_factor(da.from_array(h, chunks=(10, 12)), 8, 5.0, spacing=1.0,
+                                curvature=True, earth_radius=20.0).compute()
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
