@@ -33,6 +33,7 @@ from .terrain import (
     HORIZON_ALGORITHMS,
     VIEWSHED_ALGORITHMS,
     horizon,
+    openness,
     rational_azimuths,
     shadows,
     sky_view_factor,
@@ -59,6 +60,6 @@ __all__ = [
     "intersect", "Hits", "HIT_OUTPUTS", "STATS", "Field", "HeightField", "as_field",
     "brute_force_hits", "WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M",
     "DEFAULT_REFRACTION", "render", "Rendering", "raster", "RASTERISERS",
-    "horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
+    "horizon", "shadows", "sky_view_factor", "openness", "viewshed", "rational_azimuths",
     "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "register_intersector", "register_traversal",
 ]

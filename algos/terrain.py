@@ -1,5 +1,6 @@
-"""Terrain products from parallel rays: horizon angles, cast shadows, sky-view factor and
-viewsheds, on the two-triangle surface (docs/CONVENTIONS.md, "Terrain products").
+"""Terrain products from parallel rays: horizon angles, cast shadows, sky-view factor,
+openness and viewsheds, on the two-triangle surface (docs/CONVENTIONS.md, "Terrain
+products").
 
 The maths
 ---------
@@ -41,6 +42,45 @@ surface is the linear interpolation between the two ends of the edge or diagonal
   vertex finds M or N, skipping mipmap tiles below the line the bound so far defines
   (:func:`viewshed`, modes "ground", "dem" and "observer").
 
+Curvature
+---------
+With ``curvature=True`` a surface point at map distance D from the vertex is lowered by
+(1 - refraction) D^2 / (2 R), as GDAL and GRASS lower it. In cell space on square pixels
+(x = X / dx, heights z = Z / dx, so D = t dx for the cell distance t) that is kappa t^2
+with kappa = (1 - refraction) dx / (2 R), R in the field's unit. The horizon tangent is
+then the supremum of g(t) = (s(t) - H(v) - kappa t^2) / t, and on a linear piece
+s = a + b t
+
+    g(t) = (a - H(v)) / t + b - kappa t,
+
+which is no longer monotone. When a < H(v) it is concave, with g'(t) = (H(v) - a) / t^2 -
+kappa, and peaks at t* = sqrt((H(v) - a) / kappa), where g(t*) = b - 2 sqrt(kappa (H(v) -
+a)). So the supremum over a piece is at one of its ends, or at t* when t* lies inside the
+piece (when a >= H(v), g is convex or decreasing and the ends suffice). On the first
+piece a = H(v) and g = b - kappa t, whose supremum is the slope limit b at t -> 0+, as
+without curvature. The exact paths evaluate all three kinds of candidate: every
+breakpoint, every piece's interior peak (between consecutive breakpoints, the piece's end
+at max_distance included) and the first piece's slope limit, in float64; the exact
+reference (:mod:`algos.terrain_ref`) does the same in rational arithmetic, deciding
+t0 < t* < t1 exactly through the squares. The peak is computed from the piece's slope as
+b - 2 sqrt(kappa (b t0 - r0)) (r0 = s(t0) - H(v)): an error in b moves it by only
+(1 - t0 / t*) times that error, so short pieces stay accurate.
+
+Which path runs. The shared pattern and the per-vertex walks ("pattern", "dda",
+"dda_maxmip") take kappa and remain exact. The early stop of the pattern and the marcher
+and the max-mipmap's tile skips stay valid, since the lowered surface never rises above
+the unlowered maximum; a walk that skips a tile visits the tile's exit, so that the next
+piece has its start. The marcher ("march", a baseline) lowers each sample. The rational
+sweep is not extended: for a line through vertices, with s the position along it and
+w = z - kappa s^2, the lowered ratio from O to T at distance d is (w_T - w_O) / d +
+2 kappa s_O, so the horizon is a tangent to the upper hull of w, but w is piecewise
+concave (not piecewise linear) and its hull is no longer the hull of the breakpoints.
+``algorithm=None`` therefore routes curvature to "pattern" (max_distance <= 384 cells) or
+"dda_maxmip", and an explicit "sweep" (or the "embree" peer) raises; ``LAST_STATS``
+names the path that ran. A negative kappa raises the surface instead (the mirror of a
+lowered surface, for negative openness): there is no interior peak (g is convex on every
+piece), and the early stop and tile skips are turned off.
+
 Azimuths are degrees clockwise from north, and north is the -y edge (row 0), as in
 north-up rasters. An azimuth within 1e-9 degrees of a direction with slope p/q,
 q <= :data:`MAX_SNAP_DENOMINATOR`, is taken as exactly that direction by every method.
@@ -52,7 +92,8 @@ Heights are in the same linear unit as the pixel size ``spacing = (dx, dy)`` (or
 number for square pixels): metres over a metre grid. A raw array without ``spacing`` is
 in cell units (``spacing=1``); a :class:`~algos.field.HeightField` or a DataArray carries
 its own. ``max_distance``, ``observer_height`` and ``target_height`` are lengths in that
-unit; angles come back in radians.
+unit; angles come back in radians (``horizon(units="degrees")`` for degrees; openness
+defaults to degrees).
 
 The kernels work in cell space: x = X / dx, y = Y / dy, z = Z / dx for map coordinates
 (X east, Y along the rows, Z up). On square pixels this is one uniform scale, which
@@ -104,10 +145,12 @@ from .terrain_ref import line_of_sight_exact, surface_exact
 from .tiled import tiled_product, tiled_viewshed
 from .validate import check_length, check_spacing
 
-__all__ = ["horizon", "shadows", "sky_view_factor", "viewshed", "rational_azimuths",
+__all__ = ["horizon", "shadows", "sky_view_factor", "openness", "viewshed",
+           "rational_azimuths",
            "azimuth_direction", "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "TerrainAlgorithm",
            "MAX_SNAP_DENOMINATOR", "DEFAULT_REFRACTION", "TerrainStats", "Grid",
-           "VOID_HEIGHT", "VIEWSHED_MODES"]
+           "VOID_HEIGHT", "VIEWSHED_MODES", "ANGLE_UNITS", "OPENNESS_KINDS",
+           "CURVATURE_REFUSED"]
 
 #: Azimuths this close to a small rational slope are taken as exactly that slope.
 MAX_SNAP_DENOMINATOR = 128
@@ -120,6 +163,13 @@ PATTERN_STOP_EVERY = 32
 HEIGHT_LIMIT = 1e30
 #: The default algorithm is "pattern" up to this max_distance (cells), measured.
 PATTERN_MAX_DISTANCE = 384
+#: The units a horizon angle can be given in (the DataArray attribute ``units``).
+ANGLE_UNITS = ("radians", "degrees")
+#: Algorithms that refuse curvature, and why.
+CURVATURE_REFUSED = {
+    "sweep": "the upper hull of the breakpoints misses the peaks inside pieces",
+    "embree": "the peer traces straight rays over the unlowered mesh",
+}
 
 
 @dataclass(frozen=True)
@@ -585,16 +635,16 @@ def _sweep(hf, d: Direction, out, threads=1):
         chunks_per_thread=4, min_chunk=64))
 
 
-def _pattern_walk(hf, pat, zmax, start, stop, out):
+def _pattern_walk(hf, pat, zmax, start, stop, out, kappa=0.0):
     """The shared-pattern walk of octant-frame vertices [start, stop); returns ns."""
     return _kernels.horizon_pattern(
         hf, pat["inv_t"], pat["xa"], pat["ya"], pat["xb"], pat["yb"], pat["w"],
         pat["limit_x"], pat["limit_y"], pat["end_k"], pat["end_f"], pat["end_inv"], zmax,
-        PATTERN_STOP_EVERY, start, stop, out)[0]
+        PATTERN_STOP_EVERY, start, stop, out, kappa)[0]
 
 
 def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, march_step,
-                 embree_tolerance):
+                 embree_tolerance, kappa=0.0):
     rows, cols = h.shape
     if algorithm in ("sweep", "pattern"):
         hf = np.ascontiguousarray(_to_frame(h, d))
@@ -606,19 +656,21 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
             pat = _shared_pattern(d, fr, fc, max_distance)
             zmax = float(hf.max())
             stats.ns += sum(_run_ranges(fr * fc, threads,
-                                        lambda a, b: _pattern_walk(hf, pat, zmax, a, b, out)))
+                                        lambda a, b: _pattern_walk(hf, pat, zmax, a, b, out,
+                                                                   kappa)))
         return _from_frame(out.reshape(fr, fc), d)
     out = np.empty(rows * cols)
     md = math.inf if max_distance is None else max_distance
     if algorithm in ("dda", "dda_maxmip"):
         def call(start, stop):
             return _kernels.horizon_walk(h, mip if algorithm == "dda_maxmip" else None,
-                                         d.dx, d.dy, md, start, stop, out)
+                                         d.dx, d.dy, md, start, stop, out, kappa)
     elif algorithm == "march":
         zmax = float(h.max())
 
         def call(start, stop):
-            return _kernels.horizon_march(h, d.dx, d.dy, march_step, md, zmax, start, stop, out)
+            return _kernels.horizon_march(h, d.dx, d.dy, march_step, md, zmax, start, stop, out,
+                                          kappa)
     elif algorithm == "embree":
         from .embree_peer import embree_horizon_tangents
 
@@ -636,13 +688,20 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
     return out.reshape(rows, cols)
 
 
-def _pick_horizon_algorithm(algorithm, directions, max_distance):
+def _pick_horizon_algorithm(algorithm, directions, max_distance, curvature=False):
+    if curvature and algorithm in CURVATURE_REFUSED:
+        raise ValueError(f"curvature: algorithm={algorithm!r} does not apply curvature "
+                         f"({CURVATURE_REFUSED[algorithm]}); use 'pattern', 'dda', "
+                         "'dda_maxmip' or 'auto'")
     if algorithm is None or algorithm == "auto":
+        # curvature: the sweep's hull of breakpoints no longer holds (module docstring,
+        # "Curvature"), so the exact per-vertex paths run
         # chosen by measurement (reports/terrain/targets.md, jacksboro 2048): the sweep
         # wherever it applies (157 ns per vertex against 4184 for dda_maxmip); else the
         # shared pattern up to max_distance 384 (431 against 1149 ns at 32 cells, 1569
         # against 2450 at 128, 4349 against 4068 at 512), the mipmap walk beyond
-        if max_distance is None and all(d.rational is not None for d in directions):
+        if max_distance is None and all(d.rational is not None for d in directions) \
+                and not curvature:
             return "sweep"
         return "pattern" if max_distance is not None and max_distance <= PATTERN_MAX_DISTANCE \
             else "dda_maxmip"
@@ -688,72 +747,47 @@ def _azimuth_list(azimuths):
     return out
 
 
-def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="triangles",
-            spacing=None, threads=None, march_step=1.0, embree_tolerance=1e-4, progress=None):
-    """Horizon elevation angles (radians) seen from every vertex.
+def _curvature_kappa(grid: Grid, curvature, refraction, earth_radius) -> float:
+    """kappa, the drop per squared cell distance in cell height units:
+    (1 - refraction) dx / (2 R), R in the field's unit; 0 without curvature. Validated as
+    :func:`viewshed` does (square pixels, a real unit)."""
+    if not isinstance(curvature, (bool, np.bool_)):
+        raise TypeError(f"curvature: expected a bool, got {curvature!r}")
+    if not curvature:
+        return 0.0
+    if not grid.has_unit:
+        raise ValueError("curvature: needs spacing (the pixel size in metres, or a field "
+                         "that carries its unit)")
+    if not grid.square:
+        raise ValueError(f"curvature: needs square pixels, got {grid.dx:g} x {grid.dy:g}; "
+                         "resample first (e.g. gdalwarp -tr D D)")
+    try:
+        r = float(refraction)
+    except (TypeError, ValueError):
+        raise TypeError(f"refraction: expected a number, got {refraction!r}") from None
+    if not (math.isfinite(r) and 0 <= r < 1):
+        raise ValueError(f"refraction: expected a coefficient in [0, 1), got {refraction!r}")
+    try:
+        radius = float(earth_radius)
+    except (TypeError, ValueError):
+        raise TypeError(f"earth_radius: expected a number of metres, got {earth_radius!r}") from None
+    if not (math.isfinite(radius) and radius > 0):
+        raise ValueError(f"earth_radius: expected a positive length, got {earth_radius!r}")
+    radius /= grid.unit_metres
+    return (1.0 - r) * grid.dx / (2.0 * radius)
 
-    For each azimuth, the horizon of vertex v is the supremum, over the surface points p on
-    the horizontal ray from v with 0 < dist(p, v) <= max_distance inside the footprint
-    [0, cols-1] x [0, rows-1], of atan2(s(p) - H(v), dist), with heights and distances in
-    the same linear unit; -pi/2 where there is none. On the two triangles the supremum is
-    attained at a breakpoint of the ray (an edge or diagonal crossing, or the far end), or
-    is the slope limit at dist -> 0+, which equals the ratio at the first breakpoint
-    (module docstring). It is computed exactly, up to float64 rounding, by every exact
-    algorithm, on square and rectangular pixels alike (module docstring, "Units").
 
-    Parameters
-    ----------
-    heights : (rows, cols) array, HeightField or xarray.DataArray
-        A raw array is north-up (row 0 north) and in the unit of ``spacing``; NaN marks a
-        void. A HeightField or DataArray carries its own spacing, CRS, orientation and
-        voids.
-    azimuths : float or sequence of floats
-        Degrees clockwise from north (north is row 0 of a north-up array).
-    max_distance : float, optional
-        A length in the field's unit (cells when there is no spacing). None: unlimited.
-    algorithm : str, optional
-        A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
-        rational in cell space and the distance unlimited, else "pattern" for
-        max_distance <= 384 cells and "dda_maxmip" beyond (chosen by measurement).
-    spacing : float or (dx, dy), optional
-        The pixel size of a raw array, in the unit of its heights; None means cell units.
-        A HeightField carries its own (giving a different one raises).
-    threads : None or int
-        Vertices are split over threads; results are identical for every value.
-    march_step, embree_tolerance : the baselines' step (cells) and angle tolerance (rad).
-    progress : callable, optional
-        Called as ``progress(done, total)`` after each azimuth (in memory only; a
-        command's progress bar).
+def _check_units(units):
+    if units not in ANGLE_UNITS:
+        raise ValueError(f"units: expected one of {ANGLE_UNITS}, got {units!r}")
+    return units
 
-    Returns
-    -------
-    float64 array (len(azimuths), rows, cols)
-        Radians in [-pi/2, pi/2], in the input's orientation; NaN at void vertices. A
-        DataArray gives a DataArray with an ``azimuth`` dimension, the input's coords, CRS
-        and attrs, ``units="radians"``.
 
-    Raises
-    ------
-    ValueError, TypeError
-        Naming the argument: bad heights (a non-finite value other than a NaN void, too
-        large, too small), azimuths, lengths, algorithm, surface or threads.
-
-    A dask array (or a HeightField or DataArray holding one) gives a lazy dask array,
-    computed tile by tile with a halo of ``max_distance`` (which must be finite):
-    :mod:`algos.tiled`.
-    """
-    if is_dataarray(heights):
-        az = _azimuth_list(azimuths)
-        return _to_dataarray(heights, lambda f: horizon(
-            f, az, max_distance, algorithm=algorithm, surface=surface, threads=threads,
-            march_step=march_step, embree_tolerance=embree_tolerance), "horizon",
-            dict(units="radians", max_distance=_attr(max_distance)), ("azimuth", az))
-    if is_dask(heights):
-        return _tiled_horizon(heights, azimuths, max_distance, spacing, dict(
-            algorithm=algorithm, surface=surface, threads=threads, march_step=march_step,
-            embree_tolerance=embree_tolerance))
-    _check_surface(surface)
-    grid = _prepare(heights, spacing)
+def _horizon_angles(grid: Grid, azimuths, max_distance, kappa, *, algorithm, threads,
+                    march_step, embree_tolerance, progress):
+    """The horizon angles (radians, north-up, (len(azimuths), rows, cols)) of a prepared
+    grid with curvature kappa (cell units; negative raises the surface, for
+    :func:`openness`), voids not yet set; also returns the algorithm that ran."""
     h = grid.h
     directions = []
     for k, a in enumerate(_azimuth_list(azimuths)):
@@ -770,26 +804,137 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     if not (math.isfinite(step) and step > 0):
         raise ValueError(f"march_step: expected a positive number of cells, got {march_step!r}")
     name = _pick_horizon_algorithm(algorithm, directions,
-                                   None if md is None else max(limits))
+                                   None if md is None else max(limits), curvature=kappa != 0.0)
     nthreads = resolve_threads(threads)
     stats = TerrainStats(name)
     mip = _mipmap(h) if name == "dda_maxmip" else None
     out = np.empty((len(directions),) + h.shape)
     for k, d in enumerate(directions):
-        out[k] = _horizon_one(h, d, name, limits[k], nthreads, mip, stats, step, embree_tolerance)
+        out[k] = _horizon_one(h, d, name, limits[k], nthreads, mip, stats, step,
+                              embree_tolerance, kappa)
         if factors[k] != 1.0:
             out[k] *= factors[k]
         if progress is not None:
             progress(k + 1, len(directions))
     np.arctan(out, out=out)
-    grid.voids_to(out, np.nan)
-    out = np.ascontiguousarray(grid.to_north_up(out))
     LAST_STATS.__dict__.update(stats.__dict__)
+    return out, name
+
+
+def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="triangles",
+            spacing=None, units="radians", curvature=False, refraction=DEFAULT_REFRACTION,
+            earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, march_step=1.0,
+            embree_tolerance=1e-4, progress=None):
+    """Horizon elevation angles (radians by default) seen from every vertex.
+
+    For each azimuth, the horizon of vertex v is the supremum, over the surface points p on
+    the horizontal ray from v with 0 < dist(p, v) <= max_distance inside the footprint
+    [0, cols-1] x [0, rows-1], of atan2(s(p) - H(v), dist), with heights and distances in
+    the same linear unit; -pi/2 where there is none. On the two triangles the supremum is
+    attained at a breakpoint of the ray (an edge or diagonal crossing, or the far end), or
+    is the slope limit at dist -> 0+, which equals the ratio at the first breakpoint
+    (module docstring). It is computed exactly, up to float64 rounding, by every exact
+    algorithm, on square and rectangular pixels alike (module docstring, "Units").
+
+    With ``curvature``, each surface point at map distance D is first lowered by
+    (1 - refraction) D^2 / (2 R), as in :func:`viewshed`; the supremum then also looks
+    inside the linear pieces (module docstring, "Curvature"), and stays exact.
+
+    Parameters
+    ----------
+    heights : (rows, cols) array, HeightField or xarray.DataArray
+        A raw array is north-up (row 0 north) and in the unit of ``spacing``; NaN marks a
+        void. A HeightField or DataArray carries its own spacing, CRS, orientation and
+        voids.
+    azimuths : float or sequence of floats
+        Degrees clockwise from north (north is row 0 of a north-up array).
+    max_distance : float, optional
+        A length in the field's unit (cells when there is no spacing). None: unlimited.
+    algorithm : str, optional
+        A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
+        rational in cell space, the distance unlimited and curvature off, else "pattern"
+        for max_distance <= 384 cells and "dda_maxmip" beyond (chosen by measurement).
+        ``algos.terrain.LAST_STATS.algorithm`` names the one that ran. With curvature,
+        "sweep" and "embree" raise (:data:`CURVATURE_REFUSED`).
+    spacing : float or (dx, dy), optional
+        The pixel size of a raw array, in the unit of its heights; None means cell units.
+        A HeightField carries its own (giving a different one raises).
+    units : {"radians", "degrees"}
+        The unit of the angles returned (and of a DataArray's ``units`` attribute).
+    curvature : bool
+        Lower the surface for the earth's curvature and refraction. Default False: the
+        horizon-based products of RVT (sky-view factor, openness) have no curvature, and
+        over the radii they are used at it is negligible (the drop is 0.07 m at 1 km,
+        6.7 m at 10 km); GRASS r.horizon applies it by default, so pass True to compare
+        with it. Needs a real unit (spacing given or carried) and square pixels.
+    refraction : float
+        The refraction coefficient in [0, 1); default 1/7, GDAL's and GRASS's
+        (:data:`DEFAULT_REFRACTION`).
+    earth_radius : float
+        R in metres (default the WGS 84 semi-major axis, as GDAL), converted to the
+        field's unit with its ``params["unit_metres"]`` (1 for a raw array).
+    threads : None or int
+        Vertices are split over threads; results are identical for every value.
+    march_step, embree_tolerance : the baselines' step (cells) and angle tolerance (rad).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each azimuth (in memory only; a
+        command's progress bar).
+
+    Returns
+    -------
+    float64 array (len(azimuths), rows, cols)
+        Angles in [-pi/2, pi/2] radians (or [-90, 90] degrees), in the input's
+        orientation; -pi/2 (-90) where the ray has no point; NaN at void vertices. A
+        DataArray gives a DataArray with an ``azimuth`` dimension, the input's coords, CRS
+        and attrs, ``units`` (the unit), ``curvature`` (0 or 1) and ``refraction``.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Naming the argument: bad heights (a non-finite value other than a NaN void, too
+        large, too small), azimuths, lengths, algorithm, surface, units, curvature,
+        refraction, earth_radius or threads.
+
+    A dask array (or a HeightField or DataArray holding one) gives a lazy dask array,
+    computed tile by tile with a halo of ``max_distance`` (which must be finite):
+    :mod:`algos.tiled`.
+    """
+    _check_units(units)
+    curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
+    if is_dataarray(heights):
+        az = _azimuth_list(azimuths)
+        return _to_dataarray(heights, lambda f: horizon(
+            f, az, max_distance, algorithm=algorithm, surface=surface, threads=threads,
+            march_step=march_step, embree_tolerance=embree_tolerance, units=units, **curve),
+            "horizon", dict(units=units, max_distance=_attr(max_distance),
+                            **_curvature_attrs(curvature, refraction)), ("azimuth", az))
+    if is_dask(heights):
+        return _tiled_horizon(heights, azimuths, max_distance, spacing, dict(
+            algorithm=algorithm, surface=surface, threads=threads, march_step=march_step,
+            embree_tolerance=embree_tolerance, units=units, **curve))
+    _check_surface(surface)
+    grid = _prepare(heights, spacing)
+    kappa = _curvature_kappa(grid, curvature, refraction, earth_radius)
+    out, _ = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
+                             threads=threads, march_step=march_step,
+                             embree_tolerance=embree_tolerance, progress=progress)
+    if units == "degrees":
+        np.degrees(out, out=out)
+    grid.voids_to(out, np.nan)
+    return np.ascontiguousarray(grid.to_north_up(out))
+
+
+def _curvature_attrs(curvature, refraction):
+    """The curvature parameters as file/DataArray attributes."""
+    out = dict(curvature=int(bool(curvature)))
+    if curvature:
+        out["refraction"] = float(refraction)
     return out
 
 
 def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
-            surface="triangles", spacing=None, threads=None):
+            surface="triangles", spacing=None, curvature=False, refraction=DEFAULT_REFRACTION,
+            earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None):
     """Cast shadows under a sun at ``azimuth`` and ``elevation`` (degrees).
 
     A vertex is in shadow when its horizon along the sun's azimuth (:func:`horizon`) is
@@ -799,6 +944,10 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
     ----------
     heights, max_distance, algorithm, surface, spacing, threads
         As in :func:`horizon` (``max_distance`` a length in the field's unit).
+    curvature, refraction, earth_radius
+        As in :func:`horizon`: the surface lowered for the earth's curvature. Default
+        False, as the horizon; it matters for long shadows at a low sun, over tens of
+        kilometres.
     azimuth : float
         Degrees clockwise from north.
     elevation : float
@@ -819,24 +968,27 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
         raise ValueError(f"elevation: expected degrees in [-90, 90], got {elevation!r}")
     if np.ndim(azimuth) != 0:
         raise ValueError("azimuth: expected one number (the sun's azimuth)")
+    curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     if is_dataarray(heights):
         return _to_dataarray(heights, lambda f: shadows(
             f, azimuth, el, max_distance=max_distance, algorithm=algorithm, surface=surface,
-            threads=threads), "shadows", dict(units="1 in shadow, 0 lit", azimuth=float(azimuth),
-                                             elevation=el, max_distance=_attr(max_distance)))
+            threads=threads, **curve), "shadows",
+            dict(units="1 in shadow, 0 lit", azimuth=float(azimuth), elevation=el,
+                 max_distance=_attr(max_distance), **_curvature_attrs(curvature, refraction)))
     if is_dask(heights):
         return tiled_product(lambda b, **kw: shadows(b, azimuth, el, **kw), heights,
                              max_distance, spacing, bool, algorithm=algorithm,
-                             surface=surface, threads=threads)
+                             surface=surface, threads=threads, **curve)
     angles = horizon(heights, azimuth, max_distance, algorithm=algorithm, surface=surface,
-                     spacing=spacing, threads=threads)[0]
+                     spacing=spacing, threads=threads, **curve)[0]
     with np.errstate(invalid="ignore"):
         return angles > math.radians(el)  # NaN (a void) compares False
 
 
 def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False,
                     azimuths=None, algorithm=None, surface="triangles", spacing=None,
-                    threads=None, progress=None):
+                    curvature=False, refraction=DEFAULT_REFRACTION,
+                    earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None):
     """Sky-view factor (Zaksek et al. 2011, as in RVT): 1 - mean_k sin(max(horizon_k, 0)).
 
     Parameters
@@ -851,6 +1003,10 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
         pixels the map azimuths are then those directions' images.
     azimuths : sequence of float, optional
         Explicit azimuths (degrees), instead of ``n_azimuths``.
+    curvature, refraction, earth_radius
+        As in :func:`horizon`. Default False, as RVT's sky-view factor (Zaksek et al.
+        2011), which has no curvature; with unlimited distance the exact sweep does not
+        apply and a per-vertex walk runs (:func:`horizon`).
     progress : callable, optional
         Called as ``progress(done, total)`` after each azimuth (in memory only).
 
@@ -860,6 +1016,7 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
         Dimensionless, in [0, 1]; NaN at void vertices; the input's orientation. A
         DataArray gives a DataArray (input's coords, CRS and attrs).
     """
+    curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     if azimuths is None:
         if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
             raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
@@ -870,15 +1027,111 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
         az = _azimuth_list(azimuths)
         return _to_dataarray(heights, lambda f: sky_view_factor(
             f, azimuths=az, max_distance=max_distance, algorithm=algorithm, surface=surface,
-            threads=threads), "sky_view_factor",
-            dict(units="1", n_azimuths=len(az), max_distance=_attr(max_distance)))
+            threads=threads, **curve), "sky_view_factor",
+            dict(units="1", n_azimuths=len(az), max_distance=_attr(max_distance),
+                 **_curvature_attrs(curvature, refraction)))
     if is_dask(heights):
         return tiled_product(lambda b, **kw: sky_view_factor(b, azimuths=azimuths, **kw),
                              heights, max_distance, spacing, np.float64, algorithm=algorithm,
-                             surface=surface, threads=threads)
+                             surface=surface, threads=threads, **curve)
     angles = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
-                     spacing=spacing, threads=threads, progress=progress)
+                     spacing=spacing, threads=threads, progress=progress, **curve)
     return 1.0 - np.mean(np.sin(np.maximum(angles, 0.0)), axis=0)
+
+
+OPENNESS_KINDS = ("positive", "negative")
+
+
+def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azimuths=None,
+             rational=False, units="degrees", algorithm=None, surface="triangles",
+             spacing=None, curvature=False, refraction=DEFAULT_REFRACTION,
+             earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None):
+    """Topographic openness (Yokoyama, Shirasawa & Pike 2002), positive or negative.
+
+    Positive openness is the mean over the azimuths of 90 deg minus the horizon angle
+    (:func:`horizon`, the largest elevation angle within ``max_distance``): how far the
+    sky opens above a vertex. Negative openness is the mean of 90 deg plus the smallest
+    elevation angle within ``max_distance``, which is the positive openness of the
+    mirrored terrain -H: how far the ground opens below. Both come from the exact
+    horizons, so they are exact to rounding. A flat plane gives 90 deg for both; ridges
+    raise positive openness above 90, valleys lower it.
+
+    An azimuth along which a vertex has no surface point (a vertex on the edge of the
+    footprint looking out, or a ray that meets only voids) has no elevation angle and is
+    left out of that vertex's mean; a vertex with none left is NaN. RVT instead pads the
+    DEM by reflection, which makes its edge values differ.
+
+    Parameters
+    ----------
+    heights, max_distance, algorithm, surface, spacing, threads, progress
+        As in :func:`sky_view_factor`. Yokoyama et al. name the radius L; RVT's default is
+        10 pixels (``svf_r_max``), here None means unlimited.
+    kind : {"positive", "negative"}
+    n_azimuths : int
+        Equally spaced azimuths from north; default 16, RVT's (Yokoyama et al. used 8).
+    azimuths, rational
+        As in :func:`sky_view_factor`.
+    units : {"degrees", "radians"}
+        Default degrees, the unit of Yokoyama et al. and RVT (``horizon`` defaults to
+        radians).
+    curvature, refraction, earth_radius
+        As in :func:`horizon` (default False, as RVT). For negative openness the mirrored
+        terrain is raised, not lowered, by the drop, so that both read the same lowered
+        surface.
+
+    Returns
+    -------
+    float64 array (rows, cols)
+        In [0, 180] degrees ([0, pi] radians); NaN at void vertices; the input's
+        orientation. A DataArray gives a DataArray with ``units``, ``kind`` and the
+        parameters as attrs.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Naming the argument: ``kind``, ``units``, and everything :func:`horizon` checks.
+    """
+    if kind not in OPENNESS_KINDS:
+        raise ValueError(f"kind: expected one of {OPENNESS_KINDS}, got {kind!r}")
+    _check_units(units)
+    curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
+    if azimuths is None:
+        if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
+            raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
+        azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)
+        if rational:
+            azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
+    options = dict(kind=kind, units=units, algorithm=algorithm, surface=surface,
+                   threads=threads, **curve)
+    if is_dataarray(heights):
+        az = _azimuth_list(azimuths)
+        return _to_dataarray(heights, lambda f: openness(
+            f, azimuths=az, max_distance=max_distance, **options), "openness",
+            dict(units=units, kind=kind, n_azimuths=len(az), max_distance=_attr(max_distance),
+                 **_curvature_attrs(curvature, refraction)))
+    if is_dask(heights):
+        return tiled_product(lambda b, **kw: openness(b, azimuths=azimuths, **kw), heights,
+                             max_distance, spacing, np.float64, **options)
+    _check_surface(surface)
+    grid = _prepare(heights, spacing)
+    kappa = _curvature_kappa(grid, curvature, refraction, earth_radius)
+    if kind == "negative":
+        # the mirrored terrain: -H, voids kept as pits; its drop mirrored too (raised)
+        mirrored = -grid.h if grid.void is None else np.where(grid.void, VOID_HEIGHT, -grid.h)
+        grid = Grid(np.ascontiguousarray(mirrored), grid.dx, grid.dy, grid.z_scale,
+                    grid.has_unit, grid.void, grid.field, grid.unit_metres)
+        kappa = -kappa
+    angles, _ = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
+                                threads=threads, march_step=1.0, embree_tolerance=1e-4,
+                                progress=progress)
+    seen = angles > -math.pi / 2  # an azimuth with a surface point
+    count = seen.sum(axis=0)
+    mean = np.where(seen, angles, 0.0).sum(axis=0) / np.maximum(count, 1)
+    # 90 minus the mean angle (not the mean of 90 minus each): a flat plane gives 90 exactly
+    out = 90.0 - np.degrees(mean) if units == "degrees" else math.pi / 2 - mean
+    out[count == 0] = np.nan
+    grid.voids_to(out, np.nan)
+    return np.ascontiguousarray(grid.to_north_up(out))
 
 
 def _rational_map_azimuths(heights, spacing, n):

@@ -553,14 +553,14 @@ static int get_lerp_arrays(PyObject *const objects[5], npy_intp n, const int64_t
 
 PyDoc_STRVAR(horizon_pattern_doc,
              "horizon_pattern(heights, inv_t, dx_a, dy_a, dx_b, dy_b, w, limit_x, limit_y,\n"
-             "                end_k, end_f, end_inv_t, zmax, stop_every, start, stop, out)\n"
-             "-> (ns, 0, 0)\n\nHorizon tangents by one shared pattern (octant frame). Private:\n"
-             "use algos.horizon.");
+             "                end_k, end_f, end_inv_t, zmax, stop_every, start, stop, out,\n"
+             "                kappa=0.0) -> (ns, 0, 0)\n\nHorizon tangents by one shared pattern\n"
+             "(octant frame); kappa: curvature. Private: use algos.horizon.");
 
 static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_inv, *o_dxa, *o_dya, *o_dxb, *o_dyb, *o_w, *o_lx, *o_ly, *o_out;
     long long end_k, stop_every, start, stop;
-    double end_f, end_inv_t, zmax;
+    double end_f, end_inv_t, zmax, kappa = 0.0;
     const double *H;
     int64_t rows, cols, *off_a = NULL, *off_b = NULL;
     const int64_t *dxa, *dya, *dxb, *dyb, *lx, *ly;
@@ -572,10 +572,14 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     long long elapsed_ns;
     int64_t reach = 0;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb, &o_dyb,
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO|d", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb, &o_dyb,
                           &o_w, &o_lx, &o_ly, &end_k, &end_f, &end_inv_t, &zmax, &stop_every,
-                          &start, &stop, &o_out))
+                          &start, &stop, &o_out, &kappa))
         return NULL;
+    if (!isfinite(kappa)) {
+        PyErr_SetString(PyExc_ValueError, "kappa: expected a finite curvature");
+        return NULL;
+    }
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
     if (!get_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
     pat.inv_t = (const double *)p;
@@ -645,7 +649,7 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     pat.end_f = end_f;
     pat.end_inv_t = end_inv_t;
     timed_begin(&section);
-    hf_horizon_pattern(H, rows, cols, &pat, zmax, stop_every, start, stop, (double *)p);
+    hf_horizon_pattern(H, rows, cols, &pat, zmax, stop_every, kappa, start, stop, (double *)p);
     elapsed_ns = timed_end(&section);
     free(off_a);
     free(off_b);
@@ -722,13 +726,13 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
 }
 
 PyDoc_STRVAR(horizon_walk_doc,
-             "horizon_walk(heights, mip, dx, dy, max_distance, start, stop, out)\n"
-             "-> (ns, cells, skips)\n\nPer-vertex horizon walks (mip None: every cell).\n"
-             "Private: use algos.horizon.");
+             "horizon_walk(heights, mip, dx, dy, max_distance, start, stop, out, kappa=0.0)\n"
+             "-> (ns, cells, skips)\n\nPer-vertex horizon walks (mip None: every cell);\n"
+             "kappa: curvature. Private: use algos.horizon.");
 
 static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_mip, *o_out;
-    double dx, dy, max_distance;
+    double dx, dy, max_distance, kappa = 0.0;
     long long start, stop;
     const double *H;
     int64_t rows, cols;
@@ -739,9 +743,13 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     timed_section section;
     long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOdddLLO", &o_h, &o_mip, &dx, &dy, &max_distance, &start, &stop,
-                          &o_out))
+    if (!PyArg_ParseTuple(args, "OOdddLLO|d", &o_h, &o_mip, &dx, &dy, &max_distance, &start, &stop,
+                          &o_out, &kappa))
         return NULL;
+    if (!isfinite(kappa)) {
+        PyErr_SetString(PyExc_ValueError, "kappa: expected a finite curvature");
+        return NULL;
+    }
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
         !get_mip(o_mip, rows, cols, &mip, &has_mip))
         return NULL;
@@ -751,7 +759,7 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     }
     if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
     timed_begin(&section);
-    hf_horizon_walk(H, rows, cols, has_mip ? &mip : NULL, dx, dy, max_distance, start, stop,
+    hf_horizon_walk(H, rows, cols, has_mip ? &mip : NULL, dx, dy, max_distance, kappa, start, stop,
                     (double *)out, &st);
     elapsed_ns = timed_end(&section);
     return stats_tuple(&st, elapsed_ns);
@@ -839,13 +847,13 @@ static PyObject *viewshed_threshold(PyObject *self, PyObject *args) {
 }
 
 PyDoc_STRVAR(horizon_march_doc,
-             "horizon_march(heights, dx, dy, step, max_distance, zmax, start, stop, out)\n"
-             "-> (ns, samples, 0)\n\nThe r.horizon-style fixed-step marcher. Private: use\n"
-             "algos.horizon(algorithm='march').");
+             "horizon_march(heights, dx, dy, step, max_distance, zmax, start, stop, out,\n"
+             "              kappa=0.0) -> (ns, samples, 0)\n\nThe r.horizon-style fixed-step\n"
+             "marcher; kappa: curvature. Private: use algos.horizon(algorithm='march').");
 
 static PyObject *horizon_march(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_out;
-    double dx, dy, step, max_distance, zmax;
+    double dx, dy, step, max_distance, zmax, kappa = 0.0;
     long long start, stop;
     const double *H;
     int64_t rows, cols;
@@ -854,9 +862,13 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
     timed_section section;
     long long elapsed_ns;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OdddddLLO", &o_h, &dx, &dy, &step, &max_distance, &zmax, &start,
-                          &stop, &o_out))
+    if (!PyArg_ParseTuple(args, "OdddddLLO|d", &o_h, &dx, &dy, &step, &max_distance, &zmax, &start,
+                          &stop, &o_out, &kappa))
         return NULL;
+    if (!isfinite(kappa)) {
+        PyErr_SetString(PyExc_ValueError, "kappa: expected a finite curvature");
+        return NULL;
+    }
     if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
     if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || !(step > 0) || !isfinite(step) ||
         isnan(max_distance) || isnan(zmax)) {
@@ -865,8 +877,8 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
     }
     if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
     timed_begin(&section);
-    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, start, stop, (double *)out,
-                     &st);
+    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, kappa, start, stop,
+                     (double *)out, &st);
     elapsed_ns = timed_end(&section);
     return stats_tuple(&st, elapsed_ns);
 }

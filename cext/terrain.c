@@ -40,11 +40,93 @@ static double on_row(const double *H, int64_t cols, int64_t Y, double x) {
 
 /* ---- shared pattern ----------------------------------------------------------------- */
 
+/* ---- curvature: the candidates of one linear piece -------------------------------- */
+
+/* With curvature a point at distance t is lowered by kappa t^2, and on a linear piece of
+ * the rise r(t) = a + b t (relative to the start vertex) the ratio g(t) = a / t + b -
+ * kappa t is no longer monotone: for kappa > 0 and a < 0 it peaks at t* = sqrt(-a / kappa),
+ * where g = b - 2 sqrt(-a kappa). This returns the larger of `best` and that peak when t*
+ * lies strictly inside the piece from (t0, r0) to (t1, r1). On the first piece (t0 = 0,
+ * r0 = 0) the supremum is the slope limit b at t -> 0+ instead (a = 0). */
+static double piece_peak(double best, double kappa, double t0, double r0, double t1, double r1) {
+    double b, minus_a, t_star2, g;
+    if (t0 == 0.0) {
+        b = r1 / t1;
+        return b > best ? b : best;
+    }
+    if (!(kappa > 0.0) || !(t1 > t0)) return best;
+    b = (r1 - r0) / (t1 - t0);
+    /* -a = b t0 - r0: its rounding moves g(t*) by about (1 - t0 / t*) times the error of b,
+     * which the short piece keeps small (t* lies in the piece) */
+    minus_a = b * t0 - r0;
+    if (!(minus_a > 0.0)) return best;
+    t_star2 = minus_a / kappa;
+    if (!(t_star2 > t0 * t0 && t_star2 < t1 * t1)) return best;
+    g = b - 2.0 * sqrt(minus_a * kappa);
+    return g > best ? g : best;
+}
+
+/* The shared-pattern walk with curvature (kappa != 0): every breakpoint's lowered ratio,
+ * each piece's interior peak and the first piece's slope limit. The early stop holds for
+ * kappa > 0 only (the lowered surface stays below zmax); kappa < 0 (a raised surface, the
+ * negative openness's mirror) walks every breakpoint. */
+static void pattern_curved(const double *H, int64_t rows, int64_t cols, const hf_hz_pattern *p,
+                           double zmax, int64_t stop_every, double kappa, int64_t start,
+                           int64_t stop, double *out) {
+    const double *inv_t = p->inv_t, *w = p->w;
+    const int64_t *off_a = p->off_a, *off_b = p->off_b;
+    int64_t chunk;
+    if (kappa < 0.0) stop_every = 0;
+    chunk = stop_every > 0 ? stop_every : p->n + 1;
+    for (int64_t v = start; v < stop; v++) {
+        int64_t j = v / cols, i = v - j * cols;
+        int64_t n = p->limit_x[cols - 1 - i];
+        int64_t ny = p->limit_y[rows - 1 - j];
+        int64_t n_valid;
+        const double *base = H + v;
+        double h = base[0], best = -HZ_INF, t_prev = 0.0, r_prev = 0.0;
+        if (ny < n) n = ny;
+        n_valid = n;
+        if (p->end_k >= 0 && n > p->end_k + 1) n = p->end_k + 1;
+        for (int64_t e0 = 0; e0 < n; e0 += chunk) {
+            int64_t e1 = e0 + chunk < n ? e0 + chunk : n;
+            for (int64_t e = e0; e < e1; e++) {
+                double t = 1.0 / inv_t[e];
+                double rise = hf_lerp(base[off_a[e]], base[off_b[e]], w[e]) - h;
+                double r = rise * inv_t[e] - kappa * t;
+                best = r > best ? r : best;
+                best = piece_peak(best, kappa, t_prev, r_prev, t, rise);
+                t_prev = t;
+                r_prev = rise;
+            }
+            if (stop_every > 0 && (zmax - h) * inv_t[e1 - 1] <= best) {
+                n_valid = 0; /* nothing further can count, the end included */
+                break;
+            }
+        }
+        if (p->end_k >= 0 && n_valid > p->end_k + 1) {
+            int64_t k = p->end_k;
+            double sa = hf_lerp(base[off_a[k]], base[off_b[k]], w[k]);
+            double sb = hf_lerp(base[off_a[k + 1]], base[off_b[k + 1]], w[k + 1]);
+            double t = 1.0 / p->end_inv_t, rise = hf_lerp(sa, sb, p->end_f) - h;
+            double r = rise * p->end_inv_t - kappa * t;
+            best = r > best ? r : best;
+            best = piece_peak(best, kappa, t_prev, r_prev, t, rise);
+        }
+        out[v] = best;
+    }
+}
+
 void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz_pattern *p,
-                        double zmax, int64_t stop_every, int64_t start, int64_t stop, double *out) {
+                        double zmax, int64_t stop_every, double kappa, int64_t start, int64_t stop,
+                        double *out) {
     const double *inv_t = p->inv_t, *w = p->w;
     const int64_t *off_a = p->off_a, *off_b = p->off_b;
     int64_t chunk = stop_every > 0 ? stop_every : p->n + 1;
+    if (kappa != 0.0) {
+        pattern_curved(H, rows, cols, p, zmax, stop_every, kappa, start, stop, out);
+        return;
+    }
     for (int64_t v = start; v < stop; v++) {
         int64_t j = v / cols, i = v - j * cols;
         int64_t n = p->limit_x[cols - 1 - i];
@@ -173,7 +255,9 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
 typedef struct {
     double ox, oy, dx, dy, inv_dx, inv_dy;
     int sx, sy;
-    int64_t nx, ny; /* cells: cols - 1, rows - 1 */
+    int64_t nx, ny;       /* cells: cols - 1, rows - 1 */
+    int visit_tile_exits; /* also visit where a skipped tile ends (a visitor that needs
+                           * every piece: curvature) */
 } walk_ray;
 
 static int64_t first_index(double o, int s, int64_t n) {
@@ -195,6 +279,7 @@ static void walk_init(walk_ray *r, int64_t rows, int64_t cols, double ox, double
     r->inv_dy = r->sy ? 1.0 / dy : 0.0;
     r->nx = cols - 1;
     r->ny = rows - 1;
+    r->visit_tile_exits = 0;
 }
 
 /* Where the ray leaves the footprint [0, nx] x [0, ny]. */
@@ -281,6 +366,8 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols, co
             if (moved) {
                 skips++;
                 if (moved == 2) break;
+                /* the tile's exit starts the next piece */
+                if (r->visit_tile_exits && visit(ctx, t_in, s_in, 0.0)) break;
                 continue;
             }
         }
@@ -339,12 +426,26 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols, co
 
 typedef struct {
     double h, best;
+    double kappa, t_prev, r_prev; /* curvature, and the previous breakpoint's (t, rise) */
 } horizon_ctx;
 
 static int horizon_visit(void *vctx, double t, double s, double delta) {
     horizon_ctx *c = vctx;
     double rise = (s - c->h) + delta;
     if (rise > c->best * t) c->best = rise / t;
+    return 0;
+}
+
+/* With curvature: the lowered ratio at the breakpoint, and the peak or slope limit of the
+ * piece that ends there. */
+static int horizon_visit_curved(void *vctx, double t, double s, double delta) {
+    horizon_ctx *c = vctx;
+    double rise = (s - c->h) + delta;
+    double r = rise / t - c->kappa * t;
+    if (r > c->best) c->best = r;
+    c->best = piece_peak(c->best, c->kappa, c->t_prev, c->r_prev, t, rise);
+    c->t_prev = t;
+    c->r_prev = rise;
     return 0;
 }
 
@@ -355,8 +456,10 @@ static int horizon_skip(const void *vctx, double tile_max, double t_in, double t
 }
 
 void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip, double dx,
-                     double dy, double max_distance, int64_t start, int64_t stop, double *out,
-                     hf_hz_stats *stats) {
+                     double dy, double max_distance, double kappa, int64_t start, int64_t stop,
+                     double *out, hf_hz_stats *stats) {
+    /* a raised surface (kappa < 0) may rise above a tile's maximum: no skipping */
+    if (kappa < 0.0) mip = NULL;
     for (int64_t v = start; v < stop; v++) {
         int64_t j = v / cols, i = v - j * cols;
         walk_ray r;
@@ -367,7 +470,11 @@ void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mi
         if (max_distance < t_end) t_end = max_distance;
         c.h = H[v];
         c.best = -HZ_INF;
-        walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, c.h, horizon_visit, horizon_skip, &c,
+        c.kappa = kappa;
+        c.t_prev = c.r_prev = 0.0;
+        r.visit_tile_exits = kappa != 0.0;
+        walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, c.h,
+                             kappa != 0.0 ? horizon_visit_curved : horizon_visit, horizon_skip, &c,
                              stats);
         out[v] = c.best;
     }
@@ -492,8 +599,8 @@ void hf_viewshed_threshold(const double *H, int64_t rows, int64_t cols, const hf
 /* ---- the r.horizon-style marcher ---------------------------------------------------- */
 
 void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,
-                      double step, double max_distance, double zmax, int64_t start, int64_t stop,
-                      double *out, hf_hz_stats *stats) {
+                      double step, double max_distance, double zmax, double kappa, int64_t start,
+                      int64_t stop, double *out, hf_hz_stats *stats) {
     int64_t samples = 0;
     double xmax = (double)(cols - 1), ymax = (double)(rows - 1);
     for (int64_t v = start; v < stop; v++) {
@@ -505,10 +612,10 @@ void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, do
             x = (double)i + t * dx;
             y = (double)j + t * dy;
             if (x < 0.0 || y < 0.0 || x > xmax || y > ymax) break;
-            s = surface_at(H, rows, cols, x, y);
+            s = surface_at(H, rows, cols, x, y) - kappa * t * t; /* curvature: lowered */
             samples++;
             if (s - h > best * t) best = (s - h) / t;
-            if ((zmax - h) <= best * t) break;
+            if (kappa >= 0.0 && (zmax - h) <= best * t) break;
         }
         out[v] = best;
     }

@@ -33,13 +33,22 @@ typedef struct {
     double end_inv_t;       /* 1 / max_distance                                         */
 } hf_hz_pattern;
 
+/* Curvature (kappa, in every horizon kernel): the surface at distance t from the start
+ * vertex is lowered by kappa t^2 (kappa = (1 - refraction) dx / (2 R) in cell units), so
+ * the tangent is the supremum of (s - H[v] - kappa t^2) / t. On a linear piece that ratio
+ * can peak inside the piece (algos/terrain.py, "Curvature"): the exact kernels evaluate
+ * every breakpoint, every piece's interior peak and the first piece's slope limit. A
+ * negative kappa raises the surface (no peak, no early stop or tile skipping). kappa = 0
+ * runs the uncurved loops, bit for bit. */
+
 /* Horizon tangents by one shared pattern (octant frame: direction dx >= dy >= 0).
  * Vertices [start, stop) in C order; out[v] = sup over the vertex's valid breakpoints of
  * (s - H[v]) / distance, or -inf when it has none. zmax: the highest height, for the early
  * stop (every stop_every breakpoints, the walk ends once (zmax - H[v]) / distance <= best);
- * stop_every = 0 disables it. */
+ * stop_every = 0 disables it. kappa: curvature (above). */
 void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz_pattern *p,
-                        double zmax, int64_t stop_every, int64_t start, int64_t stop, double *out);
+                        double zmax, int64_t stop_every, double kappa, int64_t start, int64_t stop,
+                        double *out);
 
 /* Horizon tangents of every vertex by the rational-direction sweep (octant frame, direction
  * (q, p) with q >= p >= 0, q >= 1, gcd 1). The period pattern holds the breakpoints of one
@@ -72,10 +81,11 @@ typedef struct {
 
 /* Per-vertex horizon walks in the original frame, along the unit direction (dx, dy):
  * vertices [start, stop), max_distance (inf: to the edge of the footprint), mip NULL for
- * the plain cell walk. out[v] as in hf_horizon_pattern. */
+ * the plain cell walk. out[v] as in hf_horizon_pattern; kappa: curvature (above; kappa < 0
+ * ignores mip). */
 void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip, double dx,
-                     double dy, double max_distance, int64_t start, int64_t stop, double *out,
-                     hf_hz_stats *stats);
+                     double dy, double max_distance, double kappa, int64_t start, int64_t stop,
+                     double *out, hf_hz_stats *stats);
 
 /* Line of sight from the observer (ox, oy, z0) to every target vertex in [start, stop):
  * the segment to (i, j, H + target_height) is blocked when the surface rises strictly
@@ -102,9 +112,10 @@ void hf_viewshed_threshold(const double *H, int64_t rows, int64_t cols, const hf
                            int kind, int64_t start, int64_t stop, double *out, hf_hz_stats *stats);
 
 /* The r.horizon-style marcher: samples the surface every `step` along the unit direction,
- * stopping at the footprint, at max_distance, or once (zmax - H) / distance <= best. */
+ * stopping at the footprint, at max_distance, or once (zmax - H) / distance <= best. kappa
+ * lowers each sample by kappa t^2 (a baseline: no piece peaks). */
 void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, double dy,
-                      double step, double max_distance, double zmax, int64_t start, int64_t stop,
-                      double *out, hf_hz_stats *stats);
+                      double step, double max_distance, double zmax, double kappa, int64_t start,
+                      int64_t stop, double *out, hf_hz_stats *stats);
 
 #endif

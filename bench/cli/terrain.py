@@ -1,4 +1,4 @@
-"""``hftrace horizon|shadows|svf|viewshed``: the terrain products of ``algos.terrain`` on a
+"""``hftrace horizon|shadows|svf|openness|viewshed``: the terrain products of ``algos.terrain`` on a
 dataset or on any raster GDAL reads, written as a georeferenced GeoTIFF, a PNG with a colour
 bar and an EXR.
 
@@ -14,7 +14,10 @@ What a user's file gets (docs/CONVENTIONS.md, "Terrain products"):
 * voids are nodata in every output and block no ray; ``--fill min|VALUE`` fills them
   instead (explicitly);
 * outputs are written on the input's grid and orientation, with its CRS, geotransform and
-  nodata, and the product's units and parameters as tags. Horizons are in degrees.
+  nodata, and the product's units and parameters as tags. Horizons and openness are in
+  degrees.
+* ``--curvature`` (with ``--refraction``, default 1/7) lowers the surface for the earth's
+  curvature on every product; it is off by default (docs/CONVENTIONS.md).
 * ``viewshed --mode`` chooses GDAL's outputs (``-om``): ``normal`` visibility, ``ground``
   the smallest visible target height above the ground and ``dem`` its elevation (in the
   pixel size's unit: metres on a projected DEM), ``observer`` the smallest observer height
@@ -44,6 +47,7 @@ __all__ = ["register", "terrain_product", "load_terrain", "spacing_arg", "produc
 PRODUCTS = (("horizon", "horizon angles (degrees) along azimuths"),
             ("shadows", "cast shadows for a sun azimuth and elevation"),
             ("svf", "sky-view factor (Zaksek et al. 2011)"),
+            ("openness", "positive or negative openness (Yokoyama et al. 2002), degrees"),
             ("viewshed", "what one or more observers see"))
 
 #: Options that describe a file, meaningless for a generated dataset
@@ -161,7 +165,7 @@ def check_options(args):
             raise ValueError(f"--mode: --dask gives visibility only (--mode normal without "
                              f"output values), got --mode {args.mode}"
                              f"{' with output values' if values else ''}")
-    if args.command == "svf":
+    if args.command in ("svf", "openness"):
         if args.azimuths and args.n_azimuths is not None:
             raise ValueError("--n-azimuths: --azimuths already names the azimuths; give one "
                              "of the two")
@@ -224,12 +228,21 @@ def product_options(args, field):
         az = _azimuths(args)
         options.update(azimuths=az) if az else options.update(n_azimuths=args.n_azimuths,
                                                                rational=args.rational)
+    elif kind == "openness":
+        az = _azimuths(args)
+        options.update(kind=args.kind)
+        options.update(azimuths=az) if az else options.update(n_azimuths=args.n_azimuths,
+                                                               rational=args.rational)
     elif kind == "shadows":
         options.update(azimuth=args.azimuth, elevation=args.elevation)
     else:
         options.update(observer_height=args.observer_height, target_height=args.target_height,
                        curvature=args.curvature, refraction=args.refraction,
                        mode=getattr(args, "mode", "normal"), **_viewshed_values(args))
+    if kind != "viewshed":
+        options.update(curvature=args.curvature)
+        if args.curvature:
+            options.update(refraction=args.refraction)
     return options
 
 
@@ -296,22 +309,31 @@ def terrain_product(args):
     md = args.max_distance
     params = product_options(args, field)
     band_names, marks, border, cmap = None, None, None, "viridis"
-    if kind in ("horizon", "svf"):
+    curve = {} if kind == "viewshed" else dict(curvature=args.curvature,
+                                                 refraction=args.refraction)
+    if kind in ("horizon", "svf", "openness"):
         az = _azimuths(args)
-        n = len(az) if az else (args.n_azimuths if kind == "svf" else 1)
+        n = len(az) if az else (1 if kind == "horizon" else args.n_azimuths)
         bar, progress = _bar(args, n, f"{kind} {field.name}", "azimuth")
         with bar:
             if kind == "svf":
                 result = algos.sky_view_factor(field, args.n_azimuths, md, rational=args.rational,
-                                               azimuths=az, progress=progress, **common)
+                                               azimuths=az, progress=progress, **curve, **common)
                 product, units, cmap = "sky_view_factor", "1", "cividis"
+            elif kind == "openness":
+                result = algos.openness(field, args.kind, args.n_azimuths, md, azimuths=az,
+                                        rational=args.rational, units="degrees",
+                                        progress=progress, **curve, **common)
+                product, units, cmap = f"openness_{args.kind}", "degrees", "cividis"
             else:
                 az = az or [0.0]
-                result = np.degrees(algos.horizon(field, az, md, progress=progress, **common))
+                result = algos.horizon(field, az, md, units="degrees", progress=progress,
+                                       **curve, **common)
                 product, units, cmap, border = "horizon", "degrees", "magma", -90.0
                 band_names = [f"azimuth {a:g}" for a in az]
     elif kind == "shadows":
-        result = algos.shadows(field, args.azimuth, args.elevation, max_distance=md, **common)
+        result = algos.shadows(field, args.azimuth, args.elevation, max_distance=md, **curve,
+                               **common)
         product, units, cmap = "shadows", "1 = in shadow", "gray_r"
     else:
         obs = observers(args, field)
@@ -352,8 +374,18 @@ def terrain_product(args):
     return 0
 
 
+def _curvature_options(p):
+    """``--curvature`` and ``--refraction`` (as the viewshed's)."""
+    p.add_argument("--curvature", action="store_true",
+                   help="lower the surface for the earth's curvature and refraction (off by "
+                        "default, as RVT; GRASS r.horizon applies it); needs metres")
+    p.add_argument("--refraction", type=float, default=algos.DEFAULT_REFRACTION,
+                   help=f"with --curvature: refraction coefficient (default 1/7 = "
+                        f"{algos.DEFAULT_REFRACTION:.5f}, as GDAL and GRASS)")
+
+
 def register(sub):
-    """Add horizon, shadows, svf and viewshed to the sub-parsers ``sub``."""
+    """Add horizon, shadows, svf, openness and viewshed to the sub-parsers ``sub``."""
     for kind, text in PRODUCTS:
         p = sub.add_parser(kind, help=f"{text}: GeoTIFF, PNG and EXR")
         p.add_argument("source", nargs="?", default="jacksboro",
@@ -396,7 +428,13 @@ def register(sub):
         if kind == "horizon":
             p.add_argument("--azimuths", default=None,
                            help="comma-separated degrees clockwise from north (default 0)")
-        if kind == "svf":
+        if kind in ("horizon", "shadows", "svf", "openness"):
+            _curvature_options(p)
+        if kind == "openness":
+            p.add_argument("--kind", choices=("positive", "negative"), default="positive",
+                           help="positive: 90 deg minus the mean horizon angle; negative: "
+                                "90 deg plus the mean lowest elevation angle (default positive)")
+        if kind in ("svf", "openness"):
             p.add_argument("--n-azimuths", type=positive_int, default=None,
                            help="equally spaced azimuths from north (default 16)")
             p.add_argument("--azimuths", default=None, help="comma-separated degrees")

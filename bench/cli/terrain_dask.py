@@ -1,4 +1,4 @@
-"""``hftrace horizon|shadows|svf|viewshed SOURCE --dask ADDRESS``: terrain products tile by
+"""``hftrace horizon|shadows|svf|openness|viewshed SOURCE --dask ADDRESS``: terrain products tile by
 tile on a Dask cluster, for fields larger than the memory of any one worker.
 
 The source is read lazily (``datasets_gen.open_lazy``: each task reads its own window
@@ -59,7 +59,7 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
                 rational=False, azimuth=315.0, elevation=30.0, observers=(),
                 observer_height=1.75, target_height=0.0, curvature=False,
                 refraction=algos.DEFAULT_REFRACTION, algorithm=None, worker_memory=None,
-                params=None, echo=print):
+                params=None, openness_kind="positive", echo=print):
     """Compute one product of the lazy ``field`` on the cluster at ``address``
     (``local:N``: a LocalCluster of N single-threaded workers, each limited to
     ``worker_memory``); write ``out``.tif (a band per azimuth for horizons) and
@@ -76,19 +76,24 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
         raise ValueError("--max-distance: a tiled (dask) product needs a finite distance "
                          "(it is the tiles' halo)")
     common = dict(algorithm=algorithm, threads=1)  # one thread per worker
+    curve = dict(curvature=curvature, refraction=refraction)
     band_names = border = None
     if kind == "horizon":
-        layers = [da.degrees(algos.horizon(field, [a], max_distance, **common)[0])
-                  for a in azimuths]
+        layers = [algos.horizon(field, [a], max_distance, units="degrees", **curve,
+                                **common)[0] for a in azimuths]
         product, units, cmap, border = "horizon", "degrees", "magma", -90.0
         band_names = [f"azimuth {a:g}" for a in azimuths]
     elif kind == "svf":
         layers = [algos.sky_view_factor(field, n_azimuths, max_distance, rational=rational,
-                                        **common)]
+                                        **curve, **common)]
         product, units, cmap = "sky_view_factor", "1", "cividis"
+    elif kind == "openness":
+        layers = [algos.openness(field, openness_kind, n_azimuths, max_distance,
+                                 rational=rational, units="degrees", **curve, **common)]
+        product, units, cmap = f"openness_{openness_kind}", "degrees", "cividis"
     elif kind == "shadows":
         layers = [algos.shadows(field, azimuth, elevation, max_distance=max_distance,
-                                **common)]
+                                **curve, **common)]
         product, units, cmap = "shadows", "1 = in shadow", "gray_r"
     else:
         rows, cols = field.shape
@@ -158,12 +163,20 @@ def terrain_product_dask(args):
         if _azimuths(args):
             raise ValueError("--azimuths: not available with --dask for svf; use --n-azimuths")
         options.update(n_azimuths=args.n_azimuths, rational=args.rational)
+    elif kind == "openness":
+        if _azimuths(args):
+            raise ValueError("--azimuths: not available with --dask for openness; use "
+                             "--n-azimuths")
+        options.update(n_azimuths=args.n_azimuths, rational=args.rational,
+                       openness_kind=args.kind)
     elif kind == "shadows":
         options.update(azimuth=args.azimuth, elevation=args.elevation)
     else:
         options.update(observers=observers(args, field), observer_height=args.observer_height,
                        target_height=args.target_height, curvature=args.curvature,
                        refraction=args.refraction)
+    if kind != "viewshed":
+        options.update(curvature=args.curvature, refraction=args.refraction)
     os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
     run_product(kind, field, args.out, args.dask, **options)
     return 0

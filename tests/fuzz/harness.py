@@ -15,10 +15,10 @@ output mode and option. :func:`check` runs it and asserts the invariants:
   ``runs``; first hits: ``midpoint``, ``runs``, ``runs_periodic`` and ``runs_maxmip``);
 * cells are 8-adjacent, never repeat and lie in the grid; runs are consistent with them;
 * hits lie inside ``[tmin, tmax]`` and their cells in the grid;
-* horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9;
-  the viewshed's plain and mipmap walks agree bit for bit; in its other modes (every
-  ``algos.terrain.VIEWSHED_MODES``: the C threshold walk and the angle) they agree to
-  rounding, heights are >= 0 and angles in [-pi/2, pi/2].
+* horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9,
+  with and without curvature; the viewshed's plain and mipmap walks agree bit for bit; in
+  its other modes (every ``algos.terrain.VIEWSHED_MODES``: the C threshold walk and the
+  angle) they agree to rounding, heights are >= 0 and angles in [-pi/2, pi/2].
 
 The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -155,6 +155,10 @@ def _decode_terrain(r: Reader, op: str) -> dict:
         case["azimuth"] = (float(r.byte() % 8 * 45) if kind == 0 else
                            float(r.byte() * 360.0 / 256) if kind == 1 else r.double(400.0))
         case["kernel"] = HORIZON_EXACT[r.byte() % len(HORIZON_EXACT)]
+        # curvature (the kernels' kappa): last, and off past the end of the input, so the
+        # committed corpus decodes as before; a tiny earth radius (cells) makes it strong
+        if r.byte() % 4 == 3:
+            case["earth_radius"] = r.double(40.0)
     else:
         case["observer"] = [r.double(16.0), r.double(16.0)]
         case["observer_height"] = r.double(2.0) if r.byte() % 4 == 0 else abs(r.small())
@@ -167,7 +171,9 @@ def _decode_terrain(r: Reader, op: str) -> dict:
 def _call_terrain(case, kernel):
     md = case.get("max_distance")
     if case["op"] == "horizon":
-        return algos.horizon(case["heights"], case["azimuth"], md, algorithm=kernel)
+        curve = {} if "earth_radius" not in case else dict(
+            curvature=True, spacing=1.0, earth_radius=case["earth_radius"])
+        return algos.horizon(case["heights"], case["azimuth"], md, algorithm=kernel, **curve)
     return algos.viewshed(case["heights"], case["observer"], case["observer_height"],
                           max_distance=md, algorithm=kernel, mode=case.get("mode", "normal"))
 
@@ -179,8 +185,8 @@ def _check_terrain(case, result):
         for other in HORIZON_EXACT:
             try:
                 got = _call_terrain(case, other)
-            except ValueError:  # the sweep needs a rational azimuth and no max_distance
-                continue
+            except ValueError:  # the sweep needs a rational azimuth, no max_distance and
+                continue        # no curvature
             assert np.allclose(got, result, rtol=0, atol=1e-9), \
                 f"{case['kernel']} and {other} differ"
         return
