@@ -32,9 +32,18 @@ def bench_intersect(args):
     for surface in surfaces:
         if surface not in algos.SURFACES:
             raise ValueError(f"--surfaces: unknown surface {surface!r}; valid: {', '.join(algos.SURFACES)}")
+    regimes = tuple(s.strip() for s in args.regimes.split(","))
+    for regime in regimes:
+        if regime not in intersect.REGIMES:
+            raise ValueError(f"--regimes: unknown regime {regime!r}; valid: {', '.join(intersect.REGIMES)}")
+    coherences = tuple(s.strip() for s in args.coherence.split(","))
+    for coherence in coherences:
+        if coherence not in intersect.COHERENCES:
+            raise ValueError(f"--coherence: unknown ray batch {coherence!r}; valid: "
+                             f"{', '.join(intersect.COHERENCES)}")
     intersect.run(out_dir=args.out, n=args.rays, repeats=args.repeats, seed=args.seed,
                   datasets=datasets, run_lengths=args.run_lengths, surfaces=surfaces,
-                  names=chosen)
+                  names=chosen, regimes=regimes, coherences=coherences)
     return 0
 
 
@@ -121,6 +130,12 @@ def register(sub):
     p.add_argument("--datasets", default="fbm:1024,fbm:2048,uniform:1024",
                    help="comma-separated NAME:SIDE fields")
     p.add_argument("--surfaces", default="triangles", help="comma-separated surfaces")
+    p.add_argument("--regimes", default="flushed,warm",
+                   help="comma-separated cache regimes: flushed (caches evicted before every "
+                        "timed run), warm (each kernel warmed on its own rays)")
+    p.add_argument("--coherence", default="random,parallel,camera",
+                   help="comma-separated ray batches: random, parallel (slope 1/r), camera "
+                        "(render's pinhole rays)")
     p.set_defaults(func=bench_intersect)
 
     p = sub.add_parser("reproduce", help="the speedup-by-run-length study (headline preset, "
