@@ -4,6 +4,8 @@
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
 #   make bench-ci   the pytest-benchmark suite (pytest bench/benchmarks --benchmark-only)
 #   make terrain-bench  the terrain products' targets against the peers (results/terrain-bench)
+#   make targets    issue 22's targets table, full tier (hftrace targets --full: results/targets;
+#                   an hour or more, on a quiet machine)
 #   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
 #   make regress-counts  instruction counts (callgrind) against bench/regress/instructions_baseline.json
 #   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
@@ -22,7 +24,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all install test lint reproduce reports terrain-bench bench-traverse bench-intersect bench-ci regress regress-counts sanitize fuzz clean
+.PHONY: all install test lint reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts sanitize fuzz clean
 
 all: test
 
@@ -88,6 +90,9 @@ bench-traverse: $(STAMP)
 
 bench-intersect: $(STAMP)
 	$(BIN)/hftrace bench-intersect
+
+targets: $(STAMP)
+	$(BIN)/hftrace targets --full
 
 bench-ci: $(STAMP)
 	$(BIN)/python -m pytest bench/benchmarks --benchmark-only -q

@@ -11,6 +11,11 @@ Environment switches:
                       atheris' asan_with_fuzzer.so, which supplies the sanitizer runtime and
                       the coverage callbacks
 Otherwise: -O3, C99, no fast-math (the float kernels must round as IEEE 754 says).
+
+The optional C Embree 3 peer (cext/embree3_peer.c, algos._embree3) is added only where
+embree3/rtcore.h is found (Debian: apt-get install libembree-dev; EMBREE_DIR=prefix for
+another install); it is an optional extension, so a failure to build it is a warning and
+never fails the build. Without it the peer's tests skip.
 """
 import os
 import sys
@@ -52,6 +57,28 @@ if sys.platform.startswith("linux"):
     # clock_gettime lives in librt on old glibc
     link_args.append("-lrt")
 
+
+
+def _embree3_include():
+    """The include directory holding embree3/rtcore.h, or None."""
+    prefixes = [os.environ.get("EMBREE_DIR", ""), sys.prefix, "/usr/local", "/usr", "/opt/homebrew"]
+    for prefix in filter(None, prefixes):
+        if os.path.exists(os.path.join(prefix, "include", "embree3", "rtcore.h")):
+            return os.path.join(prefix, "include")
+    return None
+
+
+def _optional_extensions():
+    include = _embree3_include()
+    if include is None:
+        return []
+    lib = os.path.join(os.path.dirname(include), "lib")
+    return [Extension("algos._embree3", sources=[os.path.join("cext", "embree3_peer.c")],
+                      include_dirs=[include], library_dirs=[lib], libraries=["embree3"],
+                      extra_compile_args=compile_args, extra_link_args=link_args,
+                      optional=True)]
+
+
 setup(
     ext_modules=[
         Extension(
@@ -63,5 +90,5 @@ setup(
             extra_link_args=link_args,
             depends=[os.path.join("cext", name) for name in HEADERS],
         )
-    ]
+    ] + _optional_extensions()
 )

@@ -150,10 +150,15 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     hits = Hits(name, surface)
     nthreads = resolve_threads(threads)
 
-    if algorithm.kind == "peer":
+    if algorithm.name == "embree3":
+        from .embree3_peer import embree3_hits
+
+        t, cell, normal, elapsed = embree3_hits(fld, o, d, lo, hi, threads=nthreads, **opts)
+    elif algorithm.kind == "peer":
         from .embree_peer import embree_hits
 
         t, cell, normal, elapsed = embree_hits(fld, o, d, lo, hi, threads=nthreads)
+    if algorithm.kind == "peer":
         hits.elapsed_ns = elapsed
         hits.t = t if "t" in outputs else None
         hits.cell = cell if "cell" in outputs else None
@@ -279,6 +284,11 @@ def prepare_timed_intersect(name, heights, origins, directions, surface="triangl
     algorithm = get_intersector(name)
     fld = as_field(heights)
     o, d = check_rays3(origins, directions)
+    if algorithm.name == "embree3":
+        from .embree3_peer import embree3_timed
+
+        return embree3_timed(fld, o, d, threads=resolve_threads(threads),
+                             **_options(algorithm, options))
     if algorithm.kind == "peer":
         from .embree_peer import embree_timed
 

@@ -200,6 +200,28 @@ INTERSECTOR_REGISTRY.update({
         citation="Wald et al. 2014"),
 })
 
+
+def _register_embree3():
+    """The C Embree 3 peer (``algos.embree3_peer``), registered next to ``embree`` only
+    where it is built (setup.py finds embree3/rtcore.h); elsewhere it is absent."""
+    from importlib.util import find_spec
+
+    try:
+        if find_spec("algos._embree3") is None:
+            return
+    except (ImportError, ValueError):
+        return
+    INTERSECTOR_REGISTRY["embree3"] = Intersector(
+        "embree3", None, "peer", "float32-peer", None, ("embree3",),
+        {"geometry": "grid", "packet": 1, "coherent": False}, ("triangles",),
+        summary="Intel Embree 3 from C (system libembree-dev): the grid geometry laid out "
+                "on the conventions' split (or geometry='triangles'), single rays or packets "
+                "of 4/8/16 (packet=), no robust mode, high build quality",
+        citation="Wald et al. 2014")
+
+
+_register_embree3()
+
 #: Names accepted by ``algos.intersect``.
 INTERSECTORS: tuple[str, ...] = tuple(INTERSECTOR_REGISTRY)
 

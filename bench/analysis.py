@@ -241,7 +241,16 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
               "METHOD.md); tables aggregate datasets by the geometric mean.", ""]
     table = pivot(df, *PRIMARY)
     if not table.empty:
+        from .report import EMBREE_NOTE, axes_caption
+
+        # the headline names its regime: the sweep's rows record it (older CSVs: flushed, random)
+        regimes = sorted(set(df["regime"].dropna())) if "regime" in df else []
+        coherences = sorted(set(df["coherence"].dropna())) if "coherence" in df else []
+        caption = axes_caption(regimes[0] if len(regimes) == 1 else "flushed",
+                               coherences[0] if len(coherences) == 1 else "random")
+        embree = f" {EMBREE_NOTE}." if any(str(a).startswith("embree") for a in df["algorithm"]) else ""
         lines += ["## The paper's measure: first hit on triangles, by mean run length", "",
+                  caption + embree, "",
                   "Each cell: speedup [95 % interval] (geometric means over datasets of the "
                   "groups' medians and bootstrap bounds). A speedup whose interval spans 1.0 "
                   f"or is wider than {INCONCLUSIVE_WIDTH:.0%} of it is marked inconclusive: "

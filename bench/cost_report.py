@@ -44,7 +44,7 @@ def count(report_dir, pairs, resume=False, rays=300, echo=print) -> dict:
         for row in done.values():
             writer.writerow({k: row.get(k, "") for k in FIELDS})
         for workload, kernel in pairs:
-            if kernel == "embree" or (workload, kernel) in done:
+            if kernel in ("embree", "embree3") or (workload, kernel) in done:
                 continue
             p = profile(kernel, size=1024, r=25, rays=rays, workload=workload)
             row = dict(workload=workload, kernel=kernel, dataset="fbm", size=1024, r=25,

@@ -40,7 +40,7 @@ def write_counts(path: str, kernels, dataset="fbm", size=1024, r=25, rays=300,
     done = read_counts(path) if resume else {}
     if not resume and os.path.exists(path):
         os.remove(path)
-    todo = [k for k in kernels if k != "embree" and k not in done and
+    todo = [k for k in kernels if k not in ("embree", "embree3") and k not in done and
             k in algos.INTERSECTOR_REGISTRY and algos.INTERSECTOR_REGISTRY[k].plugin is None]
     skipped = [k for k in kernels if k in algos.INTERSECTOR_REGISTRY and
                algos.INTERSECTOR_REGISTRY[k].plugin is not None]

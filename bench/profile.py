@@ -208,8 +208,8 @@ def profile(kernel: str, dataset="fbm", size=1024, r=25, rays=1000, surface="tri
                            "the instruction counts need callgrind")
     if workload not in ENTRY:
         raise ValueError(f"workload: expected one of {', '.join(ENTRY)}, got {workload!r}")
-    if kernel == "embree":
-        raise ValueError("kernel: embree runs outside our C entry; profile counts our kernels")
+    if kernel in ("embree", "embree3"):
+        raise ValueError(f"kernel: {kernel} runs outside our C entry; profile counts our kernels")
     spec = dict(kernel=kernel, dataset=dataset, size=size, r=r, rays=rays, surface=surface,
                 workload=workload, seed=seed, options=dict(options or {}),
                 parallel=bool(parallel))

@@ -36,6 +36,25 @@ class RowWriter:
         self.close()
 
 
+#: What each cache regime and ray coherence means, for the captions of every speedup
+#: table (docs/METHOD.md, "Cache regimes and coherence").
+REGIME_TEXT = {"flushed": "caches flushed before every timed run",
+               "warm": "each kernel warmed on its own rays (an untimed run right before)"}
+COHERENCE_TEXT = {"random": "random rays (origins over the field, azimuth atan(1/r), all octants)",
+                  "parallel": "parallel rays (one direction of slope 1/r per batch)",
+                  "camera": "camera rays (render's pinhole batch)"}
+#: Said next to every Embree figure.
+EMBREE_NOTE = ("`embree` is embreex, which reaches Embree's single-ray triangle queries only; "
+               "`embree3`, where built (libembree-dev), is the C peer with Embree 3's grid "
+               "geometry and packets, reported beside it")
+
+
+def axes_caption(regime="flushed", coherence="random") -> str:
+    """The caption naming a table's cache regime and ray coherence."""
+    return (f"Cache regime: {REGIME_TEXT.get(regime, regime)}; rays: "
+            f"{COHERENCE_TEXT.get(coherence, coherence)}.")
+
+
 def speedup_table(rows, column_key="run_length", column_label="r", footer=None) -> str:
     """A Markdown table: one row per algorithm, one column per value of ``column_key``;
     each cell ``speedup [CI], ns/ray`` plus the agreement when below 100 %."""
@@ -58,4 +77,6 @@ def speedup_table(rows, column_key="run_length", column_label="r", footer=None) 
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     if footer:
         lines.append(footer(columns, lookup, names))
+    if any(name.startswith("embree") for name in names):
+        lines += ["", EMBREE_NOTE + "."]
     return "\n".join(lines)

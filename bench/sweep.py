@@ -45,7 +45,7 @@ from datasets_gen import rays as raysets
 
 from . import load as machine_load
 from .report import RowWriter
-from .timing import environment, interleaved, median_ci, ratio_ci, write_json
+from .timing import environment, median_ci, ratio_ci, timed_in_regime, write_json
 
 __all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "run_sweep_dask", "COLUMNS",
            "row_key", "WORKLOADS", "first_hit_rays", "traversal_rays", "measure_group",
@@ -57,7 +57,13 @@ COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "r
            "rays", "cells_per_ray", "runs_per_ray", "ns_per_ray", "ns_per_ray_ci_low",
            "ns_per_ray_ci_high", "speedup", "speedup_ci_low", "speedup_ci_high",
            "ns_per_cell", "ns_per_run", "agree", "repeats", "seed", "contended",
-           "other_cpu", "load_before", "load_after", "timed_s", "wall_s", "commit", "error"]
+           "other_cpu", "load_before", "load_after", "timed_s", "wall_s", "commit", "error",
+           "regime", "coherence"]
+#: Ray batches of a first-hit group, from incoherent to coherent (docs/METHOD.md, "Cache
+#: regimes and coherence"): "random" origins over the field at azimuth atan(1/r) in all
+#: octants; "parallel" rays of one direction, slope 1/r (orthographic, sun shadows);
+#: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels).
+COHERENCE = ("random", "parallel", "camera")
 _KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
          "run_lengths", "datasets", "plugins"}
 _DATASET_KEYS = {"name", "size", "seed", "params"}
@@ -280,17 +286,45 @@ def _time_limits(names, workload):
 _RAYS: dict = {"field": None, "rays": {}, "refs": {}}
 
 
-def _group_rays(field, workload, surface, r, rays, seed):
+def coherent_rays(field, coherence, r, n, seed):
+    """First-hit rays (origins, directions), (N, 3), of one :data:`COHERENCE` kind:
+    "random" is :func:`first_hit_rays`; "parallel" n orthographic rays of slope 1/r
+    falling at 10 degrees; "camera" the pinhole rays of ``render``'s default camera, 16:9
+    with about n pixels (``r`` unused)."""
+    if coherence == "random":
+        return first_hit_rays(field, r, n, seed)
+    rows_, cols_ = field.heights.shape
+    if coherence == "parallel":
+        if r == "random":
+            raise ValueError("coherence: parallel rays need a numeric run length, got 'random'")
+        rs = raysets.parallel(n, (cols_ - 1, rows_ - 1), seed, rational=(1, int(round(float(r)))),
+                              height=float(field.hmax) + 1.0, elevation=10.0)
+        return rs.origins, rs.directions
+    if coherence == "camera":
+        from algos.render import default_camera
+
+        width = max(2, int(round(math.sqrt(n * 16 / 9))))
+        height = max(2, int(round(width * 9 / 16)))
+        position, look_at = default_camera(field.heights)
+        rs = raysets.pinhole(position, look_at, 60.0, width, height)
+        return rs.origins, rs.directions
+    raise ValueError(f"coherence: expected one of {', '.join(COHERENCE)}, got {coherence!r}")
+
+
+def _group_rays(field, workload, surface, r, rays, seed, coherence="random"):
     """(origins, directions, cells per ray, runs per ray, reference output) of a group,
-    the rays drawn once per field, run length and kind (2D or first hit) and reused."""
+    the rays drawn once per field, run length, kind (2D or first hit) and coherence and
+    reused."""
     if _RAYS["field"] is not field:
         _RAYS.update(field=field, rays={}, refs={})
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
     kind = "3d" if workload == "first_hit" else "2d"
-    key = (kind, str(r), rays, seed)
+    if kind == "2d" and coherence != "random":
+        raise ValueError(f"coherence: the {workload} workload takes random rays only, got {coherence!r}")
+    key = (kind, str(r), rays, seed) + (() if coherence == "random" else (coherence,))
     if key not in _RAYS["rays"]:
-        _RAYS["rays"][key] = (first_hit_rays(field, r, rays, seed) if kind == "3d"
+        _RAYS["rays"][key] = (coherent_rays(field, coherence, r, rays, seed) if kind == "3d"
                               else traversal_rays(shape, r, rays, seed))
     o, d = _RAYS["rays"][key]
     ref_key = (workload, surface) + key
@@ -310,10 +344,12 @@ def _group_rays(field, workload, surface, r, rays, seed):
 
 
 def measure_group(field, label, workload, surface, r, names, rays, repeats, seed,
-                  keep_samples=False):
+                  keep_samples=False, regime="flushed", coherence="random"):
     """Rows for one group: every algorithm on the same rays, interleaved. With
     ``keep_samples`` each row also holds ``ratio_samples``, the per-repeat paired ratios
-    time(baseline) / time(algorithm).
+    time(baseline) / time(algorithm). ``regime`` is the cache regime
+    (``bench.timing.REGIMES``) and ``coherence`` the ray batch (:data:`COHERENCE`; first
+    hits only); both are recorded in every row.
 
     Each row also records the machine's load while the group ran (``bench.load``:
     ``contended``, ``other_cpu``, ``load_before``, ``load_after``), the group's time
@@ -329,7 +365,7 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
     mode = "visit" if workload == "visit" else "runs"
-    o, d, cells, runs, reference = _group_rays(field, workload, surface, r, rays, seed)
+    o, d, cells, runs, reference = _group_rays(field, workload, surface, r, rays, seed, coherence)
     jobs, outputs, errors = {}, {}, {}
     for name in names:
         try:
@@ -338,8 +374,8 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             if not plugins.is_plugin(name, workload):
                 raise
             errors[name] = f"{type(exc).__name__}: {exc}"
-    times = interleaved(jobs, repeats, errors=errors,
-                        time_limit_ns=_time_limits(names, workload))
+    times = timed_in_regime(jobs, repeats, regime, errors=errors,
+                            time_limit_ns=_time_limits(names, workload))
     if BASELINE not in times:
         raise RuntimeError(f"{label} {workload} r={r}: the baseline {BASELINE} failed: "
                            f"{errors.get(BASELINE)}")
@@ -352,7 +388,8 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
                       dataset=label, grid=f"{shape[0]}x{shape[1]}", run_length=r, rays=rays,
                       cells_per_ray=round(cells, 2), runs_per_ray=round(runs, 2),
                       repeats=repeats, seed=seed, timed_s=round(timed, 4),
-                      wall_s=round(wall, 4), error="", **load)
+                      wall_s=round(wall, 4), error="", regime=regime, coherence=coherence,
+                      **load)
         error = errors.get(name)
         got = None
         if error is None:
@@ -371,7 +408,7 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
         median, low, high = median_ci(per_ray, seed=seed)
         speedup, s_low, s_high = ratio_ci(times[BASELINE], times[name], seed=seed)
         if workload == "first_hit":
-            agree = hit_agreement(got, reference, 1e-4 if name == "embree" else 1e-9)
+            agree = hit_agreement(got, reference, 1e-4 if _is_peer(name) else 1e-9)
         else:
             agree = float(np.mean(got == reference))
         if plugins.is_plugin(name, workload) and _claims_exact(name, workload) and agree < 1.0:
@@ -387,6 +424,12 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
         if keep_samples:
             out[-1]["ratio_samples"] = (times[BASELINE] / times[name]).tolist()
     return out
+
+
+def _is_peer(name):
+    """True for Embree's peers (float32, compared at 1e-4 relative)."""
+    entry = algos.INTERSECTOR_REGISTRY.get(name)
+    return entry is not None and entry.kind == "peer"
 
 
 def _claims_exact(name, workload):

@@ -21,7 +21,7 @@ import numpy as np
 
 __all__ = ["interleaved", "median_ci", "ratio_ci", "environment", "pin_to_one_cpu",
            "flush_caches", "cache_sizes", "last_level_cache_bytes", "resident_bytes",
-           "write_json"]
+           "write_json", "REGIMES", "timed_in_regime"]
 
 
 def cache_sizes() -> dict:
@@ -149,6 +149,28 @@ def interleaved(jobs: dict[str, Callable[[], int]], repeats: int,
             if elapsed is not None:
                 times[name].append(elapsed)
     return {name: np.asarray(times[name], dtype=np.float64) for name in names}
+
+
+#: The cache regimes of a timed comparison (docs/METHOD.md, "Cache regimes"): "flushed",
+#: every timed run starts with the caches evicted; "warm", every timed run follows an
+#: untimed run of the same kernel on the same rays, so it finds its own lines cached.
+REGIMES = ("flushed", "warm")
+
+
+def timed_in_regime(jobs: dict[str, Callable[[], int]], repeats: int, regime: str = "flushed",
+                    errors: dict | None = None, time_limit_ns: dict | None = None):
+    """:func:`interleaved` in one of :data:`REGIMES`: ``"flushed"`` is ``interleaved``
+    with ``flush=True``; ``"warm"`` runs each job twice in a row, untimed then timed,
+    without flushing (each kernel warmed on its own rays)."""
+    if regime == "flushed":
+        return interleaved(jobs, repeats, flush=True, errors=errors, time_limit_ns=time_limit_ns)
+    if regime == "warm":
+        def twice(job):
+            return lambda: (job(), job())[1]
+
+        return interleaved({name: twice(job) for name, job in jobs.items()}, repeats,
+                           flush=False, errors=errors, time_limit_ns=time_limit_ns)
+    raise ValueError(f"regime: expected one of {', '.join(REGIMES)}, got {regime!r}")
 
 
 def _bootstrap(stat: Callable[[np.ndarray], float], samples: Sequence[np.ndarray],

@@ -340,7 +340,13 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
         const int64_t R = (int64_t)(N - c * W);
         column = (int64_t)c;
         delta = R % HF_ONE;
-        position = (int64_t)(((hf_i128)(R / HF_ONE) * pattern->position_step) % p);
+        /* the residue R / 2^16 and position_step are both below p <= slope_major < 2^31
+         * (the rounded direction's scale), so their product is below 2^62: a 64-bit
+         * modulo, not a 128-bit one, per ray */
+        HF_ASSERT(R / HF_ONE < p && pattern->position_step < p && p < ((int64_t)1 << 31),
+                  "R=%lld p=%lld step=%lld", (long long)R, (long long)p,
+                  (long long)pattern->position_step);
+        position = (R / HF_ONE) * pattern->position_step % p;
     }
     first = L.a0;
     for (row = L.b0; row < L.b1; ++row) {

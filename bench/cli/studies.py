@@ -1,5 +1,5 @@
 """The studies' commands: ``bench-traverse``, ``bench-intersect``, ``reproduce``, ``scale``,
-``terrain-bench``, ``accuracy``, ``stress`` and ``raster-vs-trace``. Each calls its module in
+``terrain-bench``, ``accuracy``, ``stress``, ``raster-vs-trace`` and ``targets``. Each calls its module in
 ``bench.studies`` and writes under ``results/<command>/`` unless ``--out`` says otherwise.
 """
 from __future__ import annotations
@@ -32,9 +32,18 @@ def bench_intersect(args):
     for surface in surfaces:
         if surface not in algos.SURFACES:
             raise ValueError(f"--surfaces: unknown surface {surface!r}; valid: {', '.join(algos.SURFACES)}")
+    regimes = tuple(s.strip() for s in args.regimes.split(","))
+    for regime in regimes:
+        if regime not in intersect.REGIMES:
+            raise ValueError(f"--regimes: unknown regime {regime!r}; valid: {', '.join(intersect.REGIMES)}")
+    coherences = tuple(s.strip() for s in args.coherence.split(","))
+    for coherence in coherences:
+        if coherence not in intersect.COHERENCES:
+            raise ValueError(f"--coherence: unknown ray batch {coherence!r}; valid: "
+                             f"{', '.join(intersect.COHERENCES)}")
     intersect.run(out_dir=args.out, n=args.rays, repeats=args.repeats, seed=args.seed,
                   datasets=datasets, run_lengths=args.run_lengths, surfaces=surfaces,
-                  names=chosen)
+                  names=chosen, regimes=regimes, coherences=coherences)
     return 0
 
 
@@ -96,6 +105,17 @@ def raster_vs_trace(args):
     return 0
 
 
+def targets(args):
+    """``hftrace targets``: bench.studies.targets.run."""
+    from ..studies import targets as study
+
+    out = args.out or ("reports/targets" if args.publish else "results/targets")
+    study.run(out_dir=out, tier="full" if args.full else "quick", regime=args.regime,
+              counts=not args.no_counts, packet_kernel=args.packet_kernel,
+              compact_kernel=args.compact_kernel)
+    return 0
+
+
 def register(sub):
     """Add the studies' commands to the sub-parsers ``sub``."""
     p = sub.add_parser("bench-traverse",
@@ -110,6 +130,12 @@ def register(sub):
     p.add_argument("--datasets", default="fbm:1024,fbm:2048,uniform:1024",
                    help="comma-separated NAME:SIDE fields")
     p.add_argument("--surfaces", default="triangles", help="comma-separated surfaces")
+    p.add_argument("--regimes", default="flushed,warm",
+                   help="comma-separated cache regimes: flushed (caches evicted before every "
+                        "timed run), warm (each kernel warmed on its own rays)")
+    p.add_argument("--coherence", default="random,parallel,camera",
+                   help="comma-separated ray batches: random, parallel (slope 1/r), camera "
+                        "(render's pinhole rays)")
     p.set_defaults(func=bench_intersect)
 
     p = sub.add_parser("reproduce", help="the speedup-by-run-length study (headline preset, "
@@ -173,3 +199,22 @@ def register(sub):
     p.add_argument("--no-counts", action="store_true", help="skip the callgrind counts")
     add_out(p, "raster-vs-trace")
     p.set_defaults(func=raster_vs_trace)
+
+    p = sub.add_parser("targets", help="issue 22's targets table: best exact vs Embree (random "
+                       "and camera rays), packets vs dda_maxmip, runs_periodic vs runs, cache "
+                       "misses; one process, one thread")
+    p.add_argument("--full", action="store_true",
+                   help="the issue's fields (fbm 2048^2 and 8192^2, Jacksboro 2048, 1280x720; "
+                        "an hour or more, a quiet machine); default the quick tier")
+    p.add_argument("--regime", choices=("warm", "flushed"), default="warm",
+                   help="cache regime (docs/METHOD.md): each kernel warmed on its own rays, "
+                        "or caches flushed before every timed run")
+    p.add_argument("--packet-kernel", default="packet_maxmip",
+                   help="registry name of the packet traversal (row 3)")
+    p.add_argument("--compact-kernel", default="dda_compact",
+                   help="registry name of the compact hierarchy (row 5)")
+    p.add_argument("--no-counts", action="store_true", help="skip the callgrind row")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--out", default=None, help="output directory (default results/targets)")
+    where.add_argument("--publish", action="store_true", help="write reports/targets instead")
+    p.set_defaults(func=targets)

@@ -66,7 +66,7 @@ def cases():
     out = []
     for name in algos.INTERSECTORS:
         # the peer and plugins run outside hftrace's C entry, which callgrind counts
-        if name == "embree" or algos.INTERSECTOR_REGISTRY[name].plugin is not None:
+        if algos.INTERSECTOR_REGISTRY[name].kind == "peer" or algos.INTERSECTOR_REGISTRY[name].plugin is not None:
             continue
         for surface in algos.SURFACES:
             out.append(("first_hit", surface, name))

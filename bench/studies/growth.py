@@ -47,7 +47,7 @@ def run_growth(out_dir, sides=SIDES, n=20_000, repeats=5, names=None, embree_max
                 ref = algos.intersect("runs", field, o, d, outputs=("t", "stats"), threads=1)
                 cells = float(ref.stats["cells_visited"].mean())
                 jobs = {}
-                use = [x for x in names if x != "embree" or side <= embree_max]
+                use = [x for x in names if x not in ("embree", "embree3") or side <= embree_max]
                 for name in use:
                     jobs[name] = prepare_timed_intersect(name, field, o, d, threads=1)[0]
                 times = interleaved(jobs, repeats)

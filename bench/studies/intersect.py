@@ -11,6 +11,12 @@ loop for Embree). Acceleration structures are built before timing and reported a
 Columns: speedup = median(dda) / median(algorithm) with a paired bootstrap 95 % CI;
 agree = fraction of rays whose hit/miss and t match the exact ``runs`` kernel (|dt| <=
 1e-9 (1 + t); 1e-4 relative for Embree's float32).
+
+Two more axes (docs/METHOD.md, "Cache regimes and coherence"): the cache regime
+(``regimes``: caches flushed before every timed run, or each kernel warmed on its own
+rays) and the rays' coherence (``coherences``: the random rays above, parallel batches of
+slope 1/r, and ``render``'s camera batch, one group per field, column "camera"). Every
+table's caption names both.
 """
 from __future__ import annotations
 
@@ -22,7 +28,7 @@ import numpy as np
 import algos
 import datasets_gen
 
-from ..report import RowWriter, speedup_table
+from ..report import RowWriter, axes_caption, speedup_table
 from ..sweep import COLUMNS as SWEEP_COLUMNS
 from ..sweep import measure_group
 from ..timing import environment, pin_to_one_cpu, write_json
@@ -34,10 +40,16 @@ DATASETS = (("fbm", 1024), ("fbm", 2048), ("uniform", 1024))
 COLUMNS = SWEEP_COLUMNS
 
 
-def measure(dataset, side, field, surface, r, n, repeats, seed, names):
+REGIMES = ("flushed", "warm")
+COHERENCES = ("random", "parallel", "camera")
+
+
+def measure(dataset, side, field, surface, r, n, repeats, seed, names, regime="flushed",
+            coherence="random"):
     """One group: every intersector that supports ``surface``, on the same rays."""
     names = [x for x in names if surface in algos.INTERSECTOR_REGISTRY[x].surfaces]
-    return measure_group(field, dataset, "first_hit", surface, r, names, n, repeats, seed)
+    return measure_group(field, dataset, "first_hit", surface, r, names, n, repeats, seed,
+                         regime=regime, coherence=coherence)
 
 
 def kernel_bytes(field, name) -> int:
@@ -66,7 +78,8 @@ def _targets(rows, fields_by_name):
 
     def speedup(dataset, r, name):
         vals = [float(x["speedup"]) for x in rows if x["dataset"] == dataset and
-                x["run_length"] == r and x["algorithm"] == name]
+                x["run_length"] == r and x["algorithm"] == name and
+                x.get("regime", "flushed") == "flushed" and x.get("coherence", "random") == "random"]
         return vals[0] if vals else float("nan")
 
     first = rows[0]["dataset"] if rows else None
@@ -78,7 +91,9 @@ def _targets(rows, fields_by_name):
         out.append(f"- `runs` at r = 1 on {first}: {s1:.2f}x dda (target: not slower, >= 1.0): "
                    f"{'met' if s1 >= 1.0 else 'missed'}")
     for dataset, field in fields_by_name.items():
-        embree = [x for x in rows if x["dataset"] == dataset and x["algorithm"] == "embree"]
+        embree = [x for x in rows if x["dataset"] == dataset and x["algorithm"] == "embree"
+                  and x.get("regime", "flushed") == "flushed"
+                  and x.get("coherence", "random") == "random"]
         if not embree or "embree" not in field.build_stats:
             continue
         exact = sorted({x["algorithm"] for x in rows if x["dataset"] == dataset and
@@ -89,7 +104,9 @@ def _targets(rows, fields_by_name):
             for r in sorted({x["run_length"] for x in embree}):
                 e = [float(x["ns_per_ray"]) for x in embree if x["run_length"] == r][0]
                 k = [float(x["ns_per_ray"]) for x in rows if x["dataset"] == dataset and
-                     x["algorithm"] == name and x["run_length"] == r][0]
+                     x["algorithm"] == name and x["run_length"] == r and
+                     x.get("regime", "flushed") == "flushed" and
+                     x.get("coherence", "random") == "random"][0]
                 ratios.append(e / k)
             speed[name] = float(np.median(ratios))
         best = max(speed, key=speed.get)
@@ -104,10 +121,11 @@ def _targets(rows, fields_by_name):
 
 def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
         datasets=DATASETS, run_lengths=RUN_LENGTHS, surfaces=("triangles",), names=None,
-        echo=print):
-    """Measure every (field, surface, r) group, write results.csv (rows flushed as
-    measured), tables.md (speedup tables, structures, the targets) and env.json to
-    ``out_dir``, print the tables; returns the rows. Pins this process to one CPU."""
+        echo=print, regimes=REGIMES, coherences=COHERENCES):
+    """Measure every (field, surface, regime, coherence, r) group, write results.csv (rows
+    flushed as measured), tables.md (speedup tables, structures, the targets) and env.json
+    to ``out_dir``, print the tables; returns the rows. Pins this process to one CPU.
+    Parallel groups take the numeric run lengths; the camera group is one per field."""
     os.makedirs(out_dir, exist_ok=True)
     cpu = pin_to_one_cpu()
     env = dict(environment(), pinned_cpu=cpu)
@@ -124,11 +142,18 @@ def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
             field = algos.Field(heights)
             fields_by_name[label] = field
             for surface in surfaces:
-                for r in run_lengths:
-                    for row in measure(label, side, field, surface, r, n, repeats, seed, names):
-                        writer.write(row)
-                        rows.append(row)
-                    echo(f"  {label} {surface} r={r:<4} done ({time.perf_counter() - start:6.1f} s)")
+                for regime in regimes:
+                    for coherence in coherences:
+                        lengths = {"random": list(run_lengths),
+                                   "parallel": [r for r in run_lengths if r != "random"],
+                                   "camera": ["camera"]}[coherence]
+                        for r in lengths:
+                            for row in measure(label, side, field, surface, r, n, repeats, seed,
+                                               names, regime, coherence):
+                                writer.write(row)
+                                rows.append(row)
+                            echo(f"  {label} {surface} {regime} {coherence} r={r:<4} done "
+                                 f"({time.perf_counter() - start:6.1f} s)")
     text = [f"# bench-intersect: first hits, speedup over `{BASELINE}`",
             "", f"{n} rays per run length, elevations 5-20 degrees, origins one cell above "
             f"the highest point; {repeats} interleaved repeats on one pinned CPU. Machine: "
@@ -136,14 +161,19 @@ def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
             ""]
     for label, field in fields_by_name.items():
         for surface in surfaces:
-            part = [x for x in rows if x["dataset"] == label and x["surface"] == surface]
-
             def counts(columns, lookup, names_):
                 return "| cells / runs per ray (runs) | " + " | ".join(
                     f"{lookup[(REFERENCE, r)]['cells_per_ray']:.0f} / "
                     f"{lookup[(REFERENCE, r)]['runs_per_ray']:.0f}" for r in columns) + " |"
 
-            text += [f"## {label}, {surface}", "", speedup_table(part, footer=counts), ""]
+            for regime in regimes:
+                for coherence in coherences:
+                    part = [x for x in rows if x["dataset"] == label and x["surface"] == surface
+                            and x["regime"] == regime and x["coherence"] == coherence]
+                    if part:
+                        text += [f"## {label}, {surface}, {regime}, {coherence} rays", "",
+                                 axes_caption(regime, coherence), "",
+                                 speedup_table(part, footer=counts), ""]
         text += [f"Structures of {label}:", "", _structures(field), ""]
     text += ["## Targets", ""] + _targets(rows, fields_by_name) + [""]
     with open(os.path.join(out_dir, "tables.md"), "w") as f:

@@ -89,7 +89,7 @@ def run_threads(out_dir, side=2048, n=100_000, repeats=7, threads=None, echo=pri
             measure("visit", name, lambda t, name=name: algos.prepare_timed(
                 name, o2, d2, shape, "visit", threads=t)[0])
         for name in algos.INTERSECTORS:
-            if name == "embree" and side > EMBREE_MAX_SIDE:
+            if name in ("embree", "embree3") and side > EMBREE_MAX_SIDE:
                 continue
             measure("first_hit", name, lambda t, name=name: prepare_timed_intersect(
                 name, field, o, d, threads=t)[0])

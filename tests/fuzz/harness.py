@@ -42,7 +42,7 @@ import algos
 from .cone_cases import check_cone
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
-INTERSECTORS = tuple(n for n in algos.INTERSECTOR_REGISTRY if n != "embree")
+INTERSECTORS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.kind != "peer")
 EXACT_TRAVERSALS = ("midpoint", "runs")
 EXACT_INTERSECTORS = ("midpoint", "runs", "runs_periodic", "runs_maxmip")
 CORPUS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data",
