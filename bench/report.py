@@ -13,6 +13,14 @@ class RowWriter:
         self.path = path
         self.columns = list(columns)
         exists = append and os.path.exists(path) and os.path.getsize(path) > 0
+        if exists:
+            with open(path, newline="") as f:
+                header = next(csv.reader(f), [])
+            if header != self.columns:
+                raise ValueError(
+                    f"{path}: its columns {header} differ from this version's {self.columns}; "
+                    "it was written by another version of hftrace, so rows cannot be appended "
+                    "to it: choose another --out or start afresh")
         self._file = open(path, "a" if exists else "w", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore")
         if not exists:

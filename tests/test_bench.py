@@ -321,3 +321,17 @@ def test_every_public_function_in_bench_has_a_docstring():
                 if isinstance(node, ast.ClassDef):
                     todo += [(child, node.name + ".") for child in node.body]
     assert not missing, missing
+
+
+def test_row_writer_refuses_to_append_to_other_columns(tmp_path):
+    """A results file written with other columns (an older version) is never appended to:
+    its rows would be misaligned."""
+    from bench.report import RowWriter
+    path = tmp_path / "results.csv"
+    with RowWriter(str(path), ["a", "b"]) as w:
+        w.write({"a": 1, "b": 2})
+    with pytest.raises(ValueError, match=r"columns \['a', 'b'\] differ"):
+        RowWriter(str(path), ["a", "b", "regime"], append=True)
+    with RowWriter(str(path), ["a", "b"], append=True) as w:
+        w.write({"a": 3, "b": 4})
+    assert path.read_text().splitlines() == ["a,b", "1,2", "3,4"]
