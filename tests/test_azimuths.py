@@ -199,3 +199,33 @@ def test_kernels_refuse_what_would_read_outside():
     with pytest.raises(ValueError, match="mip"):
         _kernels.horizon_chain(h, None, 1.0, 0.0, math.inf, ints[0], ints[0], one, 4, 0, 1,
                                np.empty(20), np.empty(20))
+
+
+# ---- the terrain-bench section ---------------------------------------------------------------
+
+def test_numpy_baseline_is_rvts_method():
+    """The NumPy baseline reproduces RVT's SVF (where rvt-py imports) and sees a full sky
+    on a plane."""
+    from bench.studies.terrain_azimuths import numpy_rvt_svf, rvt_svf
+
+    assert np.all(numpy_rvt_svf(np.zeros((12, 13)), 16, 3) == 1.0)
+    h = np.random.default_rng(13).normal(size=(30, 34)).cumsum(axis=0)
+    ours = numpy_rvt_svf(h, 16, 5)
+    assert np.all((ours > 0) & (ours <= 1))
+    rvt = rvt_svf()
+    if rvt is None:
+        pytest.skip("rvt-py does not import (the Makefile's peers step installs it)")
+    np.testing.assert_allclose(ours, rvt(h, 16, 5)["svf"], rtol=0, atol=1e-12)
+
+
+def test_terrain_bench_azimuth_section_runs():
+    from bench.studies.terrain_azimuths import run_azimuths
+
+    lines, rows = run_azimuths(size=64, svf_size=40, radii=(3, 8), repeats=1, baseline=True,
+                               echo=lambda *a: None)
+    text = "\n".join(lines)
+    assert "16 azimuths" in text and "`chain`" in text and "`sweep`" in text
+    assert "| 3 |" in text and "| 8 |" in text and "hftrace vs RVT" in text
+    assert {r["workload"] for r in rows} >= {"horizon16", "horizon16_snapped", "svf16_r3",
+                                             "svf16_r8"}
+    assert all(r["field_seconds"] > 0 for r in rows)
