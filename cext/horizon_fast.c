@@ -105,22 +105,31 @@ static inline void chain_visit(chain_best *b, double t, double s, double delta) 
     }
 }
 
+/* The first cell along one axis of a ray from a vertex (o an integer, s its sign: the
+ * cell [o, o+1) moving forward or along the axis, (o-1, o] moving back), as terrain.c's
+ * first_index for integer origins, without a libm call. */
 static int64_t chain_first_index(double o, int s, int64_t n) {
-    int64_t i = s < 0 ? (int64_t)ceil(o) - 1 : (int64_t)floor(o);
+    int64_t i = s < 0 ? (int64_t)o - 1 : (int64_t)o;
     if (s == 0 && i == n) i = n - 1; /* on the far edge of the footprint, moving along it */
     return i;
+}
+
+/* floor(x) clamped to [lo, hi], by truncation: equal to clamping floor(x) whenever
+ * lo >= 0 (truncation and floor differ only on (-1, 0) and below, all clamped to lo). */
+static inline int64_t clamped_floor(double x, int64_t lo, int64_t hi) {
+    return clamp_index((int64_t)x, lo, hi);
 }
 
 static double chain_exit_value(const double *H, int64_t rows, int64_t cols, const chain_ray *r,
                                int64_t X, int64_t Y, double tX, double tY) {
     if (tX < tY) { /* on the column x = X */
         double y = r->oy + tX * r->dy;
-        int64_t j = clamp_index((int64_t)floor(y), 0, rows - 2);
+        int64_t j = clamped_floor(y, 0, rows - 2);
         return hf_lerp_ends(H[j * cols + X], H[(j + 1) * cols + X], y - (double)j);
     }
     if (tY < tX) { /* on the row y = Y */
         double x = r->ox + tY * r->dx;
-        int64_t i = clamp_index((int64_t)floor(x), 0, cols - 2);
+        int64_t i = clamped_floor(x, 0, cols - 2);
         return hf_lerp_ends(H[Y * cols + i], H[Y * cols + i + 1], x - (double)i);
     }
     return H[Y * cols + X];
