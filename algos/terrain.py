@@ -26,6 +26,17 @@ surface is the linear interpolation between the two ends of the edge or diagonal
   keeping the upper convex hull of the points passed (Dozier & Frew 1990) gives each
   vertex its horizon as the tangent from it to that hull, in amortised O(1) per point
   (``algorithm="sweep"``; unlimited distance only).
+* **Borrowed lower bounds** (``algorithm="chain"``). For a convergent p/q of the octant
+  slope, the vertex w = v + (q, p) lies |q b - p a| cells off v's ray (a, b the unit
+  octant direction), so w's ray runs alongside v's. The surface point of v's own ray at
+  w's occluder distance (plus the distance from v to w along the ray) is a lower bound of
+  v's supremum; the max-mipmap walk (Tevs et al. 2008) starts from it, skips every tile
+  that cannot beat it, and returns the maximum over v's own breakpoints, as the plain
+  walk does. Vertices are taken far-first, in blocks of rows that borrow only within
+  themselves, so the result is the same for every thread count.
+* **Row-vectorised patterns** (``algorithm="rows"``): the shared pattern in the grid's
+  own frame, with the breakpoints outermost and a contiguous row of vertices innermost;
+  the same expressions, so the same bits as ``"pattern"``.
 * **Line of sight.** The gap between the surface and a straight segment is linear on every
   piece, so the segment passes strictly below the surface if and only if it does at a
   breakpoint. The target vertex itself never counts. Breakpoints within a rounding bound of
@@ -920,9 +931,11 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     max_distance : float, optional
         A length in the field's unit (cells when there is no spacing). None: unlimited.
     algorithm : str, optional
-        A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
-        rational in cell space and the distance unlimited, else "pattern" for
-        max_distance <= 384 cells and "dda_maxmip" beyond (chosen by measurement).
+        A key of :data:`HORIZON_ALGORITHMS`, or None/"auto", chosen per azimuth: "sweep"
+        for a direction rational in cell space at unlimited distance, "rows" for
+        max_distance <= 384 cells, "chain" otherwise (chosen by measurement). The path of
+        each azimuth is recorded in :data:`LAST_STATS` (``algorithm``, ``paths``) and in a
+        DataArray's attrs ``algorithm`` and ``paths``.
     spacing : float or (dx, dy), optional
         The pixel size of a raw array, in the unit of its heights; None means cell units.
         A HeightField carries its own (giving a different one raises).
