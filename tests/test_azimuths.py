@@ -229,3 +229,22 @@ def test_terrain_bench_azimuth_section_runs():
     assert {r["workload"] for r in rows} >= {"horizon16", "horizon16_snapped", "svf16_r3",
                                              "svf16_r8"}
     assert all(r["field_seconds"] > 0 for r in rows)
+
+
+def test_cli_records_paths_and_snapping(tmp_path):
+    rasterio = pytest.importorskip("rasterio")
+    from bench.cli import main
+
+    out = str(tmp_path / "svf")
+    assert main(["svf", "jacksboro", "--size", "40", "--n-azimuths", "16", "--snap-denominator",
+                 "5", "--out", out, "--no-progress"]) == 0
+    with rasterio.open(out + ".tif") as src:
+        tags = src.tags()
+    assert tags["paths"] == ",".join(["sweep"] * 16)
+    assert float(tags["snap_max_change_deg"]) == pytest.approx(0.6986, abs=1e-4)
+    out = str(tmp_path / "hz")
+    assert main(["horizon", "jacksboro", "--size", "40", "--azimuths", "0,22.5", "--out", out,
+                 "--no-progress"]) == 0
+    with rasterio.open(out + ".tif") as src:
+        tags = src.tags()
+    assert tags["paths"] == "sweep,chain" and "snapped_azimuths" not in tags
