@@ -46,11 +46,14 @@ lint: $(STAMP)
 	$(BIN)/python -m ruff check .
 
 # the peers' optional extra (xarray-spatial) joins the figure and the viewshed comparison;
-# a machine where it cannot be installed still reproduces everything else
+# a machine where it cannot be installed still reproduces everything else. rvt-py (RVT's
+# sky-view factor, in terrain-bench) goes in without its declared dependencies (GDAL,
+# jupyter, geopandas: its SVF needs only NumPy and SciPy, which the extra brings)
 PEERS_STAMP := $(VENV)/.hftrace-peers
 
 $(PEERS_STAMP): $(STAMP)
 	-$(BIN)/python -m pip install --quiet -e ".[test,peers]"
+	-$(BIN)/python -m pip install --quiet --no-deps "rvt-py>=2.2"
 	touch $(PEERS_STAMP)
 
 # the headline preset needs only the runtime dependencies (no test tools, no peers: the

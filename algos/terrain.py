@@ -27,6 +27,17 @@ surface is the linear interpolation between the two ends of the edge or diagonal
   keeping the upper convex hull of the points passed (Dozier & Frew 1990) gives each
   vertex its horizon as the tangent from it to that hull, in amortised O(1) per point
   (``algorithm="sweep"``; unlimited distance only).
+* **Borrowed lower bounds** (``algorithm="chain"``). For a convergent p/q of the octant
+  slope, the vertex w = v + (q, p) lies |q b - p a| cells off v's ray (a, b the unit
+  octant direction), so w's ray runs alongside v's. The surface point of v's own ray at
+  w's occluder distance (plus the distance from v to w along the ray) is a lower bound of
+  v's supremum; the max-mipmap walk (Tevs et al. 2008) starts from it, skips every tile
+  that cannot beat it, and returns the maximum over v's own breakpoints, as the plain
+  walk does. Vertices are taken far-first, in blocks of rows that borrow only within
+  themselves, so the result is the same for every thread count.
+* **Row-vectorised patterns** (``algorithm="rows"``): the shared pattern in the grid's
+  own frame, with the breakpoints outermost and a contiguous row of vertices innermost;
+  the same expressions, so the same bits as ``"pattern"``.
 * **Line of sight.** The gap between the surface and a straight segment is linear on every
   piece, so the segment passes strictly below the surface if and only if it does at a
   breakpoint. The target vertex itself never counts. Breakpoints within a rounding bound of
@@ -150,7 +161,7 @@ __all__ = ["horizon", "shadows", "sky_view_factor", "openness", "viewshed",
            "azimuth_direction", "HORIZON_ALGORITHMS", "VIEWSHED_ALGORITHMS", "TerrainAlgorithm",
            "MAX_SNAP_DENOMINATOR", "DEFAULT_REFRACTION", "TerrainStats", "Grid",
            "VOID_HEIGHT", "VIEWSHED_MODES", "ANGLE_UNITS", "OPENNESS_KINDS",
-           "CURVATURE_REFUSED"]
+           "CURVATURE_REFUSED", "snap_azimuths", "chain_neighbours"]
 
 #: Azimuths this close to a small rational slope are taken as exactly that slope.
 MAX_SNAP_DENOMINATOR = 128
@@ -168,6 +179,8 @@ ANGLE_UNITS = ("radians", "degrees")
 #: Algorithms that refuse curvature, and why.
 CURVATURE_REFUSED = {
     "sweep": "the upper hull of the breakpoints misses the peaks inside pieces",
+    "rows": "the row-vectorised pattern evaluates breakpoints only",
+    "chain": "its borrowed lower bounds and tile skips assume no drop",
     "embree": "the peer traces straight rays over the unlowered mesh",
 }
 
@@ -195,6 +208,13 @@ HORIZON_ALGORITHMS: dict[str, TerrainAlgorithm] = {a.name: a for a in (
                      "Dozier & Frew 1990"),
     TerrainAlgorithm("pattern", True, False, True,
                      "per-vertex walk over one shared breakpoint pattern per azimuth"),
+    TerrainAlgorithm("rows", True, False, True,
+                     "one shared breakpoint pattern per azimuth, a row of vertices at a time "
+                     "(vectorised)"),
+    TerrainAlgorithm("chain", True, False, True,
+                     "per-vertex max-mipmap walk started from a lower bound borrowed from a "
+                     "vertex further along almost the same line (continued-fraction "
+                     "convergents of the slope)", "Tevs et al. 2008"),
     TerrainAlgorithm("dda", True, False, True,
                      "per-vertex cell walk (Amanatides & Woo) over every breakpoint",
                      "Amanatides & Woo 1987"),
@@ -219,13 +239,25 @@ VIEWSHED_ALGORITHMS: dict[str, TerrainAlgorithm] = {a.name: a for a in (
 @dataclass
 class TerrainStats:
     """What the last call did: C time, cells evaluated, tiles skipped, vertices resolved
-    exactly (viewshed), per algorithm."""
+    exactly (viewshed), per algorithm.
+
+    ``algorithm``: the algorithms that ran, distinct, in azimuth order, joined by "+"
+    ("sweep+chain"); ``paths``: the algorithm of each azimuth (horizon products).
+    ``tile_tests``, ``bounded``: mipmap tiles tested, and vertices that started with a
+    borrowed lower bound (``chain``). ``snapped_azimuths``, ``snap_max_change_deg``: the
+    azimuths actually used and the largest move, in degrees, when snapping was asked for
+    (``snap_denominator``); empty and 0.0 otherwise."""
 
     algorithm: str = ""
     ns: int = 0
     cells: int = 0
     skips: int = 0
     exact_resolved: int = 0
+    paths: tuple = ()
+    tile_tests: int = 0
+    bounded: int = 0
+    snapped_azimuths: tuple = ()
+    snap_max_change_deg: float = 0.0
 
 
 #: Statistics of the most recent product call in this thread of control.
@@ -460,6 +492,91 @@ def rational_azimuths(n: int, max_denominator: int = 5) -> np.ndarray:
     return np.array(out)
 
 
+def _snap_cell_azimuth(azimuth: float, max_denominator: int) -> float:
+    """The direction nearest ``azimuth`` (degrees, cell space) whose octant slope is p/q
+    with q <= max_denominator (ties: the smaller q, then the smaller angle)."""
+    octant, rest = divmod(azimuth % 360.0, 45.0)
+    octant = int(octant) % 8
+    offset = rest if octant % 2 == 0 else 45.0 - rest  # degrees from the octant's axis
+    ratio = math.tan(math.radians(offset))
+    best = None
+    for q in range(1, max_denominator + 1):
+        for p in {math.floor(ratio * q), math.ceil(ratio * q)}:
+            if 0 <= p <= q and math.gcd(p, q) == 1:
+                angle = math.degrees(math.atan2(p, q))
+                key = (abs(angle - offset), q, angle)
+                if best is None or key < best:
+                    best = key
+    angle = best[2]
+    return (octant * 45.0 + (angle if octant % 2 == 0 else 45.0 - angle)) % 360.0
+
+
+def snap_azimuths(azimuths, max_denominator, spacing=None):
+    """Move each azimuth to the nearest direction whose slope *in cell space* is p/q with
+    q <= ``max_denominator``, where the exact sweep applies at unlimited distance.
+
+    Parameters
+    ----------
+    azimuths : float or sequence of floats
+        Degrees clockwise from north.
+    max_denominator : int
+        1 to :data:`MAX_SNAP_DENOMINATOR`. A larger one moves less and costs more: the
+        sweep reads about 2 q breakpoints per vertex.
+    spacing : float or (dx, dy), optional
+        The pixel size; on rectangular pixels an azimuth is snapped in cell space and
+        mapped back (:meth:`Grid.cell_azimuth`).
+
+    Returns
+    -------
+    (float64 array (K,), float)
+        The snapped azimuths (degrees, in [0, 360)) and the largest angular change, in
+        degrees of map azimuth.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Naming ``max_denominator``, ``azimuths[k]`` or ``spacing``.
+    """
+    if isinstance(max_denominator, bool) or not isinstance(max_denominator, (int, np.integer)) \
+            or not 1 <= max_denominator <= MAX_SNAP_DENOMINATOR:
+        raise ValueError(f"max_denominator: expected an int in 1..{MAX_SNAP_DENOMINATOR}, "
+                         f"got {max_denominator!r}")
+    dx, dy = check_spacing(spacing) if spacing is not None else (1.0, 1.0)
+    grid = Grid(np.zeros((2, 2)), dx, dy, dx, True, None, None)
+    out, change = [], 0.0
+    for a in _azimuth_list(azimuths):
+        snapped = grid.map_azimuth(_snap_cell_azimuth(grid.cell_azimuth(a % 360.0),
+                                                      int(max_denominator)))
+        out.append(snapped)
+        change = max(change, abs((snapped - a + 180.0) % 360.0 - 180.0))
+    return np.array(out), change
+
+
+def _field_spacing(heights, spacing):
+    """(dx, dy) of a product's input: a HeightField's or DataArray's own, else ``spacing``
+    (cell units when None)."""
+    field = heights if isinstance(heights, HeightField) else None
+    if field is None and is_dataarray(heights):
+        field = HeightField.from_dataarray(heights)
+    if field is not None:
+        return field.dx, field.dy
+    return check_spacing(spacing) if spacing is not None else (1.0, 1.0)
+
+
+def _path_attrs(snap):
+    """The attributes a product's DataArray or file records about how it was computed:
+    ``algorithm`` and ``paths`` (one per azimuth, comma-separated) from
+    :data:`LAST_STATS`, and with snapping (``snap``: (snapped azimuths, largest change)),
+    ``snapped_azimuths`` and ``snap_max_change_deg``."""
+    attrs = dict(algorithm=LAST_STATS.algorithm, paths=",".join(LAST_STATS.paths))
+    if snap is None and LAST_STATS.snapped_azimuths:
+        snap = (LAST_STATS.snapped_azimuths, LAST_STATS.snap_max_change_deg)
+    if snap is not None:
+        attrs.update(snapped_azimuths=[float(a) for a in snap[0]],
+                     snap_max_change_deg=float(snap[1]))
+    return attrs
+
+
 # ---- frames and patterns ---------------------------------------------------------------------
 
 def _to_frame(a: np.ndarray, d: Direction) -> np.ndarray:
@@ -643,9 +760,111 @@ def _pattern_walk(hf, pat, zmax, start, stop, out, kappa=0.0):
         PATTERN_STOP_EVERY, start, stop, out, kappa)[0]
 
 
+#: Rows per block of the chain walk: a vertex borrows only from neighbours in its own
+#: block, so that results do not depend on how blocks are shared among threads.
+CHAIN_BLOCK_ROWS = 256
+#: Largest denominator of the convergents the chain walk borrows along, and their largest
+#: distance (cells) across the ray.
+CHAIN_MAX_DENOMINATOR = 1024
+CHAIN_MAX_OFFSET = 0.5
+
+
+def _rows_pattern(h, d: Direction, max_distance, threads):
+    """The shared pattern of ``d`` in the grid's own frame, row by row, vectorised over each
+    row's vertices (``hf_horizon_rows``): the octant-frame pattern's offsets mapped back
+    to the grid, so no frame copy is made. Bit-identical to the pattern walk. Returns
+    (tangents (rows, cols), ns)."""
+    rows, cols = h.shape
+    fr, fc = (cols, rows) if d.swap else (rows, cols)
+    pat = _shared_pattern(d, fr, fc, max_distance)
+    mx = np.maximum.accumulate(np.maximum(pat["xa"], pat["xb"])).astype(np.int64)
+    my = np.maximum.accumulate(np.maximum(pat["ya"], pat["yb"])).astype(np.int64)
+    xa, ya, xb, yb = pat["xa"], pat["ya"], pat["xb"], pat["yb"]
+    rx, ry = mx, my
+    if d.swap:  # the frame's x is the grid's y
+        xa, ya, xb, yb, rx, ry = ya, xa, yb, xb, my, mx
+    sx, sy = (-1 if d.sx < 0 else 1), (-1 if d.sy < 0 else 1)
+    if pat["end_k"] >= 0:
+        n_main = pat["end_k"] + 1
+    else:  # no end between breakpoints: as many as any vertex can use (the pattern's limits)
+        n_main = int(min(pat["limit_x"][-1], pat["limit_y"][-1]))
+    out = np.empty(rows * cols)
+    ns = sum(run_ranges(rows, threads, lambda a, b: _kernels.horizon_rows(
+        h, pat["inv_t"], np.ascontiguousarray(sx * xa), np.ascontiguousarray(sy * ya),
+        np.ascontiguousarray(sx * xb), np.ascontiguousarray(sy * yb), pat["w"], rx, ry, sx, sy,
+        n_main, pat["end_k"], pat["end_f"], pat["end_inv"], a, b, out)[0],
+        chunks_per_thread=4, min_chunk=8))
+    return out.reshape(rows, cols), ns
+
+
+def _convergents(x: float, max_denominator: int):
+    """The continued-fraction convergents p/q of x >= 0 with q <= max_denominator, as
+    (q, p) pairs in order of q."""
+    out, (p0, q0, p1, q1) = [], (0, 1, 1, 0)
+    for _ in range(64):
+        a = math.floor(x)
+        p0, q0, p1, q1 = p1, q1, a * p1 + p0, a * q1 + q0
+        if q1 > max_denominator:
+            break
+        out.append((q1, p1))
+        frac = x - a
+        if frac <= 0.0:
+            break
+        x = 1.0 / frac
+    return out
+
+
+def chain_neighbours(d: Direction, max_denominator=CHAIN_MAX_DENOMINATOR,
+                     max_offset=CHAIN_MAX_OFFSET):
+    """The offsets (gx, gy) and distances along ``d`` of the vertices the chain walk borrows
+    lower bounds from: v + (gx, gy) for each convergent p/q of the octant slope
+    (q <= max_denominator) whose line passes within ``max_offset`` cells of v's ray
+    (|q b - p a| for the octant direction (a, b)); nearest across first. For a rational
+    direction the last is its own period (q, p), on the ray itself."""
+    found = []
+    for q, p in _convergents(d.b / d.a, max_denominator):
+        across = abs(q * d.b - p * d.a)
+        if across > max_offset:
+            continue
+        fx, fy = (p, q) if d.swap else (q, p)
+        gx, gy = (-fx if d.sx < 0 else fx), (-fy if d.sy < 0 else fy)
+        found.append((across, gx, gy, q * d.a + p * d.b))
+    found.sort()
+    return (np.array([f[1] for f in found], dtype=np.int64),
+            np.array([f[2] for f in found], dtype=np.int64),
+            np.array([f[3] for f in found], dtype=np.float64))
+
+
+def _chain(h, d: Direction, max_distance, threads, mip, stats):
+    """The chain walk of every vertex (grid frame): ``hf_horizon_chain``. Returns the
+    tangents (rows, cols) and adds the walk's counts to ``stats``."""
+    rows, cols = h.shape
+    nb_x, nb_y, nb_d = chain_neighbours(d)
+    out = np.empty(rows * cols)
+    occ = np.full(rows * cols, np.nan)
+    md = math.inf if max_distance is None else float(max_distance)
+    n_blocks = -(-rows // CHAIN_BLOCK_ROWS)
+    for ns, cells, skips, tests, bounded in run_ranges(
+            n_blocks, threads, lambda a, b: _kernels.horizon_chain(
+                h, mip, d.dx, d.dy, md, nb_x, nb_y, nb_d, CHAIN_BLOCK_ROWS, a, b, out, occ),
+            chunks_per_thread=1, min_chunk=1):
+        stats.ns += ns
+        stats.cells += cells
+        stats.skips += skips
+        stats.tile_tests += tests
+        stats.bounded += bounded
+    return out.reshape(rows, cols)
+
+
 def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, march_step,
                  embree_tolerance, kappa=0.0):
     rows, cols = h.shape
+    if algorithm == "chain":
+        return _chain(h, d, max_distance, threads, mip, stats)
+    if algorithm == "rows":
+        out, ns = _rows_pattern(h, d, max_distance, threads)
+        stats.ns += ns
+        return out
     if algorithm in ("sweep", "pattern"):
         hf = np.ascontiguousarray(_to_frame(h, d))
         fr, fc = hf.shape
@@ -686,6 +905,23 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
         stats.cells += cells
         stats.skips += skips
     return out.reshape(rows, cols)
+
+
+def _auto_path(d: Direction, max_distance, curvature=False) -> str:
+    """The default algorithm of one direction, by measurement (docs in :func:`horizon`):
+    the sweep for a rational direction at unlimited distance; the row-vectorised pattern
+    up to max_distance 384 cells; the chain walk otherwise (every other direction at
+    unlimited distance, and longer radii). With curvature, whose peaks inside pieces
+    neither the sweep, the rows nor the chain evaluate (:data:`CURVATURE_REFUSED`): the
+    shared pattern up to 384 cells, the mipmap walk beyond."""
+    if curvature:
+        return "pattern" if max_distance is not None and max_distance <= PATTERN_MAX_DISTANCE \
+            else "dda_maxmip"
+    if max_distance is None and d.rational is not None:
+        return "sweep"
+    if max_distance is not None and max_distance <= PATTERN_MAX_DISTANCE:
+        return "rows"
+    return "chain"
 
 
 def _pick_horizon_algorithm(algorithm, directions, max_distance, curvature=False):
@@ -784,10 +1020,11 @@ def _check_units(units):
 
 
 def _horizon_angles(grid: Grid, azimuths, max_distance, kappa, *, algorithm, threads,
-                    march_step, embree_tolerance, progress):
+                    march_step, embree_tolerance, progress, tangents=False):
     """The horizon angles (radians, north-up, (len(azimuths), rows, cols)) of a prepared
     grid with curvature kappa (cell units; negative raises the surface, for
-    :func:`openness`), voids not yet set; also returns the algorithm that ran."""
+    :func:`openness`), voids not yet set; also returns the algorithms that ran ("+"
+    joined, :class:`TerrainStats`). ``tangents``: the map tangents, not their angles."""
     h = grid.h
     directions = []
     for k, a in enumerate(_azimuth_list(azimuths)):
@@ -803,28 +1040,34 @@ def _horizon_angles(grid: Grid, azimuths, max_distance, kappa, *, algorithm, thr
     step = float(march_step)
     if not (math.isfinite(step) and step > 0):
         raise ValueError(f"march_step: expected a positive number of cells, got {march_step!r}")
+    curved = kappa != 0.0
     name = _pick_horizon_algorithm(algorithm, directions,
-                                   None if md is None else max(limits), curvature=kappa != 0.0)
+                                   None if md is None else max(limits), curvature=curved)
+    if algorithm is None or algorithm == "auto":  # chosen per direction
+        paths = [_auto_path(d, limits[k], curved) for k, d in enumerate(directions)]
+    else:
+        paths = [name] * len(directions)
     nthreads = resolve_threads(threads)
-    stats = TerrainStats(name)
-    mip = _mipmap(h) if name == "dda_maxmip" else None
+    stats = TerrainStats("+".join(dict.fromkeys(paths)), paths=tuple(paths))
+    mip = _mipmap(h) if {"dda_maxmip", "chain"} & set(paths) else None
     out = np.empty((len(directions),) + h.shape)
     for k, d in enumerate(directions):
-        out[k] = _horizon_one(h, d, name, limits[k], nthreads, mip, stats, step,
+        out[k] = _horizon_one(h, d, paths[k], limits[k], nthreads, mip, stats, step,
                               embree_tolerance, kappa)
         if factors[k] != 1.0:
             out[k] *= factors[k]
         if progress is not None:
             progress(k + 1, len(directions))
-    np.arctan(out, out=out)
+    if not tangents:
+        np.arctan(out, out=out)
     LAST_STATS.__dict__.update(stats.__dict__)
-    return out, name
+    return out, stats.algorithm
 
 
 def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="triangles",
             spacing=None, units="radians", curvature=False, refraction=DEFAULT_REFRACTION,
             earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, march_step=1.0,
-            embree_tolerance=1e-4, progress=None):
+            embree_tolerance=1e-4, progress=None, snap_denominator=None, _tangents=False):
     """Horizon elevation angles (radians by default) seen from every vertex.
 
     For each azimuth, the horizon of vertex v is the supremum, over the surface points p on
@@ -851,11 +1094,13 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     max_distance : float, optional
         A length in the field's unit (cells when there is no spacing). None: unlimited.
     algorithm : str, optional
-        A key of :data:`HORIZON_ALGORITHMS`, or None/"auto": "sweep" when every azimuth is
-        rational in cell space, the distance unlimited and curvature off, else "pattern"
-        for max_distance <= 384 cells and "dda_maxmip" beyond (chosen by measurement).
-        ``algos.terrain.LAST_STATS.algorithm`` names the one that ran. With curvature,
-        "sweep" and "embree" raise (:data:`CURVATURE_REFUSED`).
+        A key of :data:`HORIZON_ALGORITHMS`, or None/"auto", chosen per azimuth (by
+        measurement): "sweep" for a direction rational in cell space at unlimited
+        distance, "rows" for max_distance <= 384 cells, "chain" otherwise; with curvature,
+        "pattern" up to 384 cells and "dda_maxmip" beyond. The path of each azimuth is
+        recorded in :data:`LAST_STATS` (``algorithm``, ``paths``) and in a DataArray's
+        attrs ``algorithm`` and ``paths``. With curvature, the algorithms of
+        :data:`CURVATURE_REFUSED` raise.
     spacing : float or (dx, dy), optional
         The pixel size of a raw array, in the unit of its heights; None means cell units.
         A HeightField carries its own (giving a different one raises).
@@ -879,6 +1124,12 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     progress : callable, optional
         Called as ``progress(done, total)`` after each azimuth (in memory only; a
         command's progress bar).
+    snap_denominator : int, optional
+        Snap each azimuth to the nearest direction whose slope in cell space is p/q with
+        q <= snap_denominator (:func:`snap_azimuths`), so that the rational sweep applies.
+        Default None: no snapping, the horizons are exact at the azimuths given. The
+        azimuths used and the largest change are recorded (``LAST_STATS``; DataArray
+        attrs ``snapped_azimuths``, ``snap_max_change_deg``).
 
     Returns
     -------
@@ -901,13 +1152,26 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     """
     _check_units(units)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
+    snap = None
+    if snap_denominator is not None:
+        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing))
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
-        return _to_dataarray(heights, lambda f: horizon(
-            f, az, max_distance, algorithm=algorithm, surface=surface, threads=threads,
-            march_step=march_step, embree_tolerance=embree_tolerance, units=units, **curve),
+        out = _to_dataarray(heights, lambda f: horizon(
+            f, az if snap is None else snap[0], max_distance, algorithm=algorithm,
+            surface=surface, threads=threads, march_step=march_step,
+            embree_tolerance=embree_tolerance, units=units, **curve),
             "horizon", dict(units=units, max_distance=_attr(max_distance),
                             **_curvature_attrs(curvature, refraction)), ("azimuth", az))
+        return _with_path_attrs(out, snap)
+    if snap is not None:
+        out = horizon(heights, snap[0], max_distance, algorithm=algorithm, surface=surface,
+                      spacing=spacing, units=units, threads=threads, march_step=march_step,
+                      embree_tolerance=embree_tolerance, progress=progress,
+                      _tangents=_tangents, **curve)
+        if not is_dask(out):
+            _record_snap(snap)
+        return out
     if is_dask(heights):
         return _tiled_horizon(heights, azimuths, max_distance, spacing, dict(
             algorithm=algorithm, surface=surface, threads=threads, march_step=march_step,
@@ -917,8 +1181,9 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     kappa = _curvature_kappa(grid, curvature, refraction, earth_radius)
     out, _ = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
                              threads=threads, march_step=march_step,
-                             embree_tolerance=embree_tolerance, progress=progress)
-    if units == "degrees":
+                             embree_tolerance=embree_tolerance, progress=progress,
+                             tangents=_tangents)
+    if units == "degrees" and not _tangents:
         np.degrees(out, out=out)
     grid.voids_to(out, np.nan)
     return np.ascontiguousarray(grid.to_north_up(out))
@@ -934,7 +1199,7 @@ def _curvature_attrs(curvature, refraction):
 
 def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
             surface="triangles", spacing=None, curvature=False, refraction=DEFAULT_REFRACTION,
-            earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None):
+            earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, snap_denominator=None):
     """Cast shadows under a sun at ``azimuth`` and ``elevation`` (degrees).
 
     A vertex is in shadow when its horizon along the sun's azimuth (:func:`horizon`) is
@@ -952,6 +1217,9 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
         Degrees clockwise from north.
     elevation : float
         Degrees above the horizontal, in [-90, 90].
+    snap_denominator : int, optional
+        As in :func:`horizon`: the sun's azimuth snapped to a rational cell direction,
+        recorded (``LAST_STATS``, DataArray attrs). Default None: no snapping.
 
     Returns
     -------
@@ -969,18 +1237,24 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
     if np.ndim(azimuth) != 0:
         raise ValueError("azimuth: expected one number (the sun's azimuth)")
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
+    snap, used = None, azimuth
+    if snap_denominator is not None:
+        snap = snap_azimuths(azimuth, snap_denominator, _field_spacing(heights, spacing))
+        used = float(snap[0][0])
     if is_dataarray(heights):
-        return _to_dataarray(heights, lambda f: shadows(
-            f, azimuth, el, max_distance=max_distance, algorithm=algorithm, surface=surface,
+        out = _to_dataarray(heights, lambda f: shadows(
+            f, used, el, max_distance=max_distance, algorithm=algorithm, surface=surface,
             threads=threads, **curve), "shadows",
             dict(units="1 in shadow, 0 lit", azimuth=float(azimuth), elevation=el,
                  max_distance=_attr(max_distance), **_curvature_attrs(curvature, refraction)))
+        return _with_path_attrs(out, snap)
     if is_dask(heights):
-        return tiled_product(lambda b, **kw: shadows(b, azimuth, el, **kw), heights,
+        return tiled_product(lambda b, **kw: shadows(b, used, el, **kw), heights,
                              max_distance, spacing, bool, algorithm=algorithm,
                              surface=surface, threads=threads, **curve)
-    angles = horizon(heights, azimuth, max_distance, algorithm=algorithm, surface=surface,
+    angles = horizon(heights, used, max_distance, algorithm=algorithm, surface=surface,
                      spacing=spacing, threads=threads, **curve)[0]
+    _record_snap(snap)
     with np.errstate(invalid="ignore"):
         return angles > math.radians(el)  # NaN (a void) compares False
 
@@ -988,7 +1262,8 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
 def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False,
                     azimuths=None, algorithm=None, surface="triangles", spacing=None,
                     curvature=False, refraction=DEFAULT_REFRACTION,
-                    earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None):
+                    earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None,
+                    snap_denominator=None):
     """Sky-view factor (Zaksek et al. 2011, as in RVT): 1 - mean_k sin(max(horizon_k, 0)).
 
     Parameters
@@ -1009,12 +1284,18 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
         apply and a per-vertex walk runs (:func:`horizon`).
     progress : callable, optional
         Called as ``progress(done, total)`` after each azimuth (in memory only).
+    snap_denominator : int, optional
+        As in :func:`horizon`: every azimuth snapped to a rational cell direction with
+        q <= snap_denominator, recorded (``LAST_STATS``, DataArray attrs). Default None:
+        no snapping (``rational=True`` is the older spelling of snap_denominator=5 for
+        the equally spaced azimuths).
 
     Returns
     -------
     float64 array (rows, cols)
         Dimensionless, in [0, 1]; NaN at void vertices; the input's orientation. A
-        DataArray gives a DataArray (input's coords, CRS and attrs).
+        DataArray gives a DataArray (input's coords, CRS and attrs, and the algorithm of
+        each azimuth: attrs ``algorithm`` and ``paths``).
     """
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     if azimuths is None:
@@ -1023,20 +1304,40 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
         azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)
         if rational:
             azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
+    snap = None
+    if snap_denominator is not None:
+        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing))
+        azimuths = snap[0]
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
-        return _to_dataarray(heights, lambda f: sky_view_factor(
+        out = _to_dataarray(heights, lambda f: sky_view_factor(
             f, azimuths=az, max_distance=max_distance, algorithm=algorithm, surface=surface,
             threads=threads, **curve), "sky_view_factor",
             dict(units="1", n_azimuths=len(az), max_distance=_attr(max_distance),
                  **_curvature_attrs(curvature, refraction)))
+        return _with_path_attrs(out, snap)
     if is_dask(heights):
         return tiled_product(lambda b, **kw: sky_view_factor(b, azimuths=azimuths, **kw),
                              heights, max_distance, spacing, np.float64, algorithm=algorithm,
                              surface=surface, threads=threads, **curve)
-    angles = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
-                     spacing=spacing, threads=threads, progress=progress, **curve)
-    return 1.0 - np.mean(np.sin(np.maximum(angles, 0.0)), axis=0)
+    tangents = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
+                       spacing=spacing, threads=threads, progress=progress, _tangents=True,
+                       **curve)
+    _record_snap(snap)
+    return 1.0 - np.mean(_sin_of_positive_atan(tangents), axis=0)
+
+
+def _sin_of_positive_atan(x):
+    """sin(max(atan(x), 0)) = max(x, 0) / sqrt(1 + max(x, 0)^2), in place, NaN kept: no
+    transcendental function (the sky-view factor's inner step; equal to the angle form
+    to rounding). Tangents beyond 1e150 give 1 (their square would overflow)."""
+    np.maximum(x, 0.0, out=x)
+    np.minimum(x, 1e150, out=x)
+    root = np.multiply(x, x)
+    root += 1.0
+    np.sqrt(root, out=root)
+    np.divide(x, root, out=x)
+    return x
 
 
 OPENNESS_KINDS = ("positive", "negative")
@@ -1164,6 +1465,27 @@ def _tiled_horizon(heights, azimuths, max_distance, spacing, options):
     layers = [tiled_product(lambda b, a=a, **kw: horizon(b, [a], **kw)[0], heights,
                             max_distance, spacing, np.float64, **options) for a in az]
     return da.stack(layers)
+
+
+def _record_snap(snap):
+    """Put the snapping of the call just made into :data:`LAST_STATS`."""
+    if snap is not None:
+        LAST_STATS.snapped_azimuths = tuple(float(a) for a in snap[0])
+        LAST_STATS.snap_max_change_deg = float(snap[1])
+
+
+def _with_path_attrs(out, snap):
+    """``out`` (a DataArray) with :func:`_path_attrs`; a lazy one records only the
+    snapping (its algorithms are chosen when it is computed, tile by tile)."""
+    if not is_dask(out.data):
+        _record_snap(snap)
+    if is_dask(out.data):
+        if snap is not None:
+            out.attrs.update({k: v for k, v in _path_attrs(snap).items()
+                              if k.startswith("snap")})
+        return out
+    out.attrs.update(_path_attrs(snap))
+    return out
 
 
 def _attr(value):
@@ -1643,12 +1965,23 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
     the Embree peer). ``values()`` gives the tangents of the latest run, NaN outside the
     vertices computed. ``ranges``: [(start, stop), ...] of C-order vertex indices, a
     sample for the per-vertex methods; the sweep always covers every vertex (it is one
-    pass over shared lines), and n_vertices says how many were computed."""
+    pass over shared lines; so do ``rows``, one pass per row, and ``chain``, whose
+    vertices borrow from each other), and n_vertices says how many were computed."""
     h = _prepare(heights, None).h
     d = azimuth_direction(azimuth)
     name = _pick_horizon_algorithm(algorithm, [d], max_distance)
     rows, cols = h.shape
     n_all = rows * cols
+    if name in ("rows", "chain"):
+        mip = _mipmap(h) if name == "chain" else None
+        latest = [np.full((rows, cols), np.nan)]
+
+        def run():
+            stats = TerrainStats(name)
+            latest[0] = _horizon_one(h, d, name, max_distance, 1, mip, stats, march_step,
+                                     embree_tolerance)
+            return stats.ns
+        return run, (lambda: latest[0].ravel().copy()), n_all
     ranges = [(0, n_all)] if ranges is None or name == "sweep" else \
         [(int(a), int(b)) for a, b in ranges]
     n_vertices = sum(b - a for a, b in ranges)

@@ -11,6 +11,7 @@
 #include "hftrace.h"
 #include "hitbatch.h"
 #include "terrain.h"
+#include "horizon_fast.h"
 #include "raster.h"
 
 /* An optional array argument: None, or a C-contiguous, aligned array of `type` with
@@ -765,6 +766,161 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     return stats_tuple(&st, elapsed_ns);
 }
 
+PyDoc_STRVAR(horizon_rows_doc,
+             "horizon_rows(heights, inv_t, dx_a, dy_a, dx_b, dy_b, w, rx, ry, sx, sy, n_main,\n"
+             "             end_k, end_f, end_inv_t, row_start, row_stop, out) -> (ns, 0, 0)\n\n"
+             "Horizon tangents of rows [row_start, row_stop) by one shared pattern in the\n"
+             "grid's own frame, row by row. Private: use algos.horizon.");
+
+static PyObject *horizon_rows(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_inv, *o_dxa, *o_dya, *o_dxb, *o_dyb, *o_w, *o_rx, *o_ry, *o_out;
+    long long n_main, end_k, row_start, row_stop;
+    int sx, sy;
+    double end_f, end_inv_t;
+    const double *H, *inv_t, *w;
+    const int64_t *dxa, *dya, *dxb, *dyb, *rx, *ry;
+    int64_t rows, cols, *off_a = NULL, *off_b = NULL;
+    npy_intp n;
+    void *p, *out;
+    hf_hz_stats st = {0, 0};
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOiiLLddLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb, &o_dyb,
+                          &o_w, &o_rx, &o_ry, &sx, &sy, &n_main, &end_k, &end_f, &end_inv_t,
+                          &row_start, &row_stop, &o_out))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols)) return NULL;
+    if (row_start < 0 || row_stop < row_start || row_stop > (long long)rows) {
+        PyErr_Format(PyExc_ValueError, "row range [%lld, %lld) outside [0, %lld]", row_start,
+                     row_stop, (long long)rows);
+        return NULL;
+    }
+    if ((sx != 1 && sx != -1) || (sy != 1 && sy != -1)) {
+        PyErr_SetString(PyExc_ValueError, "sx, sy: expected +1 or -1");
+        return NULL;
+    }
+    if (!get_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
+    inv_t = (const double *)p;
+    {
+        PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
+        const int64_t *ints[4];
+        if (!get_lerp_arrays(lerp, n, ints, &w)) return NULL;
+        dxa = ints[0];
+        dya = ints[1];
+        dxb = ints[2];
+        dyb = ints[3];
+    }
+    if (!get_array(o_rx, "rx", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    rx = (const int64_t *)p;
+    if (!get_array(o_ry, "ry", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
+    ry = (const int64_t *)p;
+    if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (n_main < 0 || n_main > (long long)n || end_k < -1 ||
+        (end_k >= 0 && (n_main != end_k + 1 || end_k + 1 >= (long long)n))) {
+        PyErr_SetString(PyExc_ValueError, "n_main, end_k: outside the pattern");
+        return NULL;
+    }
+    /* memory safety: each breakpoint reads within the reaches it is limited by, on the
+     * direction's side */
+    for (npy_intp e = 0; e < n; e++) {
+        if (sx * dxa[e] < 0 || sx * dxb[e] < 0 || sy * dya[e] < 0 || sy * dyb[e] < 0 ||
+            sx * dxa[e] > rx[e] || sx * dxb[e] > rx[e] || sy * dya[e] > ry[e] ||
+            sy * dyb[e] > ry[e] || (e && (rx[e] < rx[e - 1] || ry[e] < ry[e - 1]))) {
+            PyErr_Format(PyExc_ValueError, "pattern: breakpoint %ld reads outside its reach",
+                         (long)e);
+            return NULL;
+        }
+    }
+    off_a = malloc((size_t)(n ? n : 1) * sizeof *off_a);
+    off_b = malloc((size_t)(n ? n : 1) * sizeof *off_b);
+    if (!off_a || !off_b) {
+        free(off_a);
+        free(off_b);
+        return PyErr_NoMemory();
+    }
+    for (npy_intp e = 0; e < n; e++) {
+        off_a[e] = dya[e] * cols + dxa[e];
+        off_b[e] = dyb[e] * cols + dxb[e];
+    }
+    timed_begin(&section);
+    hf_horizon_rows(H, rows, cols, n, inv_t, off_a, off_b, w, rx, ry, sx, sy, n_main, end_k, end_f,
+                    end_inv_t, row_start, row_stop, (double *)out);
+    elapsed_ns = timed_end(&section);
+    free(off_a);
+    free(off_b);
+    return stats_tuple(&st, elapsed_ns);
+}
+
+PyDoc_STRVAR(horizon_chain_doc,
+             "horizon_chain(heights, mip, dx, dy, max_distance, nb_x, nb_y, nb_d, block_rows,\n"
+             "              block_start, block_stop, out, occ)\n"
+             "-> (ns, cells, skips, tile_tests, bounded)\n\n"
+             "Per-vertex mipmap walks started from lower bounds borrowed along almost the\n"
+             "same line. Private: use algos.horizon.");
+
+static PyObject *horizon_chain(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_mip, *o_nx, *o_ny, *o_nd, *o_out, *o_occ;
+    double dx, dy, max_distance;
+    long long block_rows, block_start, block_stop;
+    const double *H, *nb_d;
+    const int64_t *nb_x, *nb_y;
+    int64_t rows, cols, n_blocks;
+    hf_hz_mip mip;
+    int has_mip;
+    npy_intp n_nb;
+    void *p, *out, *occ;
+    hf_chain_stats st = {0, 0, 0, 0};
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOdddOOOLLLOO", &o_h, &o_mip, &dx, &dy, &max_distance, &o_nx,
+                          &o_ny, &o_nd, &block_rows, &block_start, &block_stop, &o_out, &o_occ))
+        return NULL;
+    if (!get_heights(o_h, &H, &rows, &cols) || !get_mip(o_mip, rows, cols, &mip, &has_mip))
+        return NULL;
+    if (!has_mip) {
+        PyErr_SetString(PyExc_ValueError, "mip: the chain walk needs a mipmap");
+        return NULL;
+    }
+    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || isnan(max_distance)) {
+        PyErr_SetString(PyExc_ValueError, "direction: finite and nonzero; max_distance not NaN");
+        return NULL;
+    }
+    if (block_rows < 1) {
+        PyErr_SetString(PyExc_ValueError, "block_rows: expected >= 1");
+        return NULL;
+    }
+    n_blocks = (rows + block_rows - 1) / block_rows;
+    if (block_start < 0 || block_stop < block_start || block_stop > n_blocks) {
+        PyErr_Format(PyExc_ValueError, "block range [%lld, %lld) outside [0, %lld]", block_start,
+                     block_stop, (long long)n_blocks);
+        return NULL;
+    }
+    if (!get_array(o_nx, "nb_x", NPY_INT64, -1, 0, 0, &p, &n_nb)) return NULL;
+    nb_x = (const int64_t *)p;
+    if (!get_array(o_ny, "nb_y", NPY_INT64, n_nb, 0, 0, &p, NULL)) return NULL;
+    nb_y = (const int64_t *)p;
+    if (!get_array(o_nd, "nb_d", NPY_FLOAT64, n_nb, 0, 0, &p, NULL)) return NULL;
+    nb_d = (const double *)p;
+    for (npy_intp k = 0; k < n_nb; k++) {
+        /* any vertex serves (the bound is a point of v's own ray); ahead is merely useful */
+        if (!(nb_d[k] > 0.0) || !isfinite(nb_d[k]) || (nb_x[k] == 0 && nb_y[k] == 0)) {
+            PyErr_Format(PyExc_ValueError, "neighbour %ld: expected an offset ahead (nb_d > 0)",
+                         (long)k);
+            return NULL;
+        }
+    }
+    if (!get_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (!get_array(o_occ, "occ", NPY_FLOAT64, rows * cols, 1, 0, &occ, NULL)) return NULL;
+    timed_begin(&section);
+    hf_horizon_chain(H, rows, cols, &mip, dx, dy, max_distance, n_nb, nb_x, nb_y, nb_d, block_rows,
+                     block_start, block_stop, (double *)out, (double *)occ, &st);
+    elapsed_ns = timed_end(&section);
+    return Py_BuildValue("LLLLL", elapsed_ns, (long long)st.cells, (long long)st.skips,
+                         (long long)st.tile_tests, (long long)st.bounded);
+}
+
 PyDoc_STRVAR(viewshed_doc,
              "viewshed(heights, mip, ox, oy, z0, target_height, drop, eps, start, stop, out)\n"
              "-> (ns, cells, skips)\n\nLine of sight to every target vertex: out 0 visible,\n"
@@ -1109,6 +1265,8 @@ static PyMethodDef methods[] = {
     {"horizon_pattern", horizon_pattern, METH_VARARGS, horizon_pattern_doc},
     {"horizon_sweep", horizon_sweep, METH_VARARGS, horizon_sweep_doc},
     {"horizon_walk", horizon_walk, METH_VARARGS, horizon_walk_doc},
+    {"horizon_rows", horizon_rows, METH_VARARGS, horizon_rows_doc},
+    {"horizon_chain", horizon_chain, METH_VARARGS, horizon_chain_doc},
     {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
     {"viewshed_threshold", viewshed_threshold, METH_VARARGS, viewshed_threshold_doc},
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},

@@ -81,9 +81,9 @@ def test_default_algorithm_choice():
     T.horizon(h, T.rational_azimuths(8))
     assert T.LAST_STATS.algorithm == "sweep"
     T.horizon(h, [10.0])
-    assert T.LAST_STATS.algorithm == "dda_maxmip"
+    assert T.LAST_STATS.algorithm == "chain"  # was dda_maxmip before issue 21
     T.horizon(h, [10.0], max_distance=5)
-    assert T.LAST_STATS.algorithm == "pattern"
+    assert T.LAST_STATS.algorithm == "rows"  # was pattern before issue 21
 
 
 def test_sweep_refuses_what_it_cannot_do():

@@ -77,7 +77,8 @@ def terrain_bench(args):
     from ..timing import pin_to_one_cpu
 
     pin_to_one_cpu()
-    terrain_targets.run_targets(out_dir=args.out, size=args.size, repeats=args.repeats)
+    terrain_targets.run_targets(out_dir=args.out, size=args.size, repeats=args.repeats,
+                                quick=args.quick)
     return 0
 
 
@@ -176,6 +177,8 @@ def register(sub):
     p = sub.add_parser("terrain-bench", help="the terrain products' targets against the peers")
     p.add_argument("--size", type=positive_int, default=2048)
     p.add_argument("--repeats", type=positive_int, default=3)
+    p.add_argument("--quick", action="store_true",
+                   help="only the every-azimuth section, on small fields (a check that it runs)")
     add_out(p, "terrain-bench")
     p.set_defaults(func=terrain_bench)
 

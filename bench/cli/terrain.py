@@ -246,6 +246,19 @@ def product_options(args, field):
     return options
 
 
+def _path_tags():
+    """What the product call just made records (``algos.terrain.LAST_STATS``): the
+    algorithm of each azimuth, and with ``--snap-denominator`` the azimuths used and the
+    largest change in degrees."""
+    from algos.terrain import LAST_STATS
+
+    tags = dict(paths=",".join(LAST_STATS.paths))
+    if LAST_STATS.snapped_azimuths:
+        tags.update(snapped_azimuths=[round(a, 12) for a in LAST_STATS.snapped_azimuths],
+                    snap_max_change_deg=LAST_STATS.snap_max_change_deg)
+    return tags
+
+
 def _bar(args, total, desc, unit):
     """A tqdm bar and the ``progress(done, total)`` callback that advances it."""
     from tqdm import tqdm
@@ -306,6 +319,8 @@ def terrain_product(args):
     field = load_terrain(args)
     kind = args.command
     common = dict(algorithm=args.algorithm, threads=args.threads)
+    if kind != "viewshed" and args.snap_denominator is not None:
+        common["snap_denominator"] = args.snap_denominator
     md = args.max_distance
     params = product_options(args, field)
     band_names, marks, border, cmap = None, None, None, "viridis"
@@ -335,6 +350,8 @@ def terrain_product(args):
         result = algos.shadows(field, args.azimuth, args.elevation, max_distance=md, **curve,
                                **common)
         product, units, cmap = "shadows", "1 = in shadow", "gray_r"
+    if kind != "viewshed":  # which path each azimuth took, and any snapping, as tags
+        params.update(_path_tags())
     else:
         obs = observers(args, field)
         bar, progress = _bar(args, len(obs), f"viewshed {field.name}", "observer")
@@ -440,6 +457,11 @@ def register(sub):
             p.add_argument("--azimuths", default=None, help="comma-separated degrees")
             p.add_argument("--rational", action="store_true",
                            help="nearest rational azimuths: the exact sweep applies")
+        if kind in ("horizon", "svf", "shadows"):
+            p.add_argument("--snap-denominator", type=positive_int, default=None, metavar="N",
+                           help="snap each azimuth to the nearest rational direction p/q, "
+                                "q <= N (the sweep applies); recorded in the tags. Default: "
+                                "no snapping")
         if kind == "shadows":
             p.add_argument("--azimuth", type=float, default=315.0, help="the sun's, degrees")
             p.add_argument("--elevation", type=float, default=30.0, help="the sun's, degrees")

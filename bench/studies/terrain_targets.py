@@ -41,17 +41,23 @@ def _fields(size):
 
 
 def run_targets(out_dir="results/terrain-bench", size=2048, repeats=3, sample=16384, rays=4000,
-                seed=2004, echo=print):
-    """The issue's targets table (module docstring)."""
+                seed=2004, echo=print, quick=False):
+    """The issue's targets table (module docstring), then the "every azimuth fast" section
+    (:mod:`bench.studies.terrain_azimuths`). ``quick``: that section only, on small fields
+    (Jacksboro at 128 samples, SVF on 96^2 at radii 4 and 20), one repeat: a check that
+    it runs."""
+    from .terrain_azimuths import run_azimuths
+
     os.makedirs(out_dir, exist_ok=True)
     env = environment()
     write_json(os.path.join(out_dir, "env.json"), env)
-    lines = [f"# Terrain products: the targets ({size} samples)", "",
+    lines = [f"# Terrain products: the targets ({'quick tier' if quick else f'{size} samples'})",
+             "",
              f"Machine: {env['cpu']}; commit {env['git_commit']}. Single thread, pinned CPU. "
              "Command: `hftrace terrain-bench`.", ""]
     csv_rows = []
     azimuths = T.rational_azimuths(16)
-    for label, hf in _fields(size):
+    for label, hf in ([] if quick else _fields(size)):
         h = np.ascontiguousarray(hf.heights, dtype=np.float64)
         echo(f"  {label}: horizons at 16 azimuths")
         totals = {name: 0.0 for name in HORIZON_METHODS}
@@ -149,6 +155,13 @@ def run_targets(out_dir="results/terrain-bench", size=2048, repeats=3, sample=16
                 csv_rows.append(dict(g, workload="ortho_first_hit", dataset=label, run_length=r,
                                      azimuth=azimuth_for_run_length(r)))
         lines.append("")
+    if quick:
+        az_lines, az_rows = run_azimuths(size=128, svf_size=96, radii=(4, 20), repeats=1,
+                                         baseline=True, echo=echo)
+    else:
+        az_lines, az_rows = run_azimuths(size=size, repeats=repeats, echo=echo)
+    lines += [""] + ["#" + line if line.startswith("#") else line for line in az_lines]
+    csv_rows += az_rows
     lines += dask_graph_sizes(out_dir, echo=echo)
     with open(os.path.join(out_dir, "targets.md"), "w") as f:
         f.write("\n".join(lines))

@@ -15,10 +15,12 @@ output mode and option. :func:`check` runs it and asserts the invariants:
   ``runs``; first hits: ``midpoint``, ``runs``, ``runs_periodic`` and ``runs_maxmip``);
 * cells are 8-adjacent, never repeat and lie in the grid; runs are consistent with them;
 * hits lie inside ``[tmin, tmax]`` and their cells in the grid;
-* horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9,
-  with and without curvature; the viewshed's plain and mipmap walks agree bit for bit; in
-  its other modes (every ``algos.terrain.VIEWSHED_MODES``: the C threshold walk and the
-  angle) they agree to rounding, heights are >= 0 and angles in [-pi/2, pi/2].
+* horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9
+  (the registry's: the C entries ``horizon_rows`` and ``horizon_chain`` included, through
+  ``rows`` and ``chain``), with and without curvature; the viewshed's plain and mipmap
+  walks agree bit for bit; in its other modes (every ``algos.terrain.VIEWSHED_MODES``: the
+  C threshold walk and the angle) they agree to rounding, heights are >= 0 and angles in
+  [-pi/2, pi/2].
 
 The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
