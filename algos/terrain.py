@@ -1346,7 +1346,8 @@ OPENNESS_KINDS = ("positive", "negative")
 def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azimuths=None,
              rational=False, units="degrees", algorithm=None, surface="triangles",
              spacing=None, curvature=False, refraction=DEFAULT_REFRACTION,
-             earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None):
+             earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None,
+             snap_denominator=None):
     """Topographic openness (Yokoyama, Shirasawa & Pike 2002), positive or negative.
 
     Positive openness is the mean over the azimuths of 90 deg minus the horizon angle
@@ -1379,6 +1380,9 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
         As in :func:`horizon` (default False, as RVT). For negative openness the mirrored
         terrain is raised, not lowered, by the drop, so that both read the same lowered
         surface.
+    snap_denominator : int, optional
+        As in :func:`horizon`: every azimuth snapped to a rational cell direction with
+        q <= snap_denominator, recorded (``LAST_STATS``, DataArray attrs). Default None.
 
     Returns
     -------
@@ -1402,14 +1406,19 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
         azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)
         if rational:
             azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
+    snap = None
+    if snap_denominator is not None:
+        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing))
+        azimuths = snap[0]
     options = dict(kind=kind, units=units, algorithm=algorithm, surface=surface,
                    threads=threads, **curve)
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
-        return _to_dataarray(heights, lambda f: openness(
+        out = _to_dataarray(heights, lambda f: openness(
             f, azimuths=az, max_distance=max_distance, **options), "openness",
             dict(units=units, kind=kind, n_azimuths=len(az), max_distance=_attr(max_distance),
                  **_curvature_attrs(curvature, refraction)))
+        return _with_path_attrs(out, snap)
     if is_dask(heights):
         return tiled_product(lambda b, **kw: openness(b, azimuths=azimuths, **kw), heights,
                              max_distance, spacing, np.float64, **options)
@@ -1425,6 +1434,7 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
     angles, _ = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
                                 threads=threads, march_step=1.0, embree_tolerance=1e-4,
                                 progress=progress)
+    _record_snap(snap)
     seen = angles > -math.pi / 2  # an azimuth with a surface point
     count = seen.sum(axis=0)
     mean = np.where(seen, angles, 0.0).sum(axis=0) / np.maximum(count, 1)

@@ -161,6 +161,17 @@ def test_auto_routes_curvature_away_from_the_sweep():
     assert T.LAST_STATS.algorithm == "dda_maxmip"
     algos.horizon(h, 90.0, 5.0, spacing=1.0, curvature=True)
     assert T.LAST_STATS.algorithm == "pattern"
+    # every azimuth class: the irrational ones too, which without curvature take the
+    # chain walk or the rows, neither of which lowers the surface
+    algos.horizon(h, [90.0, 22.5], spacing=1.0)
+    assert T.LAST_STATS.paths == ("sweep", "chain")
+    algos.horizon(h, [90.0, 22.5], spacing=1.0, curvature=True)
+    assert T.LAST_STATS.paths == ("dda_maxmip", "dda_maxmip")
+    algos.horizon(h, [90.0, 22.5], 5.0, spacing=1.0, curvature=True)
+    assert T.LAST_STATS.paths == ("pattern", "pattern")
+    for name in ("rows", "chain", "sweep"):
+        with pytest.raises(ValueError, match=f"curvature: algorithm='{name}' does not apply"):
+            algos.horizon(h, 90.0, spacing=1.0, curvature=True, algorithm=name)
 
 
 def test_units_degrees():

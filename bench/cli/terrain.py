@@ -457,7 +457,7 @@ def register(sub):
             p.add_argument("--azimuths", default=None, help="comma-separated degrees")
             p.add_argument("--rational", action="store_true",
                            help="nearest rational azimuths: the exact sweep applies")
-        if kind in ("horizon", "svf", "shadows"):
+        if kind in ("horizon", "svf", "shadows", "openness"):
             p.add_argument("--snap-denominator", type=positive_int, default=None, metavar="N",
                            help="snap each azimuth to the nearest rational direction p/q, "
                                 "q <= N (the sweep applies); recorded in the tags. Default: "
