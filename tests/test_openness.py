@@ -198,3 +198,29 @@ def test_snapping_is_recorded():
     used = tuple(terrain.LAST_STATS.snapped_azimuths)
     assert len(used) == 2 and terrain.LAST_STATS.snap_max_change_deg > 0
     np.testing.assert_array_equal(got, algos.openness(h, azimuths=list(used)))
+
+
+def test_cli_horizon_and_openness_in_radians(tmp_path, capsys):
+    """``--units radians`` writes the API's radians and records the unit; ``--dask`` with
+    ``--snap-denominator`` is refused, not ignored."""
+    rasterio = pytest.importorskip("rasterio")
+    from bench.cli import main
+
+    h = (np.random.default_rng(3).random((12, 14)) * 40).astype(np.float32)
+    np.save(tmp_path / "dem.npy", h)
+    field = algos.HeightField(h, spacing=10.0, unit="m")
+    for command, want, extra in (
+            ("horizon", algos.horizon(field, [30.0], 50.0)[0], ["--azimuths", "30"]),
+            ("openness", algos.openness(field, "positive", 8, 50.0, units="radians"),
+             ["--n-azimuths", "8"])):
+        out = str(tmp_path / command)
+        code = main([command, str(tmp_path / "dem.npy"), "--spacing", "10", "--max-distance",
+                     "50", "--units", "radians", "--out", out, "--no-progress"] + extra)
+        assert code == 0, capsys.readouterr().err
+        with rasterio.open(out + ".tif") as src:
+            assert src.tags()["units"] == "radians"
+            np.testing.assert_allclose(src.read(1), want.astype(np.float32), rtol=0, atol=1e-6)
+    code = main(["horizon", str(tmp_path / "dem.npy"), "--spacing", "10", "--max-distance", "50",
+                 "--dask", "local:1", "--snap-denominator", "3", "--out",
+                 str(tmp_path / "d"), "--no-progress"])
+    assert code != 0 and "--snap-denominator: not available with --dask" in capsys.readouterr().err

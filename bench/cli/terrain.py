@@ -15,7 +15,7 @@ What a user's file gets (docs/CONVENTIONS.md, "Terrain products"):
   instead (explicitly);
 * outputs are written on the input's grid and orientation, with its CRS, geotransform and
   nodata, and the product's units and parameters as tags. Horizons and openness are in
-  degrees.
+  degrees unless ``--units radians``.
 * ``--curvature`` (with ``--refraction``, default 1/7) lowers the surface for the earth's
   curvature on every product; it is off by default (docs/CONVENTIONS.md).
 * ``viewshed --mode`` chooses GDAL's outputs (``-om``): ``normal`` visibility, ``ground``
@@ -337,14 +337,15 @@ def terrain_product(args):
                 product, units, cmap = "sky_view_factor", "1", "cividis"
             elif kind == "openness":
                 result = algos.openness(field, args.kind, args.n_azimuths, md, azimuths=az,
-                                        rational=args.rational, units="degrees",
+                                        rational=args.rational, units=args.units,
                                         progress=progress, **curve, **common)
-                product, units, cmap = f"openness_{args.kind}", "degrees", "cividis"
+                product, units, cmap = f"openness_{args.kind}", args.units, "cividis"
             else:
                 az = az or [0.0]
-                result = algos.horizon(field, az, md, units="degrees", progress=progress,
+                result = algos.horizon(field, az, md, units=args.units, progress=progress,
                                        **curve, **common)
-                product, units, cmap, border = "horizon", "degrees", "magma", -90.0
+                product, units, cmap = "horizon", args.units, "magma"
+                border = -90.0 if args.units == "degrees" else -math.pi / 2
                 band_names = [f"azimuth {a:g}" for a in az]
     elif kind == "shadows":
         result = algos.shadows(field, args.azimuth, args.elevation, max_distance=md, **curve,
@@ -447,6 +448,10 @@ def register(sub):
                            help="comma-separated degrees clockwise from north (default 0)")
         if kind in ("horizon", "shadows", "svf", "openness"):
             _curvature_options(p)
+        if kind in ("horizon", "openness"):
+            p.add_argument("--units", choices=algos.terrain.ANGLE_UNITS, default="degrees",
+                           help="the angles' unit in the files (default degrees; recorded as "
+                                "the units tag)")
         if kind == "openness":
             p.add_argument("--kind", choices=("positive", "negative"), default="positive",
                            help="positive: 90 deg minus the mean horizon angle; negative: "

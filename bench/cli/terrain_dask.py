@@ -11,6 +11,7 @@ and nodata, as in memory; a PNG preview is drawn from a decimated read.
 """
 from __future__ import annotations
 
+import math
 import os
 import time
 
@@ -59,7 +60,7 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
                 rational=False, azimuth=315.0, elevation=30.0, observers=(),
                 observer_height=1.75, target_height=0.0, curvature=False,
                 refraction=algos.DEFAULT_REFRACTION, algorithm=None, worker_memory=None,
-                params=None, openness_kind="positive", echo=print):
+                params=None, openness_kind="positive", units="degrees", echo=print):
     """Compute one product of the lazy ``field`` on the cluster at ``address``
     (``local:N``: a LocalCluster of N single-threaded workers, each limited to
     ``worker_memory``); write ``out``.tif (a band per azimuth for horizons) and
@@ -79,9 +80,10 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
     curve = dict(curvature=curvature, refraction=refraction)
     band_names = border = None
     if kind == "horizon":
-        layers = [algos.horizon(field, [a], max_distance, units="degrees", **curve,
+        layers = [algos.horizon(field, [a], max_distance, units=units, **curve,
                                 **common)[0] for a in azimuths]
-        product, units, cmap, border = "horizon", "degrees", "magma", -90.0
+        product, cmap = "horizon", "magma"
+        border = -90.0 if units == "degrees" else -math.pi / 2
         band_names = [f"azimuth {a:g}" for a in azimuths]
     elif kind == "svf":
         layers = [algos.sky_view_factor(field, n_azimuths, max_distance, rational=rational,
@@ -89,8 +91,8 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
         product, units, cmap = "sky_view_factor", "1", "cividis"
     elif kind == "openness":
         layers = [algos.openness(field, openness_kind, n_azimuths, max_distance,
-                                 rational=rational, units="degrees", **curve, **common)]
-        product, units, cmap = f"openness_{openness_kind}", "degrees", "cividis"
+                                 rational=rational, units=units, **curve, **common)]
+        product, cmap = f"openness_{openness_kind}", "cividis"
     elif kind == "shadows":
         layers = [algos.shadows(field, azimuth, elevation, max_distance=max_distance,
                                 **curve, **common)]
@@ -157,6 +159,12 @@ def terrain_product_dask(args):
     kind = args.command
     options = dict(max_distance=args.max_distance, algorithm=args.algorithm,
                    worker_memory=args.worker_memory, params=product_options(args, field))
+    if getattr(args, "snap_denominator", None) is not None:
+        raise ValueError("--snap-denominator: not available with --dask (each tile would "
+                         "record its own paths); snap the azimuths with "
+                         "algos.terrain.snap_azimuths and pass them with --azimuths")
+    if kind in ("horizon", "openness"):
+        options["units"] = args.units
     if kind == "horizon":
         options["azimuths"] = _azimuths(args) or [0.0]
     elif kind == "svf":
