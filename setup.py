@@ -19,9 +19,9 @@ import numpy
 from setuptools import Extension, setup
 
 SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
-           "terrain.c", "raster.c", "cone.c"]
+           "terrain.c", "raster.c", "cone.c", "packet.c"]
 
-HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h",
+HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h", "maxmip.h",
            "terrain.h"]
 
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
