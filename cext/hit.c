@@ -296,21 +296,15 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     return 1;
 }
 
-/* The walks' shared per-batch state. */
-typedef struct {
-    hf_pattern pattern;
-    hf_direction direction_cache; /* the exact walks' per-direction set-up, across rays */
-    int parallel;
-    hf_hit_walk walk;
-    int marching, cone, relaxed;
-} batch_state;
-
 /* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status. */
-HF_HOT int ray_solve(int kernel, hf_hit_batch *b, batch_state *st, int64_t ray, hf_hit *h,
-                     double t0, double t1, int entry_axis) {
+HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
+                     int entry_axis, hf_hit_walk walk, int parallel, hf_direction *direction_cache,
+                     hf_pattern *pattern) {
     const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
-    const hf_hit_walk walk = st->walk;
-    const int marching = st->marching, cone = st->cone, relaxed = st->relaxed;
+    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
+                         kernel == HF_HIT_MARCH_BINARY;
+    const int cone = kernel == HF_HIT_CONE;
+    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     hf_batch b2;
     hf_sink sink;
     double o2[2], d2[2], lo = t0, hi = t1;
@@ -340,7 +334,7 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, batch_state *st, int64_t ray, 
         hi = (double)nextafterf((float)t1, INFINITY);
     }
     b2.max_denominator = b->max_denominator;
-    b2.direction_cache = st->parallel ? &st->direction_cache : NULL;
+    b2.direction_cache = parallel ? direction_cache : NULL;
     b2.pattern = b->pattern;
     sink.hit = h;
     if (marching) {
@@ -375,8 +369,7 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, batch_state *st, int64_t ray, 
     } else {
         /* (a maxmip or cone kernel on a grid line, where neighbouring cells
          * matter, walks every cell with its base kernel) */
-        const int status =
-            walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&st->pattern : NULL);
+        const int status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)pattern : NULL);
         if (status != HF_OK) {
             b->bad_ray = ray;
             return status;
@@ -421,12 +414,17 @@ HF_HOT void ray_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) {
 /* packet_maxmip: the batch in packets of b->packet_width consecutive rays (the last one
  * shorter). The rays of a packet that have a max-mipmap walk to do walk together
  * (hf_packet_maxmip, packet.c); the others take dda_maxmip's own per-ray paths (a single
- * parameter, a ray on a grid line). Outputs are written in ray order. */
-static int packet_batch(hf_hit_batch *b, batch_state *st) {
+ * parameter, a ray on a grid line), with its base walk. Outputs are written in ray
+ * order. */
+static int packet_batch(hf_hit_batch *b) {
     hf_hit hits[HF_PACKET_MAX];
+    hf_pattern pattern; /* (unused by the cell walk) */
     const int width = b->packet_width;
     int64_t first;
-    if (width < 1 || width > HF_PACKET_MAX) return HF_ERR_ARGUMENT;
+    if (width < 1 || width > HF_PACKET_MAX || b->mip_levels < 1) return HF_ERR_ARGUMENT;
+    pattern.p = pattern.q = pattern.position_step = 0;
+    pattern.lengths = b->pattern;
+    b->bad_ray = -1;
     for (first = 0; first < b->n_rays; first += width) {
         const int n = b->n_rays - first < width ? (int)(b->n_rays - first) : width;
         unsigned members = 0;
@@ -438,8 +436,8 @@ static int packet_batch(hf_hit_batch *b, batch_state *st) {
             if (t0 < t1 && !hf_on_grid_line(&hits[k])) {
                 members |= 1u << k;
             } else {
-                const int status =
-                    ray_solve(HF_HIT_DDA_MAXMIP, b, st, first + k, &hits[k], t0, t1, entry_axis);
+                const int status = ray_solve(HF_HIT_DDA_MAXMIP, b, first + k, &hits[k], t0, t1,
+                                             entry_axis, hf_batch_dda_hit, 0, NULL, &pattern);
                 if (status != HF_OK) return status;
             }
         }
@@ -450,23 +448,25 @@ static int packet_batch(hf_hit_batch *b, batch_state *st) {
 }
 
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
-    batch_state st;
-    const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP ||
-                       kernel == HF_HIT_PACKET_MAXMIP;
+    hf_pattern pattern;
+    hf_direction direction_cache; /* the exact walks' per-direction set-up, across rays */
+    int parallel;
+    const hf_hit_walk walk = walk_of(kernel);
+    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
+                         kernel == HF_HIT_MARCH_BINARY;
+    const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP;
+    const int cone = kernel == HF_HIT_CONE;
+    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     int64_t ray;
-    st.walk = walk_of(kernel);
-    st.marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
-                  kernel == HF_HIT_MARCH_BINARY;
-    st.cone = kernel == HF_HIT_CONE;
-    st.relaxed = kernel == HF_HIT_CONE_RELAXED;
-    if (st.walk == NULL && !st.marching && !st.relaxed) return HF_ERR_ARGUMENT;
+    if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b);
+    if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
-    if (st.cone && b->cone == NULL) return HF_ERR_ARGUMENT;
-    if (st.relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
+    if (cone && b->cone == NULL) return HF_ERR_ARGUMENT;
+    if (relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
         return HF_ERR_ARGUMENT;
-    st.direction_cache.valid = 0;
+    direction_cache.valid = 0;
     {
         /* parallel rays (one horizontal direction for the whole batch) share the exact
          * walks' per-direction set-up; other batches set up each ray afresh, as sharing
@@ -476,18 +476,18 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                 b->directions[3 * ray + 1] != b->directions[1])
                 break;
         }
-        st.parallel = ray >= b->n_rays;
+        parallel = ray >= b->n_rays;
     }
-    st.pattern.p = st.pattern.q = st.pattern.position_step = 0;
-    st.pattern.lengths = b->pattern;
+    pattern.p = pattern.q = pattern.position_step = 0;
+    pattern.lengths = b->pattern;
     b->bad_ray = -1;
-    if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b, &st);
     for (ray = 0; ray < b->n_rays; ++ray) {
         hf_hit h;
         double t0, t1;
         int entry_axis;
         if (ray_begin(b, ray, &h, &t0, &t1, &entry_axis)) {
-            const int status = ray_solve(kernel, b, &st, ray, &h, t0, t1, entry_axis);
+            const int status = ray_solve(kernel, b, ray, &h, t0, t1, entry_axis, walk, parallel,
+                                         &direction_cache, &pattern);
             if (status != HF_OK) return status;
         }
         ray_end(b, ray, &h);
