@@ -222,3 +222,20 @@ def test_packet_width_is_packet_maxmip_only():
     H = fields.generate("fbm", (16, 16), seed=1)
     with pytest.raises(ValueError, match="packet_width"):
         algos.intersect("dda_maxmip", H, [[1.0, 1.0, 50.0]], [[1.0, 0.5, -1.0]], packet_width=4)
+
+
+def test_the_coherence_study_runs(tmp_path):
+    """bench.studies.packets on a small field and image: every coherence, both kernels,
+    bit-identical, ns/ray measured (its callgrind counts run the machinery of
+    bench.regress.instructions_gate, tested in test_regress_counts.py; off here)."""
+    from bench.studies import packets
+
+    rows = packets.run(str(tmp_path / "p"), datasets=(("fbm", 64),), image=(24, 10),
+                       counts=False, repeats=1, echo=lambda *_: None)
+    assert {x["coherence"] for x in rows} == set(packets.COHERENCE)
+    assert all(x["identical"] for x in rows)
+    assert all(x["ns_per_ray"] > 0 and x["rays"] == 240 for x in rows)
+    assert (tmp_path / "p" / "tables.md").read_text().count("| fbm64 |") == len(rows)
+    with pytest.raises(ValueError, match="coherence"):
+        packets.batch(algos.Field(fields.generate("fbm", (16, 16), seed=1)), "nope")
+
