@@ -25,6 +25,8 @@ __all__ = ["Hits", "intersect", "HIT_OUTPUTS", "STATS"]
 HIT_OUTPUTS = ("t", "cell", "normal", "stats")
 #: Per-ray statistics, the columns of ``Hits.stats``.
 STATS = ("cells_visited", "cells_tested", "runs_visited", "runs_culled", "tiles_skipped")
+#: Rays per packet that ``packet_maxmip`` takes (its option ``packet_width``).
+PACKET_WIDTHS = (1, 2, 4, 8)
 
 
 @dataclass
@@ -76,6 +78,10 @@ def _options(algorithm, given: dict) -> dict:
             low = 1 if name == "march_steps" else 0
             if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+        elif name == "packet_width":
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or \
+                    value not in PACKET_WIDTHS:
+                raise ValueError(f"packet_width: expected one of {PACKET_WIDTHS}, got {value!r}")
         elif name == "march_growth":
             if not (isinstance(value, numbers.Real) and value >= 1):
                 raise ValueError(f"march_growth: expected a number >= 1, got {value!r}")
@@ -117,7 +123,8 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         Per-intersector options (see ``algos.INTERSECTOR_REGISTRY[name].options``):
         ``cull_cells``, ``cull_runs`` (switch culling off, for checks),
         ``max_denominator`` (runs_periodic), ``fine_level`` (the maxmip kernels: the
-        floor level whose 2^fine_level tiles are walked cell by cell or run by run), and the
+        floor level whose 2^fine_level tiles are walked cell by cell or run by run),
+        ``packet_width`` (packet_maxmip: 1, 2, 4 or 8 consecutive rays per packet), and the
         marching parameters ``march_steps``, ``march_refinements``, ``march_growth``,
         ``march_first_fraction``, ``march_min_step``.
 
@@ -224,7 +231,8 @@ class _Prepared:
         self.args = (algorithm.kernel_id, SURFACES.index(surface), fld.cell_heights, cellmax,
                      hmin, hmax, row_max, col_max, mip, o, d, lo, hi,
                      int(bool(opts.get("cull_cells", False))), q, pattern, march, fine_level,
-                     self.t, self.cell, self.normal, self.stats)
+                     self.t, self.cell, self.normal, self.stats,
+                     int(opts.get("packet_width", 4)))
 
     #: positions in ``args`` of the per-ray arrays (o, d, tmin, tmax, t, cell, normal,
     #: stats) and of the run-pattern scratch: what each thread's range gets its own of

@@ -165,6 +165,13 @@ INTERSECTOR_REGISTRY.update({
         dict(cull_cells=True, fine_level=3),
         summary="maximum-mipmap tile skipping, a tight cell walk inside 2^fine_level tiles",
         citation="Tevs, Ihrke & Seidel 2008"),
+    "packet_maxmip": Intersector(
+        "packet_maxmip", 13, "maxmip", "float64", "dda", ("cellmax", "mip"),
+        dict(cull_cells=True, fine_level=3, packet_width=4),
+        summary="dda_maxmip's walk for packets of packet_width consecutive rays (camera or "
+                "parallel batches): one read of a tile's maximum per group of rays over it, "
+                "exit parameters side by side; bit-identical to dda_maxmip",
+        citation="Wald et al. 2001; Tevs, Ihrke & Seidel 2008"),
     "runs_maxmip": Intersector(
         "runs_maxmip", 7, "maxmip", "exact", "runs",
         ("cellmax", "mip"), dict(cull_cells=True, cull_runs=False, fine_level=3),

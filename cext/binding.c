@@ -262,7 +262,7 @@ static int get_rmq(PyObject *object, const char *name, npy_intp lines, npy_intp 
 PyDoc_STRVAR(intersect_doc,
              "intersect(kernel, surface, heights, cellmax, hmin, hmax, row_max, col_max, mip,\n"
              "          origins, directions, tmin, tmax, cull_cells, max_denominator, pattern,\n"
-             "          march, fine_level, t, cell, normal, stats) -> int\n\n"
+             "          march, fine_level, t, cell, normal, stats[, packet_width]) -> int\n\n"
              "First hits of a batch; returns the elapsed nanoseconds of the C loop.\n"
              "Private: use algos.intersect.");
 
@@ -270,7 +270,7 @@ PyDoc_STRVAR(intersect_doc,
  * but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for cone,
  * (rows - 1, cols - 1) for cone_relaxed. */
 static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
-    int kernel, surface, cull_cells, fine_level, status, k;
+    int kernel, surface, cull_cells, fine_level, status, k, packet_width = 4;
     double hmin, hmax;
     long long max_denominator;
     PyObject *o_heights, *o_cellmax, *o_row, *o_col, *o_mip, *o_origins, *o_directions, *o_tmin,
@@ -282,10 +282,11 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
     void *p;
     timed_section section;
     long long elapsed_ns;
-    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO", &kernel, &surface, &o_heights, &o_cellmax,
-                          &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins, &o_directions, &o_tmin,
-                          &o_tmax, &cull_cells, &max_denominator, &o_pattern, &o_march, &fine_level,
-                          &o_t, &o_cell, &o_normal, &o_stats))
+    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO|i", &kernel, &surface, &o_heights,
+                          &o_cellmax, &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins,
+                          &o_directions, &o_tmin, &o_tmax, &cull_cells, &max_denominator,
+                          &o_pattern, &o_march, &fine_level, &o_t, &o_cell, &o_normal, &o_stats,
+                          &packet_width))
         return NULL;
     memset(&b, 0, sizeof b);
     if (kernel < 0 || kernel >= HF_N_HIT_KERNELS || surface < 0 || surface > HF_BILINEAR) {
@@ -400,7 +401,9 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
         PyErr_SetString(PyExc_ValueError, "march: invalid parameters");
         return NULL;
     }
-    if ((kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP) && b.mip_levels < 1) {
+    if ((kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP ||
+         kernel == HF_HIT_PACKET_MAXMIP) &&
+        b.mip_levels < 1) {
         PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
         return NULL;
     }
@@ -409,6 +412,12 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
         return NULL;
     }
     b.floor_level = fine_level;
+    if (packet_width < 1 || packet_width > HF_PACKET_MAX) {
+        PyErr_Format(PyExc_ValueError, "packet_width: expected 1 .. %d, got %d", HF_PACKET_MAX,
+                     packet_width);
+        return NULL;
+    }
+    b.packet_width = packet_width;
     if (!get_array(o_t, "t", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
     b.t = (double *)p;
     if (!get_array(o_cell, "cell", NPY_INT32, 2 * n, 1, 1, &p, NULL)) return NULL;

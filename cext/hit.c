@@ -9,6 +9,7 @@
 #include <string.h>
 #include "hitbatch.h"
 #include "internal.h"
+#include "maxmip.h"
 #include "mipmap.h"
 
 /* ---- clipping ----------------------------------------------------------------------- */
@@ -229,109 +230,13 @@ static void march_relaxed_cone(hf_hit *h, const hf_hit_batch *b) {
  * current tile, so rounding never stalls the walk. */
 /* dda_maxmip: the walk stops descending at `floor_level`, whose 2^floor x 2^floor tiles
  * it walks cell by cell with face parameters computed directly (no drift: the exact
- * interval's own expressions). A cell is culled by z at its exit face (descending) or at its entry
- * (else): for a descending ray that is exactly the exact test's cull, so only the cells it passes
- * pay for the interval and the surface test. A skipped tile is left by an integer step on its exit
- * axis, the other index recomputed at the exit and clamped into the tile just left. */
+ * interval's own expressions); the walk itself is in maxmip.h, shared with the packet
+ * kernel (packet.c). */
 static int maxmip_tight(hf_hit *h, const hf_hit_batch *b) {
-    const int32_t nx = h->cols - 1, ny = h->rows - 1;
-    const int top = b->mip_levels - 1;
-    const int floor_level = b->floor_level < top ? b->floor_level : top;
-    const int descending = h->dz < 0;
-    const int32_t sx = h->dx > 0 ? 1 : -1, sy = h->dy > 0 ? 1 : -1;
-    const int32_t fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
-    const int has_x = h->dx != 0, has_y = h->dy != 0;
-    const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
-    const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
-    const double inf = (double)INFINITY;
-    const float *cellmax = h->cellmax;
-    const int cull = h->cull_cells;
-    double t = h->t0;
-    int32_t i = hf_cell_at(h->ox, h->dx, t, nx), j = hf_cell_at(h->oy, h->dy, t, ny);
-    int level = floor_level + 1 < top ? floor_level + 1 : top;
-    int64_t guard;
-    for (guard = 0; guard <= 4 * ((int64_t)nx + ny) + 64; ++guard) {
-        const int32_t tile_i = i >> level, tile_j = j >> level;
-        const double t_exit_x = has_x ? hf_face_t(hf_tile_face(tile_i, level, fx), ox, inv_x) : inf;
-        const double t_exit_y = has_y ? hf_face_t(hf_tile_face(tile_j, level, fy), oy, inv_y) : inf;
-        double t_exit = t1;
-        int axis = -1;
-        if (t_exit_x < t_exit) {
-            t_exit = t_exit_x;
-            axis = 0;
-        }
-        if (t_exit_y < t_exit) {
-            t_exit = t_exit_y;
-            axis = 1;
-        } else if (t_exit_y == t_exit && axis == 0)
-            axis = 2;
-        if (hf_tile_zlow(oz, dz, descending, t, t_exit) >
-            (double)b->mip[level][(int64_t)tile_j * b->mip_cols[level] + tile_i]) {
-            /* skip the tile, then try one level coarser */
-            h->tiles_skipped += 1;
-        } else if (level > floor_level) {
-            --level;
-            continue;
-        } else {
-            /* walk the floor tile cell by cell; mx, my: the exit faces of the current
-             * cell, recomputed only on the axis that stepped */
-            const int32_t ilo = tile_i << floor_level, jlo = tile_j << floor_level;
-            const uint32_t iw =
-                (uint32_t)((((int64_t)tile_i + 1) << floor_level) < nx ? (1 << floor_level)
-                                                                       : nx - ilo) -
-                1;
-            const uint32_t jw =
-                (uint32_t)((((int64_t)tile_j + 1) << floor_level) < ny ? (1 << floor_level)
-                                                                       : ny - jlo) -
-                1;
-            double t_in = t;
-            double mx = has_x ? ((double)(i + fx) - ox) * inv_x : inf;
-            double my = has_y ? ((double)(j + fy) - oy) * inv_y : inf;
-            for (;;) {
-                const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
-                h->cells_visited += 1;
-                if (!cull ||
-                    !(oz + (descending ? tb : t_in) * dz > (double)cellmax[(int64_t)j * nx + i])) {
-                    if (hf_hit_cell_exact(h, i, j)) return 1;
-                }
-                if (!(tb < t1)) return 0;
-                if (mx < my) {
-                    i += sx;
-                    t_in = mx;
-                    mx = ((double)(i + fx) - ox) * inv_x;
-                } else if (my < mx) {
-                    j += sy;
-                    t_in = my;
-                    my = ((double)(j + fy) - oy) * inv_y;
-                } else {
-                    i += sx;
-                    j += sy;
-                    t_in = mx;
-                    mx = ((double)(i + fx) - ox) * inv_x;
-                    my = ((double)(j + fy) - oy) * inv_y;
-                }
-                if ((uint32_t)(i - ilo) > iw || (uint32_t)(j - jlo) > jw) break;
-            }
-            if ((uint32_t)i >= (uint32_t)nx || (uint32_t)j >= (uint32_t)ny) return 0;
-            t = t_in > t ? t_in : t;
-            level = floor_level + 1 < top ? floor_level + 1 : top;
-            continue;
-        }
-        if (!(t_exit < t1)) return 0;
-        {
-            /* into the next tile at this level */
-            const int64_t ni = hf_tile_next_cell(axis == 0 || axis == 2, tile_i, level, nx,
-                                                 h->dx >= 0, ox + t_exit * h->dx);
-            const int64_t nj = hf_tile_next_cell(axis == 1 || axis == 2, tile_j, level, ny,
-                                                 h->dy >= 0, oy + t_exit * h->dy);
-            if (axis < 0 || ni < 0 || ni >= nx || nj < 0 || nj >= ny) return 0;
-            i = (int32_t)ni;
-            j = (int32_t)nj;
-            t = t_exit > t ? t_exit : t;
-        }
-        if (level < top) ++level;
-    }
-    return 0;
+    hf_mip_ray r;
+    hf_mip_walk w;
+    hf_mip_setup(h, b, &r, &w);
+    return hf_mip_walk_alone(h, b, &r, &w);
 }
 
 /* ---- the batch ------------------------------------------------------------------------ */
@@ -344,10 +249,202 @@ static hf_hit_walk walk_of(int kernel) {
     case HF_RUNS_F64: return hf_batch_runs_f64_hit;
     case HF_RUNS_PERIODIC: return hf_batch_runs_periodic_hit;
     case HF_HIT_DDA_MAXMIP: return hf_batch_dda_hit;
+    case HF_HIT_PACKET_MAXMIP: return hf_batch_dda_hit;
     case HF_HIT_RUNS_MAXMIP: return hf_batch_runs_hit;
     case HF_HIT_CONE: return hf_batch_dda_hit;
     default: return NULL;
     }
+}
+
+/* ---- one ray of the batch, in three steps ------------------------------------------- */
+/* Its set-up: clip ray `ray` to the box and fill h (zeroed first); returns 1 when there
+ * is a walk to do, 0 when the ray misses the box. */
+HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_out, double *t1_out,
+                     int *entry_axis_out) {
+    const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
+    const double tmin = b->tmin ? b->tmin[ray] : 0.0;
+    const double tmax = b->tmax ? b->tmax[ray] : (double)INFINITY;
+    double t0, t1;
+    int entry_axis;
+    memset(h, 0, sizeof *h);
+    if (!clip_to_box(o, d, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
+                     &entry_axis))
+        return 0;
+    h->heights = b->heights;
+    h->cellmax = b->cellmax;
+    h->rows = b->rows;
+    h->cols = b->cols;
+    h->row_max = b->cull_runs ? &b->row_max : NULL;
+    h->col_max = b->cull_runs ? &b->col_max : NULL;
+    h->surface = b->surface;
+    h->cull_cells = b->cull_cells;
+    h->ox = o[0];
+    h->oy = o[1];
+    h->oz = o[2];
+    h->dx = d[0];
+    h->dy = d[1];
+    h->dz = d[2];
+    h->inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
+    h->inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
+    h->t0 = t0;
+    h->t1 = t1;
+    h->entry_axis = entry_axis;
+    hf_hit_prepare(h);
+    *t0_out = t0;
+    *t1_out = t1;
+    *entry_axis_out = entry_axis;
+    return 1;
+}
+
+/* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status. */
+HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
+                     int entry_axis, hf_hit_walk walk, int parallel, hf_direction *direction_cache,
+                     hf_pattern *pattern) {
+    const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
+    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
+                         kernel == HF_HIT_MARCH_BINARY;
+    const int cone = kernel == HF_HIT_CONE;
+    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
+    hf_batch b2;
+    hf_sink sink;
+    double o2[2], d2[2], lo = t0, hi = t1;
+    memset(&b2, 0, sizeof b2);
+    o2[0] = o[0];
+    o2[1] = o[1];
+    d2[0] = d[0];
+    d2[1] = d[1];
+    /* A ray lying in the far box face x = cols-1 (or y = rows-1) has no half-open
+     * cell there; walk the last column (row) instead. Moving the 2D walk's origin
+     * by 3/4 of a lattice unit keeps it in that column even after the exact
+     * kernels' rounding; the surface tests still use the caller's ray. */
+    if (d[0] == 0 && o[0] == b->cols - 1) o2[0] = o[0] - 0.75 / HF_ONE;
+    if (d[1] == 0 && o[1] == b->rows - 1) o2[1] = o[1] - 0.75 / HF_ONE;
+    b2.n_rays = 1;
+    b2.origins = o2;
+    b2.directions = d2;
+    b2.tmin = &lo;
+    b2.tmax = &hi;
+    b2.nx = b->cols - 1;
+    b2.ny = b->rows - 1;
+    if (kernel == HF_DDA_F32) {
+        /* the float32 walk casts its range to float: round it outward, so a
+         * hair-thin interval (a flat field) cannot collapse to nothing; the surface
+         * tests still use the float64 interval */
+        lo = (double)nextafterf((float)t0, -INFINITY);
+        hi = (double)nextafterf((float)t1, INFINITY);
+    }
+    b2.max_denominator = b->max_denominator;
+    b2.direction_cache = parallel ? direction_cache : NULL;
+    b2.pattern = b->pattern;
+    sink.hit = h;
+    if (marching) {
+        march(h, b, kernel);
+    } else if (relaxed) {
+        march_relaxed_cone(h, b);
+    } else if (t0 == t1) {
+        /* a single parameter (the ray touches the box there, or is already below
+         * hmin when it enters): test that point directly */
+        const int32_t i = hf_cell_at(h->ox, h->dx, t0, b->cols - 1);
+        const int32_t j = hf_cell_at(h->oy, h->dy, t0, b->rows - 1);
+        h->cells_visited += 1;
+        (void)hf_surface_test(h, i, j, t0, t0,
+                              (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
+    } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(h)) {
+        maxmip_tight(h, b);
+    } else if (cone && !hf_on_grid_line(h)) {
+        hf_cone_hit(h, b->cone);
+    } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(h)) {
+        hf_mipmap m;
+        m.levels = b->mip;
+        m.cols = b->mip_cols;
+        m.n_levels = b->mip_levels;
+        m.floor_level = b->floor_level;
+        {
+            const int status = hf_runs_maxmip_hit(&b2, &sink, &m);
+            if (status != HF_OK) {
+                b->bad_ray = ray;
+                return status;
+            }
+        }
+    } else {
+        /* (a maxmip or cone kernel on a grid line, where neighbouring cells
+         * matter, walks every cell with its base kernel) */
+        const int status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)pattern : NULL);
+        if (status != HF_OK) {
+            b->bad_ray = ray;
+            return status;
+        }
+    }
+    return HF_OK;
+}
+
+/* Its outputs, each only when asked for. */
+HF_HOT void ray_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) {
+    const double *d = b->directions + 3 * ray;
+    if (b->t) b->t[ray] = h->found ? h->t : (double)INFINITY;
+    if (b->cell) {
+        b->cell[2 * ray] = h->found ? h->i : -1;
+        b->cell[2 * ray + 1] = h->found ? h->j : -1;
+    }
+    if (b->normal) {
+        double *n = b->normal + 3 * ray;
+        if (!h->found) {
+            n[0] = n[1] = n[2] = NAN;
+        } else if (h->wall_axis == 0 || h->wall_axis == 1) {
+            /* a vertical wall facing the ray */
+            n[0] = n[1] = n[2] = 0;
+            n[h->wall_axis] = d[h->wall_axis] > 0 ? -1.0 : 1.0;
+        } else {
+            const double norm = sqrt(h->su * h->su + h->sv * h->sv + 1.0);
+            n[0] = -h->su / norm;
+            n[1] = -h->sv / norm;
+            n[2] = 1.0 / norm;
+        }
+    }
+    if (b->stats) {
+        int64_t *s = b->stats + 5 * ray;
+        s[0] = h->cells_visited;
+        s[1] = h->cells_tested;
+        s[2] = h->runs_visited;
+        s[3] = h->runs_culled;
+        s[4] = h->tiles_skipped;
+    }
+}
+
+/* packet_maxmip: the batch in packets of b->packet_width consecutive rays (the last one
+ * shorter). The rays of a packet that have a max-mipmap walk to do walk together
+ * (hf_packet_maxmip, packet.c); the others take dda_maxmip's own per-ray paths (a single
+ * parameter, a ray on a grid line), with its base walk. Outputs are written in ray
+ * order. */
+static int packet_batch(hf_hit_batch *b) {
+    hf_hit hits[HF_PACKET_MAX];
+    hf_pattern pattern; /* (unused by the cell walk) */
+    const int width = b->packet_width;
+    int64_t first;
+    if (width < 1 || width > HF_PACKET_MAX || b->mip_levels < 1) return HF_ERR_ARGUMENT;
+    pattern.p = pattern.q = pattern.position_step = 0;
+    pattern.lengths = b->pattern;
+    b->bad_ray = -1;
+    for (first = 0; first < b->n_rays; first += width) {
+        const int n = b->n_rays - first < width ? (int)(b->n_rays - first) : width;
+        unsigned members = 0;
+        int k;
+        for (k = 0; k < n; ++k) {
+            double t0, t1;
+            int entry_axis;
+            if (!ray_begin(b, first + k, &hits[k], &t0, &t1, &entry_axis)) continue;
+            if (t0 < t1 && !hf_on_grid_line(&hits[k])) {
+                members |= 1u << k;
+            } else {
+                const int status = ray_solve(HF_HIT_DDA_MAXMIP, b, first + k, &hits[k], t0, t1,
+                                             entry_axis, hf_batch_dda_hit, 0, NULL, &pattern);
+                if (status != HF_OK) return status;
+            }
+        }
+        if (members) hf_packet_maxmip(hits, members, b);
+        for (k = 0; k < n; ++k) ray_end(b, first + k, &hits[k]);
+    }
+    return HF_OK;
 }
 
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
@@ -361,6 +458,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     const int cone = kernel == HF_HIT_CONE;
     const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     int64_t ray;
+    if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b);
     if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
@@ -384,136 +482,15 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     pattern.lengths = b->pattern;
     b->bad_ray = -1;
     for (ray = 0; ray < b->n_rays; ++ray) {
-        const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
-        const double tmin = b->tmin ? b->tmin[ray] : 0.0;
-        const double tmax = b->tmax ? b->tmax[ray] : (double)INFINITY;
         hf_hit h;
         double t0, t1;
         int entry_axis;
-        memset(&h, 0, sizeof h);
-        if (clip_to_box(o, d, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
-                        &entry_axis)) {
-            hf_batch b2;
-            hf_sink sink;
-            double o2[2], d2[2], lo = t0, hi = t1;
-            h.heights = b->heights;
-            h.cellmax = b->cellmax;
-            h.rows = b->rows;
-            h.cols = b->cols;
-            h.row_max = b->cull_runs ? &b->row_max : NULL;
-            h.col_max = b->cull_runs ? &b->col_max : NULL;
-            h.surface = b->surface;
-            h.cull_cells = b->cull_cells;
-            h.ox = o[0];
-            h.oy = o[1];
-            h.oz = o[2];
-            h.dx = d[0];
-            h.dy = d[1];
-            h.dz = d[2];
-            h.inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
-            h.inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
-            h.t0 = t0;
-            h.t1 = t1;
-            h.entry_axis = entry_axis;
-            hf_hit_prepare(&h);
-            memset(&b2, 0, sizeof b2);
-            o2[0] = o[0];
-            o2[1] = o[1];
-            d2[0] = d[0];
-            d2[1] = d[1];
-            /* A ray lying in the far box face x = cols-1 (or y = rows-1) has no half-open
-             * cell there; walk the last column (row) instead. Moving the 2D walk's origin
-             * by 3/4 of a lattice unit keeps it in that column even after the exact
-             * kernels' rounding; the surface tests still use the caller's ray. */
-            if (d[0] == 0 && o[0] == b->cols - 1) o2[0] = o[0] - 0.75 / HF_ONE;
-            if (d[1] == 0 && o[1] == b->rows - 1) o2[1] = o[1] - 0.75 / HF_ONE;
-            b2.n_rays = 1;
-            b2.origins = o2;
-            b2.directions = d2;
-            b2.tmin = &lo;
-            b2.tmax = &hi;
-            b2.nx = b->cols - 1;
-            b2.ny = b->rows - 1;
-            if (kernel == HF_DDA_F32) {
-                /* the float32 walk casts its range to float: round it outward, so a
-                 * hair-thin interval (a flat field) cannot collapse to nothing; the surface
-                 * tests still use the float64 interval */
-                lo = (double)nextafterf((float)t0, -INFINITY);
-                hi = (double)nextafterf((float)t1, INFINITY);
-            }
-            b2.max_denominator = b->max_denominator;
-            b2.direction_cache = parallel ? &direction_cache : NULL;
-            b2.pattern = b->pattern;
-            sink.hit = &h;
-            if (marching) {
-                march(&h, b, kernel);
-            } else if (relaxed) {
-                march_relaxed_cone(&h, b);
-            } else if (t0 == t1) {
-                /* a single parameter (the ray touches the box there, or is already below
-                 * hmin when it enters): test that point directly */
-                const int32_t i = hf_cell_at(h.ox, h.dx, t0, b->cols - 1);
-                const int32_t j = hf_cell_at(h.oy, h.dy, t0, b->rows - 1);
-                h.cells_visited += 1;
-                (void)hf_surface_test(&h, i, j, t0, t0,
-                                      (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
-            } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(&h)) {
-                maxmip_tight(&h, b);
-            } else if (cone && !hf_on_grid_line(&h)) {
-                hf_cone_hit(&h, b->cone);
-            } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(&h)) {
-                hf_mipmap m;
-                m.levels = b->mip;
-                m.cols = b->mip_cols;
-                m.n_levels = b->mip_levels;
-                m.floor_level = b->floor_level;
-                {
-                    const int status = hf_runs_maxmip_hit(&b2, &sink, &m);
-                    if (status != HF_OK) {
-                        b->bad_ray = ray;
-                        return status;
-                    }
-                }
-            } else {
-                /* (a maxmip or cone kernel on a grid line, where neighbouring cells
-                 * matter, walks every cell with its base kernel) */
-                const int status =
-                    walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&pattern : NULL);
-                if (status != HF_OK) {
-                    b->bad_ray = ray;
-                    return status;
-                }
-            }
+        if (ray_begin(b, ray, &h, &t0, &t1, &entry_axis)) {
+            const int status = ray_solve(kernel, b, ray, &h, t0, t1, entry_axis, walk, parallel,
+                                         &direction_cache, &pattern);
+            if (status != HF_OK) return status;
         }
-        /* outputs, each only when asked for */
-        if (b->t) b->t[ray] = h.found ? h.t : (double)INFINITY;
-        if (b->cell) {
-            b->cell[2 * ray] = h.found ? h.i : -1;
-            b->cell[2 * ray + 1] = h.found ? h.j : -1;
-        }
-        if (b->normal) {
-            double *n = b->normal + 3 * ray;
-            if (!h.found) {
-                n[0] = n[1] = n[2] = NAN;
-            } else if (h.wall_axis == 0 || h.wall_axis == 1) {
-                /* a vertical wall facing the ray */
-                n[0] = n[1] = n[2] = 0;
-                n[h.wall_axis] = d[h.wall_axis] > 0 ? -1.0 : 1.0;
-            } else {
-                const double norm = sqrt(h.su * h.su + h.sv * h.sv + 1.0);
-                n[0] = -h.su / norm;
-                n[1] = -h.sv / norm;
-                n[2] = 1.0 / norm;
-            }
-        }
-        if (b->stats) {
-            int64_t *s = b->stats + 5 * ray;
-            s[0] = h.cells_visited;
-            s[1] = h.cells_tested;
-            s[2] = h.runs_visited;
-            s[3] = h.runs_culled;
-            s[4] = h.tiles_skipped;
-        }
+        ray_end(b, ray, &h);
     }
     return HF_OK;
 }

@@ -14,10 +14,14 @@ enum hf_hit_kernel {
     HF_HIT_MARCH_BINARY = 10,
     HF_HIT_CONE = 11,
     HF_HIT_CONE_RELAXED = 12,
-    HF_N_HIT_KERNELS = 13
+    HF_HIT_PACKET_MAXMIP = 13,
+    HF_N_HIT_KERNELS = 14
 };
 
 #define HF_MAX_MIP_LEVELS 32
+
+/* packet_maxmip: the most rays in one packet */
+#define HF_PACKET_MAX 8
 
 typedef struct {
     int64_t n_rays;
@@ -34,8 +38,9 @@ typedef struct {
     int mip_levels;
     const float *mip[HF_MAX_MIP_LEVELS];
     int32_t mip_cols[HF_MAX_MIP_LEVELS];
-    int floor_level; /* the maxmip kernels: the level whose tiles are walked cell by cell or
-                        run by run (the public option fine_level) */
+    int floor_level;  /* the maxmip kernels: the level whose tiles are walked cell by cell or
+                         run by run (the public option fine_level) */
+    int packet_width; /* packet_maxmip: rays per packet, 1 .. HF_PACKET_MAX */
     /* cone: (ny, nx, 2), each cell's cone top and slope side by side (one cache line holds
      * both); cone_relaxed: (ny, nx) slopes (its apex is the cell maximum); NULL for the
      * other kernels (cone.c) */
@@ -56,6 +61,11 @@ typedef struct {
 } hf_hit_batch;
 
 int hf_intersect_batch(int kernel, hf_hit_batch *batch);
+
+/* packet_maxmip: the dda_maxmip walks of the rays of hits[] whose bit is set in
+ * `members` (clipped and prepared, each with a max-mipmap walk to do), together; each
+ * hits[k] ends as dda_maxmip leaves it (packet.c). */
+void hf_packet_maxmip(hf_hit *hits, unsigned members, const hf_hit_batch *b);
 
 /* cone: the first hit of one clipped ray (1: found), cone.c. */
 int hf_cone_hit(hf_hit *h, const float *cone);

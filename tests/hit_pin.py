@@ -6,6 +6,9 @@ its cell. Exact kernels must keep them forever; a float kernel may change only b
 deliberate, documented change, which regenerates the pin:
 
     python -m tests.hit_pin --write      # then say why in the commit
+
+``packet_maxmip`` (issue 22) was added to the pin with ``dda_maxmip``'s pinned arrays,
+copied, not recomputed: it must equal them bit for bit.
 """
 from __future__ import annotations
 

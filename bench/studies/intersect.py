@@ -121,11 +121,13 @@ def _targets(rows, fields_by_name):
 
 def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
         datasets=DATASETS, run_lengths=RUN_LENGTHS, surfaces=("triangles",), names=None,
-        echo=print, regimes=REGIMES, coherences=COHERENCES):
+        echo=print, regimes=REGIMES, coherences=COHERENCES, packets=True):
     """Measure every (field, surface, regime, coherence, r) group, write results.csv (rows
     flushed as measured), tables.md (speedup tables, structures, the targets) and env.json
     to ``out_dir``, print the tables; returns the rows. Pins this process to one CPU.
-    Parallel groups take the numeric run lengths; the camera group is one per field."""
+    Parallel groups take the numeric run lengths; the camera group is one per field. With
+    ``packets`` (and packet_maxmip among ``names``), then the coherent-batch study
+    (``bench.studies.packets``) into ``out_dir/packets``."""
     os.makedirs(out_dir, exist_ok=True)
     cpu = pin_to_one_cpu()
     env = dict(environment(), pinned_cpu=cpu)
@@ -179,4 +181,10 @@ def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
     with open(os.path.join(out_dir, "tables.md"), "w") as f:
         f.write("\n".join(text))
     echo("\n".join(text))
+    if packets and "packet_maxmip" in names:
+        # the coherence axis (random rays vs camera and parallel batches) of the packet
+        # family: bench.studies.packets, into packets/
+        from . import packets as packet_study
+
+        packet_study.run(os.path.join(out_dir, "packets"), datasets=datasets, echo=echo)
     return rows

@@ -16,7 +16,8 @@ Presets (all seeded; every field is generated or loaded from the embedded data):
 * full (``--full`` or ``--preset full``): adds fBm 2048^2; r in
   {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus random; 3000 rays, 9 repeats (about 330
   groups), then the parallel rays part and the quick tier of the rasterising-against-
-  tracing study (``bench.studies.raster_vs_trace``, into ``raster_vs_trace/``).
+  tracing study (``bench.studies.raster_vs_trace``, into ``raster_vs_trace/``) and the
+  coherent-batch study (``bench.studies.packets``, into ``packets/``).
 
 Each dataset's structures and Embree scene are built once and kept on its Field for
 every group; each group's rays are drawn once; the instruction counts run after the
@@ -160,6 +161,10 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
 
         raster_vs_trace.run(os.path.join(out_dir, "raster_vs_trace"), quick=True, counts=counts,
                             echo=echo)
+        # the coherence axis: packets against the per-ray walk (bench.studies.packets)
+        from . import packets
+
+        packets.run(os.path.join(out_dir, "packets"), quick=False, counts=counts, echo=echo)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace reproduce ({name} preset)",
                                    all_kernels=all_kernels)

@@ -15,6 +15,8 @@ output mode and option. :func:`check` runs it and asserts the invariants:
   ``runs``; first hits: ``midpoint``, ``runs``, ``runs_periodic`` and ``runs_maxmip``);
 * cells are 8-adjacent, never repeat and lie in the grid; runs are consistent with them;
 * hits lie inside ``[tmin, tmax]`` and their cells in the grid;
+* ``packet_maxmip`` equals ``dda_maxmip`` bit for bit (t, cell, normal, statistics) at
+  every packet width, on every ``dda_maxmip`` input;
 * horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9
   (the registry's: the C entries ``horizon_rows`` and ``horizon_chain`` included, through
   ``rows`` and ``chain``), with and without curvature; the viewshed's plain and mipmap
@@ -44,7 +46,11 @@ import algos
 from .cone_cases import check_cone
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
-INTERSECTORS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.kind != "peer")
+# (packet_maxmip is not drawn on its own, which would remap the committed corpus: every
+# dda_maxmip call is repeated with it, at each packet width, and must match bit for bit)
+INTERSECTORS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items()
+                     if a.kind != "peer" and n != "packet_maxmip")
+PACKET_WIDTHS = (1, 2, 4, 8)
 EXACT_TRAVERSALS = ("midpoint", "runs")
 EXACT_INTERSECTORS = ("midpoint", "runs", "runs_periodic", "runs_maxmip")
 CORPUS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data",
@@ -240,6 +246,8 @@ def _call(case, kernel=None):
     kw = {}
     if "cull_cells" in case:
         kw["cull_cells"] = case["cull_cells"]
+    if "packet_width" in case and kernel == "packet_maxmip":
+        kw["packet_width"] = case["packet_width"]
     return algos.intersect(kernel, case["heights"],
                            np.asarray(case["origins"], dtype=float).reshape(-1, 3),
                            np.asarray(case["directions"], dtype=float).reshape(-1, 3),
@@ -319,6 +327,23 @@ def _check(data: bytes) -> None:
                 got = _call(case, other)
                 assert _same(got.t, t), f"{case['kernel']} and {other} differ: {t} {got.t}"
     check_cone(case, _call)  # the cone kernel gives dda's hits (tests/fuzz/cone_cases.py)
+    if case["kernel"] == "dda_maxmip":
+        _check_packets(case, result)
+
+
+def _check_packets(case, result):
+    """packet_maxmip equals dda_maxmip bit for bit (every output asked for) at every width."""
+    for width in PACKET_WIDTHS:
+        got = _call(dict(case, packet_width=width), "packet_maxmip")
+        for name in ("t", "cell", "normal"):
+            a, b = getattr(result, name), getattr(got, name)
+            if a is not None:
+                assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8)), \
+                    f"packet_maxmip (width {width}) and dda_maxmip differ in {name}: {b} {a}"
+        if result.stats is not None:
+            for k, v in result.stats.items():
+                assert np.array_equal(v, got.stats[k]), \
+                    f"packet_maxmip (width {width}) and dda_maxmip differ in {k}"
 
 
 def main(argv=None):
