@@ -19,10 +19,10 @@ import numpy
 from setuptools import Extension, setup
 
 SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
-           "terrain.c", "raster.c", "cone.c"]
+           "terrain.c", "raster.c", "cone.c", "compact.c"]
 
 HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h",
-           "terrain.h"]
+           "terrain.h", "compact.h"]
 
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
 link_args = []

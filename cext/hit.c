@@ -346,6 +346,7 @@ static hf_hit_walk walk_of(int kernel) {
     case HF_HIT_DDA_MAXMIP: return hf_batch_dda_hit;
     case HF_HIT_RUNS_MAXMIP: return hf_batch_runs_hit;
     case HF_HIT_CONE: return hf_batch_dda_hit;
+    case HF_HIT_DDA_COMPACT: return hf_batch_dda_hit;
     default: return NULL;
     }
 }
@@ -360,12 +361,16 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP;
     const int cone = kernel == HF_HIT_CONE;
     const int relaxed = kernel == HF_HIT_CONE_RELAXED;
+    hf_compact compact; /* dda_compact: the tree's geometry (compact.h) */
     int64_t ray;
     if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
     if (cone && b->cone == NULL) return HF_ERR_ARGUMENT;
+    if (kernel == HF_HIT_DDA_COMPACT && b->compact == NULL) return HF_ERR_ARGUMENT;
+    hf_compact_layout(b->cols - 1, b->rows - 1, &compact);
+    compact.nodes = b->compact;
     if (relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
         return HF_ERR_ARGUMENT;
     direction_cache.valid = 0;
@@ -459,6 +464,8 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                                       (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
             } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(&h)) {
                 maxmip_tight(&h, b);
+            } else if (kernel == HF_HIT_DDA_COMPACT && !hf_on_grid_line(&h)) {
+                hf_compact_hit(&h, &compact);
             } else if (cone && !hf_on_grid_line(&h)) {
                 hf_cone_hit(&h, b->cone);
             } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(&h)) {
@@ -475,7 +482,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
                     }
                 }
             } else {
-                /* (a maxmip or cone kernel on a grid line, where neighbouring cells
+                /* (a maxmip, compact or cone kernel on a grid line, where neighbouring cells
                  * matter, walks every cell with its base kernel) */
                 const int status =
                     walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)&pattern : NULL);

@@ -3,6 +3,7 @@
 #define HFTRACE_HITBATCH_H
 
 #include <stdint.h>
+#include "compact.h"
 #include "hit.h"
 
 /* Intersector ids: the traversal kernels (enum hf_kernel) and these. */
@@ -14,7 +15,8 @@ enum hf_hit_kernel {
     HF_HIT_MARCH_BINARY = 10,
     HF_HIT_CONE = 11,
     HF_HIT_CONE_RELAXED = 12,
-    HF_N_HIT_KERNELS = 13
+    HF_HIT_DDA_COMPACT = 13,
+    HF_N_HIT_KERNELS = 14
 };
 
 #define HF_MAX_MIP_LEVELS 32
@@ -40,6 +42,8 @@ typedef struct {
      * both); cone_relaxed: (ny, nx) slopes (its apex is the cell maximum); NULL for the
      * other kernels (cone.c) */
     const float *cone;
+    /* dda_compact: the nodes of the compact maximum tree (compact.h), NULL for the others */
+    const hf_compact_node *compact;
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;
