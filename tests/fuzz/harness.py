@@ -16,7 +16,8 @@ output mode and option. :func:`check` runs it and asserts the invariants:
 * cells are 8-adjacent, never repeat and lie in the grid; runs are consistent with them;
 * hits lie inside ``[tmin, tmax]`` and their cells in the grid;
 * horizon angles lie in [-pi/2, pi/2] and every exact horizon method agrees within 1e-9;
-  the viewshed's plain and mipmap walks agree bit for bit.
+  the viewshed's plain and mipmap walks agree bit for bit;
+* ``dda_compact`` gives ``dda_maxmip``'s hits bit for bit (tests/fuzz/compact_cases.py).
 
 The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -37,6 +38,7 @@ import numpy as np
 
 import algos
 
+from .compact_cases import check_compact
 from .cone_cases import check_cone
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
@@ -290,6 +292,7 @@ def _check(data: bytes) -> None:
                 got = _call(case, other)
                 assert _same(got.t, t), f"{case['kernel']} and {other} differ: {t} {got.t}"
     check_cone(case, _call)  # the cone kernel gives dda's hits (tests/fuzz/cone_cases.py)
+    check_compact(case, _call)  # dda_compact gives dda_maxmip's (tests/fuzz/compact_cases.py)
 
 
 def main(argv=None):
