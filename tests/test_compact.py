@@ -221,3 +221,37 @@ def test_the_entry_runs_only_dda_compact():
     args[0] = get_intersector("dda_maxmip").kernel_id
     with pytest.raises(ValueError, match="only intersect_compact runs dda_compact"):
         _kernels.intersect_compact(p.compact, *args)
+
+
+def test_study_quick_tier_writes_table_and_plot(tmp_path):
+    """The study's quick tier (no callgrind here: tests/test_compact.py's last test counts)
+    writes the table, the CSV and the plot, with both kernels at every side."""
+    from bench.studies import compact as study
+
+    paths = study.run(str(tmp_path), dict(sizes=(64, 128), rays=40, repeats=1), counts=False,
+                      echo=lambda *_: None)
+    for p in paths.values():
+        assert (tmp_path / p.rsplit("/", 1)[1]).stat().st_size > 0
+    import csv
+
+    rows = list(csv.DictReader(open(paths["csv"])))
+    assert {(r["kernel"], r["size"]) for r in rows} == {
+        (k, str(s)) for k in study.KERNELS for s in (64, 128)}
+    assert all(float(r["bytes_per_sample"]) > 4 for r in rows)
+    table = open(paths["md"]).read()
+    assert "`dda_compact`" in table and "uptime" in table
+
+
+@pytest.mark.skipif(__import__("shutil").which("valgrind") is None, reason="needs valgrind")
+def test_callgrind_cache_counts_are_per_ray_and_exact():
+    """callgrind's cache simulation: deterministic per-ray counts for both kernels, the
+    misses never above the accesses."""
+    from bench.studies.compact import KERNELS, callgrind_cache_counts
+
+    a = callgrind_cache_counts(64, 20)
+    b = callgrind_cache_counts(64, 20)
+    assert set(a) == set(KERNELS)
+    for k in KERNELS:
+        assert a[k] == b[k], k  # exact: independent of the machine's load
+        assert 0 < a[k]["ll_misses"] <= a[k]["d1_misses"] <= a[k]["data_accesses"]
+        assert a[k]["instructions"] > a[k]["data_accesses"]

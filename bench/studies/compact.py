@@ -1,0 +1,338 @@
+"""``hftrace compact``: the cache-compact maximum tree (``dda_compact``) against today's
+maximum mipmap (``dda_maxmip``), by the cache lines a ray touches (issue 22, item 4).
+
+For each field side (fBm, the growth curve from 256^2 up), on the same random-azimuth
+first-hit rays as bench-intersect (``bench.sweep.first_hit_rays``, r = "random"), two-triangle
+surface, one thread:
+
+* **callgrind's cache simulation** (``valgrind --tool=callgrind --cache-sim=yes``, counted
+  only inside the C batch entry ``hf_intersect_batch``; exact for one build and input,
+  whatever the machine's load), with a fixed cache model :data:`CACHE` (32 KiB 8-way D1,
+  8 MiB 16-way LL, 64-byte lines) so the counts do not depend on the host: instructions,
+  data reads and writes, D1 misses (the lines a ray touches: a ray's own lines stay in
+  D1, and random rays share almost none) and LL misses (data), per ray. Both kernels run
+  in one child process, each after a write over 64 MiB that evicts the simulated caches.
+* **natively**: the cells visited, cells tested and tiles skipped per ray (the batch's
+  statistics), ns per ray (``bench.timing.interleaved``, caches flushed before every run:
+  indicative only on a shared machine; the report prints ``uptime``), and each
+  structure's build time and bytes per height sample.
+
+    python -m bench.studies.compact [--full] [--sizes 256,2048,8192] [--rays 2000]
+                                    [--out results/compact | --publish]
+
+``--publish`` writes ``reports/compact/``. The quick tier (the default) is small and is
+what the tests run.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+import algos
+import datasets_gen
+
+__all__ = ["KERNELS", "STRUCTURES", "CACHE", "QUICK", "FULL", "callgrind_cache_counts",
+           "native_counts", "run", "main"]
+
+#: the compared kernels: today's hierarchy first
+KERNELS = ("dda_maxmip", "dda_compact")
+#: the structures each kernel reads besides the heights (Field.build_stats keys)
+STRUCTURES = {"dda_maxmip": ("cellmax", "mip"), "dda_compact": ("cellmax", "compact")}
+#: the simulated caches: (bytes, ways, line bytes)
+CACHE = {"I1": (32768, 8, 64), "D1": (32768, 8, 64), "LL": (8 << 20, 16, 64)}
+#: the tiers: field sides, rays per side, timing repeats
+QUICK = dict(sizes=(256, 512), rays=200, repeats=3)
+FULL = dict(sizes=(256, 1024, 2048, 4096, 8192), rays=2000, repeats=5)
+DATASET, SEED, RUN_LENGTH, SURFACE = "fbm", 2008, "random", "triangles"
+#: the report's target: LL misses per ray of dda_compact over dda_maxmip's, at 8192^2
+TARGET_RATIO, TARGET_SIZE = 0.5, 8192
+
+_CHILD = r"""
+import json, sys
+import numpy as np
+from bench.studies.compact import _prepared
+spec = json.loads(sys.argv[1])
+runs = _prepared(spec)
+for kernel in spec["kernels"]:
+    scratch = np.ones(64 << 17)   # 64 MiB written: the simulated caches start cold
+    scratch += 1.0
+    runs[kernel]()
+"""
+
+
+def _field(size):
+    return algos.Field(datasets_gen.load(DATASET, size=size, seed=1).heights)
+
+
+def _prepared(spec: dict) -> dict:
+    """kernel -> a prepared batch (calling it runs the C loop once) on the spec's rays;
+    every structure is built before the first batch runs."""
+    from algos.intersect import prepare_timed_intersect
+
+    from ..sweep import first_hit_rays
+
+    field = _field(spec["size"])
+    o, d = first_hit_rays(field, spec["r"], spec["rays"], spec["seed"])
+    return {k: prepare_timed_intersect(k, field, o, d, surface=spec["surface"])[0]
+            for k in spec["kernels"]}
+
+
+def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | None:
+    """kernel -> per-ray callgrind counts (``instructions``, ``data_accesses``,
+    ``d1_misses``, ``ll_misses``) on ``rays`` first-hit rays of fBm ``size``^2, or None
+    without valgrind. One child process; each kernel's batch is one dump."""
+    from ..profile import _parse, callgrind_available
+
+    if not callgrind_available():
+        return None
+    spec = dict(size=int(size), rays=int(rays), seed=int(seed), r=RUN_LENGTH, surface=SURFACE,
+                kernels=list(kernels))
+    datasets_gen.load(DATASET, size=size, seed=1)  # the generator is slow under valgrind
+    entry = "hf_intersect_batch"
+    cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "callgrind.out")
+        cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", *cache,
+               f"--callgrind-out-file={out}", f"--toggle-collect={entry}",
+               f"--dump-after={entry}", sys.executable, "-c", _CHILD, json.dumps(spec)]
+        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
+                   PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        env.pop("LD_PRELOAD", None)
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        if proc.returncode != 0:
+            raise RuntimeError(f"compact: valgrind failed ({proc.returncode}):\n"
+                               f"{proc.stderr[-2000:]}")
+        dumps = sorted((f for f in os.listdir(tmp) if f.startswith("callgrind.out.")
+                        and f.rsplit(".", 1)[1].isdigit()), key=lambda f: int(f.rsplit(".", 1)[1]))
+        if len(dumps) < len(kernels):
+            raise RuntimeError(f"compact: expected {len(kernels)} dumps, got {len(dumps)}")
+        result = {}
+        for kernel, name in zip(kernels, dumps):
+            t = _parse(os.path.join(tmp, name))["totals"]
+            result[kernel] = {
+                "instructions": t.get("Ir", 0) / rays,
+                "data_accesses": (t.get("Dr", 0) + t.get("Dw", 0)) / rays,
+                "d1_misses": (t.get("D1mr", 0) + t.get("D1mw", 0)) / rays,
+                "ll_misses": (t.get("DLmr", 0) + t.get("DLmw", 0)) / rays}
+    return result
+
+
+def native_counts(size, rays, repeats, seed=SEED, kernels=KERNELS, timing=True) -> dict:
+    """kernel -> per-ray walk statistics, ns per ray (None without ``timing``), and the
+    structures' build seconds and bytes per height sample, on fBm ``size``^2."""
+    from algos.intersect import prepare_timed_intersect
+
+    from ..sweep import first_hit_rays
+    from ..timing import interleaved
+
+    field = _field(size)
+    o, d = first_hit_rays(field, RUN_LENGTH, rays, seed)
+    result, runs = {}, {}
+    for k in kernels:
+        hits = algos.intersect(k, field, o, d, surface=SURFACE, outputs=("t", "stats"))
+        runs[k] = prepare_timed_intersect(k, field, o, d, surface=SURFACE)[0]
+        stats = field.build_stats
+        result[k] = {
+            "hits": int(np.isfinite(hits.t).sum()),
+            "t": hits.t,
+            **{f"{s}_per_ray": float(hits.stats[s].mean())
+               for s in ("cells_visited", "cells_tested", "tiles_skipped")},
+            "build_seconds": sum(stats[s]["seconds"] for s in STRUCTURES[k]),
+            "bytes_per_sample": sum(stats[s]["bytes"] for s in STRUCTURES[k]) / field.heights.size,
+            "structure_bytes_per_sample": {s: stats[s]["bytes"] / field.heights.size
+                                           for s in STRUCTURES[k]}}
+    if timing:
+        times = interleaved(runs, repeats)
+        for k in kernels:
+            result[k]["ns_per_ray"] = float(np.median(times[k])) / rays
+    return result
+
+
+FIELDS = ["kernel", "size", "rays", "hits", "instructions_per_ray", "data_accesses_per_ray",
+          "d1_misses_per_ray", "ll_misses_per_ray", "cells_visited_per_ray",
+          "cells_tested_per_ray", "tiles_skipped_per_ray", "ns_per_ray", "build_seconds",
+          "bytes_per_sample", "uptime"]
+
+
+def _uptime() -> str:
+    try:
+        return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return "unknown"
+
+
+def _fmt(v, digits=1):
+    if v is None or (isinstance(v, float) and np.isnan(v)):
+        return "n/a"
+    return f"{v:.{digits}f}"
+
+
+def _table(rows) -> list[str]:
+    """The markdown tables: per kernel and size, and the ratios compact / maxmip."""
+    by = {(r["kernel"], r["size"]): r for r in rows}
+    sizes = sorted({r["size"] for r in rows})
+    lines = ["| side | kernel | LL misses/ray | D1 misses (lines touched)/ray | "
+             "instructions/ray | data accesses/ray | cells visited/ray | tiles skipped/ray | "
+             "ns/ray | build s | bytes/sample |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for s in sizes:
+        for k in KERNELS:
+            r = by.get((k, s))
+            if r is None:
+                continue
+            lines.append(
+                f"| {s} | `{k}` | {_fmt(r['ll_misses_per_ray'], 2)} | "
+                f"{_fmt(r['d1_misses_per_ray'])} | {_fmt(r['instructions_per_ray'], 0)} | "
+                f"{_fmt(r['data_accesses_per_ray'], 0)} | {_fmt(r['cells_visited_per_ray'])} | "
+                f"{_fmt(r['tiles_skipped_per_ray'])} | {_fmt(r['ns_per_ray'], 0)} | "
+                f"{_fmt(r['build_seconds'], 3)} | {_fmt(r['bytes_per_sample'], 2)} |")
+    lines += ["", "Ratios `dda_compact` / `dda_maxmip` (below 1: the compact tree does less):", "",
+              "| side | LL misses | D1 misses | instructions | ns |", "|---|---|---|---|---|"]
+    for s in sizes:
+        a, b = by.get(("dda_maxmip", s)), by.get(("dda_compact", s))
+        if a is None or b is None:
+            continue
+
+        def ratio(key):
+            x, y = a.get(key), b.get(key)
+            return _fmt(y / x, 2) if x and y is not None and x == x and y == y else "n/a"
+
+        lines.append(f"| {s} | {ratio('ll_misses_per_ray')} | {ratio('d1_misses_per_ray')} | "
+                     f"{ratio('instructions_per_ray')} | {ratio('ns_per_ray')} |")
+    return lines
+
+
+def _plot(rows, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = (("ll_misses_per_ray", "LL misses per ray (callgrind)"),
+              ("d1_misses_per_ray", "D1 misses per ray: lines touched (callgrind)"),
+              ("instructions_per_ray", "instructions per ray (callgrind)"),
+              ("ns_per_ray", "ns per ray (indicative: shared machine)"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.6))
+    for ax, (key, title) in zip(axes, panels):
+        for k, style in zip(KERNELS, ("o-", "s-")):
+            pts = sorted((r["size"], r[key]) for r in rows
+                         if r["kernel"] == k and r.get(key) is not None and r[key] == r[key])
+            if pts:
+                ax.plot([p[0] for p in pts], [p[1] for p in pts], style, label=k)
+        ax.set_xscale("log", base=2)
+        ax.set_xlabel("field side (cells)")
+        ax.set_title(title, fontsize=9)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"{DATASET}, random azimuths, first hit on {SURFACE}, one thread", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(out_dir, tier=None, counts=True, timing=True, echo=print) -> dict:
+    """Measure every side of ``tier`` (default :data:`QUICK`), write ``compact.csv``,
+    ``compact.md``, ``compact.json`` and ``compact.png`` into ``out_dir``; return their
+    paths. ``counts``: the callgrind counts (skipped without valgrind, and said so);
+    ``timing``: the ns per ray."""
+    from ..timing import environment
+
+    tier = dict(QUICK, **(tier or {}))
+    os.makedirs(out_dir, exist_ok=True)
+    rows, uptime = [], _uptime()
+    echo(f"compact: {uptime}")
+    for size in tier["sizes"]:
+        native = native_counts(size, tier["rays"], tier["repeats"], timing=timing)
+        ref_t = native[KERNELS[0]]["t"]
+        for k in KERNELS[1:]:
+            # the same first hits, bit for bit, on the measured rays
+            if not np.array_equal(native[k]["t"].view(np.uint64), ref_t.view(np.uint64)):
+                raise AssertionError(f"compact: {k} and {KERNELS[0]} differ on fbm {size}")
+        cg = callgrind_cache_counts(size, tier["rays"]) if counts else None
+        for k in KERNELS:
+            n, c = native[k], (cg or {}).get(k, {})
+            rows.append(dict(
+                kernel=k, size=size, rays=tier["rays"], hits=n["hits"],
+                instructions_per_ray=c.get("instructions"),
+                data_accesses_per_ray=c.get("data_accesses"),
+                d1_misses_per_ray=c.get("d1_misses"), ll_misses_per_ray=c.get("ll_misses"),
+                cells_visited_per_ray=n["cells_visited_per_ray"],
+                cells_tested_per_ray=n["cells_tested_per_ray"],
+                tiles_skipped_per_ray=n["tiles_skipped_per_ray"],
+                ns_per_ray=n.get("ns_per_ray"), build_seconds=n["build_seconds"],
+                bytes_per_sample=n["bytes_per_sample"], uptime=uptime))
+            echo(f"compact: {size}^2 {k}: LL {_fmt(rows[-1]['ll_misses_per_ray'], 2)}/ray, "
+                 f"D1 {_fmt(rows[-1]['d1_misses_per_ray'])}/ray, "
+                 f"{_fmt(rows[-1]['instructions_per_ray'], 0)} instr/ray, "
+                 f"{_fmt(rows[-1]['ns_per_ray'], 0)} ns/ray")
+    paths = {name: os.path.join(out_dir, f"compact.{name}") for name in ("csv", "md", "json", "png")}
+    with open(paths["csv"], "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=FIELDS)
+        writer.writeheader()
+        writer.writerows(rows)
+    env = environment()
+    with open(paths["json"], "w") as f:
+        json.dump(dict(tier=tier, cache=CACHE, environment=env, uptime=uptime,
+                       dataset=DATASET, seed=SEED, run_length=RUN_LENGTH, surface=SURFACE),
+                  f, indent=2, sort_keys=True, default=str)
+        f.write("\n")
+    lines = ["# The cache-compact maximum tree against the maximum mipmap", "",
+             f"`dda_compact` (`algos.compact`, `cext/compact.c`) against `dda_maxmip`: {DATASET} "
+             f"fields seed 1, {tier['rays']} first-hit rays per side at random azimuths "
+             f"(`bench.sweep.first_hit_rays`, seed {SEED}), {SURFACE}, one thread. Both "
+             "kernels give the same t bit for bit on these rays (checked while measuring).", "",
+             "Counts: callgrind's cache simulation inside `hf_intersect_batch`, exact and "
+             "independent of the machine's load, with a fixed cache model (D1 "
+             f"{CACHE['D1'][0] >> 10} KiB {CACHE['D1'][1]}-way, LL {CACHE['LL'][0] >> 20} MiB "
+             f"{CACHE['LL'][1]}-way, {CACHE['LL'][2]}-byte lines); each kernel starts with "
+             "evicted caches. D1 misses count the lines a ray touches. ns/ray: "
+             "`bench.timing.interleaved`, caches flushed, median of "
+             f"{tier['repeats']} runs; **indicative only**: measured on a shared machine "
+             f"(`uptime`: {uptime}). bytes/sample: the structures each kernel reads besides "
+             "the heights (`dda_compact` still reads the float32 cell maxima in the shared "
+             "exact cell test, and in the fallback walk for rays on grid lines).", "",
+             *_table(rows), "",
+             f"Environment: {env.get('cpu')}, {env.get('compiler')}, commit "
+             f"{env.get('git_commit')}.", "", "![growth](compact.png)", ""]
+    with open(paths["md"], "w") as f:
+        f.write("\n".join(lines))
+    _plot(rows, paths["png"])
+    return paths
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--full", action="store_true",
+                        help=f"sides {FULL['sizes']}, {FULL['rays']} rays (an hour or more)")
+    parser.add_argument("--sizes", default=None, help="comma-separated field sides")
+    parser.add_argument("--rays", type=int, default=None)
+    parser.add_argument("--repeats", type=int, default=None)
+    parser.add_argument("--no-counts", action="store_true", help="skip callgrind")
+    parser.add_argument("--no-timing", action="store_true", help="skip the ns per ray")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--out", default=os.path.join("results", "compact"))
+    where.add_argument("--publish", action="store_true", help="write reports/compact/")
+    args = parser.parse_args(argv)
+    tier = dict(FULL if args.full else QUICK)
+    if args.sizes:
+        tier["sizes"] = tuple(int(s) for s in args.sizes.split(","))
+    if args.rays:
+        tier["rays"] = args.rays
+    if args.repeats:
+        tier["repeats"] = args.repeats
+    out = os.path.join("reports", "compact") if args.publish else args.out
+    paths = run(out, tier, counts=not args.no_counts, timing=not args.no_timing)
+    print(f"compact: wrote {', '.join(paths.values())}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
