@@ -267,8 +267,7 @@ PyDoc_STRVAR(intersect_doc,
 
 /* The compact maximum tree of an ny x nx cell grid (compact.h): a C-contiguous uint8
  * array of exactly its node count times 64 bytes, aligned to 64 (one node per line). */
-static int get_compact(PyObject *object, int32_t nx, int32_t ny, int writable,
-                       hf_compact_node **nodes) {
+static int get_compact(PyObject *object, int32_t nx, int32_t ny, int writable, void **records) {
     PyArrayObject *a;
     hf_compact layout;
     const npy_intp bytes = (npy_intp)hf_compact_layout(nx, ny, &layout) * HF_COMPACT_NODE_BYTES;
@@ -292,7 +291,7 @@ static int get_compact(PyObject *object, int32_t nx, int32_t ny, int writable,
         PyErr_SetString(PyExc_ValueError, "compact: the buffer must be aligned to 64 bytes");
         return 0;
     }
-    *nodes = (hf_compact_node *)PyArray_DATA(a);
+    *records = PyArray_DATA(a);
     return 1;
 }
 
@@ -375,9 +374,9 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         return NULL;
     }
     if (o_compact != NULL) {
-        hf_compact_node *nodes;
-        if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 0, &nodes)) return NULL;
-        b.compact = nodes;
+        void *records;
+        if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 0, &records)) return NULL;
+        b.compact = records;
     }
     b.hmin = hmin;
     b.hmax = hmax;
@@ -1120,7 +1119,7 @@ PyDoc_STRVAR(compact_build_doc,
 static PyObject *compact_build(PyObject *self, PyObject *args) {
     PyObject *o_cellmax, *o_compact;
     const float *cellmax;
-    hf_compact_node *nodes;
+    void *records;
     npy_intp shape[2];
     timed_section section;
     long long elapsed_ns;
@@ -1138,9 +1137,9 @@ static PyObject *compact_build(PyObject *self, PyObject *args) {
         return NULL;
     }
     if (!get_f32(o_cellmax, "cellmax", 2, shape, &cellmax)) return NULL;
-    if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 1, &nodes)) return NULL;
+    if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 1, &records)) return NULL;
     timed_begin(&section);
-    hf_compact_build(cellmax, (int32_t)shape[0], (int32_t)shape[1], nodes);
+    hf_compact_build(cellmax, (int32_t)shape[0], (int32_t)shape[1], records);
     elapsed_ns = timed_end(&section);
     return PyLong_FromLongLong(elapsed_ns);
 }

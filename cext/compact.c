@@ -13,7 +13,7 @@ int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {
     int64_t wx = nx, wy = ny; /* tiles per side at the current level */
     c->nx = nx;
     c->ny = ny;
-    c->nodes = NULL;
+    c->records = NULL;
     c->offset[0] = 0;
     c->nodes_x[0] = nx;
     c->nodes_y[0] = ny;
@@ -75,13 +75,30 @@ static void quantize_node(hf_compact_node *node, const float value[16], uint32_t
     }
 }
 
-void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, hf_compact_node *nodes) {
+void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *records) {
     hf_compact c;
     int level;
+    hf_compact_leaf *leaves;
+    hf_compact_node *nodes = (hf_compact_node *)records;
+    int32_t ni, nj;
     hf_compact_layout(nx, ny, &c);
-    for (level = 1; level <= c.n_levels; ++level) {
+    leaves = (hf_compact_leaf *)records + c.offset[1];
+    /* the leaves: cell maxima in 4 x 4 tiles */
+    for (nj = 0; nj < c.nodes_y[1]; ++nj) {
+        for (ni = 0; ni < c.nodes_x[1]; ++ni) {
+            hf_compact_leaf *leaf = leaves + (int64_t)nj * c.nodes_x[1] + ni;
+            int a, b;
+            memset(leaf, 0, sizeof *leaf);
+            for (b = 0; b < 4; ++b) {
+                for (a = 0; a < 4; ++a) {
+                    const int64_t ci = 4 * (int64_t)ni + a, cj = 4 * (int64_t)nj + b;
+                    if (ci < nx && cj < ny) leaf->max[4 * b + a] = cellmax[cj * nx + ci];
+                }
+            }
+        }
+    }
+    for (level = 2; level <= c.n_levels; ++level) {
         const int32_t child_x = c.nodes_x[level - 1], child_y = c.nodes_y[level - 1];
-        int32_t ni, nj;
         for (nj = 0; nj < c.nodes_y[level]; ++nj) {
             for (ni = 0; ni < c.nodes_x[level]; ++ni) {
                 hf_compact_node *node =
@@ -97,10 +114,18 @@ void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, hf_compact_n
                         value[slot] = 0.0f;
                         if (ci >= child_x || cj >= child_y) continue;
                         valid |= 1u << slot;
-                        /* a child's maximum: a cell maximum, or a node's own */
-                        value[slot] = level == 1
-                                          ? cellmax[cj * nx + ci]
-                                          : nodes[c.offset[level - 1] + cj * child_x + ci].max;
+                        if (level == 2) {
+                            /* a leaf's maximum: over its cells inside the grid */
+                            const hf_compact_leaf *leaf = leaves + cj * child_x + ci;
+                            float m = -INFINITY;
+                            int k;
+                            for (k = 0; k < 16; ++k)
+                                if (4 * ci + (k & 3) < nx && 4 * cj + (k >> 2) < ny)
+                                    m = leaf->max[k] > m ? leaf->max[k] : m;
+                            value[slot] = m;
+                        } else {
+                            value[slot] = nodes[c.offset[level - 1] + cj * child_x + ci].max;
+                        }
                     }
                 }
                 quantize_node(node, value, valid);
@@ -121,7 +146,7 @@ static inline int compact_climb(int level, int climb, int64_t oi, int64_t oj, in
     return level;
 }
 
-int hf_compact_hit(hf_hit *h, const hf_compact *c) {
+static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
     const int32_t nx = h->cols - 1, ny = h->rows - 1;
     const int top = c->n_levels;
     const int climb = top > 1 ? top - 1 : 1; /* the coarsest tile level ever tested */
@@ -132,7 +157,6 @@ int hf_compact_hit(hf_hit *h, const hf_compact *c) {
     const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
     const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
     const double inf = (double)INFINITY;
-    const int cull = h->cull_cells;
     double t = h->t0;
     int32_t i = hf_cell_at(h->ox, h->dx, t, nx), j = hf_cell_at(h->oy, h->dy, t, ny);
     int level = climb < 2 ? climb : 2;
@@ -167,9 +191,9 @@ int hf_compact_hit(hf_hit *h, const hf_compact *c) {
             --level;
             continue;
         } else {
-            /* walk the 4 x 4 floor tile cell by cell, each cell culled by its bound in the
-             * tile's one node; mx, my: the exit faces of the current cell */
-            const hf_compact_node *node = hf_compact_node_at(c, 1, tile_i, tile_j);
+            /* walk the 4 x 4 floor tile cell by cell, each cell culled by its maximum in
+             * the tile's leaf (one line); mx, my: the exit faces of the current cell */
+            const float *leaf = hf_compact_leaf_at(c, tile_i, tile_j)->max;
             const int32_t ilo = (int32_t)tile_i << 2, jlo = (int32_t)tile_j << 2;
             const uint32_t iw = (uint32_t)(ilo + 4 < nx ? 4 : nx - ilo) - 1;
             const uint32_t jw = (uint32_t)(jlo + 4 < ny ? 4 : ny - jlo) - 1;
@@ -180,7 +204,7 @@ int hf_compact_hit(hf_hit *h, const hf_compact *c) {
                 const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
                 h->cells_visited += 1;
                 if (!cull || !(oz + (descending ? tb : t_in) * dz >
-                               hf_compact_bound(node, ((j & 3) << 2) | (i & 3)))) {
+                               (double)leaf[((j & 3) << 2) | (i & 3)])) {
                     if (hf_hit_cell_exact(h, i, j)) return 1;
                 }
                 if (!(tb < t1)) return 0;
@@ -222,4 +246,15 @@ int hf_compact_hit(hf_hit *h, const hf_compact *c) {
     }
     HF_ASSERT(0, "dda_compact: the walk did not end within %lld passes", (long long)guard);
     return 0;
+}
+
+int hf_compact_hit(hf_hit *h, const hf_compact *c) {
+    /* the floor cull is the exact test's own cull, on the leaf's copy of the maximum: the
+     * exact test runs without it, and never reads the row-major cell maxima */
+    const int cull = h->cull_cells;
+    int found;
+    h->cull_cells = 0;
+    found = compact_walk(h, c, cull);
+    h->cull_cells = cull;
+    return found;
 }

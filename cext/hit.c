@@ -370,7 +370,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     if (cone && b->cone == NULL) return HF_ERR_ARGUMENT;
     if (kernel == HF_HIT_DDA_COMPACT && b->compact == NULL) return HF_ERR_ARGUMENT;
     hf_compact_layout(b->cols - 1, b->rows - 1, &compact);
-    compact.nodes = b->compact;
+    compact.records = b->compact;
     if (relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
         return HF_ERR_ARGUMENT;
     direction_cache.valid = 0;

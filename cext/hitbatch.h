@@ -42,8 +42,8 @@ typedef struct {
      * both); cone_relaxed: (ny, nx) slopes (its apex is the cell maximum); NULL for the
      * other kernels (cone.c) */
     const float *cone;
-    /* dda_compact: the nodes of the compact maximum tree (compact.h), NULL for the others */
-    const hf_compact_node *compact;
+    /* dda_compact: the records of the compact maximum tree (compact.h), NULL for the others */
+    const void *compact;
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;

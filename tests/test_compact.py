@@ -11,7 +11,7 @@ import pytest
 import algos
 from algos import _kernels
 from algos.compact import (NODE_BYTES, build_compact, compact_bounds, compact_layout,
-                           compact_nodes)
+                           compact_leaves, compact_nodes)
 from bench.sweep import first_hit_rays
 from datasets_gen import fields
 
@@ -46,9 +46,9 @@ def test_layout_counts_nodes_and_aligns_them(shape):
 
 @pytest.mark.parametrize("seed", range(8))
 def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
-    """At every level: bound >= the float32 tile maximum, in the kernel's float64
-    arithmetic, and above it by at most one code step of the parent node; each node's
-    `max` is its tile's maximum exactly."""
+    """The leaves hold the cell maxima exactly; at every level above: bound >= the float32
+    tile maximum, in the kernel's float64 arithmetic, and above it by at most one code step
+    of the parent node; each node's `max` is its tile's maximum exactly."""
     rng = np.random.Generator(np.random.PCG64(seed))
     shape = (int(rng.integers(1, 90)), int(rng.integers(1, 90)))
     scale = 10.0 ** rng.uniform(-30, 30)
@@ -57,9 +57,9 @@ def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
     if seed == 0:
         cellmax[:] = np.float32(3.25)  # a flat field: every range empty
     tree = build_compact(cellmax)
-    nodes = compact_nodes(tree)
     layout = compact_layout(*shape)
-    for level in range(len(layout)):
+    assert np.array_equal(compact_bounds(tree, *shape, 0), cellmax.astype(np.float64))
+    for level in range(1, len(layout)):
         true = _tile_max(cellmax, level).astype(np.float64)
         bound = compact_bounds(tree, *shape, level)
         assert bound.shape == true.shape
@@ -67,8 +67,7 @@ def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
         assert np.all(bound >= true), (
             f"seed={seed} shape={shape} level={level}: tile {worst} max {true[worst]!r} "
             f"above its bound {bound[worst]!r}")
-        offset, py, px = layout[level]
-        parents = nodes[offset:offset + py * px].reshape(py, px)
+        parents = compact_nodes(tree, *shape, level + 1)
         j, i = np.mgrid[0:true.shape[0], 0:true.shape[1]]
         step = parents["scale"][j // 4, i // 4].astype(np.float64)
         slack = 1e-6 * np.abs(true) + 1e-300
@@ -77,17 +76,24 @@ def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
         assert np.array_equal(parents["max"], _tile_max(cellmax, level + 1))
 
 
-def test_codes_are_relative_to_the_node():
-    """A node's lowest child decodes to its base, its highest to at least its max, and
-    the used bits mark the children inside the grid."""
-    cellmax = np.arange(6 * 5, dtype=np.float32).reshape(6, 5)
-    nodes = compact_nodes(build_compact(cellmax))
-    first = nodes[0]  # cells 0..3 x 0..3
-    assert first["base"] == 0.0 and first["max"] == 18.0
-    assert first["q"][0] == 0 and first["q"][15] == 65535
-    assert first["used"] == 0xFFFF
-    second = nodes[1]  # cells 4 x 0..3: one column
-    assert second["used"] == (1 | 1 << 4 | 1 << 8 | 1 << 12)
+def test_leaves_tile_the_cell_maxima_and_codes_are_relative_to_the_node():
+    """A leaf holds its 4 x 4 cells' maxima (0 outside the grid); a node's lowest child
+    decodes to its base, its highest to at least its max, and the used bits mark the
+    children inside the grid."""
+    cellmax = np.arange(21 * 6, dtype=np.float32).reshape(6, 21)  # 2 x 6 leaves
+    tree = build_compact(cellmax)
+    leaves = compact_leaves(tree, 6, 21)
+    assert leaves.shape == (2, 6, 16)
+    assert np.array_equal(leaves[0, 0].reshape(4, 4), cellmax[:4, :4])
+    assert np.array_equal(leaves[1, 5].reshape(4, 4)[:2, :1], cellmax[4:, 20:])
+    assert not leaves[1, 5].reshape(4, 4)[2:].any()
+    node = compact_nodes(tree, 6, 21, 2)[0, 0]  # leaves 0..3 x 0..1
+    assert node["base"] == cellmax[:4, :4].max() and node["max"] == cellmax[:, :16].max()
+    assert node["q"][0] == 0 and node["q"][4 + 3] == 65535
+    assert node["used"] == 0xFF
+    top = compact_nodes(tree, 6, 21, 3)
+    assert top.shape == (1, 1) and top[0, 0]["max"] == cellmax.max()
+    assert top[0, 0]["used"] == 0b11
 
 
 def _rays(fld, n, seed):

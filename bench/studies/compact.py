@@ -36,6 +36,7 @@ import tempfile
 import numpy as np
 
 import algos
+import algos.compact
 import datasets_gen
 
 __all__ = ["KERNELS", "STRUCTURES", "CACHE", "QUICK", "FULL", "callgrind_cache_counts",
@@ -71,15 +72,43 @@ def _field(size):
     return algos.Field(datasets_gen.load(DATASET, size=size, seed=1).heights)
 
 
-def _prepared(spec: dict) -> dict:
-    """kernel -> a prepared batch (calling it runs the C loop once) on the spec's rays;
-    every structure is built before the first batch runs."""
-    from algos.intersect import prepare_timed_intersect
-
+def _save_case(size, rays, seed, directory) -> None:
+    """Build the field's structures and the rays natively and save them as .npy files in
+    ``directory``: the child under valgrind maps them instead of building them (which
+    would take it most of an hour at 8192^2)."""
     from ..sweep import first_hit_rays
 
-    field = _field(spec["size"])
-    o, d = first_hit_rays(field, spec["r"], spec["rays"], spec["seed"])
+    field = _field(size)
+    o, d = first_hit_rays(field, RUN_LENGTH, rays, seed)
+    mip = field.mip_for()
+    arrays = dict(heights=field.cell_heights, cellmax=field.cellmax_for(), compact=
+                  algos.compact.compact_for(field), origins=o, directions=d,
+                  **{f"mip{k}": level for k, level in enumerate(mip) if k > 0})
+    for name, a in arrays.items():
+        np.save(os.path.join(directory, f"{name}.npy"), a)
+    with open(os.path.join(directory, "case.json"), "w") as f:
+        json.dump(dict(levels=len(mip)), f)
+
+
+def _prepared(spec: dict) -> dict:
+    """kernel -> a prepared batch (calling it runs the C loop once) on the rays saved by
+    :func:`_save_case` in ``spec["directory"]``, every structure memory-mapped."""
+    from algos.intersect import prepare_timed_intersect
+
+    directory = spec["directory"]
+
+    def load(name):
+        return np.load(os.path.join(directory, f"{name}.npy"), mmap_mode="r")
+
+    with open(os.path.join(directory, "case.json")) as f:
+        levels = json.load(f)["levels"]
+    field = algos.Field(load("heights"))
+    cellmax = load("cellmax")
+    field.store("cellmax", cellmax, {"seconds": 0.0, "bytes": cellmax.nbytes})
+    field.store("mip", [cellmax] + [load(f"mip{k}") for k in range(1, levels)],
+                {"seconds": 0.0, "bytes": 0})
+    field.store("compact", load("compact"), {"seconds": 0.0, "bytes": 0})
+    o, d = np.array(load("origins")), np.array(load("directions"))
     return {k: prepare_timed_intersect(k, field, o, d, surface=spec["surface"])[0]
             for k in spec["kernels"]}
 
@@ -92,12 +121,11 @@ def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | Non
 
     if not callgrind_available():
         return None
-    spec = dict(size=int(size), rays=int(rays), seed=int(seed), r=RUN_LENGTH, surface=SURFACE,
-                kernels=list(kernels))
-    datasets_gen.load(DATASET, size=size, seed=1)  # the generator is slow under valgrind
     entry = "hf_intersect_batch"
     cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
     with tempfile.TemporaryDirectory() as tmp:
+        _save_case(size, rays, seed, tmp)
+        spec = dict(directory=tmp, surface=SURFACE, kernels=list(kernels))
         out = os.path.join(tmp, "callgrind.out")
         cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", *cache,
                f"--callgrind-out-file={out}", f"--toggle-collect={entry}",
@@ -231,7 +259,10 @@ def _plot(rows, path) -> None:
         ax.set_xlabel("field side (cells)")
         ax.set_title(title, fontsize=9)
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=8)
+    for ax in axes:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+            break
     fig.suptitle(f"{DATASET}, random azimuths, first hit on {SURFACE}, one thread", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
