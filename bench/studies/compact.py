@@ -153,6 +153,91 @@ def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | Non
     return result
 
 
+#: the structure a source line of the kernels reads, by what the line indexes
+SOURCES = (("heights[", "heights"), ("leaf[", "tree leaves"), ("node->", "tree nodes"),
+           ("mip[", "mipmap"), ("cellmax[", "cell maxima"))
+
+
+def _classify(path: str, line: int, cache: dict) -> str:
+    """The structure read at ``path:line`` (:data:`SOURCES`), else ``other``."""
+    if path not in cache:
+        try:
+            with open(path) as f:
+                cache[path] = f.read().splitlines()
+        except OSError:
+            cache[path] = []
+    text = cache[path][line - 1] if 0 < line <= len(cache[path]) else ""
+    for needle, name in SOURCES:
+        if needle in text:
+            return name
+    return "other"
+
+
+def _misses_by_source(path: str) -> dict:
+    """structure -> (D1 misses, LL misses) of a callgrind file written with
+    ``--compress-strings=no --compress-pos=no``, by the source line of each cost."""
+    events, fl, fi, out, cache, skip = [], None, None, {}, {}, False
+    with open(path) as f:
+        for row in f:
+            if row.startswith("calls="):
+                skip = True  # the next cost line is the call's inclusive cost
+            elif row.startswith("events:"):
+                events = row.split()[1:]
+            elif row.startswith("fl="):
+                fl = fi = row[3:].strip()
+            elif row.startswith(("fi=", "fe=")):
+                fi = row[3:].strip()
+            elif row.startswith("fn="):
+                fi = fl
+            elif row[:1].isdigit() and events:
+                if skip:
+                    skip = False
+                    continue
+                parts = row.split()
+                values = dict(zip(events, (int(v) for v in parts[1:])))
+                d1 = values.get("D1mr", 0) + values.get("D1mw", 0)
+                ll = values.get("DLmr", 0) + values.get("DLmw", 0)
+                if d1 or ll:
+                    name = _classify(fi or "", int(parts[0]), cache)
+                    a, b = out.get(name, (0, 0))
+                    out[name] = (a + d1, b + ll)
+    return out
+
+
+def miss_sources(size, rays, seed=SEED, kernels=KERNELS) -> dict | None:
+    """kernel -> structure -> per-ray (D1 misses, LL misses), from callgrind's cache
+    simulation with the misses attributed to the kernels' source lines (the heights, the
+    tree's leaves and nodes, the mipmap, the row-major cell maxima, other); None without
+    valgrind. The costs of calls (the cell test inlined or not) count where they run."""
+    from ..profile import callgrind_available
+
+    if not callgrind_available():
+        return None
+    entry = "hf_intersect_batch"
+    cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
+    with tempfile.TemporaryDirectory() as tmp:
+        _save_case(size, rays, seed, tmp)
+        spec = dict(directory=tmp, surface=SURFACE, kernels=list(kernels))
+        out = os.path.join(tmp, "callgrind.out")
+        cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", *cache,
+               "--compress-strings=no", "--compress-pos=no",
+               f"--callgrind-out-file={out}", f"--toggle-collect={entry}",
+               f"--dump-after={entry}", sys.executable, "-c", _CHILD, json.dumps(spec)]
+        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
+                   PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        env.pop("LD_PRELOAD", None)
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        if proc.returncode != 0:
+            raise RuntimeError(f"compact: valgrind failed ({proc.returncode}):\n"
+                               f"{proc.stderr[-2000:]}")
+        dumps = sorted((f for f in os.listdir(tmp) if f.startswith("callgrind.out.")
+                        and f.rsplit(".", 1)[1].isdigit()), key=lambda f: int(f.rsplit(".", 1)[1]))
+        return {k: {name: (d1 / rays, ll / rays) for name, (d1, ll) in
+                    _misses_by_source(os.path.join(tmp, f)).items()}
+                for k, f in zip(kernels, dumps)}
+
+
 def native_counts(size, rays, repeats, seed=SEED, kernels=KERNELS, timing=True) -> dict:
     """kernel -> per-ray walk statistics, ns per ray (None without ``timing``), and the
     structures' build seconds and bytes per height sample, on fBm ``size``^2."""
