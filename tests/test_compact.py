@@ -10,11 +10,9 @@ import pytest
 
 import algos
 from algos import _kernels
-from algos.compact import (NODE_BYTES, build_compact, compact_bounds, compact_layout,
-                           compact_leaves, compact_nodes)
+from algos.compact import NODE_BYTES, build_compact, compact_bounds, compact_layout, compact_leaves, compact_nodes
 from bench.sweep import first_hit_rays
 from datasets_gen import fields
-
 
 
 def _tile_max(cellmax, level):

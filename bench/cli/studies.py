@@ -106,7 +106,8 @@ def compact(args):
     if args.rays:
         tier["rays"] = args.rays
     out = "reports/compact" if args.publish else args.out
-    study.run(out, tier, counts=not args.no_counts, timing=not args.no_timing)
+    study.run(out, tier, counts=not args.no_counts, timing=not args.no_timing,
+              resume=args.resume)
     return 0
 
 
@@ -197,6 +198,8 @@ def register(sub):
     p.add_argument("--rays", type=positive_int, default=None, help="rays per side")
     p.add_argument("--no-counts", action="store_true", help="skip the callgrind counts")
     p.add_argument("--no-timing", action="store_true", help="skip the ns per ray")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the sides the output's compact.csv already holds")
     where = p.add_mutually_exclusive_group()
     add_out(where, "compact")
     where.add_argument("--publish", action="store_true", help="write reports/compact instead")

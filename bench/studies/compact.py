@@ -44,8 +44,12 @@ __all__ = ["KERNELS", "STRUCTURES", "CACHE", "QUICK", "FULL", "callgrind_cache_c
 
 #: the compared kernels: today's hierarchy first
 KERNELS = ("dda_maxmip", "dda_compact")
-#: the structures each kernel reads besides the heights (Field.build_stats keys)
+#: the structures each kernel builds (Field.build_stats keys): the tree is built from
+#: the cell maxima
 STRUCTURES = {"dda_maxmip": ("cellmax", "mip"), "dda_compact": ("cellmax", "compact")}
+#: the structures each kernel's walk reads besides the heights (dda_compact reads the cell
+#: maxima only in the fallback walk of rays lying on a grid line)
+READS = {"dda_maxmip": ("cellmax", "mip"), "dda_compact": ("compact",)}
 #: the simulated caches: (bytes, ways, line bytes)
 CACHE = {"I1": (32768, 8, 64), "D1": (32768, 8, 64), "LL": (8 << 20, 16, 64)}
 #: the tiers: field sides, rays per side, timing repeats
@@ -259,7 +263,7 @@ def native_counts(size, rays, repeats, seed=SEED, kernels=KERNELS, timing=True) 
             **{f"{s}_per_ray": float(hits.stats[s].mean())
                for s in ("cells_visited", "cells_tested", "tiles_skipped")},
             "build_seconds": sum(stats[s]["seconds"] for s in STRUCTURES[k]),
-            "bytes_per_sample": sum(stats[s]["bytes"] for s in STRUCTURES[k]) / field.heights.size,
+            "bytes_per_sample": sum(stats[s]["bytes"] for s in READS[k]) / field.heights.size,
             "structure_bytes_per_sample": {s: stats[s]["bytes"] / field.heights.size
                                            for s in STRUCTURES[k]}}
     if timing:
@@ -354,18 +358,38 @@ def _plot(rows, path) -> None:
     plt.close(fig)
 
 
-def run(out_dir, tier=None, counts=True, timing=True, echo=print) -> dict:
-    """Measure every side of ``tier`` (default :data:`QUICK`), write ``compact.csv``,
-    ``compact.md``, ``compact.json`` and ``compact.png`` into ``out_dir``; return their
-    paths. ``counts``: the callgrind counts (skipped without valgrind, and said so);
-    ``timing``: the ns per ray."""
-    from ..timing import environment
+def _read_rows(path) -> list[dict]:
+    """The rows of an existing compact.csv, numbers parsed (empty cells: None)."""
+    if not os.path.exists(path):
+        return []
+    rows = []
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            for key, value in row.items():
+                if key in ("kernel", "uptime"):
+                    continue
+                row[key] = None if value in ("", "None") else (
+                    int(value) if key in ("size", "rays", "hits") else float(value))
+            rows.append(row)
+    return rows
 
+
+def run(out_dir, tier=None, counts=True, timing=True, echo=print, resume=False) -> dict:
+    """Measure every side of ``tier`` (default :data:`QUICK`), write ``compact.csv``,
+    ``compact.md``, ``compact.json`` and ``compact.png`` into ``out_dir`` (rewritten after
+    each side); return their paths. ``counts``: the callgrind counts (skipped without
+    valgrind, and said so); ``timing``: the ns per ray; ``resume``: keep the sides the
+    CSV already holds (each row carries the ``uptime`` it was measured at)."""
     tier = dict(QUICK, **(tier or {}))
     os.makedirs(out_dir, exist_ok=True)
-    rows, uptime = [], _uptime()
-    echo(f"compact: {uptime}")
+    paths = {name: os.path.join(out_dir, f"compact.{name}") for name in ("csv", "md", "json", "png")}
+    rows = [r for r in _read_rows(paths["csv"]) if r["rays"] == tier["rays"]] if resume else []
+    done = {r["size"] for r in rows}
     for size in tier["sizes"]:
+        if size in done:
+            continue
+        uptime = _uptime()
+        echo(f"compact: {size}^2: {uptime}")
         native = native_counts(size, tier["rays"], tier["repeats"], timing=timing)
         ref_t = native[KERNELS[0]]["t"]
         for k in KERNELS[1:]:
@@ -389,7 +413,18 @@ def run(out_dir, tier=None, counts=True, timing=True, echo=print) -> dict:
                  f"D1 {_fmt(rows[-1]['d1_misses_per_ray'])}/ray, "
                  f"{_fmt(rows[-1]['instructions_per_ray'], 0)} instr/ray, "
                  f"{_fmt(rows[-1]['ns_per_ray'], 0)} ns/ray")
-    paths = {name: os.path.join(out_dir, f"compact.{name}") for name in ("csv", "md", "json", "png")}
+        rows.sort(key=lambda r: (r["size"], KERNELS.index(r["kernel"])))
+        _write(paths, rows, tier)
+    if not os.path.exists(paths["md"]):
+        _write(paths, rows, tier)
+    return paths
+
+
+def _write(paths, rows, tier) -> None:
+    """The CSV, the environment, the table and the plot of ``rows``."""
+    from ..timing import environment
+
+    uptime = "; ".join(f"{s}^2: {u}" for s, u in sorted({(r["size"], r["uptime"]) for r in rows}))
     with open(paths["csv"], "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=FIELDS)
         writer.writeheader()
@@ -412,16 +447,16 @@ def run(out_dir, tier=None, counts=True, timing=True, echo=print) -> dict:
              "evicted caches. D1 misses count the lines a ray touches. ns/ray: "
              "`bench.timing.interleaved`, caches flushed, median of "
              f"{tier['repeats']} runs; **indicative only**: measured on a shared machine "
-             f"(`uptime`: {uptime}). bytes/sample: the structures each kernel reads besides "
-             "the heights (`dda_compact` still reads the float32 cell maxima in the shared "
-             "exact cell test, and in the fallback walk for rays on grid lines).", "",
+             f"(`uptime`: {uptime}). build s: the structures each kernel needs, the cell maxima "
+             "included (the tree is built from them). bytes/sample: the structures each "
+             "walk reads besides the heights (`dda_compact` reads the row-major cell maxima "
+             "only in the fallback walk of rays lying on a grid line).", "",
              *_table(rows), "",
              f"Environment: {env.get('cpu')}, {env.get('compiler')}, commit "
              f"{env.get('git_commit')}.", "", "![growth](compact.png)", ""]
     with open(paths["md"], "w") as f:
         f.write("\n".join(lines))
     _plot(rows, paths["png"])
-    return paths
 
 
 def main(argv=None) -> int:
@@ -433,6 +468,8 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=None)
     parser.add_argument("--no-counts", action="store_true", help="skip callgrind")
     parser.add_argument("--no-timing", action="store_true", help="skip the ns per ray")
+    parser.add_argument("--resume", action="store_true",
+                        help="keep the sides the output's compact.csv already holds")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--out", default=os.path.join("results", "compact"))
     where.add_argument("--publish", action="store_true", help="write reports/compact/")
@@ -445,7 +482,8 @@ def main(argv=None) -> int:
     if args.repeats:
         tier["repeats"] = args.repeats
     out = os.path.join("reports", "compact") if args.publish else args.out
-    paths = run(out, tier, counts=not args.no_counts, timing=not args.no_timing)
+    paths = run(out, tier, counts=not args.no_counts, timing=not args.no_timing,
+                resume=args.resume)
     print(f"compact: wrote {', '.join(paths.values())}")
     return 0
 
