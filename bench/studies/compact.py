@@ -460,6 +460,8 @@ def _write(paths, rows, tier) -> None:
 
 
 def main(argv=None) -> int:
+    """``python -m bench.studies.compact``: :func:`run` with the command line's tier and
+    output directory; returns the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--full", action="store_true",
                         help=f"sides {FULL['sizes']}, {FULL['rays']} rays (an hour or more)")
