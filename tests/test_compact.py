@@ -248,14 +248,18 @@ def test_study_quick_tier_writes_table_and_plot(tmp_path):
 
 @pytest.mark.skipif(__import__("shutil").which("valgrind") is None, reason="needs valgrind")
 def test_callgrind_cache_counts_are_per_ray_and_exact():
-    """callgrind's cache simulation: deterministic per-ray counts for both kernels, the
-    misses never above the accesses."""
+    """callgrind's cache simulation: exact instructions and data accesses per ray for both
+    kernels, misses within a few per cent across runs (they depend on where the arrays
+    land in memory) and never above the accesses."""
     from bench.studies.compact import KERNELS, callgrind_cache_counts
 
     a = callgrind_cache_counts(64, 20)
     b = callgrind_cache_counts(64, 20)
     assert set(a) == set(KERNELS)
     for k in KERNELS:
-        assert a[k] == b[k], k  # exact: independent of the machine's load
+        for key in ("instructions", "data_accesses"):  # exact whatever the load
+            assert a[k][key] == b[k][key], (k, key)
+        for key in ("d1_misses", "ll_misses"):
+            assert abs(a[k][key] - b[k][key]) <= 0.05 * a[k][key], (k, key, a[k], b[k])
         assert 0 < a[k]["ll_misses"] <= a[k]["d1_misses"] <= a[k]["data_accesses"]
         assert a[k]["instructions"] > a[k]["data_accesses"]
