@@ -12,6 +12,7 @@ from dataclasses import field as dc_field
 import numpy as np
 
 from . import _kernels
+from .compact import compact_for
 from .cone import cone_for, relaxed_cone_for
 from .field import HeightField, as_field, bound_kind
 from .parallel import resolve_threads, run_ranges, split
@@ -221,6 +222,8 @@ class _Prepared:
             self.cone = relaxed_cone_for(fld, kind)
         else:
             self.cone = None
+        # dda_compact's tree (algos.compact), passed before the common arguments
+        self.compact = compact_for(fld, kind) if "compact" in uses else None
         q = int(opts.get("max_denominator") or 0)
         pattern = np.zeros(q + 1, np.int32) if q else None
         march = (int(opts.get("march_steps", 128)), int(opts.get("march_refinements", 16)),
@@ -264,6 +267,8 @@ class _Prepared:
     def _kernel(self, args) -> int:
         if self.cone is not None:
             return _kernels.intersect_cone(self.cone, *args)
+        if self.compact is not None:
+            return _kernels.intersect_compact(self.compact, *args)
         return _kernels.intersect(*args)
 
     @property

@@ -117,6 +117,7 @@ class Intersector:
         The C intersector (``cext/hitbatch.h``); None for a peer run from Python.
     kind : str
         ``"traversal"`` (a 2D traversal plus per-cell tests), ``"maxmip"``,
+        ``"compact"`` (the compact maximum tree, ``algos.compact``),
         ``"cone"`` (cone step mapping, ``algos.cone``), ``"march"`` (ray marching),
         ``"peer"`` or ``"plugin"`` (registered through ``algos.plugins``).
     accuracy : str
@@ -183,6 +184,12 @@ INTERSECTOR_REGISTRY.update({
         summary="cone step mapping made exact: safe steps through per-cell cones over the "
                 "cell maxima, an exact cell walk where a cone is narrower than a cell",
         citation="Dummer 2006"),
+    "dda_compact": Intersector(
+        "dda_compact", 14, "compact", "float64", "dda", ("cellmax", "compact"),
+        dict(cull_cells=True),
+        summary="maximum-tree tile skipping on a cache-compact 4 x 4-ary tree (one 64-byte "
+                "node per line, uint16 maxima rounded up), a tight cell walk in 4 x 4 tiles",
+        citation="Tevs, Ihrke & Seidel 2008"),
     "cone_relaxed": Intersector(
         "cone_relaxed", 12, "march", "approximate", None, ("cellmax", "cone_relaxed"),
         dict(march_steps=256, march_refinements=16),

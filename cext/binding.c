@@ -266,10 +266,41 @@ PyDoc_STRVAR(intersect_doc,
              "First hits of a batch; returns the elapsed nanoseconds of the C loop.\n"
              "Private: use algos.intersect.");
 
-/* intersect and intersect_cone: the batch from `args`, with the cone structure (NULL
- * but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for cone,
- * (rows - 1, cols - 1) for cone_relaxed. */
-static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
+/* The compact maximum tree of an ny x nx cell grid (compact.h): a C-contiguous uint8
+ * array of exactly its node count times 64 bytes, aligned to 64 (one node per line). */
+static int get_compact(PyObject *object, int32_t nx, int32_t ny, int writable, void **records) {
+    PyArrayObject *a;
+    hf_compact layout;
+    const npy_intp bytes = (npy_intp)hf_compact_layout(nx, ny, &layout) * HF_COMPACT_NODE_BYTES;
+    if (!PyArray_Check(object)) {
+        PyErr_Format(PyExc_TypeError, "compact: expected a numpy array, got %s",
+                     Py_TYPE(object)->tp_name);
+        return 0;
+    }
+    a = (PyArrayObject *)object;
+    if (PyArray_TYPE(a) != NPY_UINT8 || PyArray_NDIM(a) != 1 || !PyArray_ISCARRAY_RO(a) ||
+        (writable && !PyArray_ISWRITEABLE(a))) {
+        PyErr_SetString(PyExc_TypeError, "compact: expected a C-contiguous 1D uint8 array");
+        return 0;
+    }
+    if (PyArray_SIZE(a) != bytes) {
+        PyErr_Format(PyExc_ValueError, "compact: expected %zd bytes for %d x %d cells, got %zd",
+                     (Py_ssize_t)bytes, (int)nx, (int)ny, (Py_ssize_t)PyArray_SIZE(a));
+        return 0;
+    }
+    if (((uintptr_t)PyArray_DATA(a)) % HF_COMPACT_NODE_BYTES != 0) {
+        PyErr_SetString(PyExc_ValueError, "compact: the buffer must be aligned to 64 bytes");
+        return 0;
+    }
+    *records = PyArray_DATA(a);
+    return 1;
+}
+
+/* intersect, intersect_cone and intersect_compact: the batch from `args`, with the cone
+ * structure (NULL but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for
+ * cone, (rows - 1, cols - 1) for cone_relaxed; and the compact tree (NULL but for
+ * intersect_compact). */
+static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact) {
     int kernel, surface, cull_cells, fine_level, status, k, packet_width = 4;
     double hmin, hmax;
     long long max_denominator;
@@ -337,6 +368,17 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
         cone_shape[2] = 2;
         if (!get_f32(o_cone, "cone", kernel == HF_HIT_CONE ? 3 : 2, cone_shape, &b.cone))
             return NULL;
+    }
+    if ((o_compact != NULL) != (kernel == HF_HIT_DDA_COMPACT)) {
+        PyErr_SetString(
+            PyExc_ValueError,
+            "compact: only intersect_compact runs dda_compact, and it runs nothing else");
+        return NULL;
+    }
+    if (o_compact != NULL) {
+        void *records;
+        if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 0, &records)) return NULL;
+        b.compact = records;
     }
     b.hmin = hmin;
     b.hmax = hmax;
@@ -441,7 +483,7 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone) {
 
 static PyObject *intersect(PyObject *self, PyObject *args) {
     (void)self;
-    return intersect_with(args, NULL);
+    return intersect_with(args, NULL, NULL);
 }
 
 PyDoc_STRVAR(quantize_doc, "quantize_ray(ox, oy, dx, dy) -> (ox, oy, dx, dy)\n\n"
@@ -1217,7 +1259,7 @@ static PyObject *intersect_cone(PyObject *self, PyObject *args) {
     }
     rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
     if (rest == NULL) return NULL;
-    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0));
+    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0), NULL);
     Py_DECREF(rest);
     return result;
 }
@@ -1266,6 +1308,63 @@ static PyObject *cone_relaxed_slopes(PyObject *self, PyObject *args) {
     return PyLong_FromLongLong(elapsed_ns);
 }
 
+/* ---- the compact maximum tree (issue 22) ---------------------------------------------- */
+
+PyDoc_STRVAR(intersect_compact_doc,
+             "intersect_compact(compact, kernel, surface, heights, ...) -> int\n\n"
+             "intersect() for dda_compact: the compact tree (algos/compact.py; uint8, 64\n"
+             "bytes per node, aligned to 64) before intersect()'s arguments.\n"
+             "Private: use algos.intersect.");
+
+static PyObject *intersect_compact(PyObject *self, PyObject *args) {
+    PyObject *rest, *result;
+    (void)self;
+    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
+        PyErr_SetString(PyExc_TypeError,
+                        "intersect_compact: expected compact, then intersect()'s arguments");
+        return NULL;
+    }
+    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
+    if (rest == NULL) return NULL;
+    result = intersect_with(rest, NULL, PyTuple_GET_ITEM(args, 0));
+    Py_DECREF(rest);
+    return result;
+}
+
+PyDoc_STRVAR(compact_build_doc,
+             "compact_build(cellmax, compact) -> int\n\n"
+             "Fill compact (uint8, writable, 64 bytes per node, aligned to 64) with the compact\n"
+             "maximum tree of cellmax (float32, (ny, nx); cext/compact.c); returns the elapsed\n"
+             "nanoseconds. Private: use algos.compact.");
+
+static PyObject *compact_build(PyObject *self, PyObject *args) {
+    PyObject *o_cellmax, *o_compact;
+    const float *cellmax;
+    void *records;
+    npy_intp shape[2];
+    timed_section section;
+    long long elapsed_ns;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OO", &o_cellmax, &o_compact)) return NULL;
+    if (!PyArray_Check(o_cellmax) || PyArray_NDIM((PyArrayObject *)o_cellmax) != 2) {
+        PyErr_SetString(PyExc_TypeError, "cellmax: expected a 2D numpy array");
+        return NULL;
+    }
+    shape[0] = PyArray_DIM((PyArrayObject *)o_cellmax, 0);
+    shape[1] = PyArray_DIM((PyArrayObject *)o_cellmax, 1);
+    if (shape[0] < 1 || shape[1] < 1 || shape[0] >= HF_MAX_GRID_SIDE ||
+        shape[1] >= HF_MAX_GRID_SIDE) {
+        PyErr_SetString(PyExc_ValueError, "cellmax: each side must be in [1, 2^24 - 1]");
+        return NULL;
+    }
+    if (!get_f32(o_cellmax, "cellmax", 2, shape, &cellmax)) return NULL;
+    if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 1, &records)) return NULL;
+    timed_begin(&section);
+    hf_compact_build(cellmax, (int32_t)shape[0], (int32_t)shape[1], records);
+    elapsed_ns = timed_end(&section);
+    return PyLong_FromLongLong(elapsed_ns);
+}
+
 static PyMethodDef methods[] = {
     {"walk", walk, METH_VARARGS, walk_doc},
     {"intersect", intersect, METH_VARARGS, intersect_doc},
@@ -1282,6 +1381,8 @@ static PyMethodDef methods[] = {
     {"raster", raster, METH_VARARGS, raster_doc},
     {"intersect_cone", intersect_cone, METH_VARARGS, intersect_cone_doc},
     {"cone_relaxed_slopes", cone_relaxed_slopes, METH_VARARGS, cone_relaxed_slopes_doc},
+    {"intersect_compact", intersect_compact, METH_VARARGS, intersect_compact_doc},
+    {"compact_build", compact_build, METH_VARARGS, compact_build_doc},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,

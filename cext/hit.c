@@ -252,6 +252,7 @@ static hf_hit_walk walk_of(int kernel) {
     case HF_HIT_PACKET_MAXMIP: return hf_batch_dda_hit;
     case HF_HIT_RUNS_MAXMIP: return hf_batch_runs_hit;
     case HF_HIT_CONE: return hf_batch_dda_hit;
+    case HF_HIT_DDA_COMPACT: return hf_batch_dda_hit;
     default: return NULL;
     }
 }
@@ -296,10 +297,11 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     return 1;
 }
 
-/* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status. */
+/* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status.
+ * `compact`: the tree's geometry for dda_compact (compact.h), NULL for the others. */
 HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
                      int entry_axis, hf_hit_walk walk, int parallel, hf_direction *direction_cache,
-                     hf_pattern *pattern) {
+                     hf_pattern *pattern, const hf_compact *compact) {
     const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
     const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
                          kernel == HF_HIT_MARCH_BINARY;
@@ -351,6 +353,8 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
                               (entry_axis == 0 || entry_axis == 1) ? entry_axis : -1);
     } else if (kernel == HF_HIT_DDA_MAXMIP && !hf_on_grid_line(h)) {
         maxmip_tight(h, b);
+    } else if (kernel == HF_HIT_DDA_COMPACT && !hf_on_grid_line(h)) {
+        hf_compact_hit(h, compact);
     } else if (cone && !hf_on_grid_line(h)) {
         hf_cone_hit(h, b->cone);
     } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(h)) {
@@ -367,7 +371,7 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
             }
         }
     } else {
-        /* (a maxmip or cone kernel on a grid line, where neighbouring cells
+        /* (a maxmip, compact or cone kernel on a grid line, where neighbouring cells
          * matter, walks every cell with its base kernel) */
         const int status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)pattern : NULL);
         if (status != HF_OK) {
@@ -437,7 +441,8 @@ static int packet_batch(hf_hit_batch *b) {
                 members |= 1u << k;
             } else {
                 const int status = ray_solve(HF_HIT_DDA_MAXMIP, b, first + k, &hits[k], t0, t1,
-                                             entry_axis, hf_batch_dda_hit, 0, NULL, &pattern);
+                                             entry_axis, hf_batch_dda_hit, 0, NULL, &pattern,
+                                             NULL);
                 if (status != HF_OK) return status;
             }
         }
@@ -457,6 +462,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     const int maxmip = kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP;
     const int cone = kernel == HF_HIT_CONE;
     const int relaxed = kernel == HF_HIT_CONE_RELAXED;
+    hf_compact compact; /* dda_compact: the tree's geometry (compact.h) */
     int64_t ray;
     if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b);
     if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
@@ -464,6 +470,9 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
         return HF_ERR_ARGUMENT;
     if (maxmip && b->mip_levels < 1) return HF_ERR_ARGUMENT;
     if (cone && b->cone == NULL) return HF_ERR_ARGUMENT;
+    if (kernel == HF_HIT_DDA_COMPACT && b->compact == NULL) return HF_ERR_ARGUMENT;
+    hf_compact_layout(b->cols - 1, b->rows - 1, &compact);
+    compact.records = b->compact;
     if (relaxed && (b->cone == NULL || b->cellmax == NULL || b->march_steps < 1))
         return HF_ERR_ARGUMENT;
     direction_cache.valid = 0;
@@ -487,7 +496,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
         int entry_axis;
         if (ray_begin(b, ray, &h, &t0, &t1, &entry_axis)) {
             const int status = ray_solve(kernel, b, ray, &h, t0, t1, entry_axis, walk, parallel,
-                                         &direction_cache, &pattern);
+                                         &direction_cache, &pattern, &compact);
             if (status != HF_OK) return status;
         }
         ray_end(b, ray, &h);

@@ -3,6 +3,7 @@
 #define HFTRACE_HITBATCH_H
 
 #include <stdint.h>
+#include "compact.h"
 #include "hit.h"
 
 /* Intersector ids: the traversal kernels (enum hf_kernel) and these. */
@@ -15,7 +16,8 @@ enum hf_hit_kernel {
     HF_HIT_CONE = 11,
     HF_HIT_CONE_RELAXED = 12,
     HF_HIT_PACKET_MAXMIP = 13,
-    HF_N_HIT_KERNELS = 14
+    HF_HIT_DDA_COMPACT = 14,
+    HF_N_HIT_KERNELS = 15
 };
 
 #define HF_MAX_MIP_LEVELS 32
@@ -45,6 +47,8 @@ typedef struct {
      * both); cone_relaxed: (ny, nx) slopes (its apex is the cell maximum); NULL for the
      * other kernels (cone.c) */
     const float *cone;
+    /* dda_compact: the records of the compact maximum tree (compact.h), NULL for the others */
+    const void *compact;
     /* runs_periodic */
     int64_t max_denominator;
     int32_t *pattern;

@@ -1,5 +1,5 @@
 """The studies' commands: ``bench-traverse``, ``bench-intersect``, ``reproduce``, ``scale``,
-``terrain-bench``, ``accuracy``, ``stress``, ``raster-vs-trace`` and ``targets``. Each calls its module in
+``terrain-bench``, ``accuracy``, ``stress``, ``raster-vs-trace``, ``targets`` and ``compact``. Each calls its module in
 ``bench.studies`` and writes under ``results/<command>/`` unless ``--out`` says otherwise.
 """
 from __future__ import annotations
@@ -114,6 +114,20 @@ def targets(args):
     study.run(out_dir=out, tier="full" if args.full else "quick", regime=args.regime,
               counts=not args.no_counts, packet_kernel=args.packet_kernel,
               compact_kernel=args.compact_kernel)
+
+
+def compact(args):
+    """``hftrace compact``: bench.studies.compact.run."""
+    from ..studies import compact as study
+
+    tier = dict(study.FULL if args.full else study.QUICK)
+    if args.sizes:
+        tier["sizes"] = tuple(positive_int(s) for s in args.sizes.split(","))
+    if args.rays:
+        tier["rays"] = args.rays
+    out = "reports/compact" if args.publish else args.out
+    study.run(out, tier, counts=not args.no_counts, timing=not args.no_timing,
+              resume=args.resume)
     return 0
 
 
@@ -221,3 +235,20 @@ def register(sub):
     where.add_argument("--out", default=None, help="output directory (default results/targets)")
     where.add_argument("--publish", action="store_true", help="write reports/targets instead")
     p.set_defaults(func=targets)
+
+
+    p = sub.add_parser("compact",
+                       help="the cache-compact maximum tree (dda_compact) against dda_maxmip: "
+                            "callgrind cache misses per ray by field side")
+    p.add_argument("--full", action="store_true",
+                   help="sides 256 to 8192, 2000 rays (callgrind: an hour or more)")
+    p.add_argument("--sizes", default=None, help="comma-separated field sides")
+    p.add_argument("--rays", type=positive_int, default=None, help="rays per side")
+    p.add_argument("--no-counts", action="store_true", help="skip the callgrind counts")
+    p.add_argument("--no-timing", action="store_true", help="skip the ns per ray")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the sides the output's compact.csv already holds")
+    where = p.add_mutually_exclusive_group()
+    add_out(where, "compact")
+    where.add_argument("--publish", action="store_true", help="write reports/compact instead")
+    p.set_defaults(func=compact)

@@ -23,6 +23,7 @@ output mode and option. :func:`check` runs it and asserts the invariants:
   walks agree bit for bit; in its other modes (every ``algos.terrain.VIEWSHED_MODES``: the
   C threshold walk and the angle) they agree to rounding, heights are >= 0 and angles in
   [-pi/2, pi/2].
+* ``dda_compact`` gives ``dda_maxmip``'s hits bit for bit (tests/fuzz/compact_cases.py).
 
 The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -43,6 +44,7 @@ import numpy as np
 
 import algos
 
+from .compact_cases import check_compact
 from .cone_cases import check_cone
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
@@ -329,6 +331,7 @@ def _check(data: bytes) -> None:
     check_cone(case, _call)  # the cone kernel gives dda's hits (tests/fuzz/cone_cases.py)
     if case["kernel"] == "dda_maxmip":
         _check_packets(case, result)
+    check_compact(case, _call)  # dda_compact gives dda_maxmip's (tests/fuzz/compact_cases.py)
 
 
 def _check_packets(case, result):
