@@ -111,7 +111,7 @@ def targets(args):
     from ..studies import targets as study
 
     out = args.out or ("reports/targets" if args.publish else "results/targets")
-    study.run(out_dir=out, tier="full" if args.full else "quick", regime=args.regime,
+    study.run(out_dir=out, tier="full" if args.full else args.tier, regime=args.regime,
               counts=not args.no_counts, packet_kernel=args.packet_kernel,
               compact_kernel=args.compact_kernel)
 
@@ -223,6 +223,9 @@ def register(sub):
     p.add_argument("--full", action="store_true",
                    help="the issue's fields (fbm 2048^2 and 8192^2, Jacksboro 2048, 1280x720; "
                         "an hour or more, a quiet machine); default the quick tier")
+    p.add_argument("--tier", choices=("quick", "medium", "full"), default="quick",
+                   help="quick (checks that every row runs), medium (2048^2 fields, a 640x360 "
+                        "image: about 15 minutes) or full (= --full)")
     p.add_argument("--regime", choices=("warm", "flushed"), default="warm",
                    help="cache regime (docs/METHOD.md): each kernel warmed on its own rays, "
                         "or caches flushed before every timed run")

@@ -62,6 +62,11 @@ TIERS = {
     "quick": dict(random=(("fbm", 256),), camera=(("fbm", 256),), image=(96, 54), rays=1500,
                   repeats=3, parallel=("fbm", 256), run_lengths=(5, 25), cache=("fbm", 256),
                   cache_rays=100, embree_mesh_max_side=4096),
+    # the kernels and batches at 2048^2 only, a 640 x 360 image: about 15 minutes
+    "medium": dict(random=(("fbm", 2048),), camera=(("jacksboro", 2048), ("fbm", 2048)),
+                   image=(640, 360), rays=20000, repeats=5, parallel=("fbm", 2048),
+                   run_lengths=(5, 25, 100), cache=("fbm", 2048), cache_rays=1000,
+                   embree_mesh_max_side=4096),
     "full": dict(random=(("fbm", 2048), ("fbm", 8192)), camera=(("jacksboro", 2048), ("fbm", 8192)),
                  image=(1280, 720), rays=20000, repeats=7, parallel=("fbm", 2048),
                  run_lengths=(5, 25, 100), cache=("fbm", 8192), cache_rays=1000,
@@ -332,7 +337,7 @@ def _table(rows, env, tier, regime, load_before, load_after) -> str:
         extra = "; ".join(x for x in (r["agree"] and f"agreement: {r['agree']}", r["note"]) if x)
         if extra:
             lines.append(f"- row {r['row']} ({r['setting']}): {extra}")
-    lines += ["", "Command: `hftrace targets" + (" --full" if tier == "full" else "")
+    lines += ["", "Command: `hftrace targets" + (f" --tier {tier}" if tier != "quick" else "")
               + (f" --regime {regime}" if regime != "warm" else "") + "`", ""]
     return "\n".join(lines)
 
