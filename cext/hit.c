@@ -441,8 +441,7 @@ static int packet_batch(hf_hit_batch *b) {
                 members |= 1u << k;
             } else {
                 const int status = ray_solve(HF_HIT_DDA_MAXMIP, b, first + k, &hits[k], t0, t1,
-                                             entry_axis, hf_batch_dda_hit, 0, NULL, &pattern,
-                                             NULL);
+                                             entry_axis, hf_batch_dda_hit, 0, NULL, &pattern, NULL);
                 if (status != HF_OK) return status;
             }
         }
