@@ -511,7 +511,7 @@ def _snap_cell_azimuth(azimuth: float, max_denominator: int) -> float:
     return (octant * 45.0 + (angle if octant % 2 == 0 else 45.0 - angle)) % 360.0
 
 
-def snap_azimuths(azimuths, max_denominator, spacing=None):
+def snap_azimuths(azimuths, max_denominator, spacing=None, *, name="max_denominator"):
     """Move each azimuth to the nearest direction whose slope *in cell space* is p/q with
     q <= ``max_denominator``, where the exact sweep applies at unlimited distance.
 
@@ -525,6 +525,8 @@ def snap_azimuths(azimuths, max_denominator, spacing=None):
     spacing : float or (dx, dy), optional
         The pixel size; on rectangular pixels an azimuth is snapped in cell space and
         mapped back (:meth:`Grid.cell_azimuth`).
+    name : str
+        The argument named in errors (the products pass ``"snap_denominator"``).
 
     Returns
     -------
@@ -539,7 +541,7 @@ def snap_azimuths(azimuths, max_denominator, spacing=None):
     """
     if isinstance(max_denominator, bool) or not isinstance(max_denominator, (int, np.integer)) \
             or not 1 <= max_denominator <= MAX_SNAP_DENOMINATOR:
-        raise ValueError(f"max_denominator: expected an int in 1..{MAX_SNAP_DENOMINATOR}, "
+        raise ValueError(f"{name}: expected an int in 1..{MAX_SNAP_DENOMINATOR}, "
                          f"got {max_denominator!r}")
     dx, dy = check_spacing(spacing) if spacing is not None else (1.0, 1.0)
     grid = Grid(np.zeros((2, 2)), dx, dy, dx, True, None, None)
@@ -1154,7 +1156,8 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     snap = None
     if snap_denominator is not None:
-        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing))
+        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing),
+                             name="snap_denominator")
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
         out = _to_dataarray(heights, lambda f: horizon(
@@ -1239,7 +1242,8 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     snap, used = None, azimuth
     if snap_denominator is not None:
-        snap = snap_azimuths(azimuth, snap_denominator, _field_spacing(heights, spacing))
+        snap = snap_azimuths(azimuth, snap_denominator, _field_spacing(heights, spacing),
+                             name="snap_denominator")
         used = float(snap[0][0])
     if is_dataarray(heights):
         out = _to_dataarray(heights, lambda f: shadows(
@@ -1306,7 +1310,8 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
             azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
     snap = None
     if snap_denominator is not None:
-        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing))
+        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing),
+                             name="snap_denominator")
         azimuths = snap[0]
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
@@ -1408,7 +1413,8 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
             azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
     snap = None
     if snap_denominator is not None:
-        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing))
+        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing),
+                             name="snap_denominator")
         azimuths = snap[0]
     options = dict(kind=kind, units=units, algorithm=algorithm, surface=surface,
                    threads=threads, **curve)

@@ -248,3 +248,10 @@ def test_cli_records_paths_and_snapping(tmp_path):
     with rasterio.open(out + ".tif") as src:
         tags = src.tags()
     assert tags["paths"] == "sweep,chain" and "snapped_azimuths" not in tags
+
+
+def test_snap_denominator_errors_name_it():
+    with pytest.raises(ValueError, match=r"snap_denominator: expected an int in 1\.\.128, got 0"):
+        T.horizon(np.zeros((4, 4)), [22.5], snap_denominator=0)
+    with pytest.raises(ValueError, match=r"max_denominator: expected an int"):
+        T.snap_azimuths([22.5], 200)

@@ -224,3 +224,18 @@ def test_cli_horizon_and_openness_in_radians(tmp_path, capsys):
                  "--dask", "local:1", "--snap-denominator", "3", "--out",
                  str(tmp_path / "d"), "--no-progress"])
     assert code != 0 and "--snap-denominator: not available with --dask" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--azimuths", ""], "--azimuths: expected comma-separated degrees, got ''"),
+    (["--refraction", "0.5"], "--refraction: applies with --curvature only"),
+])
+def test_cli_refuses_options_it_would_ignore(tmp_path, capsys, argv, message):
+    """An empty --azimuths and a --refraction without --curvature are refused, not
+    silently replaced by the defaults."""
+    from bench.cli import main
+
+    np.save(tmp_path / "dem.npy", np.zeros((8, 8), np.float32))
+    code = main(["horizon", str(tmp_path / "dem.npy"), "--out", str(tmp_path / "h"),
+                 "--no-progress"] + argv)
+    assert code != 0 and message in capsys.readouterr().err

@@ -165,8 +165,12 @@ def check_options(args):
             raise ValueError(f"--mode: --dask gives visibility only (--mode normal without "
                              f"output values), got --mode {args.mode}"
                              f"{' with output values' if values else ''}")
+    if not getattr(args, "curvature", False) and \
+            getattr(args, "refraction", algos.DEFAULT_REFRACTION) != algos.DEFAULT_REFRACTION:
+        raise ValueError(f"--refraction: applies with --curvature only (got --refraction "
+                         f"{args.refraction:g} without it)")
     if args.command in ("svf", "openness"):
-        if args.azimuths and args.n_azimuths is not None:
+        if args.azimuths is not None and args.n_azimuths is not None:
             raise ValueError("--n-azimuths: --azimuths already names the azimuths; give one "
                              "of the two")
         if args.n_azimuths is None:
@@ -208,7 +212,7 @@ def observers(args, field):
 
 
 def _azimuths(args):
-    if not args.azimuths:
+    if args.azimuths is None:
         return None
     try:
         return [float(v) for v in args.azimuths.split(",")]

@@ -61,7 +61,7 @@ TARGETS = {"random": 3.0, "camera": 4.0, "packet": 2.0, "periodic": 1.3, "misses
 TIERS = {
     "quick": dict(random=(("fbm", 256),), camera=(("fbm", 256),), image=(96, 54), rays=1500,
                   repeats=3, parallel=("fbm", 256), run_lengths=(5, 25), cache=("fbm", 256),
-                  cache_rays=100, embree_mesh_max_side=4096),
+                  cache_rays=100, embree_mesh_max_side=4096, judge=False),
     # the issue's kernels and batches at 2048^2 only, a 640 x 360 image: about 15 minutes
     "medium": dict(random=(("fbm", 2048),), camera=(("jacksboro", 2048), ("fbm", 2048)),
                    image=(640, 360), rays=20000, repeats=5, parallel=("fbm", 2048),
@@ -276,13 +276,17 @@ def run(out_dir="results/targets", tier="quick", regime="warm", seed=2008, count
     load_after = _load()
     for row in rows:
         row["load_after"] = load_after
+        if not cfg.get("judge", True) and row["status"] in ("met", "missed"):
+            # the quick tier's fields fit in every cache and its counts are a handful:
+            # it checks that each row runs, and judges no target
+            row["status"] = f"not judged ({tier} tier)"
     env["load_after"] = load_after
     write_json(os.path.join(out_dir, "env.json"), env)
     with open(os.path.join(out_dir, "targets.csv"), "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=COLUMNS)
         writer.writeheader()
         writer.writerows(rows)
-    text = _table(rows, env, tier, regime, load_before, load_after)
+    text = _table(rows, env, tier, regime, load_before, load_after, counts)
     with open(os.path.join(out_dir, "targets.md"), "w") as f:
         f.write(text)
     echo(text)
@@ -315,7 +319,7 @@ def _misses_row(cfg, compact_kernel, seed, counts, common):
                 agree="", note="callgrind's simulated last-level cache, not ns")
 
 
-def _table(rows, env, tier, regime, load_before, load_after) -> str:
+def _table(rows, env, tier, regime, load_before, load_after, counts=True) -> str:
     lines = [f"# Targets (issue 22), {tier} tier", "",
              f"One process, one thread pinned to CPU {env.get('pinned_cpu')}, cache regime "
              f"**{regime}** (docs/METHOD.md, \"Cache regimes\"); machine {env.get('cpu')}, "
@@ -338,7 +342,8 @@ def _table(rows, env, tier, regime, load_before, load_after) -> str:
         if extra:
             lines.append(f"- row {r['row']} ({r['setting']}): {extra}")
     lines += ["", "Command: `hftrace targets" + (f" --tier {tier}" if tier != "quick" else "")
-              + (f" --regime {regime}" if regime != "warm" else "") + "`", ""]
+              + (f" --regime {regime}" if regime != "warm" else "")
+              + ("" if counts else " --no-counts") + "`", ""]
     return "\n".join(lines)
 
 
