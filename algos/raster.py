@@ -174,7 +174,7 @@ def _setup(heights, position, look_at, fov, width, height):
     """The field, the camera (see :func:`pinhole_frame`) and the skirts' lower edge,
     validated: a camera at or below the surface inside the footprint is refused."""
     fld = as_field(heights)
-    h = fld.heights
+    h = fld.cell_heights  # cell units; refuses rectangular pixels and voids
     frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
     px, py, pz = (float(v) for v in frame[:3])
     rows, cols = h.shape
@@ -197,6 +197,8 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
     algorithm : {"zbuffer", "painter", "floating_horizon"}
     heights : array_like (rows, cols) or algos.Field
         ``H[j, i]`` is the height at ``(x=i, y=j)``, in cell units; at least 2 x 2, finite.
+        A HeightField is drawn from its ``cell_heights`` (heights in the pixel size's unit
+        divided by the square pixel size; rectangular pixels and voids raise ValueError).
     position, look_at : array_like (3,)
         The pinhole camera, in cells; ``up`` is ``+z``.
     fov : float
@@ -255,7 +257,7 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
     if not 1e-3 <= step <= 64:
         raise ValueError(f"step: expected cells in [1e-3, 64], got {step}")
     fld, frame, sx, sy, z_bottom = _setup(heights, position, look_at, fov, width, height)
-    h = fld.heights
+    h = fld.cell_heights
     width, height = len(sx), len(sy)
     t = np.empty((height, width), dtype=np.float64)
     cell = np.empty((height, width, 2), dtype=np.int32)
@@ -322,7 +324,7 @@ def hidden_lines(heights, position, look_at, fov, width, height, *,
     primitive = np.empty((height, width), dtype=np.int64)
     lines = np.empty((height, width), dtype=np.uint8)
     counts = np.zeros(len(COUNTS), dtype=np.int64)
-    elapsed = _kernels.raster(_HIDDEN_LINES, fld.heights, fld.hmin, fld.hmax, frame, sx, sy,
+    elapsed = _kernels.raster(_HIDDEN_LINES, fld.cell_heights, fld.hmin, fld.hmax, frame, sx, sy,
                               NEAR, z_bottom, 0.5, (0, height, 0, width), t, cell, normal,
                               None, primitive, lines, counts)
     return Image("hidden_lines", t, cell, normal, dict(zip(COUNTS, (int(c) for c in counts))),

@@ -80,8 +80,12 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
 
     Parameters
     ----------
-    heights_or_field : array (rows, cols) or Field
-        What ``algos.intersect`` takes; a Field keeps its acceleration structures.
+    heights_or_field : array (rows, cols) or HeightField
+        What ``algos.intersect`` takes; a HeightField keeps its acceleration structures.
+        The image is traced in cell units: a field's
+        :attr:`~algos.HeightField.cell_heights` (heights in the pixel size's unit, as
+        ``datasets_gen.load_file`` gives a DEM, divided by the square pixel size); an
+        array is taken in cell units as it is.
     algorithm : str
         An intersector name (``algos.INTERSECTORS``), or a rasteriser of
         ``algos.raster.RASTERISERS`` (``zbuffer``, ``painter``, ``floating_horizon``:
@@ -109,10 +113,16 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     ------
     ValueError
         An unknown algorithm or surface, bad heights, or a degenerate camera (the
-        message names the argument).
+        message names the argument). A field with rectangular pixels or with voids
+        (nodata) is refused before any camera is computed, the message naming the pixel
+        size or the first void sample (fill voids with ``HeightField.filled``).
+    TypeError
+        A field holding a dask array (first hits need the heights in memory).
     """
     field = heights_or_field if isinstance(heights_or_field, Field) else Field(heights_or_field)
-    heights = field.heights
+    # cell units, as the kernels trace; refuses rectangular pixels and voids here, before
+    # the default camera would be computed from metres or NaN
+    heights = field.cell_heights
     cam, centre = default_camera(heights)
     position = np.asarray(position if position is not None else cam, dtype=float)
     look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)

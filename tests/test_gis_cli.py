@@ -283,3 +283,119 @@ def test_dataarray_products_carry_no_stale_nodata(tmp_path):
     svf.rio.to_raster(tmp_path / "svf.tif")
     with rasterio.open(tmp_path / "svf.tif") as src:
         assert src.read(1, masked=True).mask[3, 3]
+
+
+# ---- hftrace render on a user's file: the API's image, or a refusal before any camera ----
+
+UTM14 = "EPSG:32614"
+RENDER_VIEW = ["--width", "64", "--height", "36", "--threads", "1"]
+EXR_CHANNELS = ("Z", "N.x", "N.y", "N.z", "cellsVisited", "runsVisited")
+
+
+def read_exr(path):
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as f:
+        return {name: np.array(f.channels()[name].pixels) for name in EXR_CHANNELS}
+
+
+def exr_of(image):
+    """The channels ``hftrace render`` writes for ``image``, as float32 (what the file holds)."""
+    return {name: np.asarray(value, dtype=np.float32) for name, value in (
+        ("Z", image.depth), ("N.x", image.normal[..., 0]), ("N.y", image.normal[..., 1]),
+        ("N.z", image.normal[..., 2]), ("cellsVisited", image.cells_visited),
+        ("runsVisited", image.runs_visited))}
+
+
+def assert_same_image(got, want):
+    for name in EXR_CHANNELS:
+        assert got[name].dtype == np.float32, name
+        assert np.array_equal(got[name], want[name], equal_nan=True), name
+
+
+@pytest.mark.parametrize("algorithm", ["runs", "zbuffer"])
+def test_render_of_a_utm_dem_equals_the_api_in_cell_units(tmp_path, capsys, algorithm):
+    """A GeoTIFF of metres on 30 m pixels (UTM 14N) renders through the CLI exactly as
+    ``algos.render(load_file(...))``, and that image is the one of the heights divided
+    by the pixel size (cell units), not of the metres read as cells (30x relief)."""
+    h = dem()
+    path = write_tif(tmp_path / "utm.tif", h, crs=UTM14)
+    out = tmp_path / "img"
+    code, stdout, stderr = run(["render", path, "--algorithm", algorithm, "--out", str(out)]
+                               + RENDER_VIEW, capsys)
+    assert code == 0, stderr
+    field = datasets_gen.load_file(path)
+    assert (field.spacing, field.unit) == (30.0, "m")
+    want = algos.render(field, algorithm, width=64, height=36, threads=1)
+    got = read_exr(str(out) + ".exr")
+    assert_same_image(got, exr_of(want))
+    from PIL import Image
+
+    with Image.open(str(out) + ".png") as png:
+        assert np.array_equal(np.asarray(png), np.round(want.rgb * 255).astype(np.uint8))
+    # the reference in cell units, divided here: the same image, camera and shading too
+    cells = algos.render(np.asarray(h, dtype=np.float64) / 30.0, algorithm, width=64,
+                         height=36, threads=1)
+    assert_same_image(got, exr_of(cells))
+    assert np.array_equal(want.rgb, cells.rgb)
+    assert 0.2 < np.isfinite(want.depth).mean() < 1.0  # terrain and sky in view
+    # the old CLI's image (metres taken as cells) is another picture
+    metres = algos.render(algos.Field(h), algorithm, width=64, height=36, threads=1)
+    assert not np.array_equal(metres.depth, want.depth, equal_nan=True)
+
+
+def test_render_of_a_generated_dataset_is_unchanged(tmp_path, capsys):
+    """A generated field (cell units) renders as before: ``algos.render`` of its heights."""
+    out = tmp_path / "fbm"
+    code, _, stderr = run(["render", "fbm", "--size", "24", "--out", str(out)] + RENDER_VIEW,
+                          capsys)
+    assert code == 0, stderr
+    heights = datasets_gen.load("fbm", size=24, seed=1).heights
+    want = algos.render(algos.Field(heights), "runs", width=64, height=36, threads=1)
+    assert_same_image(read_exr(str(out) + ".exr"), exr_of(want))
+
+
+def test_render_refuses_rectangular_pixels_naming_them(tmp_path, capsys):
+    """30 m x 20 m pixels: the CLI names the pixel size and the resampling that fixes it,
+    the API names the pixel size; nothing is written."""
+    path = write_tif(tmp_path / "rect.tif", dem(), crs=UTM14,
+                     transform=Affine(30.0, 0.0, 500000.0, 0.0, -20.0, 4100000.0))
+    out = tmp_path / "img"
+    code, _, stderr = run(["render", path, "--out", str(out)] + RENDER_VIEW, capsys)
+    assert code == 2
+    assert "rectangular pixels (30 x 20 m)" in stderr and "gdalwarp -tr 20 20" in stderr
+    assert path in stderr and stderr.count("\n") == 1
+    assert not list(tmp_path.glob("img*"))
+    field = datasets_gen.load_file(path)
+    with pytest.raises(ValueError, match=r"rectangular pixels \(30 x 20 m\)"):
+        algos.render(field, width=8, height=4)
+    with pytest.raises(ValueError, match=r"rectangular pixels \(30 x 20 m\)"):
+        algos.render(field, "zbuffer", width=8, height=4)
+
+
+def test_render_of_a_dem_with_voids_says_fill_and_fill_renders(tmp_path, capsys):
+    """Voids: the CLI names the file, the count, the first void and ``--fill``; the API
+    names the void sample (never the camera), with or without a camera given. ``--fill
+    min`` renders the API's image of the filled file."""
+    h = dem()
+    h[10:13, 20:24] = -9999.0
+    path = write_tif(tmp_path / "void.tif", h, crs=UTM14, nodata=-9999.0)
+    out = tmp_path / "img"
+    code, _, stderr = run(["render", path, "--out", str(out)] + RENDER_VIEW, capsys)
+    assert code == 2
+    assert f"{path}: 12 void (nodata) samples, the first at (row 10, col 20)" in stderr
+    assert "--fill min" in stderr and "position" not in stderr
+    assert not list(tmp_path.glob("img*"))
+    field = datasets_gen.load_file(path)
+    for camera in ({}, dict(position=(-5.0, -5.0, 40.0), look_at=(20.0, 20.0, 10.0))):
+        with pytest.raises(ValueError, match=r"sample \(row 10, col 20\) is nan \(nodata\)"):
+            algos.render(field, width=8, height=4, **camera)
+    code, _, stderr = run(["render", path, "--fill", "min", "--out", str(out)] + RENDER_VIEW,
+                          capsys)
+    assert code == 0, stderr
+    want = algos.render(datasets_gen.load_file(path, nodata_policy="fill-min"), width=64,
+                        height=36, threads=1)
+    assert_same_image(read_exr(str(out) + ".exr"), exr_of(want))
+    code, _, stderr = run(["render", "fbm", "--size", "16", "--fill", "min", "--out",
+                           str(out)], capsys)
+    assert code == 2 and "--fill: fills the voids of a file; fbm" in stderr

@@ -15,6 +15,12 @@ Outputs (``OUT`` is the path prefix, default ``results/render/render``):
 ``--algorithm`` (and either side of ``--diff``) is any intersector or any rasteriser
 (``zbuffer``, ``painter``, ``floating_horizon``); a rasteriser writes zeros in
 ``cellsVisited`` and ``runsVisited``.
+A file is read by ``datasets_gen.load_file`` and that HeightField is rendered as it is,
+so the image is ``algos.render(datasets_gen.load_file(FILE), ...)`` exactly: heights in
+the pixel size's unit (a DEM's metres) are divided by the square pixel size, the camera
+(``--camera``, ``--look-at``) and ``--fog`` are in cell units. A file with rectangular
+pixels is refused (resample it, e.g. ``gdalwarp -tr D D``), and so is one with voids
+unless ``--fill min|VALUE`` fills them, both before any camera is computed.
 """
 from __future__ import annotations
 
@@ -26,7 +32,7 @@ import algos
 
 from .args import param, positive_int, results_dir, vector
 
-__all__ = ["render_files", "write_exr", "register"]
+__all__ = ["render_files", "load_render_field", "write_exr", "register"]
 
 
 def write_exr(path, channels: dict) -> None:
@@ -45,23 +51,60 @@ def _save_png(path, rgb):
     Image.fromarray(np.round(rgb * 255).astype(np.uint8), mode="RGB").save(path)
 
 
+def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
+    """The HeightField ``hftrace render`` draws: a file through ``datasets_gen.load_file``
+    (heights in the pixel size's unit; a ``.npy`` is memory-mapped), else a generated or
+    embedded dataset (cell units).
+
+    ``fill`` is ``--fill``: None keeps a file's voids (then refused here), ``"min"`` or a
+    height (a number or its text) fills them. Raises ValueError naming the file and what
+    to do, before any camera is computed: voids (``--fill``), rectangular pixels
+    (resample to square ones, e.g. ``gdalwarp -tr D D``), ``fill`` for a dataset."""
+    import datasets_gen
+
+    from .terrain import _fill_policy
+
+    path = str(dataset)
+    if not os.path.exists(path):
+        if fill is not None:
+            raise ValueError(f"--fill: fills the voids of a file; {path} is a generated or "
+                             "embedded dataset")
+        return datasets_gen.load(dataset, size=size, seed=seed, **(params or {}))
+    policy, fill_value = _fill_policy(None if fill is None else str(fill))
+    field = datasets_gen.load_file(path, nodata_policy=policy, fill_value=fill_value)
+    if field.dx != field.dy:
+        d = min(field.dx, field.dy)
+        raise ValueError(f"{path}: rectangular pixels ({field.dx:g} x {field.dy:g} "
+                         f"{field.unit}); a render traces in cell units and needs square "
+                         f"pixels: resample first, e.g. gdalwarp -tr {d:g} {d:g} -r bilinear "
+                         f"{path} square.tif")
+    if field.nodata_mask is not None:
+        row, col = (int(v) for v in np.argwhere(field.nodata_mask)[0])
+        count = int(np.count_nonzero(field.nodata_mask))
+        raise ValueError(f"{path}: {count} void (nodata) sample{'s' * (count != 1)}, the "
+                         f"first at (row {row}, col {col}); a render needs every height: "
+                         "give --fill min (the lowest height) or --fill VALUE")
+    return field
+
+
 def render_files(dataset="fbm", size=None, seed=1, algorithm="runs", surface="triangles",
                  width=640, height=360, position=None, look_at=None, fov=60.0, fog=0.0,
-                 out="render", diff=None, params=None, echo=print, threads=None):
+                 out="render", diff=None, params=None, echo=print, threads=None, fill=None):
     """Render with ``algos.render``, write the files (module docstring), return their paths
     (keys exr, png, and with ``diff`` diff_exr, diff_png).
 
-    ``dataset`` is a dataset name or a file (``.npy`` files are memory-mapped, so a
-    field larger than memory renders); ``threads`` as in ``algos.intersect``
-    (default: every core), the image is bit-identical for every value."""
-    import datasets_gen
-
+    ``dataset`` is a dataset name or a file (:func:`load_render_field`; ``.npy`` files are
+    memory-mapped, so a field larger than memory renders). The loaded HeightField itself
+    is rendered, so a file's image is exactly
+    ``algos.render(datasets_gen.load_file(FILE), ...)``: heights in the pixel size's unit
+    are divided by the (square) pixel size, and ``position``, ``look_at`` and ``fog``
+    are in cell units. ``fill`` as in :func:`load_render_field`; ``threads`` as in
+    ``algos.intersect`` (default: every core), the image is bit-identical for every
+    value."""
+    field = load_render_field(dataset, size=size, seed=seed, params=params, fill=fill)
     if os.path.exists(str(dataset)):
-        heights = datasets_gen.load_file(str(dataset)).heights
         dataset = os.path.basename(str(dataset))
-    else:
-        heights = datasets_gen.load(dataset, size=size, seed=seed, **(params or {})).heights
-    field = algos.Field(heights)
+    heights = field.heights
     os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
     view = dict(surface=surface, width=width, height=height, position=position,
                 look_at=look_at, fov=fov, threads=threads)
@@ -145,7 +188,7 @@ def render_command(args):
                  surface=args.surface, width=args.width, height=args.height,
                  position=args.camera, look_at=args.look_at, fov=args.fov, fog=args.fog,
                  out=args.out, diff=args.diff, params=dict(args.param or []),
-                 threads=args.threads)
+                 threads=args.threads, fill=args.fill)
     return 0
 
 
@@ -153,7 +196,11 @@ def register(sub):
     """Add ``render`` to the sub-parsers ``sub``."""
     p = sub.add_parser("render", help="a pinhole image (OpenEXR + PNG) with any intersector")
     p.add_argument("dataset", help="a generator or embedded field (hftrace datasets list), or "
-                                   "a file (.npy is memory-mapped)")
+                                   "a file (any raster GDAL reads, .npy memory-mapped, PNG, "
+                                   "EXR): heights in its pixel size's unit, square pixels")
+    p.add_argument("--fill", default=None, metavar="min|VALUE",
+                   help="fill a file's voids (nodata) with its lowest height or VALUE; "
+                        "without it a file with voids is refused")
     p.add_argument("--size", type=positive_int, default=None)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--param", type=param, action="append", metavar="NAME=VALUE")
