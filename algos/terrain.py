@@ -987,7 +987,7 @@ def _azimuth_list(azimuths):
 
 #: Why curvature refuses a grid without a real unit, and how to give one.
 _NO_UNIT_CURVATURE = (
-    "curvature: needs lengths in a real unit, to convert the earth's radius: give a raw "
+    "curvature: needs spacing in a real unit, to convert the earth's radius: give a raw "
     "array's spacing (taken in metres), a field with a CRS, or HeightField(..., spacing=D, "
     "unit='m') (units: 'm', 'km', 'ft', 'US survey foot'; on the command line --unit next to "
     "--spacing); a field in cell units or in an unnamed 'map unit' has none")

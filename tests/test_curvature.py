@@ -185,9 +185,11 @@ def test_units_degrees():
 
 def test_dataarray_records_units_and_curvature():
     xr = pytest.importorskip("xarray")
+    pytest.importorskip("rioxarray")
     h = _random_field(10)
     da = xr.DataArray(h * 10.0, dims=("y", "x"),
                       coords={"y": np.arange(h.shape[0]) * -10.0, "x": np.arange(h.shape[1]) * 10.0})
+    da = da.rio.write_crs("EPSG:32617")  # coordinates in metres: curvature needs the unit
     out = algos.horizon(da, [0.0, 90.0], units="degrees", curvature=True, earth_radius=2000.0)
     assert out.attrs["units"] == "degrees"
     assert out.attrs["curvature"] == 1 and out.attrs["refraction"] == pytest.approx(1 / 7)
@@ -237,8 +239,9 @@ def test_cli_horizon_with_curvature(tmp_path, capsys):
     h[:, 600] = 600.0
     np.save(tmp_path / "plain.npy", h)
     out = str(tmp_path / "hz")
-    code = main(["horizon", str(tmp_path / "plain.npy"), "--spacing", "100", "--azimuths", "90",
-                 "--curvature", "--out", out, "--no-progress"])
+    # a .npy names no unit: --unit m gives the metres that curvature needs
+    code = main(["horizon", str(tmp_path / "plain.npy"), "--spacing", "100", "--unit", "m",
+                 "--azimuths", "90", "--curvature", "--out", out, "--no-progress"])
     assert code == 0, capsys.readouterr().err
     drop = (1 - 1 / 7) * 60000.0 ** 2 / (2 * algos.WGS84_SEMI_MAJOR_AXIS_M)
     with rasterio.open(out + ".tif") as src:
@@ -247,7 +250,8 @@ def test_cli_horizon_with_curvature(tmp_path, capsys):
         assert float(tags["refraction"]) == pytest.approx(1 / 7)
         assert src.read(1)[1, 0] == pytest.approx(math.degrees(math.atan((600 - drop) / 60000)),
                                                   abs=1e-5)
-    code = main(["svf", str(tmp_path / "plain.npy"), "--spacing", "100", "--n-azimuths", "4",
+    code = main(["svf", str(tmp_path / "plain.npy"), "--spacing", "100", "--unit", "m",
+                 "--n-azimuths", "4",
                  "--out", str(tmp_path / "svf"), "--no-progress"])
     assert code == 0
     with rasterio.open(str(tmp_path / "svf.tif")) as src:
@@ -307,7 +311,7 @@ def test_curvature_without_a_real_unit_raises(spacing):
     assert field.unit in algos.georef.NO_UNIT and field.unit_metres is None
     for product in (lambda: algos.viewshed(field, (0, 0), curvature=True),
                     lambda: algos.horizon(field, 45.0, curvature=True)):
-        with pytest.raises(ValueError, match=r"curvature: needs lengths in a real unit.*"
+        with pytest.raises(ValueError, match=r"curvature: needs spacing in a real unit.*"
                                              r"unit='m'"):
             product()
     # without curvature nothing changes

@@ -293,7 +293,7 @@ def test_curvature_on_a_npy_needs_its_unit(tmp_path, capsys):
     common = ["viewshed", source, "--spacing", "100", "--observer-pixel", "0,0",
               "--observer-height", "0", "--mode", "angle", "--curvature", "--no-progress"]
     code, _, stderr = run(common + ["--out", str(tmp_path / "none")], capsys)
-    assert code == 2 and "curvature: needs lengths in a real unit" in stderr \
+    assert code == 2 and "curvature: needs spacing in a real unit" in stderr \
         and "--unit" in stderr
     code, _, stderr = run(common + ["--unit", "ft", "--out", str(tmp_path / "ft")], capsys)
     assert code == 0, stderr
