@@ -276,7 +276,8 @@ class Grid:
     map units per cell height unit (``h = heights / z_scale``; ``dx`` unless the heights
     already are in cells). ``has_unit``: lengths are in a real unit (a raw array's
     spacing, taken in metres, or a field's unit with its metres factor
-    ``HeightField.unit_metres``), so curvature applies; ``unit_metres``: metres per unit. ``void``: north-up bool mask or None.
+    ``HeightField.unit_metres``), so curvature applies; ``unit_metres``: metres per unit.
+    ``void``: north-up bool mask or None.
     ``field``: the HeightField (orientation, georeferencing), or None for a raw array.
     """
 
