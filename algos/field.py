@@ -387,7 +387,9 @@ class HeightField:
         lazy), its CRS, transform and nodata through rioxarray (``rio.crs``,
         ``rio.transform()``, ``rio.nodata``; NaN is a void too). Without rioxarray, or
         without spatial coordinates, ``spacing`` (default 1: cell units) describes the
-        pixels. A geographic CRS is refused (:func:`datasets_gen.raster.check_crs`)."""
+        pixels. The CRS's linear unit is the field's unit; without a CRS, ``unit`` names
+        it (as for the constructor; default none: curvature refuses the field). A
+        geographic CRS is refused (:func:`datasets_gen.raster.check_crs`)."""
         if array.ndim != 2:
             raise ValueError(f"heights: expected a 2D DataArray, got dims {array.dims}")
         data = array.data
