@@ -56,7 +56,7 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
-from .georef import pixel_size
+from .georef import LINEAR_UNITS, UNIT_ALIASES, pixel_size, unit_name
 from .validate import as_float_array, check_heights, check_spacing
 
 __all__ = ["HeightField", "Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind", "max_mipmap",
@@ -195,14 +195,23 @@ class HeightField:
         cell units.
     unit : str, optional
         The linear unit of ``spacing`` and of every length a product takes
-        (``max_distance``, ``observer_height``, ``target_height``). Default ``"cell"``
-        for spacing 1, else ``"map unit"``. A geographic CRS is never a linear unit.
+        (``max_distance``, ``observer_height``, ``target_height``): one of
+        :data:`algos.georef.LINEAR_UNITS` (``"m"``, ``"km"``, ``"ft"``, the international
+        foot of 0.3048 m, ``"US survey foot"``, 1200/3937 m) or an alias of
+        :data:`algos.georef.UNIT_ALIASES` (``"metre"``, ``"meter"``, ``"foot"``,
+        ``"us-ft"``, ...), stored under its main name. Default ``"cell"`` for spacing 1,
+        else ``"map unit"``: these two are no real unit, and curvature refuses them.
+        With a ``crs`` its linear unit (rasterio's ``CRS.linear_units_factor``) is the
+        field's unit; a ``unit`` that names another raises.
     height_unit : str, optional
         The unit of ``heights``: ``unit`` (the default: heights in the same linear unit as
         the pixel size, as in a DEM) or ``"cell"`` (heights in multiples of the pixel size,
         the kernels' own unit, square pixels only: how generated fields and the embedded
         DEM are stored, so that the kernels' studies read them unchanged).
     crs : rasterio CRS, WKT or EPSG string, optional
+        A projected CRS (its linear unit becomes ``unit``). A geographic CRS (degrees)
+        is refused, as :func:`datasets_gen.load_file` refuses such a file, with the
+        ``gdalwarp`` command that reprojects it.
     transform : affine.Affine, optional
         The geotransform of the stored array (pixel corners); when given, ``spacing`` and
         ``north`` come from it. Rotated or sheared transforms are refused.
@@ -224,6 +233,9 @@ class HeightField:
         One number for square pixels, else the pair; :attr:`dx` and :attr:`dy` always.
     rows, cols, shape : the grid's size in samples.
     cell_heights : float32 heights in cell units (first hits and renders).
+    unit_metres : float or None
+        Metres per ``unit`` (None for ``"cell"`` and ``"map unit"``); mirrored in
+        ``params["unit_metres"]``, where a disagreeing value given raises.
 
     Raises
     ------
@@ -231,7 +243,8 @@ class HeightField:
         Heights that are not real numbers, or the old positional form
         ``HeightField(heights, name, spacing, unit)``, whose heights were in cell units.
     ValueError
-        A shape outside [2, 2**24] per side, a bad spacing, unit or transform.
+        A shape outside [2, 2**24] per side, a bad spacing or transform, a unit outside
+        the accepted names or contradicting the CRS's, a geographic CRS.
     """
 
     heights: object
@@ -285,16 +298,6 @@ class HeightField:
             self.params["north"] = "+y"
         else:
             self.params.pop("north", None)
-        if unit is None:
-            unit = "cell" if (dx, dy) == (1.0, 1.0) and crs is None else "map unit"
-        self.unit = str(unit)
-        self.height_unit = self.unit if height_unit is None else str(height_unit)
-        if self.height_unit not in (self.unit, "cell"):
-            raise ValueError(f"height_unit: expected {self.unit!r} (the pixel size's unit) or "
-                             f"'cell', got {height_unit!r}")
-        if self.height_unit == "cell" and dx != dy:
-            raise ValueError(f"height_unit: 'cell' needs square pixels, got spacing "
-                             f"({dx:g}, {dy:g}); give the heights in {self.unit!r}")
         if is_dask(heights):
             if heights.ndim != 2:
                 raise ValueError(f"heights: expected a 2D array (rows, cols), got shape "
@@ -307,9 +310,56 @@ class HeightField:
                 h = heights  # a memory-mapped file stays a np.memmap: used in place
             self.heights = h
         self.rows, self.cols = (int(v) for v in self.heights.shape)
+        self.unit, self.unit_metres = self._resolve_unit(unit, dx, dy)
+        if self.unit_metres is None:
+            self.params.pop("unit_metres", None)
+        else:
+            given = self.params.get("unit_metres")
+            if given is not None and not math.isclose(float(given), self.unit_metres,
+                                                      rel_tol=1e-12):
+                raise ValueError(f"params['unit_metres']: {given!r} disagrees with the unit "
+                                 f"{self.unit!r} ({self.unit_metres!r} m); give unit= only")
+            # mirrored for scripts written before the field had it
+            self.params["unit_metres"] = self.unit_metres
+        self.height_unit = self.unit if height_unit is None else str(height_unit)
+        if self.height_unit not in (self.unit, "cell"):
+            raise ValueError(f"height_unit: expected {self.unit!r} (the pixel size's unit) or "
+                             f"'cell', got {height_unit!r}")
+        if self.height_unit == "cell" and dx != dy:
+            raise ValueError(f"height_unit: 'cell' needs square pixels, got spacing "
+                             f"({dx:g}, {dy:g}); give the heights in {self.unit!r}")
         self.nodata_mask = self._mask(nodata_mask)
         self.build_stats: dict[str, dict] = {}
         self._cache: dict[str, object] = {}
+
+    def _resolve_unit(self, unit, dx, dy):
+        """``(unit, metres per unit or None)``: the CRS's linear unit when there is a CRS
+        (rasterio's name and factor; a geographic CRS and a contradicting ``unit`` raise),
+        else ``unit`` checked against :data:`algos.georef.LINEAR_UNITS` (default ``"cell"``
+        for spacing 1, else ``"map unit"``: no real unit)."""
+        if self.crs is not None:
+            from datasets_gen.raster import crs_unit  # the CRS rules live with the readers
+
+            bounds, pixel = None, (dx, dy)
+            if self.transform is not None:
+                from rasterio.coords import BoundingBox
+                from rasterio.transform import array_bounds
+
+                west, south, east, north = array_bounds(self.rows, self.cols, self.transform)
+                bounds = BoundingBox(min(west, east), min(south, north), max(west, east),
+                                     max(south, north))
+                pixel = (self.transform.a, self.transform.e)
+            name, metres = crs_unit(self.crs, "crs", bounds=bounds, pixel=pixel,
+                                    source="IN.tif")
+            if unit is not None and UNIT_ALIASES.get(unit, unit) != name:
+                raise ValueError(f"unit: {unit!r} contradicts the CRS's linear unit {name!r} "
+                                 f"({metres!r} m); the CRS's unit is the field's unit: leave "
+                                 "unit out")
+            return name, metres
+        if unit is None:
+            return ("cell" if (dx, dy) == (1.0, 1.0) else "map unit"), None
+        name = unit_name(unit)
+        return name, LINEAR_UNITS.get(name)
 
     def _mask(self, given):
         """The void mask: given, else where numpy heights are not finite (None: none)."""
@@ -337,7 +387,9 @@ class HeightField:
         lazy), its CRS, transform and nodata through rioxarray (``rio.crs``,
         ``rio.transform()``, ``rio.nodata``; NaN is a void too). Without rioxarray, or
         without spatial coordinates, ``spacing`` (default 1: cell units) describes the
-        pixels. A geographic CRS is refused (:func:`datasets_gen.raster.check_crs`)."""
+        pixels. The CRS's linear unit is the field's unit; without a CRS, ``unit`` names
+        it (as for the constructor; default none: curvature refuses the field). A
+        geographic CRS is refused (:func:`datasets_gen.raster.check_crs`)."""
         if array.ndim != 2:
             raise ValueError(f"heights: expected a 2D DataArray, got dims {array.dims}")
         data = array.data

@@ -24,12 +24,49 @@ from __future__ import annotations
 import math
 
 __all__ = ["WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M", "pixel_size", "utm_epsg",
-           "check_axis_aligned"]
+           "check_axis_aligned", "LINEAR_UNITS", "UNIT_ALIASES", "NO_UNIT", "unit_name",
+           "unit_metres"]
 
 #: Equatorial radius of the WGS 84 ellipsoid (m): the curvature default (as GDAL's viewshed).
 WGS84_SEMI_MAJOR_AXIS_M = 6378137.0
 #: IUGG mean Earth radius R1 (m): degrees to metres on a sphere (the embedded DEM).
 IUGG_MEAN_EARTH_RADIUS_M = 6371008.8
+
+#: The linear units a field accepts by name, with their exact length in metres: the metre,
+#: the kilometre, the international foot (0.3048 m exactly, 1959) and the US survey foot
+#: (1200/3937 m exactly, the unit of many US State Plane CRSs such as EPSG:2277). A CRS
+#: brings its own unit and factor (rasterio's ``CRS.linear_units_factor``), whatever it is.
+LINEAR_UNITS = {"m": 1.0, "km": 1000.0, "ft": 0.3048, "US survey foot": 1200.0 / 3937.0}
+#: Other spellings of those units (PROJ's and rasterio's names among them) -> the name used.
+UNIT_ALIASES = {"metre": "m", "meter": "m", "kilometre": "km", "kilometer": "km",
+                "foot": "ft", "international foot": "ft", "us-ft": "US survey foot",
+                "ftUS": "US survey foot", "US survey foot": "US survey foot"}
+#: The names of a field without a real unit: ``"cell"`` (cell units, spacing 1) and
+#: ``"map unit"`` (a pixel size whose unit nobody gave). Curvature refuses both.
+NO_UNIT = ("cell", "map unit")
+
+
+def unit_name(unit) -> str:
+    """The name a field uses for ``unit``: one of :data:`LINEAR_UNITS` (aliases of
+    :data:`UNIT_ALIASES` mapped to it) or of :data:`NO_UNIT`. Raises ValueError naming
+    ``unit`` and the accepted names for anything else (an angle such as "degree" is not a
+    linear unit)."""
+    if not isinstance(unit, str):
+        raise TypeError(f"unit: expected a unit name, got {unit!r}")
+    name = UNIT_ALIASES.get(unit, unit)
+    if name in LINEAR_UNITS or name in NO_UNIT:
+        return name
+    raise ValueError(f"unit: {unit!r} is not a linear unit hftrace knows; accepted: "
+                     f"{', '.join(repr(u) for u in LINEAR_UNITS)} (also "
+                     f"{', '.join(repr(a) for a in UNIT_ALIASES if a not in LINEAR_UNITS)}), "
+                     f"or {' / '.join(repr(u) for u in NO_UNIT)} for no real unit; a "
+                     "geographic unit (degrees) must be reprojected first (gdalwarp)")
+
+
+def unit_metres(unit):
+    """Metres per ``unit`` (a name :func:`unit_name` accepts), or None for the names of
+    :data:`NO_UNIT`."""
+    return LINEAR_UNITS.get(unit_name(unit))
 
 
 def check_axis_aligned(transform, name: str = "transform") -> None:

@@ -274,8 +274,10 @@ class Grid:
     ``h``: float64 C-contiguous heights in *cell units*, north-up (row 0 north), voids
     replaced by :data:`VOID_HEIGHT`. ``dx, dy``: the pixel size in ``unit``; ``z_scale``:
     map units per cell height unit (``h = heights / z_scale``; ``dx`` unless the heights
-    already are in cells). ``has_unit``: lengths are in a real unit (a spacing was given
-    or carried), so curvature applies. ``void``: north-up bool mask or None.
+    already are in cells). ``has_unit``: lengths are in a real unit (a raw array's
+    spacing, taken in metres, or a field's unit with its metres factor
+    ``HeightField.unit_metres``), so curvature applies; ``unit_metres``: metres per unit.
+    ``void``: north-up bool mask or None.
     ``field``: the HeightField (orientation, georeferencing), or None for a raw array.
     """
 
@@ -346,12 +348,13 @@ def _prepare(heights, spacing, *, name="heights") -> Grid:
             raise ValueError(f"spacing: {spacing!r}, but {field.name} carries its own pixel "
                              f"size ({field.dx:g}, {field.dy:g}) {field.unit}; leave spacing out")
         dx, dy = field.dx, field.dy
-        has_unit = field.unit != "cell"
+        # a real unit (metres per unit known): "cell" and "map unit" are none
+        has_unit = field.unit_metres is not None
         z_scale = dx
         divisor = 1.0 if field.height_unit == "cell" else dx
         raw = field.heights
         void = field.nodata_mask
-        unit_metres = float(field.params.get("unit_metres", 1.0))
+        unit_metres = field.unit_metres if has_unit else 1.0
     else:
         if isinstance(heights, (str, bytes, dict)) or heights is None:
             raise TypeError(f"{name}: expected a 2D array of real numbers, an algos.HeightField "
@@ -985,6 +988,14 @@ def _azimuth_list(azimuths):
     return out
 
 
+#: Why curvature refuses a grid without a real unit, and how to give one.
+_NO_UNIT_CURVATURE = (
+    "curvature: needs spacing in a real unit, to convert the earth's radius: give a raw "
+    "array's spacing (taken in metres), a field with a CRS, or HeightField(..., spacing=D, "
+    "unit='m') (units: 'm', 'km', 'ft', 'US survey foot'; on the command line --unit next to "
+    "--spacing); a field in cell units or in an unnamed 'map unit' has none")
+
+
 def _curvature_kappa(grid: Grid, curvature, refraction, earth_radius) -> float:
     """kappa, the drop per squared cell distance in cell height units:
     (1 - refraction) dx / (2 R), R in the field's unit; 0 without curvature. Validated as
@@ -994,8 +1005,7 @@ def _curvature_kappa(grid: Grid, curvature, refraction, earth_radius) -> float:
     if not curvature:
         return 0.0
     if not grid.has_unit:
-        raise ValueError("curvature: needs spacing (the pixel size in metres, or a field "
-                         "that carries its unit)")
+        raise ValueError(_NO_UNIT_CURVATURE)
     if not grid.square:
         raise ValueError(f"curvature: needs square pixels, got {grid.dx:g} x {grid.dy:g}; "
                          "resample first (e.g. gdalwarp -tr D D)")
@@ -1113,13 +1123,14 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         horizon-based products of RVT (sky-view factor, openness) have no curvature, and
         over the radii they are used at it is negligible (the drop is 0.07 m at 1 km,
         6.7 m at 10 km); GRASS r.horizon applies it by default, so pass True to compare
-        with it. Needs a real unit (spacing given or carried) and square pixels.
+        with it. Needs a real unit (a raw array's spacing, in metres, or a field
+        whose ``unit_metres`` is known) and square pixels.
     refraction : float
         The refraction coefficient in [0, 1); default 1/7, GDAL's and GRASS's
         (:data:`DEFAULT_REFRACTION`).
     earth_radius : float
         R in metres (default the WGS 84 semi-major axis, as GDAL), converted to the
-        field's unit with its ``params["unit_metres"]`` (1 for a raw array).
+        field's unit with its ``unit_metres`` (1 for a raw array).
     threads : None or int
         Vertices are split over threads; results are identical for every value.
     march_step, embree_tolerance : the baselines' step (cells) and angle tolerance (rad).
@@ -1742,15 +1753,16 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         *out of range*.
     curvature : bool
         Lower the surface at map distance d by (1 - refraction) d^2 / (2 R), as GDAL's
-        and GRASS's viewsheds do, applied at the breakpoints. Needs a real unit (spacing
-        given or carried) and square pixels.
+        and GRASS's viewsheds do, applied at the breakpoints. Needs a real unit (a raw
+        array's spacing, in metres, or a field whose ``unit_metres`` is known) and square
+        pixels.
     refraction : float
         The refraction coefficient in [0, 1); default 1/7, as GDAL (``gdal_viewshed``
         ``-cc 0.85714``) and GRASS (``r.viewshed refraction_coeff=0.14286``).
     earth_radius : float
         R in metres (default the WGS 84 semi-major axis, as GDAL;
         :data:`algos.georef.WGS84_SEMI_MAJOR_AXIS_M`), converted to the field's unit with
-        its ``params["unit_metres"]`` (1 for a raw array: spacing in metres).
+        its ``unit_metres`` (1 for a raw array: spacing in metres).
     progress : callable, optional
         Called as ``progress(done, total)`` after each observer (in memory only).
     mode : {"normal", "dem", "ground", "observer", "angle"}
@@ -1879,8 +1891,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     drop = 0.0
     if curvature:
         if not grid.has_unit:
-            raise ValueError("curvature: needs spacing (the pixel size in metres, or a field "
-                             "that carries its unit)")
+            raise ValueError(_NO_UNIT_CURVATURE)
         if not grid.square:
             raise ValueError(f"curvature: needs square pixels, got {grid.dx:g} x {grid.dy:g}; "
                              "resample first (e.g. gdalwarp -tr D D)")

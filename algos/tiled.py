@@ -69,7 +69,7 @@ def _unwrap(heights, spacing, north_up=True):
         # the field's description, not the field: a task holding wrap must not carry the
         # lazy array (and its graph) with it
         wrap = partial(_block_field, name=field.name, spacing=field.spacing, unit=field.unit,
-                       height_unit=field.height_unit, params=field.params,
+                       height_unit=field.height_unit, params=field.params, crs=field.crs,
                        north="-y" if (flip or field.north_up) else "+y")
 
         pixel = (field.dx, field.dy) if field.unit != "cell" else None

@@ -32,7 +32,7 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import IUGG_MEAN_EARTH_RADIUS_M
+from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, unit_name
 from algos.validate import check_spacing
 
 from .cache import cached_array
@@ -112,7 +112,8 @@ def _read_exr(path, channel):
 
 
 def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_policy="void",
-              fill_value=None, key=None, channel=None, band=1, reproject=None) -> HeightField:
+              fill_value=None, key=None, channel=None, band=1, reproject=None,
+              unit=None) -> HeightField:
     """Read a height field from a raster GDAL reads (``.tif``/``.tiff``/``.vrt`` and the
     other :data:`RASTER_EXTENSIONS`, through :func:`datasets_gen.raster.read_raster`),
     ``.npy``, ``.npz``, 8/16-bit grayscale ``.png``/``.jpg``/``.jpeg`` or single-channel
@@ -139,6 +140,12 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
         1-based band of a raster.
     reproject : None or "utm"
         A geographic raster is refused (None) or reprojected to UTM.
+    unit : str, optional
+        The linear unit of ``spacing`` and of the heights of a file without a CRS (one of
+        ``algos.georef.LINEAR_UNITS``: "m", "km", "ft", "US survey foot", or an alias
+        such as "metre"). Default none: cell units, or "map unit" with a ``spacing``,
+        which curvature refuses. A georeferenced file's CRS gives its unit; a ``unit``
+        that contradicts it raises.
 
     Returns
     -------
@@ -152,6 +159,27 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
         Naming the file or the parameter: unreadable files, wrong shapes, voids under
         ``nodata_policy="error"``, geographic or rotated rasters.
     """
+    return with_unit(_load_file(path, spacing=spacing, vertical_scale=vertical_scale,
+                                nodata=nodata, nodata_policy=nodata_policy,
+                                fill_value=fill_value, key=key, channel=channel, band=band,
+                                reproject=reproject, unit=unit), unit)
+
+
+def with_unit(field, unit):
+    """``field`` with the linear unit ``unit`` (None: unchanged); its heights stay in the
+    pixel size's unit. Raises ValueError for an unknown unit or one that contradicts the
+    field's CRS."""
+    if unit is None:
+        return field
+    import dataclasses
+
+    return dataclasses.replace(field, unit=unit, height_unit=None)
+
+
+def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_policy="void",
+               fill_value=None, key=None, channel=None, band=1, reproject=None,
+               unit=None) -> HeightField:
+    """The body of :func:`load_file` (without the unit change)."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise ValueError(f"path: {path} does not exist or is not a file")
@@ -161,6 +189,8 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
         raise ValueError(f"vertical_scale: must be a non-zero finite number, got {vertical_scale}")
     if spacing is not None:
         check_spacing(spacing)
+    if unit is not None:
+        unit_name(unit)  # an unknown unit raises before the file is read
     ext = os.path.splitext(path)[1].lower()
     if ext in RASTER_EXTENSIONS:
         field = read_raster(path, band=band, spacing=spacing, vertical_scale=vertical_scale,
@@ -326,7 +356,14 @@ def jacksboro(size=None, vertical_scale=1.0, *, use_cache=True, cache_dir=None) 
                                    source="matplotlib sample data jacksboro_fault_dem.npz"))
 
 
-def open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -> HeightField:
+def open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1,
+              unit=None) -> HeightField:
+    """:func:`_open_lazy` with ``unit`` as in :func:`load_file`."""
+    return with_unit(_open_lazy(path, chunks=chunks, spacing=spacing,
+                                vertical_scale=vertical_scale, band=band), unit)
+
+
+def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -> HeightField:
     """A HeightField whose heights are a lazy dask array over the file (any raster GDAL
     reads, through rasterio windows, or a memory-mapped ``.npy``), read chunk by chunk
     where it is computed: for fields larger than memory (``algos.horizon`` and friends

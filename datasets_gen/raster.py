@@ -43,9 +43,9 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, check_axis_aligned, utm_epsg
+from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, UNIT_ALIASES, check_axis_aligned, utm_epsg
 
-__all__ = ["read_raster", "check_crs", "write_product", "create_product", "write_window",
+__all__ = ["read_raster", "check_crs", "crs_unit", "write_product", "create_product", "write_window",
            "product_nodata", "save_product", "LazyRaster", "REPROJECT"]
 
 #: What ``reproject=`` accepts: None (refuse a geographic CRS) or "utm".
@@ -76,31 +76,32 @@ def _gdalwarp_fix(path, pixel, bounds) -> str:
             f"(or read it with reproject='utm'; the CLI option is --reproject utm)")
 
 
+def crs_unit(crs, what, *, bounds=None, pixel=(1.0, 1.0), source=None):
+    """``(name, metres)`` of a CRS's linear unit: the name a field uses
+    (:func:`algos.georef.unit_name` for the units it knows, else PROJ's own name) and
+    metres per unit, both from rasterio (``CRS.linear_units_factor``). A geographic CRS
+    raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size in
+    degrees), the exact ``gdalwarp`` command that fixes ``source`` (default ``what``)."""
+    from rasterio.crs import CRS
+
+    crs = CRS.from_user_input(crs)
+    if crs.is_geographic:
+        fix = _gdalwarp_fix(what if source is None else source, pixel, bounds) \
+            if bounds is not None else "gdalwarp -t_srs EPSG:<UTM zone> IN.tif OUT.tif"
+        raise ValueError(f"{what}: its CRS ({crs.to_string()}) is geographic: pixel sizes in "
+                         f"degrees are not lengths, and heights in metres over degrees give "
+                         f"wrong angles. Reproject it first: {fix}")
+    name, factor = crs.linear_units_factor
+    return UNIT_ALIASES.get(name, name), float(factor)
+
+
 def check_crs(crs, what, *, bounds=None, pixel=(1.0, 1.0)) -> str:
     """The linear unit name of a CRS (None: no CRS, returns "map unit"). A geographic CRS
     raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size
     in degrees), the exact ``gdalwarp`` command that fixes the file."""
-    from rasterio.crs import CRS
-
     if crs is None:
         return "map unit"
-    crs = CRS.from_user_input(crs)
-    if crs.is_geographic:
-        fix = _gdalwarp_fix(what, pixel, bounds) if bounds is not None else \
-            "gdalwarp -t_srs EPSG:<UTM zone> IN.tif OUT.tif"
-        raise ValueError(f"{what}: its CRS ({crs.to_string()}) is geographic: pixel sizes in "
-                         f"degrees are not lengths, and heights in metres over degrees give "
-                         f"wrong angles. Reproject it first: {fix}")
-    name, _ = crs.linear_units_factor
-    return {"metre": "m", "meter": "m"}.get(name, name)
-
-
-def _unit_metres(crs) -> float:
-    from rasterio.crs import CRS
-
-    if crs is None:
-        return 1.0
-    return float(CRS.from_user_input(crs).linear_units_factor[1])
+    return crs_unit(crs, what, bounds=bounds, pixel=pixel)[0]
 
 
 def _check_band(ds, band, path):
@@ -208,7 +209,7 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
     heights, mask = _scaled(raw, mask, scale, offset, vertical_scale)
     params = dict(path=path, band=band, scale=scale, offset=offset,
                   nodata=nodata if nodata is not None else file_nodata,
-                  vertical_scale=vertical_scale, unit_metres=_unit_metres(crs),
+                  vertical_scale=vertical_scale,
                   reprojected=reproject if geographic else None)
     if georef:
         return HeightField(heights, os.path.basename(path), unit=unit, crs=crs,

@@ -185,9 +185,11 @@ def test_units_degrees():
 
 def test_dataarray_records_units_and_curvature():
     xr = pytest.importorskip("xarray")
+    pytest.importorskip("rioxarray")
     h = _random_field(10)
     da = xr.DataArray(h * 10.0, dims=("y", "x"),
                       coords={"y": np.arange(h.shape[0]) * -10.0, "x": np.arange(h.shape[1]) * 10.0})
+    da = da.rio.write_crs("EPSG:32617")  # coordinates in metres: curvature needs the unit
     out = algos.horizon(da, [0.0, 90.0], units="degrees", curvature=True, earth_radius=2000.0)
     assert out.attrs["units"] == "degrees"
     assert out.attrs["curvature"] == 1 and out.attrs["refraction"] == pytest.approx(1 / 7)
@@ -237,8 +239,9 @@ def test_cli_horizon_with_curvature(tmp_path, capsys):
     h[:, 600] = 600.0
     np.save(tmp_path / "plain.npy", h)
     out = str(tmp_path / "hz")
-    code = main(["horizon", str(tmp_path / "plain.npy"), "--spacing", "100", "--azimuths", "90",
-                 "--curvature", "--out", out, "--no-progress"])
+    # a .npy names no unit: --unit m gives the metres that curvature needs
+    code = main(["horizon", str(tmp_path / "plain.npy"), "--spacing", "100", "--unit", "m",
+                 "--azimuths", "90", "--curvature", "--out", out, "--no-progress"])
     assert code == 0, capsys.readouterr().err
     drop = (1 - 1 / 7) * 60000.0 ** 2 / (2 * algos.WGS84_SEMI_MAJOR_AXIS_M)
     with rasterio.open(out + ".tif") as src:
@@ -247,7 +250,8 @@ def test_cli_horizon_with_curvature(tmp_path, capsys):
         assert float(tags["refraction"]) == pytest.approx(1 / 7)
         assert src.read(1)[1, 0] == pytest.approx(math.degrees(math.atan((600 - drop) / 60000)),
                                                   abs=1e-5)
-    code = main(["svf", str(tmp_path / "plain.npy"), "--spacing", "100", "--n-azimuths", "4",
+    code = main(["svf", str(tmp_path / "plain.npy"), "--spacing", "100", "--unit", "m",
+                 "--n-azimuths", "4",
                  "--out", str(tmp_path / "svf"), "--no-progress"])
     assert code == 0
     with rasterio.open(str(tmp_path / "svf.tif")) as src:
@@ -266,3 +270,74 @@ def test_dask_tiles_apply_curvature_as_in_memory():
     got = algos.sky_view_factor(da.from_array(h, chunks=(10, 12)), 8, 5.0, spacing=1.0,
                                 curvature=True, earth_radius=20.0).compute()
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+# ---- a hand-built field's unit (names, their metres, and no unit) ---------------------------
+
+def _flat_angle(unit, spacing=100.0):
+    field = algos.HeightField(np.zeros((64, 64)), spacing=spacing, unit=unit)
+    return algos.viewshed(field, (0, 0), mode="angle", curvature=True, observer_height=0)[63, 63]
+
+
+def _curved_angle(metres_per_unit, spacing=100.0):
+    """The view angle from (0, 0) to (63, 63) over flat ground, in closed form: the target
+    drops (1 - k) d^2 / (2 R) with R the earth's radius in the field's unit."""
+    d = 63 * math.sqrt(2) * spacing
+    radius = T.WGS84_SEMI_MAJOR_AXIS_M / metres_per_unit
+    return math.atan2(-(1 - T.DEFAULT_REFRACTION) * d * d / (2 * radius), d)
+
+
+@pytest.mark.parametrize("unit, metres", [("m", 1.0), ("metre", 1.0), ("meter", 1.0),
+                                          ("km", 1000.0), ("ft", 0.3048), ("foot", 0.3048),
+                                          ("US survey foot", 1200 / 3937),
+                                          ("us-ft", 1200 / 3937)])
+def test_unit_names_convert_the_earth_radius(unit, metres):
+    """The user's report: 'ft', 'km' and 'm' all gave the metres value."""
+    field = algos.HeightField(np.zeros((4, 4)), spacing=100, unit=unit)
+    assert field.unit_metres == metres and field.params["unit_metres"] == metres
+    assert _flat_angle(unit) == pytest.approx(_curved_angle(metres), rel=1e-12, abs=0)
+
+
+def test_feet_and_metres_give_the_reported_angles():
+    assert _flat_angle("ft") == pytest.approx(-0.000182474, abs=5e-10)
+    assert _flat_angle("m") == pytest.approx(-0.000598666, abs=5e-10)
+    assert _flat_angle("km") == pytest.approx(math.atan(-0.000598666 * 1000), rel=1e-6)
+
+
+@pytest.mark.parametrize("spacing", [30.0, 1.0])
+def test_curvature_without_a_real_unit_raises(spacing):
+    """'map unit' (a spacing nobody named) and cell units carry no metres."""
+    field = algos.HeightField(np.zeros((8, 8)), spacing=spacing)
+    assert field.unit in algos.georef.NO_UNIT and field.unit_metres is None
+    for product in (lambda: algos.viewshed(field, (0, 0), curvature=True),
+                    lambda: algos.horizon(field, 45.0, curvature=True)):
+        with pytest.raises(ValueError, match=r"curvature: needs spacing in a real unit.*"
+                                             r"unit='m'"):
+            product()
+    # without curvature nothing changes
+    assert algos.viewshed(field, (0, 0)).all()
+
+
+@pytest.mark.parametrize("unit", ["furlong", "degree", "deg", "M", ""])
+def test_unknown_unit_names_raise(unit):
+    with pytest.raises(ValueError, match=rf"unit: {unit!r} is not a linear unit.*'m', 'km', "
+                                         r"'ft', 'US survey foot'"):
+        algos.HeightField(np.zeros((4, 4)), spacing=30, unit=unit)
+
+
+def test_params_unit_metres_must_agree_with_the_unit():
+    with pytest.raises(ValueError, match=r"params\['unit_metres'\]: 1.0 disagrees with the "
+                                         r"unit 'ft'"):
+        algos.HeightField(np.zeros((4, 4)), spacing=30, unit="ft", params={"unit_metres": 1.0})
+    # a unit_metres without a unit names nothing: dropped, curvature still refused
+    field = algos.HeightField(np.zeros((4, 4)), spacing=30, params={"unit_metres": 0.3048})
+    assert field.unit_metres is None and "unit_metres" not in field.params
+
+
+def test_generated_fields_and_the_embedded_dem_keep_their_units():
+    import datasets_gen
+
+    dem = datasets_gen.jacksboro(use_cache=False)
+    assert (dem.unit, dem.height_unit, dem.unit_metres) == ("m", "cell", 1.0)
+    field = datasets_gen.load("fbm", size=17, seed=1, use_cache=False)
+    assert field.unit == "cell" and field.unit_metres is None

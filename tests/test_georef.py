@@ -539,3 +539,60 @@ def test_save_product_writes_the_geotiff_and_the_picture(tmp_path):
         assert b.crs == field.crs and b.tags()["observer_height"] == "1.75"
         np.testing.assert_array_equal(b.read(1), seen.astype(np.uint8))
     assert (tmp_path / "vs.png").stat().st_size > 1000 and png.endswith("vs.png")
+
+
+# ---- a hand-built field's CRS: its unit wins, a geographic one is refused --------------------
+
+TEXAS_FEET = "EPSG:2277"  # NAD83 / Texas Central, US survey feet
+
+
+def test_a_crs_in_feet_built_by_hand_equals_the_geotiff(tmp_path):
+    h = np.zeros((64, 64), np.float32)
+    h[20:30, 40:44] = 250.0
+    transform = Affine(100.0, 0.0, 2000000.0, 0.0, -100.0, 10000000.0)
+    path = write_tif(tmp_path / "feet.tif", h, crs=TEXAS_FEET, transform=transform)
+    read = datasets_gen.load_file(path)
+    built = HeightField(h, crs=TEXAS_FEET, transform=transform)
+    assert read.unit == built.unit == "US survey foot"
+    assert read.unit_metres == built.unit_metres == pytest.approx(1200 / 3937, rel=1e-12)
+    assert built.params["unit_metres"] == built.unit_metres
+    for mode in ("angle", "ground"):
+        want = algos.viewshed(read, (0, 0), mode=mode, curvature=True, observer_height=5)
+        got = algos.viewshed(built, (0, 0), mode=mode, curvature=True, observer_height=5)
+        np.testing.assert_array_equal(got, want)
+    # and the feet are converted: a metre field of the same numbers drops more
+    metres = HeightField(h, spacing=100.0, unit="m")
+    assert algos.viewshed(metres, (0, 0), mode="angle", curvature=True,
+                          observer_height=0)[63, 63] < \
+        algos.viewshed(built, (0, 0), mode="angle", curvature=True, observer_height=0)[63, 63]
+
+
+def test_a_unit_that_contradicts_the_crs_raises():
+    transform = Affine(100.0, 0.0, 2000000.0, 0.0, -100.0, 10000000.0)
+    h = np.zeros((4, 4))
+    with pytest.raises(ValueError, match=r"unit: 'ft' contradicts the CRS's linear unit "
+                                         r"'US survey foot'"):
+        HeightField(h, crs=TEXAS_FEET, transform=transform, unit="ft")
+    with pytest.raises(ValueError, match=r"unit: 'map unit' contradicts the CRS's linear unit 'm'"):
+        HeightField(h, crs=UTM17, spacing=30, unit="map unit")
+    # naming the CRS's own unit (or an alias of it) is fine
+    assert HeightField(h, crs=TEXAS_FEET, transform=transform, unit="us-ft").unit == \
+        "US survey foot"
+    assert HeightField(h, crs=UTM17, spacing=30, unit="metre").unit_metres == 1.0
+
+
+def test_a_geographic_crs_built_by_hand_is_refused_as_load_file_refuses_it(tmp_path):
+    h = np.zeros((20, 20), np.float32)
+    transform = Affine(1 / 1200, 0.0, -81.0, 0.0, -1 / 1200, 46.0)
+    path = write_tif(tmp_path / "geo.tif", h, crs="EPSG:4326", transform=transform)
+    with pytest.raises(ValueError) as from_file:
+        datasets_gen.load_file(path)
+    with pytest.raises(ValueError, match=r"^crs: its CRS \(EPSG:4326\) is geographic") as built:
+        HeightField(h, crs="EPSG:4326", transform=transform)
+    # the same explanation and the same gdalwarp command (target CRS and pixel size)
+    tail = str(from_file.value).split(": ", 1)[1]
+    assert str(built.value).split(": ", 1)[1].split(" -r bilinear")[0] == \
+        tail.split(" -r bilinear")[0]
+    assert "gdalwarp -t_srs EPSG:32617 -tr" in str(built.value)
+    with pytest.raises(ValueError, match=r"crs: its CRS \(EPSG:4326\) is geographic.*gdalwarp"):
+        HeightField(h, crs="EPSG:4326", spacing=1 / 1200)

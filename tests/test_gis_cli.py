@@ -399,3 +399,26 @@ def test_render_of_a_dem_with_voids_says_fill_and_fill_renders(tmp_path, capsys)
     code, _, stderr = run(["render", "fbm", "--size", "16", "--fill", "min", "--out",
                            str(out)], capsys)
     assert code == 2 and "--fill: fills the voids of a file; fbm" in stderr
+
+
+def test_curvature_on_a_npy_needs_its_unit(tmp_path, capsys):
+    """A .npy has no CRS: --spacing alone names no unit, so --curvature is refused with
+    the way to give it (--unit); with --unit the result is the API's."""
+    np.save(tmp_path / "flat.npy", np.zeros((64, 64), np.float32))
+    source = str(tmp_path / "flat.npy")
+    common = ["viewshed", source, "--spacing", "100", "--observer-pixel", "0,0",
+              "--observer-height", "0", "--mode", "angle", "--curvature", "--no-progress"]
+    code, _, stderr = run(common + ["--out", str(tmp_path / "none")], capsys)
+    assert code == 2 and "curvature: needs spacing in a real unit" in stderr \
+        and "--unit" in stderr
+    code, _, stderr = run(common + ["--unit", "ft", "--out", str(tmp_path / "ft")], capsys)
+    assert code == 0, stderr
+    with rasterio.open(tmp_path / "ft.tif") as src:
+        got = src.read(1)[63, 63]
+    want = algos.viewshed(algos.HeightField(np.zeros((64, 64)), spacing=100, unit="ft"),
+                          (0, 0), mode="angle", curvature=True, observer_height=0)[63, 63]
+    assert got == pytest.approx(math.degrees(want), rel=1e-6)
+    assert math.degrees(want) == pytest.approx(math.degrees(-0.000182474), abs=1e-7)
+    with pytest.raises(SystemExit) as exit_:  # argparse: not one of the choices
+        main(common + ["--unit", "furlong", "--out", str(tmp_path / "x")])
+    assert exit_.value.code == 2 and "--unit" in capsys.readouterr().err

@@ -7,8 +7,10 @@ What a user's file gets (docs/CONVENTIONS.md, "Terrain products"):
 * it is read through rasterio (``datasets_gen.load_file``): any compression, ``--band``,
   scale and offset applied, voids from its nodata mask;
 * lengths (``--max-distance``, ``--observer-height``, ``--target-height``) are in the
-  unit of its pixel size (metres for a projected DEM); a file without georeferencing
-  takes ``--spacing D`` or ``DX,DY`` (default 1: cell units);
+  unit of its pixel size (the CRS's linear unit for a georeferenced DEM); a file without
+  georeferencing takes ``--spacing D`` or ``DX,DY`` (default 1: cell units) and
+  ``--unit m|km|ft|US survey foot`` (without it there is no real unit, and
+  ``--curvature`` is refused);
 * a geographic CRS (degrees) is refused with the ``gdalwarp`` command that fixes it, or
   reprojected with ``--reproject utm``; rotated geotransforms are refused;
 * voids are nodata in every output and block no ray; ``--fill min|VALUE`` fills them
@@ -38,6 +40,7 @@ import os
 import numpy as np
 
 import algos
+from algos.georef import LINEAR_UNITS, UNIT_ALIASES
 
 from .args import param, positive_int, results_dir
 
@@ -50,8 +53,11 @@ PRODUCTS = (("horizon", "horizon angles (degrees) along azimuths"),
             ("openness", "positive or negative openness (Yokoyama et al. 2002), degrees"),
             ("viewshed", "what one or more observers see"))
 
+#: What --unit accepts: the linear units of algos.georef (aliases included)
+UNIT_CHOICES = tuple(LINEAR_UNITS) + tuple(a for a in UNIT_ALIASES if a not in LINEAR_UNITS)
+
 #: Options that describe a file, meaningless for a generated dataset
-_FILE_OPTIONS = (("band", 1), ("spacing", None), ("reproject", None), ("fill", None),
+_FILE_OPTIONS = (("band", 1), ("spacing", None), ("unit", None), ("reproject", None), ("fill", None),
                  ("vertical_scale", 1.0))
 
 
@@ -102,9 +108,10 @@ def load_terrain(args, lazy_chunks=None):
                     raise ValueError(f"--{option}: not available with --dask (prepare the file "
                                      "first, e.g. with gdalwarp, and give it as it is)")
             return datasets_gen.open_lazy(source, chunks=lazy_chunks, band=args.band,
-                                          spacing=args.spacing,
+                                          spacing=args.spacing, unit=args.unit,
                                           vertical_scale=args.vertical_scale)
         field = datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
+                                       unit=args.unit,
                                        vertical_scale=args.vertical_scale,
                                        reproject=args.reproject, nodata_policy=policy,
                                        fill_value=fill_value)
@@ -417,6 +424,10 @@ def register(sub):
         p.add_argument("--spacing", type=spacing_arg, default=None, metavar="D|DX,DY",
                        help="pixel size of a file without georeferencing, in the unit of its "
                             "heights (default 1: cell units)")
+        p.add_argument("--unit", default=None, choices=UNIT_CHOICES,
+                       help="the linear unit of --spacing and of the heights of a file "
+                            "without a CRS (needed by --curvature); a georeferenced file's "
+                            "CRS gives its own")
         p.add_argument("--vertical-scale", type=float, default=1.0,
                        help="factor on the file's heights (e.g. 0.3048 for feet on a metre grid)")
         p.add_argument("--reproject", choices=("utm",), default=None,
