@@ -1883,8 +1883,9 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
           (the count of observers that see the vertex). A void vertex is False (0): the
           field's ``nodata_mask`` marks it, and writers store it as nodata.
         * ``"normal"`` with values: uint8 when all three values are integers in
-          [0, 254], voids 255 (:data:`VIEWSHED_UINT8_NODATA`, the files' nodata);
-          otherwise float64, voids NaN.
+          [0, 254], voids 255 (:data:`VIEWSHED_UINT8_NODATA`, the files' nodata;
+          a DataArray records it as its nodata, ``rio.nodata`` with rioxarray, else
+          the ``_FillValue`` attribute); otherwise float64, voids NaN.
         * other modes: float64, voids NaN, out of range ``out_of_range_value``.
 
         A DataArray gives a DataArray, with the mode, unit and values as attributes.

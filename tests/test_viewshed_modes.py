@@ -609,3 +609,44 @@ def test_exact_thresholds_fix_the_reported_wall():
 def test_observer_mode_refuses_an_observer_height():
     with pytest.raises(ValueError, match=r"observer_height: mode='observer' computes .* got 5"):
         T.viewshed(np.zeros((4, 4)), (1, 1), 5, mode="observer")
+
+
+def test_uint8_dataarray_carries_nodata_255_and_writes_it(tmp_path):
+    rioxarray = pytest.importorskip("rioxarray")
+    _, path = _small_tif(tmp_path)
+    x = rioxarray.open_rasterio(path, masked=True).squeeze("band", drop=True)
+    v = T.viewshed(x, (6, 8), visible_value=2, invisible_value=1, out_of_range_value=0,
+                   max_distance=240)
+    assert v.dtype == np.uint8 and v.rio.nodata == T.VIEWSHED_UINT8_NODATA
+    assert v.values[3, 15] == 255 and (v.values == 255).sum() == 1
+    assert set(np.unique(v.values)) <= {0, 1, 2, 255}
+    out = str(tmp_path / "vs.tif")
+    v.rio.to_raster(out)
+    back = rioxarray.open_rasterio(out, masked=True).squeeze("band", drop=True)
+    assert np.isnan(back.values[3, 15]) and np.isfinite(back.values).sum() == back.size - 1
+    raw = rioxarray.open_rasterio(out).squeeze("band", drop=True)
+    assert raw.rio.nodata == 255
+    np.testing.assert_array_equal(raw.values, v.values)
+    # a float output keeps NaN voids; the bool map has no nodata (False there)
+    f = T.viewshed(x, (6, 8), visible_value=0.5, max_distance=240)
+    assert f.dtype == np.float64 and np.isnan(f.rio.nodata)
+    assert T.viewshed(x, (6, 8), max_distance=240).rio.nodata is None
+
+
+def test_uint8_dataarray_without_crs_has_a_fill_value():
+    xr = pytest.importorskip("xarray")
+    r = xr.DataArray(np.zeros((6, 8)), coords=dict(x=np.arange(8.0), y=np.arange(6.0)),
+                     dims=["y", "x"])
+    v = T.viewshed(r, (3.0, 2.0), 1.0, visible_value=3)
+    assert v.dtype == np.uint8
+    fill = v.rio.nodata if hasattr(v, "rio") else v.attrs["_FillValue"]
+    assert fill == T.VIEWSHED_UINT8_NODATA
+
+
+def test_cli_refuses_a_non_finite_observer_height(tmp_path, capsys):
+    _, path = _small_tif(tmp_path)
+    for value in ("nan", "inf"):
+        code, cap = _run(["viewshed", path, "--observer-pixel", "6,8", "--no-progress",
+                          "--observer-height", value, "--out", str(tmp_path / "x")], capsys)
+        assert code == 2, cap.err
+        assert f"--observer-height: the observer height is not finite, got {value}" in cap.err
