@@ -150,12 +150,13 @@ def test_plain_and_mipmap_thresholds_agree_on_a_larger_field():
     rng = np.random.default_rng(8)
     h = np.cumsum(np.cumsum(rng.normal(size=(70, 90)), axis=0), axis=1) * 0.1
     for mode in ("ground", "observer"):
-        plain = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, algorithm="dda")
-        mip = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, algorithm="dda_maxmip")
+        oh = 2.0 if mode == "ground" else None  # mode observer computes the eye's height
+        plain = T.viewshed(h, (30.5, 41.25), oh, mode=mode, algorithm="dda")
+        mip = T.viewshed(h, (30.5, 41.25), oh, mode=mode, algorithm="dda_maxmip")
         assert T.LAST_STATS.skips > 0
         np.testing.assert_allclose(mip, plain, rtol=1e-12, atol=1e-9, err_msg=mode)
-        one = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, threads=1)
-        two = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, threads=2)
+        one = T.viewshed(h, (30.5, 41.25), oh, mode=mode, threads=1)
+        two = T.viewshed(h, (30.5, 41.25), oh, mode=mode, threads=2)
         assert np.array_equal(one, two), mode
 
 
