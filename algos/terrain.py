@@ -1543,6 +1543,12 @@ def _to_dataarray(template, compute, product, attrs, extra_dim=None):
         out = out.rio.write_crs(crs)
         out = out.rio.write_nodata(np.nan if np.dtype(out.dtype).kind == "f" else None,
                                    encoded=False)
+    if product == "viewshed" and out.dtype == np.uint8:
+        # the output values' viewshed stores its voids as 255: the file's nodata
+        if hasattr(out, "rio"):
+            out = out.rio.write_nodata(VIEWSHED_UINT8_NODATA, encoded=False)
+        else:
+            out.attrs["_FillValue"] = VIEWSHED_UINT8_NODATA
     return out
 
 
@@ -1602,15 +1608,99 @@ def _viewshed_one(h, ox, oy, oh, th, drop, algorithm, threads, mip, stats, scale
     unsure = np.flatnonzero(out == 2)
     if len(unsure):
         hl = h.tolist()
-        fx, fy = Fraction(ox), Fraction(oy)
-        z0e = surface_exact(hl, fx, fy) + Fraction(oh)
         for v in unsure:
-            j, i = divmod(int(v), cols)
-            seen = line_of_sight_exact(hl, (fx, fy), z0e, (i, j), Fraction(hl[j][i]) + Fraction(th),
-                                       Fraction(drop))
-            out[v] = 0 if seen else 1
+            out[v] = 0 if _seen_exact(hl, ox, oy, oh, th, drop, int(v)) else 1
         stats.exact_resolved += len(unsure)
     return (out == 0).reshape(rows, cols)
+
+
+def _seen_exact(hl, ox, oy, oh, th, drop, v):
+    """Whether vertex v (C order) is visible, in rational arithmetic of the float inputs:
+    how :func:`_viewshed_one` settles a vertex the float walk leaves uncertain."""
+    j, i = divmod(v, len(hl[0]))
+    fx, fy = Fraction(ox), Fraction(oy)
+    z0e = surface_exact(hl, fx, fy) + Fraction(oh)
+    return line_of_sight_exact(hl, (fx, fy), z0e, (i, j), Fraction(hl[j][i]) + Fraction(th),
+                               Fraction(drop))
+
+
+def _seen_one(h, hl, used, ox, oy, oh, th, drop, scale, v, buf):
+    """Visibility of the one vertex v (C order) exactly as :func:`_viewshed_one` decides
+    it (the same float walk and margin, the same exact fallback); buf a uint8 scratch of
+    rows * cols."""
+    z0 = _surface_float(h, ox, oy) + oh
+    eps = 64 * np.finfo(float).eps * (scale + abs(z0) + abs(th))
+    _kernels.viewshed(h, used, ox, oy, z0, th, drop, eps, v, v + 1, buf)
+    if buf[v] != 2:
+        return bool(buf[v] == 0)
+    return _seen_exact(hl, ox, oy, oh, th, drop, v)
+
+
+def _smallest_seen(g0, seen):
+    """The smallest float64 g >= 0 with ``seen(g)``, searched from the estimate g0 >= 0 in
+    steps of one ulp, doubling (seen is monotone: a higher target or eye sees more)."""
+    def value(b):
+        return float(np.int64(b).view(np.float64))
+    top = int(np.float64(np.finfo(np.float64).max).view(np.int64))
+    b = int(np.float64(g0).view(np.int64))
+    if seen(g0):
+        if b == 0 or not seen(value(b - 1)):
+            return g0
+        hi, step = b - 1, 2
+        while True:
+            lo = max(hi - step, 0)
+            if not seen(value(lo)):
+                break
+            if lo == 0:
+                return 0.0
+            hi, step = lo, step * 2
+    else:
+        lo, step = b, 1
+        while True:
+            hi = min(lo + step, top)
+            if seen(value(hi)):
+                break
+            if hi == top:
+                raise RuntimeError(f"viewshed: no finite height sees the vertex (from {g0!r})")
+            lo, step = hi, step * 2
+    while hi - lo > 1:  # seen(lo) false, seen(hi) true
+        mid = (lo + hi) // 2
+        if seen(value(mid)):
+            hi = mid
+        else:
+            lo = mid
+    return value(hi)
+
+
+def _exact_thresholds(out, wanted, h, ox, oy, oh, th, drop, kind, z_scale, algorithm, mip,
+                      scale, threads):
+    """Round the thresholds ``out`` (field unit, C order flat view) at the ``wanted``
+    vertices to the smallest float64 at which :func:`viewshed`'s normal mode, given that
+    value as ``target_height`` (kind 0) or ``observer_height`` (kind 1), says visible.
+    The float walk's bound is within a few thousand ulps; the zeros are checked in one
+    normal-mode pass, the others one vertex at a time (about 2 log2(ulps off) tests)."""
+    used = mip if algorithm == "dda_maxmip" else None
+    rows, cols = h.shape
+    zero = wanted & (out == 0)
+    if zero.any():
+        stats = TerrainStats(algorithm)
+        at0 = _viewshed_one(h, ox, oy, oh if kind == 0 else 0.0, 0.0 if kind == 0 else th,
+                            drop, algorithm, threads, used, stats, scale).ravel()
+        wanted = wanted & ~(zero & at0)
+    todo = np.flatnonzero(wanted)
+    if not len(todo):
+        return
+    hl = h.tolist()
+    buf = np.empty(rows * cols, dtype=np.uint8)
+    for v in todo:
+        v = int(v)
+        if kind == 0:
+            def seen(g):
+                return _seen_one(h, hl, used, ox, oy, oh, g / z_scale, drop, scale, v, buf)
+        else:
+            def seen(g):
+                return _seen_one(h, hl, used, ox, oy, g / z_scale, th, drop, scale, v, buf)
+        out[v] = _smallest_seen(float(out[v]), seen)
 
 
 def _touches_void(void, x, y):
@@ -1700,7 +1790,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
              curvature=False, refraction=DEFAULT_REFRACTION, *, algorithm=None,
              surface="triangles", spacing=None, earth_radius=WGS84_SEMI_MAJOR_AXIS_M,
              threads=None, progress=None, mode="normal", visible_value=None,
-             invisible_value=None, out_of_range_value=None):
+             invisible_value=None, out_of_range_value=None, exact=False):
     """Which vertices an observer sees, or what it would take to see them.
 
     Vertex v is visible when the segment from the eye E = (ox, oy, s(ox, oy) +
@@ -1721,7 +1811,13 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     it reads z0 >= N with N = max_k (sigma_k - z1 t_k) / (1 - t_k), so the smallest
     observer height >= 0 that sees the target top is ``max(0, N - s(ox, oy))``. At those
     heights the segment touches the surface, which counts as visible: the set of heights
-    that see v is exactly [threshold, inf). One C walk per vertex finds M or N, skipping
+    that see v is [threshold, inf). The walk computes M and N in float64, so the returned
+    threshold is within about 1e-9 (relative to the heights involved) of the exact one,
+    on either side: given back as ``target_height`` (``observer_height``) in the normal
+    mode, exactly at the threshold, the vertex may be reported invisible. With
+    ``exact=True`` the threshold is rounded to the smallest float64 at which the normal
+    mode says visible, so the set is exactly [threshold, inf) for the normal mode's test
+    (see ``exact``). One C walk per vertex finds M or N, skipping
     max-mipmap tiles that lie below the line the bound found so far defines
     (``cext/terrain.c``, ``hf_viewshed_threshold``); ``algos.terrain_ref`` holds the
     rational-arithmetic reference and the tests check both against brute force.
@@ -1742,7 +1838,8 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         the surface on the ray's first linear piece (the triangle the ray leaves the
         observer through, the peers' "observer's own cell") then does not block, and the
         rest is as above. For heights >= 0 that piece can never block, so the rule is the
-        same for every height. Not used with ``mode="observer"``, which computes it.
+        same for every height. Must be left out (None) with ``mode="observer"``, which
+        computes it.
     target_height : float
         The target above the surface, in the field's unit. Negative puts the target top
         below the ground; as for the eye, the ray's last linear piece (the target's own
@@ -1786,6 +1883,16 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         any of them returns these values instead of a bool; the others default to 1, 0
         and 0. ``out_of_range_value`` also applies to the other modes (default NaN
         there); the visible and invisible values do not.
+    exact : bool
+        Modes ``"ground"``, ``"dem"`` and ``"observer"``: round each threshold (in the
+        field's unit, the value returned; for ``"dem"`` the ground value, then added to
+        H(v)) to the smallest float64 g at which ``viewshed`` in the normal mode, given g
+        as ``target_height`` (``observer_height`` for ``"observer"``) and the same other
+        arguments, says visible: visible at g and, for g > 0, not at the next float64
+        below. The normal mode decides such touching lines of sight in rational
+        arithmetic, so this costs several rational walks per vertex with a positive
+        threshold (milliseconds each in Python): meant for small fields or windows.
+        Ignored by the other modes.
 
     Returns
     -------
@@ -1794,8 +1901,9 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
           (the count of observers that see the vertex). A void vertex is False (0): the
           field's ``nodata_mask`` marks it, and writers store it as nodata.
         * ``"normal"`` with values: uint8 when all three values are integers in
-          [0, 254], voids 255 (:data:`VIEWSHED_UINT8_NODATA`, the files' nodata);
-          otherwise float64, voids NaN.
+          [0, 254], voids 255 (:data:`VIEWSHED_UINT8_NODATA`, the files' nodata;
+          a DataArray records it as its nodata, ``rio.nodata`` with rioxarray, else
+          the ``_FillValue`` attribute); otherwise float64, voids NaN.
         * other modes: float64, voids NaN, out of range ``out_of_range_value``.
 
         A DataArray gives a DataArray, with the mode, unit and values as attributes.
@@ -1815,6 +1923,9 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     """
     if mode not in VIEWSHED_MODES:
         raise ValueError(f"mode: expected one of {', '.join(VIEWSHED_MODES)}, got {mode!r}")
+    if mode == "observer" and observer_height is not None:
+        raise ValueError(f"observer_height: mode='observer' computes the observer height; "
+                         f"leave observer_height out (None), got {observer_height!r}")
     values_given = any(v is not None for v in (visible_value, invisible_value,
                                                out_of_range_value))
     if mode != "normal":
@@ -1849,7 +1960,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
             f, observer, observer_height, target_height, max_distance, curvature, refraction,
             algorithm=algorithm, surface=surface, earth_radius=earth_radius, threads=threads,
             mode=mode, visible_value=visible_value, invisible_value=invisible_value,
-            out_of_range_value=out_of_range_value), "viewshed", attrs)
+            out_of_range_value=out_of_range_value, exact=exact), "viewshed", attrs)
     if is_dask(heights) or (isinstance(heights, HeightField) and is_dask(heights.heights)):
         if mode != "normal" or values_given:
             raise ValueError(f"mode: the tiled (dask) viewshed gives visibility only (mode "
@@ -1886,6 +1997,8 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         raise ValueError(f"target_height: mode={mode!r} computes the target height; leave "
                          f"target_height at 0, got {target_height!r}")
     md = check_length(max_distance, "max_distance")
+    if not isinstance(exact, (bool, np.bool_)):
+        raise TypeError(f"exact: expected a bool, got {exact!r}")
     if not isinstance(curvature, (bool, np.bool_)):
         raise TypeError(f"curvature: expected a bool, got {curvature!r}")
     drop = 0.0
@@ -1949,8 +2062,19 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
                 dist = np.hypot((ii - ox) * grid.dx, (jj - oy) * grid.dy) / grid.z_scale
                 out = np.arctan2(h + th - sink - z0, dist)
         if mode != "angle":
-            out = out * grid.z_scale
-        out = np.where(in_range(ox, oy), out, ov)
+            out = np.ascontiguousarray(out * grid.z_scale)
+        within = in_range(ox, oy)
+        if mode in ("ground", "dem", "observer") and exact:
+            if mode == "dem":
+                out = np.ascontiguousarray(need * grid.z_scale)
+            wanted = within if grid.void is None else within & ~grid.void
+            valid = h if grid.void is None else np.where(grid.void, h[~grid.void].min(), h)
+            _exact_thresholds(out.ravel(), wanted.ravel(), h, ox, oy, oh, th, drop,
+                              0 if mode != "observer" else 1, grid.z_scale, algorithm, mip,
+                              _rounding_scale(valid), nthreads)
+            if mode == "dem":
+                out = h * grid.z_scale + out
+        out = np.where(within, out, ov)
         grid.voids_to(out, math.nan)
         if progress is not None:
             progress(1, 1)

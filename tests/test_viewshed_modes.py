@@ -150,12 +150,13 @@ def test_plain_and_mipmap_thresholds_agree_on_a_larger_field():
     rng = np.random.default_rng(8)
     h = np.cumsum(np.cumsum(rng.normal(size=(70, 90)), axis=0), axis=1) * 0.1
     for mode in ("ground", "observer"):
-        plain = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, algorithm="dda")
-        mip = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, algorithm="dda_maxmip")
+        oh = 2.0 if mode == "ground" else None  # mode observer computes the eye's height
+        plain = T.viewshed(h, (30.5, 41.25), oh, mode=mode, algorithm="dda")
+        mip = T.viewshed(h, (30.5, 41.25), oh, mode=mode, algorithm="dda_maxmip")
         assert T.LAST_STATS.skips > 0
         np.testing.assert_allclose(mip, plain, rtol=1e-12, atol=1e-9, err_msg=mode)
-        one = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, threads=1)
-        two = T.viewshed(h, (30.5, 41.25), 2.0, mode=mode, threads=2)
+        one = T.viewshed(h, (30.5, 41.25), oh, mode=mode, threads=1)
+        two = T.viewshed(h, (30.5, 41.25), oh, mode=mode, threads=2)
         assert np.array_equal(one, two), mode
 
 
@@ -525,3 +526,128 @@ def test_one_row_dataarray_is_refused_with_the_way_out():
     with pytest.raises(ValueError, match="one-row or one-column DataArray .* spacing"):
         T.viewshed(r, (2, 0), 5)
     assert T.viewshed(np.asarray(r), (2, 0), 5, spacing=(1.0, 1.0)).all()
+
+
+# ---- exact thresholds: the normal mode sees a vertex exactly from its threshold up ----------
+
+def round_trip_case(seed):
+    """A seeded field (float32 or float64, spacing 1, 30 or 0.5, sometimes voids), an
+    observer off the voids, an observer height (negative too) and a max_distance."""
+    rng = np.random.default_rng(5000 + seed)
+    rows, cols = 9, 10
+    h = rng.random((rows, cols)) * 50
+    if seed % 3 == 1:
+        h[rng.random((rows, cols)) < 0.1] = np.nan
+    h = h.astype(np.float32 if seed % 2 else np.float64)
+    for _ in range(100):
+        ox, oy = float(rng.integers(0, 4 * (cols - 1)) / 4), float(rng.integers(0, 4 * (rows - 1)) / 4)
+        if not T._touches_void(np.isnan(h), ox, oy):
+            break
+    spacing = (1.0, 30.0, 0.5)[seed % 3]
+    oh = (1.5, -0.7, 0.0, 6.0)[seed % 4]
+    md = None if seed % 4 == 3 else spacing * float(rng.integers(4, 9))
+    return T.HeightField(h, spacing=spacing, unit="m"), (ox, oy), oh, md
+
+
+@pytest.mark.parametrize("mode", ["ground", "dem", "observer"])
+@pytest.mark.parametrize("seed", range(6))
+def test_exact_thresholds_round_trip_through_the_normal_mode(seed, mode):
+    field, observer, oh, md = round_trip_case(seed)
+    th = 0.8 if mode == "observer" else 0.0
+    heights = np.asarray(field.heights, dtype=np.float64)
+    kw = dict(max_distance=md)
+    if mode == "observer":
+        got = T.viewshed(field, observer, target_height=th, mode=mode, exact=True, **kw)
+        rough = T.viewshed(field, observer, target_height=th, mode=mode, **kw)
+    else:
+        got = T.viewshed(field, observer, oh, mode=mode, exact=True, **kw)
+        rough = T.viewshed(field, observer, oh, mode=mode, **kw)
+    # the rounding moves the float walk's value by a few ulps only
+    np.testing.assert_allclose(got, rough, rtol=1e-9, atol=1e-9)
+    ground = got
+    if mode == "dem":
+        ground = T.viewshed(field, observer, oh, mode="ground", exact=True, **kw)
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(ground))
+        ok = ~np.isnan(got)
+        np.testing.assert_allclose(got[ok], heights[ok] + ground[ok], rtol=1e-15, atol=1e-12)
+    checked = blocked = 0
+    rows, cols = heights.shape
+    for j in range(rows):
+        for i in range(cols):
+            g = ground[j, i]
+            if np.isnan(g):
+                continue
+            assert g >= 0
+            below = np.nextafter(g, -np.inf)
+            if mode == "observer":
+                def sees(x):
+                    return T.viewshed(field, observer, x, th, **kw)[j, i]
+            else:
+                def sees(x):
+                    return T.viewshed(field, observer, oh, x, **kw)[j, i]
+            why = f"seed {seed} mode {mode} vertex ({i}, {j}) threshold {g!r}"
+            assert sees(g), why
+            if g > 0:
+                blocked += 1
+                assert not sees(below), why
+            checked += 1
+    assert checked > 20 and blocked > 5, (checked, blocked)
+
+
+def test_exact_thresholds_fix_the_reported_wall():
+    h = np.zeros((3, 64))
+    h[:, 30] = 30
+    f = T.HeightField(h, spacing=30, unit="m")
+    g = T.viewshed(f, (10, 1), mode="ground", observer_height=1.5, exact=True)[1, 50]
+    assert abs(g - 58.5) < 1e-9
+    assert T.viewshed(f, (10, 1), observer_height=1.5, target_height=g)[1, 50]
+    assert not T.viewshed(f, (10, 1), observer_height=1.5,
+                          target_height=np.nextafter(g, 0))[1, 50]
+    with pytest.raises(TypeError, match="exact: expected a bool"):
+        T.viewshed(f, (10, 1), mode="ground", exact=1)
+
+
+def test_observer_mode_refuses_an_observer_height():
+    with pytest.raises(ValueError, match=r"observer_height: mode='observer' computes .* got 5"):
+        T.viewshed(np.zeros((4, 4)), (1, 1), 5, mode="observer")
+
+
+def test_uint8_dataarray_carries_nodata_255_and_writes_it(tmp_path):
+    rioxarray = pytest.importorskip("rioxarray")
+    _, path = _small_tif(tmp_path)
+    x = rioxarray.open_rasterio(path, masked=True).squeeze("band", drop=True)
+    v = T.viewshed(x, (6, 8), visible_value=2, invisible_value=1, out_of_range_value=0,
+                   max_distance=240)
+    assert v.dtype == np.uint8 and v.rio.nodata == T.VIEWSHED_UINT8_NODATA
+    assert v.values[3, 15] == 255 and (v.values == 255).sum() == 1
+    assert set(np.unique(v.values)) <= {0, 1, 2, 255}
+    out = str(tmp_path / "vs.tif")
+    v.rio.to_raster(out)
+    back = rioxarray.open_rasterio(out, masked=True).squeeze("band", drop=True)
+    assert np.isnan(back.values[3, 15]) and np.isfinite(back.values).sum() == back.size - 1
+    raw = rioxarray.open_rasterio(out).squeeze("band", drop=True)
+    assert raw.rio.nodata == 255
+    np.testing.assert_array_equal(raw.values, v.values)
+    # a float output keeps NaN voids; the bool map has no nodata (False there)
+    f = T.viewshed(x, (6, 8), visible_value=0.5, max_distance=240)
+    assert f.dtype == np.float64 and np.isnan(f.rio.nodata)
+    assert T.viewshed(x, (6, 8), max_distance=240).rio.nodata is None
+
+
+def test_uint8_dataarray_without_crs_has_a_fill_value():
+    xr = pytest.importorskip("xarray")
+    r = xr.DataArray(np.zeros((6, 8)), coords=dict(x=np.arange(8.0), y=np.arange(6.0)),
+                     dims=["y", "x"])
+    v = T.viewshed(r, (3.0, 2.0), 1.0, visible_value=3)
+    assert v.dtype == np.uint8
+    fill = v.rio.nodata if hasattr(v, "rio") else v.attrs["_FillValue"]
+    assert fill == T.VIEWSHED_UINT8_NODATA
+
+
+def test_cli_refuses_a_non_finite_observer_height(tmp_path, capsys):
+    _, path = _small_tif(tmp_path)
+    for value in ("nan", "inf"):
+        code, cap = _run(["viewshed", path, "--observer-pixel", "6,8", "--no-progress",
+                          "--observer-height", value, "--out", str(tmp_path / "x")], capsys)
+        assert code == 2, cap.err
+        assert f"--observer-height: the observer height is not finite, got {value}" in cap.err

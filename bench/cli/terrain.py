@@ -157,6 +157,9 @@ def check_options(args):
     1.75 unless ``--mode observer`` computes it)."""
     if args.command == "viewshed":
         values = _viewshed_values(args)
+        if args.observer_height is not None and not math.isfinite(args.observer_height):
+            raise ValueError(f"--observer-height: the observer height is not finite, got "
+                             f"{args.observer_height!r}")
         if args.mode == "observer":
             if args.observer_height is not None:
                 raise ValueError("--observer-height: --mode observer computes the observer "
