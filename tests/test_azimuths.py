@@ -179,7 +179,7 @@ def test_sky_view_factor_from_tangents_equals_angle_form():
     (lambda: T.snap_azimuths([1.0], 0), "max_denominator"),
     (lambda: T.snap_azimuths([1.0], T.MAX_SNAP_DENOMINATOR + 1), "max_denominator"),
     (lambda: T.snap_azimuths([1.0, float("nan")], 5), r"azimuths\[1\]"),
-    (lambda: T.horizon(np.zeros((3, 3)), [1.0], snap_denominator=True), "max_denominator"),
+    (lambda: T.horizon(np.zeros((3, 3)), [1.0], snap_denominator=True), "snap_denominator"),
 ])
 def test_bad_snapping_raises_naming_the_argument(call, match):
     with pytest.raises((ValueError, TypeError), match=match):
