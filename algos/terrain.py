@@ -1340,7 +1340,13 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
                        spacing=spacing, threads=threads, progress=progress, _tangents=True,
                        **curve)
     _record_snap(snap)
-    return 1.0 - np.mean(_sin_of_positive_atan(tangents), axis=0)
+    # one azimuth at a time, so each pass stays in the cache (the layers summed in order,
+    # as np.mean over the first axis does)
+    total = _sin_of_positive_atan(tangents[0])
+    for k in range(1, len(tangents)):
+        total += _sin_of_positive_atan(tangents[k])
+    total /= len(tangents)
+    return 1.0 - total
 
 
 def _sin_of_positive_atan(x):
