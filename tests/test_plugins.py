@@ -323,6 +323,11 @@ def test_reproduce_presets_and_new_run_directory(tmp_path, monkeypatch, quiet_fl
     head = R.preset()
     assert head.workloads == ["first_hit"] and head.surfaces == ["triangles"]
     assert len(groups(head)) == 24 and len(groups(R.preset(name="standard"))) == 144
+    # every registered intersector but those the headline leaves out (bit-identical to
+    # dda_maxmip, or the C Embree peer), which the standard and full presets keep
+    assert "dda_maxmip" in head.algorithms and "embree" in head.algorithms
+    assert not set(R.HEADLINE_LEAVES_OUT) & set(head.algorithms)
+    assert R.preset(name="standard").algorithms is None
     assert R.preset(full=True).rays == 3000
     with pytest.raises(ValueError, match="--preset: unknown preset 'quick'"):
         R.preset(name="quick")
