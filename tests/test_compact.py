@@ -246,7 +246,9 @@ def test_study_quick_tier_writes_table_and_plot(tmp_path):
     assert "`dda_compact`" in table and "uptime" in table
 
 
-@pytest.mark.skipif(__import__("shutil").which("valgrind") is None, reason="needs valgrind")
+@pytest.mark.skipif(__import__("shutil").which("valgrind") is None
+                    or "libasan" in __import__("os").environ.get("LD_PRELOAD", ""),
+                    reason="needs valgrind (and no preloaded sanitizer runtime)")
 def test_callgrind_cache_counts_are_per_ray_and_exact():
     """callgrind's cache simulation: exact instructions and data accesses per ray for both
     kernels, misses within a few per cent across runs (they depend on where the arrays
