@@ -4,7 +4,7 @@
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
 #   make bench-ci   the pytest-benchmark suite (pytest bench/benchmarks --benchmark-only)
 #   make terrain-bench  the terrain products' targets against the peers (results/terrain-bench)
-#   make targets    issue 22's targets table, full tier (hftrace targets --full: results/targets;
+#   make targets    the kernel round's targets table, full tier (hftrace targets --full: results/targets;
 #                   an hour or more, on a quiet machine)
 #   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
 #   make regress-counts  instruction counts (callgrind) against bench/regress/instructions_baseline.json
