@@ -5,7 +5,6 @@ autosummary generates from the numpydoc docstrings of every name in ``algos.__al
 ``datasets_gen.__all__``, and a gallery (sphinx-gallery) of the scripts in
 examples/gallery/, which run at build time.
 """
-import inspect
 import os
 import shutil
 import sys
@@ -14,8 +13,8 @@ DOCS = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(DOCS)
 sys.path.insert(0, ROOT)
 
-import algos  # noqa: E402
-import datasets_gen  # noqa: E402
+sys.path.insert(0, DOCS)
+import api_reference  # noqa: E402
 
 project = "hftrace"
 author = "hftrace developers"
@@ -70,65 +69,6 @@ sphinx_gallery_conf = {
 }
 
 
-def _api_page():
-    """Write api/index.rst: one autosummary table per package, listing every name of its
-    ``__all__`` through the package (``algos.X``), so that moving a module inside a package
-    changes nothing here."""
-    sections = []
-    # id of a class or function -> the one public name that documents it: the first name
-    # equal to its own __name__ (algos.HeightField rather than its alias algos.Field)
-    documented = {}
-    for package in (algos, datasets_gen):
-        for name in package.__all__:
-            obj = getattr(package, name)
-            if inspect.isclass(obj) or inspect.isfunction(obj):
-                if id(obj) not in documented or (name == obj.__name__ and not documented[id(obj)][1]):
-                    documented[id(obj)] = (f"{package.__name__}.{name}", name == obj.__name__)
-    for package in (algos, datasets_gen):
-        names = list(package.__all__)
-        kinds = {"Functions and classes": [], "Modules": [], "Constants and tables": []}
-        aliases = []
-        for name in names:
-            obj = getattr(package, name)
-            full = f"{package.__name__}.{name}"
-            if (inspect.isclass(obj) or inspect.isfunction(obj)) and documented[id(obj)][0] != full:
-                aliases.append(f"- ``{full}`` is :py:obj:`{documented[id(obj)][0]}`.")
-                continue
-            if inspect.ismodule(obj):
-                kinds["Modules"].append(name)
-            elif inspect.isclass(obj) or callable(obj):
-                kinds["Functions and classes"].append(name)
-            else:
-                kinds["Constants and tables"].append(name)
-        title = f"``{package.__name__}``"
-        body = [title, "=" * len(title), "", f".. automodule:: {package.__name__}",
-                "   :no-members:", "", f".. currentmodule:: {package.__name__}", ""]
-        for kind, members in kinds.items():
-            if not members:
-                continue
-            body += [kind, "-" * len(kind), "", ".. autosummary::", "   :toctree: generated",
-                     "   :nosignatures:", ""]
-            body += [f"   {name}" for name in members]
-            body.append("")
-        if aliases:
-            body += ["Other names", "-----------", "", "The same objects, also public under these names:",
-                     ""] + aliases + [""]
-        sections.append("\n".join(body))
-    header = ("API reference\n=============\n\n"
-              "Every public name of ``algos`` and ``datasets_gen`` (their ``__all__``), "
-              "documented from its docstring.\n\n.. toctree::\n   :maxdepth: 1\n\n"
-              "   algos\n   datasets_gen\n")
-    shutil.rmtree(os.path.join(DOCS, "api", "generated"), ignore_errors=True)  # no stale stubs
-    os.makedirs(os.path.join(DOCS, "api"), exist_ok=True)
-    pages = {"index.rst": header, "algos.rst": sections[0], "datasets_gen.rst": sections[1]}
-    for page, text in pages.items():
-        path = os.path.join(DOCS, "api", page)
-        old = open(path).read() if os.path.exists(path) else None
-        if old != text:  # unchanged pages keep their time stamp (no needless rebuild)
-            with open(path, "w") as f:
-                f.write(text)
-
-
-_api_page()
+api_reference.write(DOCS)
 # the gallery is rebuilt from its sources every time: no page of a removed example remains
 shutil.rmtree(os.path.join(DOCS, "auto_examples"), ignore_errors=True)

@@ -138,3 +138,23 @@ def test_readme_is_a_front_door():
     text = "\n".join(lines)
     for command in ("make reproduce", "make test"):
         assert command in text, command
+
+
+def test_api_reference_lists_every_public_name():
+    """The generated API reference names every entry of ``algos.__all__`` and
+    ``datasets_gen.__all__`` (an alias as the object it names)."""
+    import importlib.util
+
+    import algos
+    import datasets_gen
+
+    spec = importlib.util.spec_from_file_location("api_reference", os.path.join(ROOT, "docs", "api_reference.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    pages = module.pages()
+    for package in (algos, datasets_gen):
+        text = pages[f"{package.__name__}.rst"]
+        listed = set(re.findall(r"^   (\w+)$", text, re.M))
+        listed |= set(re.findall(rf"``{package.__name__}\.(\w+)`` is", text))
+        missing = sorted(set(package.__all__) - listed)
+        assert not missing, f"{package.__name__}: not in the API reference: {missing}"
