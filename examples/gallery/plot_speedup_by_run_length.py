@@ -3,8 +3,9 @@ Speedup by run length
 =====================
 
 Henning & Stephenson (2004) walk a ray across a grid run by run instead of cell by cell,
-and measure the gain by the ray's *mean run length* ``r``: the number of cells per row a
-ray of azimuth ``atan(1/r)`` crosses. This example runs a small version of that sweep:
+and measure the gain by the ray's *mean run length* ``r``: the mean number of cells of a
+run, a stretch of consecutive cells with one minor index. A ray at azimuth ``atan(1/r)``
+from its major axis has mean run length ``r``. This example runs a small version of that sweep:
 first hits on the two-triangle surface of a 256 x 256 fBm field, 1000 rays per run length,
 for the cell DDA (Amanatides & Woo 1987), the exact run walk and the two max-mipmap walks
 (Tevs, Ihrke & Seidel 2008).
