@@ -4,7 +4,7 @@
 >>> algos.reference_cells((0.5, 0.5), (2, 3), (4, 4))
 [(0, 0), (0, 1), (1, 1), (1, 2), (2, 2), (2, 3)]
 
-See docs/CONVENTIONS.md (mirrored in README.md) for the grid, the cell rules and the API.
+See docs/CONVENTIONS.md for the grid, the cell rules and the API.
 """
 from . import raster
 from .brute import brute_force_hits
