@@ -1,7 +1,10 @@
 """Your own kernel in every table: register a traversal or a first-hit intersector.
 
-Three ways in, one treatment (``hftrace list``, sweeps, ``reproduce --kernels``, the
-plots, the agreement check against the exact reference, ``regress``):
+Three ways in, one treatment: the public calls (``algos.traverse``, ``algos.intersect``,
+``algos.render``), ``hftrace list``, sweeps, ``reproduce --kernels``, the plots (an
+``exact=False`` kernel is drawn dashed), the agreement check against the exact reference
+and ``regress``. The terrain products (horizon, shadows, sky-view factor, openness,
+viewshed) run their own exact sweeps, not an intersector, so plugins do not reach them.
 
 * **Python** (plain, NumPy or Numba callables): :func:`register_traversal` and
   :func:`register_intersector`. The harness times the call with ``time.monotonic_ns``
@@ -17,17 +20,35 @@ plots, the agreement check against the exact reference, ``regress``):
   show their kernels. The entry point is a callable taking no argument, or a C plugin's
   path (a ``str`` or ``os.PathLike``).
 
+Every failure to load a plugin (a registering function that raises, a library that
+cannot be loaded or whose ``hftrace_plugin()`` returns NULL) is a :class:`PluginError`
+whose message is one line naming the plugin; the ``hftrace`` command prints it without a
+traceback on every route (``--plugin``, a config's ``plugins``, entry points).
+
 Signatures (shapes in the project's conventions, ``docs/CONVENTIONS.md``):
 
 * traversal ``fn(origins, directions, shape) -> checksums or cells``: ``origins``,
   ``directions`` (N, 2) float64, ``shape`` = (nx, ny) cells; return either the per-ray
   visit checksums, (N,) uint64 (the fold :func:`fold_cells` computes), or a sequence of N
   integer arrays of shape (k, 2) holding the visited cells (i, j) in order, which the
-  harness folds after the timed call.
+  harness folds after the timed call. The rays run over ``[0, inf)``. Only a kernel that
+  returns the cells serves ``algos.traverse`` (every output: the runs are grouped from
+  the cells, each ray's major axis the larger ``|d|``, x on a tie); a ``tmin``/``tmax``
+  there is refused, since the signature takes no ray range.
 * first hit ``fn(heights, origins, directions[, surface=...]) -> t``: ``heights``
   (rows, cols) float32, ``H[j, i]`` in cell units; ``origins``, ``directions`` (N, 3)
   float64; returns (N,) float ray parameters of the first hit, ``inf`` (or NaN) on a
   miss. ``surface`` is passed as a keyword only when the kernel registered more than one.
+  In ``algos.intersect`` the hit ``cell`` is the cell holding the hit point by the
+  half-open rule toward the direction of travel (a hit exactly on a cell border is given
+  the cell the ray enters there), and the ``normal`` is the up-facing normal of the
+  surface there (``triangles`` and ``bilinear`` only: ``flat`` and ``plane3`` have walls,
+  whose hits the returned ``t`` alone cannot tell from a top); ``stats`` and a ray range
+  are refused.
+* C: the kernels of ``cext/hftrace_plugin.h``; a traversal library that also exports
+  ``hftrace_traverse_cells`` serves ``algos.traverse``, one without it only sweeps. A
+  first-hit library serves ``algos.intersect`` with ``tmin``/``tmax`` and its own hit
+  cells; normals as for Python kernels.
 
 A kernel that raises, returns a non-zero status (C) or takes longer than its time limit
 in one call gets an error in its row; the other kernels' rows are kept. ``hftrace sweep
@@ -37,7 +58,12 @@ contained too.
 from __future__ import annotations
 
 import ctypes
+import hashlib
+import importlib
 import os
+import shutil
+import sys
+import tempfile
 import time
 from dataclasses import dataclass
 
@@ -46,7 +72,8 @@ import numpy as np
 from . import registry
 
 __all__ = ["register_traversal", "register_intersector", "load_c_plugin", "unregister",
-           "load_entry_points", "fold_cells", "is_plugin", "plugin_names", "PluginError",
+           "load_entry_points", "load_plugin_spec", "fold_cells", "is_plugin", "plugin_names",
+           "traversal_cells", "first_hits", "surface_normals", "PluginError",
            "DEFAULT_TIME_LIMIT", "ENTRY_POINT_GROUP", "PLUGIN_ABI"]
 
 #: The entry-point group a package declares its kernels in.
@@ -59,7 +86,8 @@ _MASK = (1 << 64) - 1
 
 
 class PluginError(RuntimeError):
-    """A plugin kernel failed: a non-zero status, a wrong output shape or a bad library."""
+    """A plugin kernel failed: a non-zero status, a wrong output shape, a bad library, or a
+    registering function that raised. The message is one line naming the plugin."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +106,12 @@ class Plugin:
     time_limit : float
         Seconds one call may take.
     path : str
-        The shared library of a C plugin ("" for Python).
+        The shared library of a C plugin as given ("" for Python).
+    loaded_from : str
+        The private copy of that library that was loaded (named by its content hash, so
+        a library rebuilt at ``path`` and loaded again runs its new code).
+    cells_fn : callable or None
+        A C traversal's ``hftrace_traverse_cells`` (None when it does not export one).
     """
 
     fn: object
@@ -86,6 +119,20 @@ class Plugin:
     exact: bool
     time_limit: float = DEFAULT_TIME_LIMIT
     path: str = ""
+    loaded_from: str = ""
+    cells_fn: object = None
+
+    def describe(self, name) -> str:
+        """``'name' (C plugin /path/lib.so)`` or ``'name' (Python plugin)``: how errors
+        name the kernel."""
+        if self.language == "c":
+            return f"{name!r} (C plugin {self.path})"
+        return f"{name!r} (Python plugin)"
+
+
+def _one_line(exc) -> str:
+    """An exception's text on one line (a plugin's message may span several)."""
+    return " ".join(str(exc).split())
 
 
 def _check_name(name):
@@ -106,14 +153,6 @@ def _check_limit(time_limit):
             not time_limit > 0:
         raise ValueError(f"time_limit: expected seconds > 0, got {time_limit!r}")
     return float(time_limit)
-
-
-def _publish():
-    """Refresh the name tuples, in the registry module and in ``algos``."""
-    import algos
-
-    registry.TRAVERSALS = algos.TRAVERSALS = tuple(registry.TRAVERSAL_REGISTRY)
-    registry.INTERSECTORS = algos.INTERSECTORS = tuple(registry.INTERSECTOR_REGISTRY)
 
 
 def register_traversal(name, fn, exact=False, summary="", citation="", time_limit=None,
@@ -152,7 +191,6 @@ def register_traversal(name, fn, exact=False, summary="", citation="", time_limi
                                citation=citation, summary=summary or f"plugin ({plugin.language})",
                                plugin=plugin)
     registry.TRAVERSAL_REGISTRY[name] = entry
-    _publish()
     return entry
 
 
@@ -201,7 +239,6 @@ def register_intersector(name, fn, exact=False, surfaces=("triangles",), summary
                                  summary=summary or f"plugin ({plugin.language})",
                                  citation=citation, plugin=plugin)
     registry.INTERSECTOR_REGISTRY[name] = entry
-    _publish()
     return entry
 
 
@@ -221,7 +258,6 @@ def unregister(name):
             found = True
     if not found:
         raise ValueError(f"name: {name!r} is not a registered plugin")
-    _publish()
 
 
 def is_plugin(name, workload="first_hit") -> bool:
@@ -264,6 +300,246 @@ def _checksums(result, n, name):
     if len(paths) != n:
         raise PluginError(f"{name}: returned {len(paths)} paths for {n} rays")
     return np.array([fold_cells(p) for p in paths], dtype=np.uint64)
+
+
+# ---- the public calls (algos.traverse, algos.intersect) --------------------------------
+def _refuse_range(plugin, name, tmin, tmax):
+    """A Python kernel's signature takes no ray range: a given one is refused, not dropped."""
+    for arg, value in (("tmin", tmin), ("tmax", tmax)):
+        if value is not None:
+            raise ValueError(f"{arg}: kernel {plugin.describe(name)} takes no ray range (its "
+                             "signature is fn(origins, directions, ...) over [0, inf)); "
+                             "leave tmin and tmax unset")
+
+
+def _checked_paths(paths, n, nx, ny, name):
+    """A traversal plugin's N cell arrays as (offsets (N+1,) int64, cells (M, 2) int32);
+    PluginError naming the ray when one is not (k, 2) integers inside the grid."""
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    parts = []
+    for k, path in enumerate(paths):
+        cells = np.asarray(path)
+        if cells.size == 0:
+            cells = np.zeros((0, 2), dtype=np.int64)
+        if cells.ndim != 2 or cells.shape[1] != 2 or cells.dtype.kind not in "iu":
+            raise PluginError(f"{name}: ray {k}: returned cells of shape {cells.shape} and "
+                              f"dtype {cells.dtype}; expected (k, 2) integers (i, j)")
+        inside = (cells[:, 0] >= 0) & (cells[:, 0] < nx) & (cells[:, 1] >= 0) & (cells[:, 1] < ny)
+        if not inside.all():
+            i, j = (int(v) for v in cells[int(np.argmin(inside))])
+            raise PluginError(f"{name}: ray {k}: returned cell ({i}, {j}) outside the grid of "
+                              f"{nx} x {ny} cells")
+        offsets[k + 1] = offsets[k] + len(cells)
+        parts.append(cells.astype(np.int32))
+    cells = np.concatenate(parts) if parts else np.zeros((0, 2), dtype=np.int32)
+    return offsets, cells.reshape(-1, 2)
+
+
+def traversal_cells(name, origins, directions, shape, tmin=None, tmax=None):
+    """The visited cells of a traversal plugin, for ``algos.traverse`` (inputs already
+    validated: (N, 2) float64 rays, ``shape`` = (nx, ny), ``tmin``/``tmax`` None or (N,)).
+
+    Returns
+    -------
+    offsets : ndarray of int64, shape (N + 1,)
+    cells : ndarray of int32, shape (M, 2)
+        Ray k's cells (i, j) in visiting order are ``cells[offsets[k]:offsets[k+1]]``.
+
+    Raises
+    ------
+    ValueError
+        The kernel cannot serve the call: a Python kernel given a ray range, or a C
+        library that does not export ``hftrace_traverse_cells``. The message names the
+        kernel and what it lacks.
+    PluginError
+        The kernel raised, returned a non-zero status, checksums only, or cells that are
+        not (k, 2) integers inside the grid.
+    """
+    plugin = registry.TRAVERSAL_REGISTRY[name].plugin
+    nx, ny = int(shape[0]), int(shape[1])
+    n = len(origins)
+    o = np.ascontiguousarray(origins, dtype=np.float64)
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    if plugin.language == "c":
+        if plugin.cells_fn is None:
+            raise ValueError(f"name: kernel {plugin.describe(name)} does not export "
+                             "hftrace_traverse_cells, so it gives visit checksums only (what "
+                             "sweeps time), not the cells algos.traverse returns "
+                             "(cext/hftrace_plugin.h)")
+        lo = None if tmin is None else np.ascontiguousarray(tmin, dtype=np.float64)
+        hi = None if tmax is None else np.ascontiguousarray(tmax, dtype=np.float64)
+        sums = np.zeros(n, dtype=np.uint64)
+        counts = np.zeros(n, dtype=np.int64)
+        status = plugin.fn(ctypes.c_int64(nx), ctypes.c_int64(ny), ctypes.c_int64(n), _ptr(o),
+                           _ptr(d), _ptr_or_null(lo), _ptr_or_null(hi), _ptr(sums), _ptr(counts))
+        if status != 0:
+            raise PluginError(f"{name}: hftrace_traverse returned status {status}")
+        # a ray visits at most nx + ny - 1 cells: a larger count would overrun the buffer
+        longest = nx + ny - 1
+        bad = (counts < 0) | (counts > longest)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise PluginError(f"{name}: hftrace_traverse counted {int(counts[k])} cells for "
+                              f"ray {k}; a ray visits 0 to {longest} cells of this grid")
+        offsets = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(counts, out=offsets[1:])
+        cells = np.full((int(offsets[-1]), 2), -1, dtype=np.int32)
+        status = plugin.cells_fn(ctypes.c_int64(nx), ctypes.c_int64(ny), ctypes.c_int64(n),
+                                 _ptr(o), _ptr(d), _ptr_or_null(lo), _ptr_or_null(hi),
+                                 _ptr(offsets), _ptr(cells))
+        if status != 0:
+            raise PluginError(f"{name}: hftrace_traverse_cells returned status {status}")
+        inside = (cells[:, 0] >= 0) & (cells[:, 0] < nx) & (cells[:, 1] >= 0) & (cells[:, 1] < ny)
+        if not inside.all():
+            m = int(np.argmin(inside))
+            k = int(np.searchsorted(offsets, m, side="right") - 1)
+            raise PluginError(f"{name}: hftrace_traverse_cells wrote cell "
+                              f"({int(cells[m, 0])}, {int(cells[m, 1])}) for ray {k}, outside "
+                              f"the grid of {nx} x {ny} cells (or fewer cells than "
+                              "hftrace_traverse counted)")
+        return offsets, cells
+    _refuse_range(plugin, name, tmin, tmax)
+    result = _call(plugin, name, o, d, (nx, ny))
+    if isinstance(result, np.ndarray) and result.ndim == 1 and result.dtype == np.uint64:
+        raise PluginError(f"{name}: returned visit checksums only; algos.traverse needs the "
+                          "visited cells (return N arrays of (i, j) cells)")
+    try:
+        paths = list(result)
+    except TypeError:
+        raise PluginError(f"{name}: returned {type(result).__name__}; expected N arrays of "
+                          "cells") from None
+    if len(paths) != n:
+        raise PluginError(f"{name}: returned {len(paths)} paths for {n} rays")
+    return _checked_paths(paths, n, nx, ny, name)
+
+
+def _call(plugin, name, *args, **kwargs):
+    """A Python kernel's call; what it raises becomes one PluginError line naming it."""
+    try:
+        return plugin.fn(*args, **kwargs)
+    except Exception as exc:
+        raise PluginError(f"{name}: the kernel raised {type(exc).__name__}: "
+                          f"{_one_line(exc)}") from None
+
+
+def first_hits(name, heights, origins, directions, surface, tmin=None, tmax=None):
+    """The first hits of a first-hit plugin, for ``algos.intersect`` (inputs validated:
+    ``heights`` (rows, cols) float32 in cell units, (N, 3) float64 rays, ``tmin``/``tmax``
+    None or (N,)).
+
+    Returns
+    -------
+    t : ndarray of float64, shape (N,)
+        ``inf`` on a miss (a kernel's NaN is read as a miss).
+    cell : ndarray of int32, shape (N, 2)
+        The C kernel's hit cells; for a Python kernel the cell holding the hit point by
+        the half-open rule toward the direction of travel (module docstring); ``(-1, -1)``
+        on a miss.
+
+    Raises
+    ------
+    ValueError
+        A Python kernel given a ray range (its signature takes none).
+    PluginError
+        The kernel raised, returned a non-zero status or a t of the wrong shape, or a
+        negative or out-of-range hit.
+    """
+    entry = registry.INTERSECTOR_REGISTRY[name]
+    plugin = entry.plugin
+    h = np.ascontiguousarray(heights, dtype=np.float32)
+    o = np.ascontiguousarray(origins, dtype=np.float64)
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    n = len(o)
+    rows, cols = h.shape
+    if plugin.language == "c":
+        lo = None if tmin is None else np.ascontiguousarray(tmin, dtype=np.float64)
+        hi = None if tmax is None else np.ascontiguousarray(tmax, dtype=np.float64)
+        t = np.full(n, np.inf)
+        cell = np.full((n, 2), -1, dtype=np.int32)
+        status = plugin.fn(_ptr(h), ctypes.c_int64(rows), ctypes.c_int64(cols),
+                           ctypes.c_int(registry.SURFACES.index(surface)), ctypes.c_int64(n),
+                           _ptr(o), _ptr(d), _ptr_or_null(lo), _ptr_or_null(hi), _ptr(t),
+                           _ptr(cell))
+        if status != 0:
+            raise PluginError(f"{name}: hftrace_first_hit returned status {status}")
+        t = np.where(np.isnan(t), np.inf, t)
+    else:
+        _refuse_range(plugin, name, tmin, tmax)
+        kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
+        out = _call(plugin, name, h, o, d, **kwargs)
+        try:
+            t = np.array(out, dtype=np.float64).reshape(-1) if np.ndim(out) == 1 else None
+        except (TypeError, ValueError):
+            t = None
+        if t is None or t.shape != (n,):
+            shape = getattr(out, "shape", type(out).__name__)
+            raise PluginError(f"{name}: returned t of shape {shape}; expected ({n},)")
+        t = np.where(np.isnan(t), np.inf, t)
+        cell = _cells_at(o, d, t, rows, cols)
+    hit = np.isfinite(t)
+    if (t < 0).any() or (t == -np.inf).any():
+        k = int(np.argmax(t < 0))
+        raise PluginError(f"{name}: returned t[{k}] = {t[k]!r}; a first hit has t >= 0")
+    cell[~hit] = -1
+    inside = (cell[hit, 0] >= 0) & (cell[hit, 0] < cols - 1) & (cell[hit, 1] >= 0) & \
+        (cell[hit, 1] < rows - 1)
+    if not inside.all():
+        k = int(np.flatnonzero(hit)[np.argmin(inside)])
+        raise PluginError(f"{name}: ray {k} hits cell ({int(cell[k, 0])}, {int(cell[k, 1])}), "
+                          f"outside the {cols - 1} x {rows - 1} cells of the field")
+    return t, cell
+
+
+def _cells_at(o, d, t, rows, cols):
+    """The cell (i, j) holding each hit point ``o + t d``, half-open toward the direction
+    of travel (a point on a border belongs to the cell the ray enters), clipped to the
+    field's cells; (-1, -1) where ``t`` is not finite."""
+    hit = np.isfinite(t)
+    point = o[:, :2] + np.where(hit, t, 0.0)[:, None] * d[:, :2]
+    index = np.where(d[:, :2] < 0, np.ceil(point) - 1, np.floor(point))
+    upper = np.array([cols - 2, rows - 2])
+    cell = np.clip(index, 0, upper).astype(np.int32)
+    cell[~hit] = -1
+    return cell
+
+
+def surface_normals(heights, surface, origins, directions, t, cell):
+    """The up-facing unit normal of ``surface`` at each hit point ``o + t d`` in its hit
+    cell, (N, 3) float64, NaN on a miss. Defined for the continuous surfaces
+    (``triangles``: the hit triangle's plane, ``u >= v`` the lower one; ``bilinear``: the
+    gradient of the patch), which have no walls.
+
+    Raises
+    ------
+    ValueError
+        ``flat`` or ``plane3``: a hit there may lie on a wall, which ``t`` alone does not
+        tell from the top.
+    """
+    if surface not in ("triangles", "bilinear"):
+        raise ValueError(f"outputs: the 'normal' of a plugin's hit is computed on the "
+                         f"continuous surfaces only (triangles, bilinear), not {surface!r}, "
+                         "whose hits may lie on walls")
+    h = np.asarray(heights, dtype=np.float64)
+    n = len(t)
+    normal = np.full((n, 3), np.nan)
+    hit = np.isfinite(t)
+    if not hit.any():
+        return normal
+    i, j = cell[hit, 0].astype(np.int64), cell[hit, 1].astype(np.int64)
+    point = origins[hit, :2] + t[hit, None] * directions[hit, :2]
+    u = np.clip(point[:, 0] - i, 0.0, 1.0)
+    v = np.clip(point[:, 1] - j, 0.0, 1.0)
+    h00, h10, h01, h11 = h[j, i], h[j, i + 1], h[j + 1, i], h[j + 1, i + 1]
+    if surface == "triangles":
+        lower = u >= v
+        gx = np.where(lower, h10 - h00, h11 - h01)
+        gy = np.where(lower, h11 - h10, h01 - h00)
+    else:
+        gx = (h10 - h00) * (1 - v) + (h11 - h01) * v
+        gy = (h01 - h00) * (1 - u) + (h11 - h10) * u
+    up = np.stack([-gx, -gy, np.ones_like(gx)], axis=1)
+    normal[hit] = up / np.linalg.norm(up, axis=1)[:, None]
+    return normal
 
 
 # ---- timed calls (bench.sweep) ----------------------------------------------------------
@@ -353,6 +629,10 @@ def _ptr(a):
     return a.ctypes.data_as(ctypes.c_void_p)
 
 
+def _ptr_or_null(a):
+    return None if a is None else _ptr(a)
+
+
 # ---- C plugins ----------------------------------------------------------------------------
 class _Info(ctypes.Structure):
     _fields_ = [("abi", ctypes.c_int), ("name", ctypes.c_char_p), ("kind", ctypes.c_char_p),
@@ -361,12 +641,12 @@ class _Info(ctypes.Structure):
 
 
 def _exported(lib, symbol, kind, path):
-    """The function ``symbol`` of a plugin library, or ValueError naming what is missing."""
+    """The function ``symbol`` of a plugin library, or PluginError naming what is missing."""
     try:
         return getattr(lib, symbol)
     except AttributeError:
-        raise ValueError(f"path: {path} declares kind {kind} but does not export "
-                         f"{symbol}") from None
+        raise PluginError(f"C plugin {path}: declares kind {kind} but does not export "
+                          f"{symbol}") from None
 
 
 def load_c_plugin(path, name=None, time_limit=None):
@@ -389,65 +669,157 @@ def load_c_plugin(path, name=None, time_limit=None):
     Raises
     ------
     ValueError
-        The file does not exist or cannot be loaded, misses a symbol, or declares another
-        ABI version or an unknown kind.
+        The file does not exist.
+    PluginError
+        It cannot be loaded, misses a symbol, its ``hftrace_plugin()`` returns NULL, or
+        it declares another ABI version or an unknown kind (one line naming the path).
+
+    Notes
+    -----
+    The library is loaded from a private copy named by its content hash
+    (:func:`_private_copy`): a library rebuilt at the same path and loaded again in the
+    same process runs its new code, and re-registers the kernel.
     """
     path = os.path.abspath(os.fspath(path))
     if not os.path.isfile(path):
         raise ValueError(f"path: {path} does not exist")
+    private = _private_copy(path)
     try:
-        lib = ctypes.CDLL(path)
+        lib = ctypes.CDLL(private)
     except OSError as exc:
-        raise ValueError(f"path: cannot load {path} ({exc})") from None
+        raise PluginError(f"C plugin {path}: cannot load it ({exc})") from None
     try:
         info_fn = lib.hftrace_plugin
     except AttributeError:
-        raise ValueError(f"path: {path} does not export hftrace_plugin() "
-                         "(cext/hftrace_plugin.h)") from None
+        raise PluginError(f"C plugin {path}: does not export hftrace_plugin() "
+                          "(cext/hftrace_plugin.h)") from None
     info_fn.restype = ctypes.POINTER(_Info)
-    info = info_fn().contents
+    info_fn.argtypes = []
+    pointer = info_fn()
+    if not pointer:
+        raise PluginError(f"C plugin {path}: hftrace_plugin() returned NULL; it must return "
+                          "a pointer to a static hftrace_plugin_info")
+    info = pointer.contents
     if info.abi != PLUGIN_ABI:
-        raise ValueError(f"path: {path} declares plugin ABI {info.abi}; this hftrace "
-                         f"reads ABI {PLUGIN_ABI}")
-    kind = (info.kind or b"").decode()
-    name = name or (info.name or b"").decode()
-    summary = (info.summary or b"").decode() or f"C plugin {os.path.basename(path)}"
+        raise PluginError(f"C plugin {path}: declares plugin ABI {info.abi}; this hftrace "
+                          f"reads ABI {PLUGIN_ABI}")
+    kind = (info.kind or b"").decode(errors="replace")
+    name = name or (info.name or b"").decode(errors="replace")
+    if not name:
+        raise PluginError(f"C plugin {path}: its hftrace_plugin_info has no name")
+    summary = (info.summary or b"").decode(errors="replace") or \
+        f"C plugin {os.path.basename(path)}"
     limit = _check_limit(time_limit)
     if kind == "traversal":
         fn = _exported(lib, "hftrace_traverse", kind, path)
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 6
-        plugin = Plugin(fn, "c", bool(info.exact), limit, path)
+        cells_fn = getattr(lib, "hftrace_traverse_cells", None)
+        if cells_fn is not None:
+            cells_fn.restype = ctypes.c_int
+            cells_fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_int64] + \
+                [ctypes.c_void_p] * 6
+        plugin = Plugin(fn, "c", bool(info.exact), limit, path, private, cells_fn)
         return register_traversal(name, fn, plugin.exact, summary, _plugin=plugin)
     if kind == "first_hit":
         fn = _exported(lib, "hftrace_first_hit", kind, path)
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64, ctypes.c_int,
                        ctypes.c_int64] + [ctypes.c_void_p] * 6
-        surfaces = [s.strip() for s in (info.surfaces or b"triangles").decode().split(",") if s.strip()]
-        plugin = Plugin(fn, "c", bool(info.exact), limit, path)
+        surfaces = [s.strip() for s in (info.surfaces or b"triangles").decode().split(",")
+                    if s.strip()]
+        plugin = Plugin(fn, "c", bool(info.exact), limit, path, private)
         return register_intersector(name, fn, plugin.exact, surfaces, summary, _plugin=plugin)
-    raise ValueError(f"path: {path} declares kind {kind!r}; expected 'traversal' or 'first_hit'")
+    raise PluginError(f"C plugin {path}: declares kind {kind!r}; expected 'traversal' or "
+                      "'first_hit'")
 
 
-def load_plugin_spec(spec):
-    """Register what ``spec`` names: a C plugin's path (``*.so``, ``*.dylib``, ``*.dll``)
-    or ``module:callable`` (a Python function registering kernels). Returns the names
-    registered. ``ValueError`` names the spec when it cannot be loaded."""
+#: This process's private folder of loaded C plugins (made on first use, removed at exit)
+_COPIES = {"folder": None}
+
+
+def _private_copy(path) -> str:
+    """A copy of the library at ``path`` in this process's private folder, named by the
+    SHA-256 of its bytes. The dynamic loader caches libraries by path: loading a library
+    rebuilt at the same path again would return the old code. A new build has a new hash,
+    hence a new path, hence a fresh load; an unchanged one maps to the copy already loaded."""
+    with open(path, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()[:20]
+    if _COPIES["folder"] is None:
+        import atexit
+
+        _COPIES["folder"] = tempfile.mkdtemp(prefix="hftrace-plugins-")
+        atexit.register(shutil.rmtree, _COPIES["folder"], True)
+    stem, ext = os.path.splitext(os.path.basename(path))
+    copy = os.path.join(_COPIES["folder"], f"{stem}-{digest}{ext}")
+    if not os.path.exists(copy):
+        partial = copy + ".part"
+        shutil.copyfile(path, partial)
+        os.replace(partial, copy)
+    return copy
+
+
+def _import_callable(spec, bases):
+    """The object ``module:callable`` names, importing ``module`` from the folders
+    ``bases`` (the config's folder, the current directory) before ``sys.path``."""
+    module, _, attr = spec.partition(":")
+    added = [b for b in dict.fromkeys(os.path.abspath(b) for b in bases) if b not in sys.path]
+    sys.path[:0] = added
+    try:
+        try:
+            target = importlib.import_module(module)
+        except ImportError as exc:
+            where = ", ".join(added + ["sys.path"]) if added else "sys.path"
+            raise PluginError(f"plugin {spec}: cannot import {module} ({_one_line(exc)}; "
+                              f"looked in {where})") from None
+        except Exception as exc:
+            raise PluginError(f"plugin {spec}: importing {module} raised "
+                              f"{type(exc).__name__}: {_one_line(exc)}") from None
+    finally:
+        for b in added:
+            if b in sys.path:
+                sys.path.remove(b)
+    try:
+        obj = target
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except AttributeError:
+        raise PluginError(f"plugin {spec}: module {module} has no {attr}") from None
+    return obj
+
+
+def load_plugin_spec(spec, base=None):
+    """Register what ``spec`` names: a C plugin's path (``*.so``, ``*.dylib``, ``*.dll``),
+    relative to ``base`` (default the current directory), or ``module:callable`` (a
+    function registering kernels), the module looked up in ``base``, then the current
+    directory, then ``sys.path``. Returns the names registered.
+
+    Raises
+    ------
+    ValueError
+        ``spec`` is neither form.
+    PluginError
+        The plugin cannot be loaded, or its function raised: one line naming ``spec``.
+    """
     before = set(plugin_names())
-    if os.fspath(spec).endswith((".so", ".dylib", ".dll")):
-        load_c_plugin(spec)
+    text = os.fspath(spec)
+    if text.endswith((".so", ".dylib", ".dll")):
+        if base and not os.path.isabs(text):
+            text = os.path.join(base, text)
+        try:
+            load_c_plugin(text)
+        except ValueError as exc:
+            raise PluginError(f"plugin {spec}: {_one_line(exc)}") from None
     else:
-        module, sep, attr = str(spec).partition(":")
+        module, sep, attr = str(text).partition(":")
         if not sep or not module or not attr:
             raise ValueError(f"--plugin: expected a library path or module:callable, got {spec!r}")
-        import importlib
-
+        target = _import_callable(text, [b for b in (base, os.getcwd()) if b])
         try:
-            target = getattr(importlib.import_module(module), attr)
-        except (ImportError, AttributeError) as exc:
-            raise ValueError(f"--plugin {spec}: cannot import ({exc})") from None
-        target()
+            target()
+        except Exception as exc:
+            raise PluginError(f"plugin {spec}: {attr}() raised {type(exc).__name__}: "
+                              f"{_one_line(exc)}") from None
     return sorted(set(plugin_names()) - before)
 
 
@@ -470,6 +842,7 @@ def load_entry_points(warn=None) -> list:
                 target()
         except Exception as exc:  # someone else's package must not stop hftrace
             if warn:
-                warn(f"hftrace: plugin entry point {point.name!r} ({point.value}) failed: "
-                     f"{type(exc).__name__}: {exc}")
+                text = _one_line(exc) if isinstance(exc, PluginError) else \
+                    f"{type(exc).__name__}: {_one_line(exc)}"
+                warn(f"hftrace: plugin entry point {point.name!r} ({point.value}) failed: {text}")
     return sorted(set(plugin_names()) - before)

@@ -127,16 +127,16 @@ def load_config(source) -> SweepConfig:
     if not isinstance(cfg.plugins, list) or not all(isinstance(p, str) for p in cfg.plugins):
         raise ConfigError("plugins: expected a list of strings (library paths or module:callable)")
     if cfg.plugins:
-        from algos.plugins import load_plugin_spec
+        from algos.plugins import PluginError, load_plugin_spec
 
+        # library paths and modules resolve from the config's folder (then the current
+        # directory), so a documented config runs as written from any directory
         base = os.path.dirname(os.path.abspath(os.fspath(source))) \
             if isinstance(source, (str, os.PathLike)) else os.getcwd()
         for k, spec in enumerate(cfg.plugins):
-            if spec.endswith((".so", ".dylib", ".dll")) and not os.path.isabs(spec):
-                spec = os.path.join(base, spec)
             try:
-                load_plugin_spec(spec)
-            except ValueError as exc:
+                load_plugin_spec(spec, base=base)
+            except (ValueError, PluginError) as exc:
                 raise ConfigError(f"plugins[{k}]: {exc}") from None
     if not isinstance(cfg.name, str) or not cfg.name or "/" in cfg.name:
         raise ConfigError(f"name: expected a plain directory name, got {cfg.name!r}")
