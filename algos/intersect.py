@@ -75,7 +75,7 @@ def _plugin_hits(hits, algorithm, fld, o, d, lo, hi, outputs) -> Hits:
     hits.t = t if "t" in outputs else None
     hits.cell = cell if "cell" in outputs else None
     if "normal" in outputs:
-        hits.normal = plugins.surface_normals(heights, hits.surface, o, d, t, cell)
+        hits.normal = plugins.surface_normals(heights, hits.surface, o, d, t, cell, lo)
     return hits
 
 

@@ -503,11 +503,13 @@ def _cells_at(o, d, t, rows, cols):
     return cell
 
 
-def surface_normals(heights, surface, origins, directions, t, cell):
-    """The up-facing unit normal of ``surface`` at each hit point ``o + t d`` in its hit
-    cell, (N, 3) float64, NaN on a miss. Defined for the continuous surfaces
-    (``triangles``: the hit triangle's plane, ``u >= v`` the lower one; ``bilinear``: the
-    gradient of the patch), which have no walls.
+def surface_normals(heights, surface, origins, directions, t, cell, tmin=None):
+    """The unit normal at each hit point ``o + t d``, (N, 3) float64, NaN on a miss, as
+    the built-in kernels give it: where the ray enters the field's box through one of
+    its sides below the surface (the hit is the box entry, after ``tmin``), the side's
+    horizontal normal facing the ray (x on a tie, at a corner); elsewhere the
+    up-facing normal of ``surface`` in the hit cell (``triangles``: the hit triangle's
+    plane, ``u >= v`` the lower one; ``bilinear``: the gradient of the patch).
 
     Raises
     ------
@@ -539,6 +541,32 @@ def surface_normals(heights, surface, origins, directions, t, cell):
         gy = (h01 - h00) * (1 - u) + (h11 - h10) * u
     up = np.stack([-gx, -gy, np.ones_like(gx)], axis=1)
     normal[hit] = up / np.linalg.norm(up, axis=1)[:, None]
+    # the box's sides: a ray entering the box below the surface hits the side it enters
+    rows, cols = h.shape
+    o, d = origins[hit], directions[hit]
+    start = np.zeros(len(o)) if tmin is None else np.maximum(np.asarray(tmin)[hit], 0.0)
+    entry = np.full((len(o), 2), -np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for axis, size in ((0, cols - 1), (1, rows - 1)):
+            side = np.where(d[:, axis] > 0, 0.0, float(size))
+            entry[:, axis] = np.where(d[:, axis] != 0, (side - o[:, axis]) / d[:, axis], -np.inf)
+    axis = np.where(entry[:, 0] >= entry[:, 1], 0, 1)
+    t_entry = entry[np.arange(len(o)), axis]
+    z = o[:, 2] + t[hit] * d[:, 2]
+    if surface == "triangles":
+        s = np.where(u >= v, h00 + (h10 - h00) * u + (h11 - h10) * v,
+                     h00 + (h11 - h01) * u + (h01 - h00) * v)
+    else:
+        s = h00 * (1 - u) * (1 - v) + h10 * u * (1 - v) + h01 * (1 - u) * v + h11 * u * v
+    # (the kernel's entry parameter may differ from this one in the last bits: a hit
+    # below the surface can only be the entry, so near is enough)
+    near = np.abs(t[hit] - t_entry) <= 1e-9 * (1 + np.abs(t_entry))
+    wall = (t_entry > start) & near & (z < s - 1e-9 * (1 + np.abs(s)))
+    if wall.any():
+        rows_hit = np.flatnonzero(hit)[wall]
+        normal[rows_hit] = 0.0
+        facing = np.where(d[wall, axis[wall]] > 0, -1.0, 1.0)
+        normal[rows_hit, axis[wall]] = facing
     return normal
 
 
