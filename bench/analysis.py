@@ -119,12 +119,13 @@ def load(path, run=None, echo=_warn) -> pd.DataFrame:
 
 
 def _run_key(df):
-    """Each row's run: its ``run_id``, or for files written before runs were
-    identified its ``commit`` ("" when neither column exists)."""
-    for column in ("run_id", "commit"):
-        if column in df.columns:
-            return df[column].fillna("").astype(str)
-    return pd.Series([""] * len(df), index=df.index)
+    """Each row's run: its ``run_id``, or where that is missing (files written before
+    runs were identified, studies that write no identifier) its ``commit``; "" when
+    neither is known."""
+    empty = pd.Series([""] * len(df), index=df.index)
+    commit = df["commit"].fillna("").astype(str) if "commit" in df.columns else empty
+    run_id = df["run_id"].fillna("").astype(str) if "run_id" in df.columns else empty
+    return run_id.where(run_id != "", commit)
 
 
 def _one_run(df, path, run):

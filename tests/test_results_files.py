@@ -145,3 +145,18 @@ def test_row_writer_sets_damaged_lines_aside_before_appending(tmp_path):
         writer.write({"a": 5, "b": 6})
     assert path.read_bytes() == b"a,b\r\n1,2\r\n5,6\r\n"
     assert "3," in (tmp_path / "rows.csv.rejected").read_text()
+
+
+def test_files_without_run_identifiers_are_kept_apart_by_commit(tmp_path):
+    """Rows written before runs were identified (no run_id) are told apart by commit: the
+    issue's case of two commits' rows in one file, 0.653 and 0.327, is never one 0.46."""
+    head = "algorithm,workload,surface,dataset,run_length,speedup,speedup_ci_low," \
+           "speedup_ci_high,ns_per_ray,agree,commit\n"
+    rows = "".join(f"runs,first_hit,triangles,fbm,2,{s},{s * 0.9},{s * 1.1},10,1.0,{c}\n"
+                   for s, c in ((0.653, "a" * 40), (0.327, "b" * 40)))
+    path = tmp_path / "old.csv"
+    path.write_text(head + rows)
+    with pytest.raises(ValueError, match=r"holds 2 runs.*commit aaaa.*commit bbbb.*--run"):
+        analysis.load(str(path), echo=None)
+    df = analysis.load(str(path), run="bbb", echo=None)
+    assert analysis.pivot(df, "first_hit", "triangles").loc["2", "runs"] == pytest.approx(0.327)
