@@ -523,6 +523,20 @@ def test_python_traversal_through_traverse(registered):
         algos.traverse("outside", o, d, (30, 30))
 
 
+def test_python_traversal_through_walk_timed(registered):
+    """``algos.walk_timed`` (the timed visit workload) takes a traversal plugin, its
+    checksums those of the exact kernels; the runs workload it lacks is refused."""
+    algos.register_traversal("timed_dda", numpy_dda())
+    registered.append("timed_dda")
+    rng = np.random.Generator(np.random.PCG64(4))
+    o, d = rng.uniform(0, 16, (60, 2)), rng.normal(size=(60, 2))
+    elapsed, sums = algos.walk_timed("timed_dda", o, d, (16, 16))
+    assert elapsed > 0
+    np.testing.assert_array_equal(sums, algos.walk_timed("midpoint", o, d, (16, 16))[1])
+    with pytest.raises(ValueError, match="workload: kernel 'timed_dda' .* no 'runs' fold"):
+        algos.walk_timed("timed_dda", o, d, (16, 16), workload="runs")
+
+
 def test_c_traversal_through_traverse(tmp_path, registered):
     """The example C plugin (with hftrace_traverse_cells) serves ``algos.traverse``, ray
     ranges included; a library without that export is refused, naming what it lacks."""
@@ -581,6 +595,19 @@ def test_plugin_failures_are_one_line_on_every_route(tmp_path, monkeypatch, regi
     assert main(["sweep", str(tmp_path / "c.toml"), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "plugins[0]" in err and "returned NULL" in err
+    # an installed package's entry point naming that library: one warning line, then on
+    import importlib.metadata as md
+
+    class Point:
+        name, value = "nullinfo", "theirs:LIBRARY"
+
+        def load(self):
+            return str(lib)
+
+    monkeypatch.setattr(md, "entry_points", lambda group=None: [Point()] if group else {})
+    assert main(["list"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "entry point 'nullinfo'" in err and "returned NULL" in err
 
 
 def test_config_module_resolves_from_its_folder_and_the_cwd(tmp_path, monkeypatch, registered):
