@@ -680,3 +680,17 @@ def test_plot_line_style_follows_the_exactness_claim(registered):
     assert analysis._style("claims") == "-"
     assert analysis._style("not_loaded_here") == "--"
     assert analysis._style("runs") == "-" and analysis._style("dda_f32") == "--"
+
+
+def test_render_command_takes_a_plugin(tmp_path, monkeypatch, registered, capsys):
+    """``hftrace render --plugin MOD:FN --algorithm NAME`` draws with the plugin."""
+    (tmp_path / "myhits.py").write_text(
+        "import algos\n"
+        "def hits(h, o, d):\n    return algos.intersect('runs', algos.Field(h), o, d).t\n"
+        "def register():\n    algos.register_intersector('my_hits', hits)\n")
+    monkeypatch.chdir(tmp_path)
+    registered.append("my_hits")
+    assert main(["render", "fbm", "--size", "32", "--width", "24", "--height", "14",
+                 "--plugin", "myhits:register", "--algorithm", "my_hits",
+                 "--out", str(tmp_path / "img"), "--threads", "1"]) == 0, capsys.readouterr().err
+    assert (tmp_path / "img.png").exists() and (tmp_path / "img.exr").exists()
