@@ -477,9 +477,14 @@ def first_hits(name, heights, origins, directions, surface, tmin=None, tmax=None
         t = np.where(np.isnan(t), np.inf, t)
         cell = _cells_at(o, d, t, rows, cols)
     hit = np.isfinite(t)
-    if (t < 0).any() or (t == -np.inf).any():
-        k = int(np.argmax(t < 0))
-        raise PluginError(f"{name}: returned t[{k}] = {t[k]!r}; a first hit has t >= 0")
+    # a first hit lies in the ray's range [tmin, tmax] (default [0, inf))
+    low = np.zeros(n) if tmin is None else np.asarray(tmin, dtype=np.float64)
+    high = np.full(n, np.inf) if tmax is None else np.asarray(tmax, dtype=np.float64)
+    outside = (t < low) | (np.isfinite(t) & (t > high))
+    if outside.any():
+        k = int(np.argmax(outside))
+        raise PluginError(f"{name}: returned t[{k}] = {float(t[k])!r}, outside ray {k}'s "
+                          f"range [{float(low[k])!r}, {float(high[k])!r}]")
     cell[~hit] = -1
     inside = (cell[hit, 0] >= 0) & (cell[hit, 0] < cols - 1) & (cell[hit, 1] >= 0) & \
         (cell[hit, 1] < rows - 1)

@@ -489,6 +489,11 @@ def test_first_hit_plugin_failures_name_the_kernel(registered):
         algos.intersect("short", field, o, d)
     with pytest.raises(plugins.PluginError, match="boom: the kernel raised ZeroDivisionError"):
         algos.intersect("boom", field, o, d)
+    algos.register_intersector("behind", lambda h, o, d: np.full(len(o), -0.5))
+    registered.append("behind")
+    with pytest.raises(plugins.PluginError, match=r"behind: returned t\[0\] = -0.5, outside ray "
+                                                  r"0's range \[0.0, inf\]"):
+        algos.intersect("behind", field, o, d)
 
 
 def test_python_traversal_through_traverse(registered):
