@@ -464,8 +464,10 @@ def scan_results(path):
 
 
 def config_hash(cfg) -> str:
-    """12 hex digits of the SHA-256 of the config's every key (canonical JSON)."""
-    text = json.dumps(dataclasses.asdict(cfg), sort_keys=True, default=str)
+    """12 hex digits of the SHA-256 of the config's every key (canonical JSON); ``cfg`` a
+    :class:`SweepConfig` or a study's dict of settings."""
+    settings = dataclasses.asdict(cfg) if dataclasses.is_dataclass(cfg) else dict(cfg)
+    text = json.dumps(settings, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
