@@ -491,7 +491,7 @@ def load_field(ds) -> algos.Field:
                                          **ds.get("params", {})).heights)
 
 
-def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None):
+def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machine=True):
     """(results.csv path, the groups still to measure with their missing algorithms).
 
     Without ``resume`` a results.csv that holds rows is never replaced: ``ValueError``
@@ -501,7 +501,9 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None):
     ``ValueError`` names the mismatch (nothing is measured or removed). A line a kill cut
     short, or a malformed one, is no kept row: its group is measured again (the writer
     sets the line aside), and it is added to ``bad`` as (line number, reason). ``run``
-    (:func:`new_run`) takes the kept rows' run identifier, so the resumed run stays one."""
+    (:func:`new_run`) takes the kept rows' run identifier, so the resumed run stays one.
+    ``check_machine=False`` (Dask: each row names the worker that measured it) skips the
+    machine check."""
     os.makedirs(out_dir, exist_ok=True)
     csv_path = os.path.join(out_dir, "results.csv")
     kept, damaged = scan_results(csv_path)
@@ -519,7 +521,7 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None):
             raise ValueError(f"--resume: {csv_path} holds {len(runs)} runs ({', '.join(runs)}); "
                              "--resume continues one run: choose another --out")
         first = kept[0]
-        if first.get("machine") and first["machine"] != run["machine"]:
+        if check_machine and first.get("machine") and first["machine"] != run["machine"]:
             raise ValueError(f"--resume: {csv_path} was measured on {first['machine']}, this is "
                              f"{run['machine']}; choose another --out rather than mix machines")
         run.update(run_id=first.get("run_id") or run["run_id"],
@@ -618,7 +620,8 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
     commit = environment().get("git_commit", "")
     run = new_run(cfg, commit)
     bad = []
-    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad)
+    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad,
+                              check_machine=False)
     _report_damaged(csv_path, bad, echo)
     from dask.distributed import as_completed
 
