@@ -11,7 +11,7 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
-from . import _kernels, plugins
+from . import _kernels, plugin_calls
 from .compact import compact_for
 from .cone import cone_for, relaxed_cone_for
 from .field import HeightField, as_field, bound_kind
@@ -70,12 +70,12 @@ def _plugin_hits(hits, algorithm, fld, o, d, lo, hi, outputs) -> Hits:
                          "wall from a top: leave 'normal' out, or use triangles or bilinear")
     heights = fld.cell_heights
     start = time.perf_counter_ns()
-    t, cell = plugins.first_hits(algorithm.name, heights, o, d, hits.surface, lo, hi)
+    t, cell = plugin_calls.first_hits(algorithm.name, heights, o, d, hits.surface, lo, hi)
     hits.elapsed_ns = time.perf_counter_ns() - start
     hits.t = t if "t" in outputs else None
     hits.cell = cell if "cell" in outputs else None
     if "normal" in outputs:
-        hits.normal = plugins.surface_normals(heights, hits.surface, o, d, t, cell, lo)
+        hits.normal = plugin_calls.surface_normals(heights, hits.surface, o, d, t, cell, lo)
     return hits
 
 
@@ -339,7 +339,7 @@ def prepare_timed_intersect(name, heights, origins, directions, surface="triangl
         return embree_timed(fld, o, d, threads=resolve_threads(threads))
     if algorithm.plugin is not None:
         _options(algorithm, options)  # a plugin takes none: an option given is refused
-        return plugins.prepare_timed_first_hit(name, fld.cell_heights, o, d, surface)
+        return plugin_calls.prepare_timed_first_hit(name, fld.cell_heights, o, d, surface)
     if surface not in algorithm.surfaces:
         raise ValueError(f"surface: {name} supports only {', '.join(algorithm.surfaces)}")
     opts = _options(algorithm, options)

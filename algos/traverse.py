@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _kernels, plugins
+from . import _kernels, plugin_calls
 from .field import HeightField
 from .lattice import quantize
 from .parallel import resolve_threads, run_ranges, split
@@ -220,7 +220,7 @@ def traverse(name, origins, directions, shape, tmin=None, tmax=None, *, output="
         kernel (``algos.plugins``) that cannot serve the call (a Python kernel given a
         ray range, a C library without ``hftrace_traverse_cells``), naming the kernel and
         what it lacks.
-    algos.plugins.PluginError
+    algos.plugins.PluginError (defined in algos.plugin_calls)
         A plugin kernel failed or returned cells that are not inside the grid.
 
     Notes
@@ -253,7 +253,7 @@ def _plugin_paths(batch, output):
     """``traverse``'s result for a registered plugin: its cells (``algos.plugins``), and
     the runs and counts grouped from them."""
     name = batch.algorithm.name
-    offsets, cells = plugins.traversal_cells(name, batch.origins, batch.directions,
+    offsets, cells = plugin_calls.traversal_cells(name, batch.origins, batch.directions,
                                              (batch.nx, batch.ny), batch.tmin, batch.tmax)
     if output == "cells":
         return CellPaths(offsets, cells, name)
@@ -291,7 +291,7 @@ def prepare_timed(name, origins, directions, shape, workload="visit", tmin=None,
                              f"(the visit workload); it has no {workload!r} fold")
         if plugin.language == "python" and (batch.tmin is not None or batch.tmax is not None):
             raise ValueError(f"tmin: kernel {plugin.describe(name)} takes no ray range")
-        run_plugin, sums = plugins.prepare_timed_traversal(name, batch.origins,
+        run_plugin, sums = plugin_calls.prepare_timed_traversal(name, batch.origins,
                                                            batch.directions, (batch.nx, batch.ny))
 
         def run_and_fold() -> int:
