@@ -42,13 +42,17 @@ Signatures (shapes in the project's conventions, ``docs/CONVENTIONS.md``):
   In ``algos.intersect`` the hit ``cell`` is the cell holding the hit point by the
   half-open rule toward the direction of travel (a hit exactly on a cell border is given
   the cell the ray enters there), and the ``normal`` is the up-facing normal of the
-  surface there (``triangles`` and ``bilinear`` only: ``flat`` and ``plane3`` have walls,
-  whose hits the returned ``t`` alone cannot tell from a top); ``stats`` and a ray range
-  are refused.
+  surface there, or the box side's where the ray enters the field below the surface
+  (``triangles`` and ``bilinear`` only: ``flat`` and ``plane3`` have walls, whose hits
+  the returned ``t`` alone cannot tell from a top); ``stats`` and a ray range are
+  refused.
 * C: the kernels of ``cext/hftrace_plugin.h``; a traversal library that also exports
   ``hftrace_traverse_cells`` serves ``algos.traverse``, one without it only sweeps. A
   first-hit library serves ``algos.intersect`` with ``tmin``/``tmax`` and its own hit
   cells; normals as for Python kernels.
+
+Calling a registered kernel (the public calls, the timed calls, the checks of what it
+returns) lives in :mod:`algos.plugin_calls`; this module registers and loads.
 
 A kernel that raises, returns a non-zero status (C) or takes longer than its time limit
 in one call gets an error in its row; the other kernels' rows are kept. ``hftrace sweep
