@@ -518,7 +518,8 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     ax.set_xlabel("mean run length r (log)")
     ax.set_ylabel("speedup over dda (median ratio)")
     bands = ", ".join(banded) if banded else "none"
-    ax.set_title(f"{workload} on {surface}: run length vs speedup\n(solid exact, dashed float "
+    where = workload if surface == "-" else f"{workload} on {surface}"
+    ax.set_title(f"{where}: run length vs speedup\n(solid exact, dashed float "
                  f"or not claimed exact, dotted marching; 95 % bands: {bands})", fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(True, which="both", alpha=0.3)

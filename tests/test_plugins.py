@@ -691,6 +691,32 @@ def test_plot_line_style_follows_the_exactness_claim(registered):
     assert analysis._style("runs") == "-" and analysis._style("dda_f32") == "--"
 
 
+def test_plot_draws_an_inexact_plugin_dashed(tmp_path, registered, monkeypatch):
+    """Through ``plot_speedup`` (what ``hftrace plot`` draws): the line of a plugin
+    registered with ``exact=False`` is dashed, an exact one's solid."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.figure
+
+    algos.register_intersector("rough", lambda h, o, d: np.full(len(o), np.inf), exact=False)
+    algos.register_intersector("sharp", lambda h, o, d: np.full(len(o), np.inf), exact=True)
+    registered += ["rough", "sharp"]
+    head = "algorithm,workload,surface,dataset,run_length,speedup,speedup_ci_low," \
+           "speedup_ci_high,ns_per_ray,agree\n"
+    rows = "".join(f"{a},first_hit,triangles,fbm,{r},1.5,1.4,1.6,10,1.0\n"
+                   for a in ("dda", "runs", "rough", "sharp") for r in (1, 2, 25))
+    (tmp_path / "r.csv").write_text(head + rows)
+    styles = {}
+
+    def keep_styles(fig, *args, **kwargs):
+        styles.update((line.get_label(), line.get_linestyle()) for line in fig.axes[0].get_lines())
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", keep_styles)
+    analysis.plot_speedup(analysis.load(str(tmp_path / "r.csv"), echo=None), str(tmp_path / "p.png"))
+    assert styles["rough"] == "--" and styles["sharp"] == "-" and styles["runs"] == "-"
+
+
 def test_render_command_takes_a_plugin(tmp_path, monkeypatch, registered, capsys):
     """``hftrace render --plugin MOD:FN --algorithm NAME`` draws with the plugin."""
     (tmp_path / "myhits.py").write_text(
