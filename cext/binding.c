@@ -111,6 +111,7 @@ static const char *status_text(int status) {
     case HF_ERR_CAPACITY: return "an output buffer does not match the counting pass";
     case HF_ERR_INTERNAL: return "an exact walk missed its computed last cell";
     case HF_ERR_ARGUMENT: return "unknown kernel or mode";
+    case HF_ERR_MEMORY: return "out of memory for the kernel's scratch";
     default: return "unknown error";
     }
 }
@@ -444,7 +445,7 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         return NULL;
     }
     if ((kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP ||
-         kernel == HF_HIT_PACKET_MAXMIP) &&
+         kernel == HF_HIT_PACKET_MAXMIP || kernel == HF_HIT_PLANE_MAXMIP) &&
         b.mip_levels < 1) {
         PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
         return NULL;

@@ -17,7 +17,8 @@ enum hf_hit_kernel {
     HF_HIT_CONE_RELAXED = 12,
     HF_HIT_PACKET_MAXMIP = 13,
     HF_HIT_DDA_COMPACT = 14,
-    HF_N_HIT_KERNELS = 15
+    HF_HIT_PLANE_MAXMIP = 15,
+    HF_N_HIT_KERNELS = 16
 };
 
 #define HF_MAX_MIP_LEVELS 32
@@ -70,6 +71,19 @@ int hf_intersect_batch(int kernel, hf_hit_batch *batch);
  * `members` (clipped and prepared, each with a max-mipmap walk to do), together; each
  * hits[k] ends as dda_maxmip leaves it (packet.c). */
 void hf_packet_maxmip(hf_hit *hits, unsigned members, const hf_hit_batch *b);
+
+/* One ray of a batch as dda_maxmip treats it (hit.c): hf_hit_ray_begin clips ray `ray` and
+ * fills h (0: it misses the box, nothing to walk); hf_hit_ray_solve walks it on
+ * [t0, t1] (HF_OK or an error status); hf_hit_ray_end writes its outputs. */
+int hf_hit_ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0, double *t1,
+                 int *entry_axis);
+int hf_hit_ray_solve(hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
+                        int entry_axis);
+void hf_hit_ray_end(hf_hit_batch *b, int64_t ray, const hf_hit *h);
+
+/* plane_maxmip: the batch with the rays of each vertical plane from one eye traced as a
+ * chain of resumed dda_maxmip walks; outputs equal dda_maxmip's (plane.c). */
+int hf_plane_batch(hf_hit_batch *b);
 
 /* cone: the first hit of one clipped ray (1: found), cone.c. */
 int hf_cone_hit(hf_hit *h, const float *cone);

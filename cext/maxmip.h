@@ -151,7 +151,14 @@ static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk 
         h->cells_visited += 1;
         if (!r->cull ||
             !(oz + (descending ? tb : t_in) * dz > (double)cellmax[(int64_t)j * nx + i])) {
-            if (hf_hit_cell_exact(h, i, j)) return 1;
+            if (hf_hit_cell_exact(h, i, j)) {
+                /* the state the walk had at the hit cell: where plane_maxmip resumes the
+                 * ray above (plane.c) */
+                w->i = i;
+                w->j = j;
+                w->t = t_in > w->t ? t_in : w->t;
+                return 1;
+            }
         }
         if (!(tb < t1)) return 0;
         if (mx < my) {
