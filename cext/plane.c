@@ -2,16 +2,17 @@
  * (vertical-ray coherence: Cohen-Or & Shaked 1993; Lee & Shin 1995; the walk: Tevs,
  * Ihrke & Seidel 2008).
  *
- * Rays whose origin (x, y, z) and horizontal direction (dx, dy) are equal bit for bit
+ * Rays whose horizontal origin (ox, oy) and direction (dx, dy) are equal bit for bit
  * follow one 2D line with one parameterisation: every cell's parameter interval is the
- * same for all of them, and only z(t) = oz + t dz differs. Ordered by dz (their
- * elevation), the ray above lies above the ray below at every t >= 0, and since rounding
- * is monotone, every float test of the surface (flat, plane3, triangles) that rejects a
- * cell for the ray below on an interval rejects it for the ray above on the same
- * interval. So the ray above resumes the walk at the state the ray below had in its hit
- * cell: every cell before it is already known to be clear. Where the intervals might
- * differ (a later entry t0, an end t1 before the resume point) the ray tests its own
- * first cell, or walks on its own; bilinear cells (whose root solve is not shown
+ * same for all of them, and only z(t) = oz + t dz differs. A ray with oz and dz both at
+ * least another's lies above it at every t >= 0 (the rays of one eye ordered by
+ * elevation; the rows of an orthographic column whose origins stand on a vertical film),
+ * and since rounding is monotone, every float test of the surface (flat, plane3,
+ * triangles) that rejects a cell for the ray below on an interval rejects it for the ray
+ * above on the same interval. So the ray above resumes the walk at the state the ray
+ * below had in its hit cell: every cell before it is already known to be clear. Where the
+ * intervals might differ (a later entry t0, an end t1 before the hit cell) the ray tests
+ * its own first cell, or walks on its own; bilinear cells (whose root solve is not shown
  * monotone) and every ray without a partner take dda_maxmip's per-ray walk. The proof
  * and its limits: docs/plane.md. Outputs (t, cell, normal) equal dda_maxmip's bit for
  * bit; the statistics count the work this kernel did. */
@@ -21,31 +22,37 @@
 #include "hitbatch.h"
 #include "maxmip.h"
 
-/* One ray of a plane, ordered by dz then by index. */
+/* One ray of a plane, ordered by oz, then dz, then index. */
 typedef struct {
-    double dz;
+    double oz, dz;
     int64_t ray;
 } plane_member;
 
 static int member_order(const void *a, const void *b) {
     const plane_member *p = (const plane_member *)a, *q = (const plane_member *)b;
+    if (p->oz != q->oz) return p->oz < q->oz ? -1 : 1;
     if (p->dz != q->dz) return p->dz < q->dz ? -1 : 1;
     return p->ray < q->ray ? -1 : (p->ray > q->ray);
 }
 
-/* The key of a ray's plane: its origin and horizontal direction, compared by their bits
+/* p before q in that order (ties in oz and dz: equal rays, either order) */
+static int member_below(const plane_member *p, const plane_member *q) {
+    return p->oz < q->oz || (p->oz == q->oz && p->dz <= q->dz);
+}
+
+/* The key of a ray's plane: its horizontal origin and direction, compared by their bits
  * (so -0 and +0 are different planes; NaN never reaches a kernel). */
 static int same_plane(const hf_hit_batch *b, int64_t r, int64_t s) {
-    return memcmp(b->origins + 3 * r, b->origins + 3 * s, 3 * sizeof(double)) == 0 &&
+    return memcmp(b->origins + 3 * r, b->origins + 3 * s, 2 * sizeof(double)) == 0 &&
            memcmp(b->directions + 3 * r, b->directions + 3 * s, 2 * sizeof(double)) == 0;
 }
 
 static uint64_t plane_hash(const hf_hit_batch *b, int64_t r) {
-    uint64_t words[5], h = 0x9e3779b97f4a7c15ULL;
+    uint64_t words[4], h = 0x9e3779b97f4a7c15ULL;
     int k;
-    memcpy(words, b->origins + 3 * r, 3 * sizeof(double));
-    memcpy(words + 3, b->directions + 3 * r, 2 * sizeof(double));
-    for (k = 0; k < 5; ++k) {
+    memcpy(words, b->origins + 3 * r, 2 * sizeof(double));
+    memcpy(words + 2, b->directions + 3 * r, 2 * sizeof(double));
+    for (k = 0; k < 4; ++k) {
         h ^= words[k];
         h *= 0xff51afd7ed558ccdULL;
         h ^= h >> 32;
@@ -59,12 +66,13 @@ static int plane_eligible(const hf_hit_batch *b, int64_t r) {
     return b->surface != HF_BILINEAR && (d[0] != 0 || d[1] != 0);
 }
 
-/* What the rays below have cleared: a ray whose walk started at t_start hit in cell
- * (i, j), whose interval starts at t_enter; its walk stood at parameter t there. Every
- * cell before (i, j) on the plane's line, from t_start on, rejects every ray above. */
+/* What the rays below have cleared: a ray from height oz with slope dz, whose walk
+ * started at t_start, hit in cell (i, j), whose interval starts at t_enter; its walk
+ * stood at parameter t there. Every cell before (i, j) on the plane's line, from t_start
+ * on, rejects every ray with a higher (or equal) oz and dz. */
 typedef struct {
     int valid;
-    double t_start, t_enter, t;
+    double oz, dz, t_start, t_enter, t;
     int32_t i, j;
 } plane_chain;
 
@@ -92,7 +100,8 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
      * ray as for the ray that cleared it: the ray starts no earlier than that ray (and at
      * t >= 0, where z grows with dz), before the resume point, and does not end before the
      * hit cell's entry (so no earlier cell is cut short by this ray's t1). */
-    if (chain->valid && t0 >= chain->t_start && t0 < chain->t && chain->t_enter <= t1) {
+    if (chain->valid && h.oz >= chain->oz && h.dz >= chain->dz && t0 >= chain->t_start &&
+        t0 < chain->t && chain->t_enter <= t1) {
         if (t0 == chain->t_start || (w.i == chain->i && w.j == chain->j)) {
             w.i = chain->i;
             w.j = chain->j;
@@ -114,7 +123,9 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;
         (void)hf_cell_interval(&h, h.i, h.j, &ta, &tb);
-        chain->valid = 1;
+        chain->valid = t0 >= 0; /* z grows with oz and dz only where t >= 0 */
+        chain->oz = h.oz;
+        chain->dz = h.dz;
         chain->t_start = t0;
         chain->t_enter = ta;
         chain->t = w.t;
@@ -131,8 +142,8 @@ static int plane_trace(hf_hit_batch *b, plane_member *members, int64_t count) {
     int64_t k;
     int ascending = 1, descending = 1;
     for (k = 1; k < count; ++k) {
-        if (members[k].dz < members[k - 1].dz) ascending = 0;
-        if (members[k].dz > members[k - 1].dz) descending = 0;
+        if (!member_below(&members[k - 1], &members[k])) ascending = 0;
+        if (!member_below(&members[k], &members[k - 1])) descending = 0;
     }
     if (descending && !ascending) {
         /* an image column listed top down: reverse it (ties keep their order reversed,
@@ -197,6 +208,7 @@ int hf_plane_batch(hf_hit_batch *b) {
             /* the head of a plane of two rays or more: the whole plane */
             int64_t count = 0, member;
             for (member = ray; member >= 0; member = next[member]) {
+                members[count].oz = b->origins[3 * member + 2];
                 members[count].dz = b->directions[3 * member + 2];
                 members[count].ray = member;
                 ++count;
