@@ -23,7 +23,12 @@ from .field import Field
 from .intersect import intersect
 from .registry import get_intersector
 
-__all__ = ["Rendering", "default_camera", "render", "shade"]
+__all__ = ["Rendering", "default_camera", "render", "shade", "PROJECTIONS"]
+
+
+#: The cameras of :func:`render`, each a ray generator of ``datasets_gen.rays`` taking
+#: (position, look_at, fov, width, height).
+PROJECTIONS = ("pinhole", "level", "orthographic")
 
 
 @dataclass(frozen=True)
@@ -77,7 +82,8 @@ def default_camera(heights):
 
 
 def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640, height=360,
-           position=None, look_at=None, fov=60.0, fog=0.0, threads=None) -> Rendering:
+           position=None, look_at=None, fov=60.0, fog=0.0, threads=None,
+           projection="pinhole") -> Rendering:
     """Trace a pinhole image of a height field with one intersector.
 
     Parameters
@@ -106,6 +112,14 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     threads : int, optional
         As in ``algos.intersect`` (default every core); the image is bit-identical for
         every value.
+    projection : str
+        One of :data:`PROJECTIONS`: ``"pinhole"`` (``datasets_gen.rays.pinhole``),
+        ``"level"`` (a level pinhole with a vertical lens shift that centres
+        ``look_at``: every image column one vertical plane, ``datasets_gen.rays.level_camera``)
+        or ``"orthographic"`` (parallel rays from ``position`` to ``look_at``, the film
+        ``2 |look_at - position| tan(fov / 2)`` cells wide, ``datasets_gen.rays.orthographic``;
+        ``depth`` is then measured from the vertical film through ``position``). The last
+        two are the batches ``plane_maxmip`` traces a column at a time.
 
     Returns
     -------
@@ -114,8 +128,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     Raises
     ------
     ValueError
-        An unknown algorithm or surface, bad heights, or a degenerate camera (the
-        message names the argument). A field with rectangular pixels or with voids
+        An unknown algorithm, surface or projection, bad heights, or a degenerate camera
+        (the message names the argument); a rasteriser with a projection other than
+        ``"pinhole"``. A field with rectangular pixels or with voids
         (nodata) is refused before any camera is computed, the message naming the pixel
         size or the first void sample (fill voids with ``HeightField.filled``).
     TypeError
@@ -132,9 +147,17 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
 
     from . import raster
 
-    rs = raysets.pinhole(position, look_at, fov, width, height)
+    if projection not in PROJECTIONS:
+        raise ValueError(f"projection: expected one of {', '.join(PROJECTIONS)}, "
+                         f"got {projection!r}")
+    generator = {"pinhole": raysets.pinhole, "level": raysets.level_camera,
+                 "orthographic": raysets.orthographic}[projection]
+    rs = generator(position, look_at, fov, width, height)
     shape = (height, width)
     if algorithm in raster.RASTERISERS:
+        if projection != "pinhole":
+            raise ValueError(f"projection: the rasterisers draw 'pinhole' only, got "
+                             f"{projection!r}")
         if surface != "triangles":
             raise ValueError(f"surface: the rasterisers draw 'triangles' only, got {surface!r}")
         image = raster.render(algorithm, field, position, look_at, fov, width, height,
@@ -153,7 +176,8 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         else:
             cells_visited = hits.stats["cells_visited"].reshape(shape)
             runs_visited = hits.stats["runs_visited"].reshape(shape)
-    depth = t.reshape(shape)  # unit directions: t is a distance
+    # t is in units of each ray's |d| (the level camera's are not unit vectors)
+    depth = (t * np.linalg.norm(rs.directions, axis=1)).reshape(shape)
     normal = normal.reshape(height, width, 3)
     points = rs.origins + np.where(np.isfinite(t), t, 0)[:, None] * rs.directions
     points = points.reshape(height, width, 3)

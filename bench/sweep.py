@@ -72,8 +72,11 @@ REQUIRED = ("algorithm", "workload", "dataset", "run_length", "rays", "repeats",
 #: Ray batches of a first-hit group, from incoherent to coherent (docs/METHOD.md, "Cache
 #: regimes and coherence"): "random" origins over the field at azimuth atan(1/r) in all
 #: octants; "parallel" rays of one direction, slope 1/r (orthographic, sun shadows);
-#: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels).
-COHERENCE = ("random", "parallel", "camera")
+#: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels);
+#: "level" and "orthographic" that view with ``render``'s level and orthographic
+#: projections, whose image columns are vertical planes (the batches ``plane_maxmip``
+#: traces a plane at a time).
+COHERENCE = ("random", "parallel", "camera", "level", "orthographic")
 _KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
          "run_lengths", "datasets", "plugins"}
 _DATASET_KEYS = {"name", "size", "seed", "params"}
@@ -300,7 +303,8 @@ def coherent_rays(field, coherence, r, n, seed):
     """First-hit rays (origins, directions), (N, 3), of one :data:`COHERENCE` kind:
     "random" is :func:`first_hit_rays`; "parallel" n orthographic rays of slope 1/r
     falling at 10 degrees; "camera" the pinhole rays of ``render``'s default camera, 16:9
-    with about n pixels (``r`` unused)."""
+    with about n pixels (``r`` unused); "level" and "orthographic" the same view and size
+    through ``datasets_gen.rays.level_camera`` and ``orthographic``."""
     if coherence == "random":
         return first_hit_rays(field, r, n, seed)
     rows_, cols_ = field.heights.shape
@@ -310,13 +314,15 @@ def coherent_rays(field, coherence, r, n, seed):
         rs = raysets.parallel(n, (cols_ - 1, rows_ - 1), seed, rational=(1, int(round(float(r)))),
                               height=float(field.hmax) + 1.0, elevation=10.0)
         return rs.origins, rs.directions
-    if coherence == "camera":
+    if coherence in ("camera", "level", "orthographic"):
         from algos.render import default_camera
 
         width = max(2, int(round(math.sqrt(n * 16 / 9))))
         height = max(2, int(round(width * 9 / 16)))
         position, look_at = default_camera(field.heights)
-        rs = raysets.pinhole(position, look_at, 60.0, width, height)
+        camera = {"camera": raysets.pinhole, "level": raysets.level_camera,
+                  "orthographic": raysets.orthographic}[coherence]
+        rs = camera(position, look_at, 60.0, width, height)
         return rs.origins, rs.directions
     raise ValueError(f"coherence: expected one of {', '.join(COHERENCE)}, got {coherence!r}")
 
