@@ -98,10 +98,11 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
     hf_mip_setup(&h, b, &r, &w);
     /* Resume only where every cell before the chain's cell has the same interval for this
      * ray as for the ray that cleared it: the ray starts no earlier than that ray (and at
-     * t >= 0, where z grows with dz), before the resume point, and does not end before the
-     * hit cell's entry (so no earlier cell is cut short by this ray's t1). */
+     * t >= 0, where z grows with oz and dz), before the resume point, and its range goes
+     * on past the hit cell's entry (strictly: a walk never enters a cell at its t1, so a
+     * cell whose interval is [t1, t1] is not one it tests). */
     if (chain->valid && h.oz >= chain->oz && h.dz >= chain->dz && t0 >= chain->t_start &&
-        t0 < chain->t && chain->t_enter <= t1) {
+        t0 < chain->t && chain->t_enter < t1) {
         if (t0 == chain->t_start || (w.i == chain->i && w.j == chain->j)) {
             w.i = chain->i;
             w.j = chain->j;
