@@ -56,6 +56,7 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
+from . import hugepages
 from .georef import LINEAR_UNITS, UNIT_ALIASES, pixel_size, unit_name
 from .validate import as_float_array, check_heights, check_spacing
 
@@ -93,7 +94,7 @@ def _tile_max_rows(h: np.ndarray, kind: str, level: int) -> np.ndarray:
     size = 1 << level
     ny, nx = h.shape[0] - 1, h.shape[1] - 1
     out_rows, out_cols = -(-ny // size), -(-nx // size)
-    out = np.empty((out_rows, out_cols), dtype=np.float32)
+    out = hugepages.empty((out_rows, out_cols), np.float32)
     tiles_per_band = max(1, _band_rows(h.shape[1]) // size)
     for t0 in range(0, out_rows, tiles_per_band):
         t1 = min(out_rows, t0 + tiles_per_band)
@@ -133,7 +134,7 @@ def _halve(a: np.ndarray) -> np.ndarray:
     rows: the extra memory is a band, not a copy of ``a``."""
     r, c = a.shape
     rows_out, cols_out = -(-r // 2), -(-c // 2)
-    out = np.empty((rows_out, cols_out), dtype=a.dtype)
+    out = hugepages.empty((rows_out, cols_out), a.dtype)
     step = max(1, _band_rows(c) // 2)
     for o0 in range(0, rows_out, step):
         o1 = min(rows_out, o0 + step)
@@ -526,7 +527,8 @@ class HeightField:
                 raise ValueError(f"heights: {self.name} has rectangular pixels "
                                  f"({self.dx:g} x {self.dy:g} {self.unit}); first hits and "
                                  "renders work in cell units and need square pixels")
-            self._cache["cell_heights"] = h
+            # a copy made here goes on huge pages; the caller's array stays where it is
+            self._cache["cell_heights"] = hugepages.adopt(h, owner=self.heights)
         return self._cache["cell_heights"]
 
     @property
@@ -609,7 +611,7 @@ class HeightField:
         h = self.cell_heights
 
         def make():  # in bands: the only full-size array is the result
-            out = np.empty((self.rows - 1, self.cols - 1), dtype=np.float32)
+            out = hugepages.empty((self.rows - 1, self.cols - 1), np.float32)
             step = _band_rows(self.cols)
             for r0 in range(0, self.rows - 1, step):
                 r1 = min(self.rows - 1, r0 + step)
