@@ -10,7 +10,8 @@
  * and since rounding is monotone, every float test of the surface (flat, plane3,
  * triangles) that rejects a cell for the ray below on an interval rejects it for the ray
  * above on the same interval. So the ray above resumes the walk at the state the ray
- * below had in its hit cell: every cell before it is already known to be clear. Where the
+ * below had in its hit cell: every cell before it is already known to be clear; and a
+ * ray whose range ends where that of a ray below that missed ends misses too. Where the
  * intervals might differ (a later entry t0, an end t1 before the hit cell) the ray tests
  * its own first cell, or walks on its own; bilinear cells (whose root solve is not shown
  * monotone) and every ray without a partner take dda_maxmip's per-ray walk. The proof
@@ -66,24 +67,29 @@ static int plane_eligible(const hf_hit_batch *b, int64_t r) {
     return b->surface != HF_BILINEAR && (d[0] != 0 || d[1] != 0);
 }
 
-/* What the rays below have cleared: a ray from height oz with slope dz, whose walk
- * started at t_start, hit in cell (i, j), whose interval starts at t_enter; its walk
- * stood at parameter t there. Every cell before (i, j) on the plane's line, from t_start
- * on, rejects every ray with a higher (or equal) oz and dz. */
+/* What the rays below have cleared.
+ * - A hit: a ray from height oz with slope dz, whose walk started at t_start, hit in cell
+ *   (i, j), whose interval starts at t_enter; its walk stood at parameter t there. Every
+ *   cell before (i, j) on the plane's line, from t_start on, rejects every ray with a
+ *   higher (or equal) oz and dz.
+ * - A miss: a ray from miss_oz with slope miss_dz walked its whole range [miss_t_start,
+ *   miss_t1] without a hit: every cell of that range rejects every ray above it. */
 typedef struct {
     int valid;
     double oz, dz, t_start, t_enter, t;
     int32_t i, j;
+    int miss_valid;
+    double miss_oz, miss_dz, miss_t_start, miss_t1;
 } plane_chain;
 
 /* One ray of a plane, above every ray the chain came from: its first hit, equal to
- * dda_maxmip's. Updates the chain when the ray hits. */
+ * dda_maxmip's. Updates the chain. */
 static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
     hf_hit h;
     hf_mip_ray r;
     hf_mip_walk w;
     double t0, t1;
-    int entry_axis, status = 0;
+    int entry_axis, status = 0, walked = 1;
     if (!hf_hit_ray_begin(b, ray, &h, &t0, &t1, &entry_axis)) {
         hf_hit_ray_end(b, ray, &h);
         return HF_OK;
@@ -96,13 +102,23 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
         return HF_OK;
     }
     hf_mip_setup(&h, b, &r, &w);
-    /* Resume only where every cell before the chain's cell has the same interval for this
-     * ray as for the ray that cleared it: the ray starts no earlier than that ray (and at
-     * t >= 0, where z grows with oz and dz), before the resume point, and its range goes
-     * on past the hit cell's entry (strictly: a walk never enters a cell at its t1, so a
-     * cell whose interval is [t1, t1] is not one it tests). */
-    if (chain->valid && h.oz >= chain->oz && h.dz >= chain->dz && t0 >= chain->t_start &&
-        t0 < chain->t && chain->t_enter < t1) {
+    if (chain->miss_valid && h.oz >= chain->miss_oz && h.dz >= chain->miss_dz &&
+        t0 >= chain->miss_t_start && t1 == chain->miss_t1) {
+        /* A ray below missed over this very range but for a later start: every cell
+         * after this ray's first has the same interval for both, so only the first one,
+         * cut short by the later start, can hold a hit. */
+        if (t0 != chain->miss_t_start) {
+            h.cells_visited += 1;
+            status = hf_hit_cell_exact(&h, w.i, w.j);
+        }
+        walked = 0;
+    } else if (chain->valid && h.oz >= chain->oz && h.dz >= chain->dz && t0 >= chain->t_start &&
+               t0 < chain->t && chain->t_enter < t1) {
+        /* Resume only where every cell before the chain's cell has the same interval for
+         * this ray as for the ray that cleared it: the ray starts no earlier than that ray
+         * (and at t >= 0, where z grows with oz and dz), before the resume point, and its
+         * range goes on past the hit cell's entry (strictly: a walk never enters a cell
+         * at its t1, so a cell whose interval is [t1, t1] is not one it tests). */
         if (t0 == chain->t_start || (w.i == chain->i && w.j == chain->j)) {
             w.i = chain->i;
             w.j = chain->j;
@@ -119,7 +135,7 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
             }
         }
     }
-    if (!status) status = hf_mip_walk_alone(&h, b, &r, &w);
+    if (!status && walked) status = hf_mip_walk_alone(&h, b, &r, &w);
     if (status > 0) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;
@@ -132,6 +148,14 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
         chain->t = w.t;
         chain->i = h.i;
         chain->j = h.j;
+    } else if (!walked || w.guard <= r.guard_max) {
+        /* the whole range [t0, t1] is clear for this ray (a walk that gave up proves
+         * nothing) */
+        chain->miss_valid = t0 >= 0;
+        chain->miss_oz = h.oz;
+        chain->miss_dz = h.dz;
+        chain->miss_t_start = t0;
+        chain->miss_t1 = t1;
     }
     hf_hit_ray_end(b, ray, &h);
     return HF_OK;
