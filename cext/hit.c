@@ -454,12 +454,12 @@ static int packet_batch(hf_hit_batch *b) {
 /* The three steps of one ray, exported for plane_maxmip (plane.c), with dda_maxmip's
  * walk. */
 int hf_hit_ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0, double *t1,
-                 int *entry_axis) {
+                     int *entry_axis) {
     return ray_begin(b, ray, h, t0, t1, entry_axis);
 }
 
 int hf_hit_ray_solve(hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
-                        int entry_axis) {
+                     int entry_axis) {
     hf_pattern pattern; /* (unused by the cell walk) */
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
@@ -467,7 +467,9 @@ int hf_hit_ray_solve(hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double 
                      &pattern, NULL);
 }
 
-void hf_hit_ray_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) { ray_end(b, ray, h); }
+void hf_hit_ray_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) {
+    ray_end(b, ray, h);
+}
 
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_pattern pattern;

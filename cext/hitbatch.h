@@ -76,9 +76,8 @@ void hf_packet_maxmip(hf_hit *hits, unsigned members, const hf_hit_batch *b);
  * fills h (0: it misses the box, nothing to walk); hf_hit_ray_solve walks it on
  * [t0, t1] (HF_OK or an error status); hf_hit_ray_end writes its outputs. */
 int hf_hit_ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0, double *t1,
-                 int *entry_axis);
-int hf_hit_ray_solve(hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
-                        int entry_axis);
+                     int *entry_axis);
+int hf_hit_ray_solve(hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1, int entry_axis);
 void hf_hit_ray_end(hf_hit_batch *b, int64_t ray, const hf_hit *h);
 
 /* plane_maxmip: the batch with the rays of each vertical plane from one eye traced as a
