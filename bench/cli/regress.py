@@ -39,3 +39,7 @@ def register(sub):
 
     add_plugin(p)
     p.set_defaults(func=regress)
+    # the same measures between two git revisions built here: compare and bisect
+    from . import compare
+
+    compare.register(sub)
