@@ -3,9 +3,10 @@
 A revision is a commit of a git repository (anything ``git rev-parse`` resolves) or its
 working tree (``None``). Its sources (``setup.py``, ``cext/``, ``algos/``) are exported
 into a cache directory and built there once with ``setup.py build_ext --inplace``. The
-cache key is the commit (or a hash of the working tree's files), the compiler's version
-line, the Python ABI, the NumPy version and the build switches (``HFTRACE_*``, ``CFLAGS``),
-so a build is never reused across toolchains.
+cache key is the commit's tree of those sources (so commits that touch only other files
+share one build; a hash of the files for the working tree), the compiler's version line, the
+Python ABI, the NumPy version and the build switches (``HFTRACE_*``, ``CFLAGS``), so a build
+is never reused across toolchains.
 
 :func:`load` imports a build's ``algos`` package under a distinct top-level name
 (``hftrace_rev_<role>_<key>``), so two builds live in one process: each package's
@@ -172,7 +173,9 @@ def build(repo: str, revision: str | None, echo=print) -> Build:
         commit, label, source_key = "worktree", "working tree", "wt-" + digest.hexdigest()[:16]
     else:
         commit, label = resolve(repo, revision), revision
-        source_key = commit[:16]
+        # the build's own sources name it: commits that change only other files share it
+        listing = _git(repo, "ls-tree", commit, "--", *BUILD_PATHS)
+        source_key = "src-" + hashlib.sha256(listing.encode()).hexdigest()[:16]
     key = f"{source_key}-{_toolchain_key()}"
     root = os.path.join(cache_dir(), key)
     marker = os.path.join(root, ".built")
