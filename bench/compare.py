@@ -11,7 +11,7 @@ checkout). Per first-hit kernel, three measures:
   mean and Student-t interval (``confidence``, default 99 %) give the ratio head/base
   and its interval. The machine's noise hits both sides of a pair and cancels.
 - ``instructions``: callgrind instructions and branches per ray of each build
-  (``bench.regress.instructions_gate``); exact, gated at 1 %.
+  (``bench.regress.instructions_gate``, on that gate's smaller inputs); exact, gated at 1 %.
 - ``counters``: cells, runs and tiles per ray (``algos.STATS``); exact and
   compiler-independent; a work counter that grows is a regression.
 
@@ -66,8 +66,11 @@ def time_verdict(log_ratios, tolerance, confidence=DEFAULT_CONFIDENCE) -> dict:
     ``detectable`` slowdown (tolerance plus half-width) and the verdict: ``slower`` when
     the interval lies above ``1 + tolerance``, ``faster`` when below ``1/(1 + tolerance)``,
     ``inconclusive`` when its half-width exceeds the tolerance, else ``same``."""
-    from scipy import stats
-
+    try:
+        from scipy import stats
+    except ImportError as exc:
+        raise CompareError("metric: time needs SciPy for its intervals "
+                           "(pip install 'hftrace[regress]')") from exc
     x = np.asarray(log_ratios, dtype=float)
     if x.size < 3:
         raise ValueError(f"log_ratios: need at least 3 repeats, got {x.size}")
@@ -86,13 +89,13 @@ def time_verdict(log_ratios, tolerance, confidence=DEFAULT_CONFIDENCE) -> dict:
                 detectable=math.expm1(bound + half), repeats=int(x.size), verdict=verdict)
 
 
-def paired_times(run_base, run_head, repeats: int) -> np.ndarray:
-    """Paired log-ratios log(head/base) of ``repeats`` interleaved runs (each run
+def paired_times(run_base, run_head, repeats: int) -> tuple[np.ndarray, np.ndarray]:
+    """(base, head) elapsed ns of ``repeats`` interleaved runs, paired by repeat (each run
     returns its elapsed ns): the one place this module uses ``bench.timing``."""
     from .timing import interleaved
 
     times = interleaved({"base": run_base, "head": run_head}, repeats, flush=True)
-    return np.log(np.asarray(times["head"], float) / np.asarray(times["base"], float))
+    return np.asarray(times["base"], float), np.asarray(times["head"], float)
 
 
 def instruction_verdict(base: dict, head: dict, tolerance=INSTRUCTION_TOLERANCE) -> dict:
@@ -194,9 +197,12 @@ def measure(base_build, head_build, base_pkg, head_pkg, setup: Setup, inputs=Non
         if not ig.callgrind_available():
             raise CompareError("metric: instructions needs valgrind (apt-get install valgrind); "
                                "it is not on PATH")
+        # the gate's small inputs (fBm 256^2, 200 rays): counts are exact, and callgrind
+        # runs some 50 times slower than the hardware
+        small = ig.gate_inputs()
         todo = [("first_hit", setup.surface, k) for k in kernels]
-        ib = ig.measure(echo, root=base_build.root, inputs=inputs, todo=todo)
-        ih = ig.measure(echo, root=head_build.root, inputs=inputs, todo=todo)
+        ib = ig.measure(echo, root=base_build.root, inputs=small, todo=todo)
+        ih = ig.measure(echo, root=head_build.root, inputs=small, todo=todo)
         for k in kernels:
             key = ig.key("first_hit", setup.surface, k)
             results[k].instructions = instruction_verdict(ib[key], ih[key])
@@ -209,8 +215,12 @@ def measure(base_build, head_build, base_pkg, head_pkg, setup: Setup, inputs=Non
             echo(f"timing {k} ({setup.repeats} paired repeats) ...")
             run_b = _prepare(base_pkg, k, base_field, inputs, setup.surface)
             run_h = _prepare(head_pkg, k, head_field, inputs, setup.surface)
-            results[k].time = time_verdict(paired_times(run_b, run_h, setup.repeats),
-                                           setup.tolerance, setup.confidence)
+            base_ns, head_ns = paired_times(run_b, run_h, setup.repeats)
+            t = time_verdict(np.log(head_ns / base_ns), setup.tolerance, setup.confidence)
+            rays = len(inputs.o3)
+            t.update(base_ns_per_ray=float(np.median(base_ns)) / rays,
+                     head_ns_per_ray=float(np.median(head_ns)) / rays)
+            results[k].time = t
     for r in results.values():
         r.verdict = _overall(r)
     status = 1 if any(r.verdict == "slower" for r in results.values()) else 0
