@@ -232,3 +232,69 @@ def test_time_verdicts(shift, spread, verdict):
     assert v["verdict"] == verdict, (shift, spread, v)
     assert v["low"] < v["ratio"] < v["high"]
     assert v["detectable"] == pytest.approx(np.expm1(np.log1p(0.03) + np.log(v["high"] / v["ratio"])))
+
+
+# ---- the exact gates' baselines: provenance and the rule for a mismatch ----------------
+
+@pytest.fixture()
+def gate_env(tmp_path, monkeypatch):
+    monkeypatch.setenv("HFTRACE_BUILD_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("HFTRACE_DEBUG", "1")
+    return tmp_path
+
+
+def test_counters_gate_passes_on_its_own_baseline(capsys):
+    from bench.regress import counters_gate
+
+    status = counters_gate.run(counters_gate.BASELINE, echo=print)
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert "counted elsewhere" not in out and "other inputs" not in out
+
+
+def test_counters_gate_rebuilds_the_baseline_commit_on_an_input_mismatch(gate_env, capsys):
+    """A baseline whose recorded inputs differ from this machine's is not trusted: the
+    gate counts the baseline's commit, built here, and compares with that (so a doctored
+    snapshot cannot fail it)."""
+    from bench.regress import baseline, counters_gate
+
+    with open(counters_gate.BASELINE) as f:
+        base = json.load(f)
+    base["hashes"]["rays"] = "0" * 16
+    for case in base["cases"].values():  # a snapshot that would fail if it were used
+        case["cells_visited"] = 0
+    head = subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True, text=True)
+    if head.returncode != 0:
+        pytest.skip("this checkout is not a git repository")
+    base["commit"] = head.stdout.strip()
+    doctored = gate_env / "counters.json"
+    doctored.write_text(json.dumps(base))
+    status = counters_gate.run(str(doctored), echo=print)
+    out = capsys.readouterr().out
+    assert "rays hash 0000000000000000 here" in out and base["commit"][:10] in out
+    # the sources at that commit are this checkout's kernels (a clean tree): nothing grew
+    assert status == 0, out
+    del base["commit"]
+    doctored.write_text(json.dumps(base))
+    lines = []
+    assert counters_gate.run(str(doctored), echo=lines.append) == 2
+    assert lines[-1].startswith("hftrace: error: baseline:") and "records no commit" in lines[-1]
+    assert baseline.ROOT == ROOT
+
+
+def test_update_refuses_a_dirty_tree(gate_env, monkeypatch):
+    from bench.regress import counters_gate, revisions
+
+    monkeypatch.setattr(revisions, "is_clean", lambda repo: False)
+    lines = []
+    path = gate_env / "new.json"
+    assert counters_gate.run(str(path), update=True, echo=lines.append) == 2
+    assert "uncommitted changes" in lines[-1] and not path.exists()
+
+
+def test_counters_gate_refuses_a_tolerance():
+    from bench.regress import counters_gate
+
+    lines = []
+    assert counters_gate.run(counters_gate.BASELINE, tolerance=0.05, echo=lines.append) == 2
+    assert "exact" in lines[-1]

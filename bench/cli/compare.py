@@ -24,13 +24,12 @@ def _fail(text) -> int:
 
 def compare(args):
     """Compare BASE with HEAD; exit 0 (no kernel slower), 1 (one slower), 2 (error)."""
-    from ..compare import CompareError, compare, publish
-    from ..regress.revisions import RevisionError
+    from ..compare import compare, publish
 
     try:
         setup = _setup(args)
         report = compare(args.repo, args.base, args.head, setup, echo=_note)
-    except (CompareError, RevisionError, ValueError) as exc:
+    except (RuntimeError, ValueError) as exc:  # CompareError, RevisionError, valgrind's failure
         return _fail(exc)
     publish(report, args.json)
     return report["status"]
@@ -38,13 +37,12 @@ def compare(args):
 
 def bisect(args):
     """Find the first commit from GOOD to BAD whose kernels are slower than GOOD's."""
-    from ..compare import CompareError, bisect, bisect_lines
-    from ..regress.revisions import RevisionError
+    from ..compare import bisect, bisect_lines
 
     try:
         setup = _setup(args)
         result = bisect(args.repo, args.good, args.bad, setup, echo=_note)
-    except (CompareError, RevisionError, ValueError) as exc:
+    except (RuntimeError, ValueError) as exc:
         return _fail(exc)
     for line in bisect_lines(result, args.good, args.bad):
         print(line)
