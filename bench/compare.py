@@ -187,7 +187,8 @@ def measure(base_build, head_build, base_pkg, head_pkg, setup: Setup, inputs=Non
     results = {k: KernelResult(k) for k in kernels}
     if "counters" in setup.metrics:
         cases = [(setup.surface, k) for k in kernels]
-        cb, ch = counters(base_pkg, inputs, cases), counters(head_pkg, inputs, cases)
+        cb = _on(base_build, "counters", counters, base_pkg, inputs, cases)
+        ch = _on(head_build, "counters", counters, head_pkg, inputs, cases)
         for k in kernels:
             key = f"first_hit/{setup.surface}/{k}"
             results[k].counters = counter_verdict(cb[key], ch[key])
@@ -210,11 +211,12 @@ def measure(base_build, head_build, base_pkg, head_pkg, setup: Setup, inputs=Non
         from .timing import pin_to_one_cpu
 
         pin_to_one_cpu()
-        base_field, head_field = base_pkg.Field(inputs.heights), head_pkg.Field(inputs.heights)
+        base_field = _on(base_build, "time", base_pkg.Field, inputs.heights)
+        head_field = _on(head_build, "time", head_pkg.Field, inputs.heights)
         for k in kernels:
             echo(f"timing {k} ({setup.repeats} paired repeats) ...")
-            run_b = _prepare(base_pkg, k, base_field, inputs, setup.surface)
-            run_h = _prepare(head_pkg, k, head_field, inputs, setup.surface)
+            run_b = _on(base_build, "time", _prepare, base_pkg, k, base_field, inputs, setup.surface)
+            run_h = _on(head_build, "time", _prepare, head_pkg, k, head_field, inputs, setup.surface)
             base_ns, head_ns = paired_times(run_b, run_h, setup.repeats)
             t = time_verdict(np.log(head_ns / base_ns), setup.tolerance, setup.confidence)
             rays = len(inputs.o3)
@@ -229,6 +231,16 @@ def measure(base_build, head_build, base_pkg, head_pkg, setup: Setup, inputs=Non
                 instruction_tolerance=INSTRUCTION_TOLERANCE, confidence=setup.confidence,
                 input=inputs.spec, hashes=inputs.hashes, toolchain=revisions.toolchain(),
                 results=[r.__dict__ for r in results.values()], new_kernels=new, status=status)
+
+
+def _on(build, metric, fn, *args):
+    """``fn(*args)`` for one revision; its failure as one ``CompareError`` line naming the
+    revision (an older tree whose API lacks what the measure needs, for instance)."""
+    try:
+        return fn(*args)
+    except Exception as exc:
+        raise CompareError(f"metric: {metric} cannot run on revision {build.label} ({build.short}): "
+                           f"{type(exc).__name__}: {exc}") from exc
 
 
 def _prepare(pkg, kernel, fld, inputs, surface):
