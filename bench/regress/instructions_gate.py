@@ -265,6 +265,10 @@ def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
     from . import baseline as bl
     from .revisions import toolchain
 
+    if not callgrind_available():
+        echo("hftrace: error: regress --metric instructions needs valgrind (apt-get install "
+             "valgrind); it is not on PATH")
+        return 2
     try:
         tc = toolchain()
         inputs = gate_inputs()
