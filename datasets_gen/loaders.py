@@ -32,12 +32,12 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, unit_name
+from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, check_crs, unit_name
 from algos.validate import check_spacing
 
 from .cache import cached_array
 from .fields import det_cos
-from .raster import LazyRaster, check_crs, read_raster
+from .raster import LazyRaster, read_raster
 
 __all__ = ["HeightField", "LoaderError", "load_file", "jacksboro", "resample_bilinear",
            "NODATA_POLICIES", "open_lazy", "LazyRaster", "RASTER_EXTENSIONS"]
@@ -386,12 +386,13 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
         return HeightField(heights, name, spacing=spacing, params=params)
     import rasterio
 
-    from algos.georef import check_axis_aligned
+    from algos.georef import check_axis_aligned, check_georeferencing
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
         ds = rasterio.open(path)
     with ds:
+        check_georeferencing(ds, path)  # GCPs, RPCs, geolocation arrays: refused with the fix
         georef = ds.crs is not None or not ds.transform.is_identity
         if not georef:
             return HeightField(heights, name, spacing=spacing, params=params)
