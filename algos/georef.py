@@ -24,11 +24,13 @@ from __future__ import annotations
 import math
 import os
 
+import numpy as np
+
 __all__ = ["WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M", "pixel_size", "utm_epsg",
            "check_axis_aligned", "LINEAR_UNITS", "UNIT_ALIASES", "NO_UNIT", "unit_name",
            "unit_metres", "crs_unit", "check_crs", "ground_size",
            "unusable_georeferencing", "check_georeferencing",
-           "check_dataarray_georeferencing"]
+           "check_dataarray_georeferencing", "check_nodata"]
 
 #: Equatorial radius of the WGS 84 ellipsoid (m): the curvature default (as GDAL's viewshed).
 WGS84_SEMI_MAJOR_AXIS_M = 6378137.0
@@ -241,3 +243,30 @@ def check_dataarray_georeferencing(array, what) -> None:
                 return  # not a raster GDAL reads (a netCDF through another engine, ...)
         with ds:
             check_georeferencing(ds, f"{what} (read from {source})")
+
+
+def check_nodata(nodata, dtype, file_nodata, what) -> None:
+    """Raise ValueError naming ``what`` with both values when an explicit ``nodata`` can
+    never mark a void of a file: no sample of ``dtype`` can equal it (-9999 or 2.5 in
+    uint8, NaN in an integer type, 1e40 in float32), or the file declares another nodata
+    value (``file_nodata``; None: it declares none). A NaN nodata equals a NaN one."""
+    value = float(nodata)
+    dtype = np.dtype(dtype)
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        if not (math.isfinite(value) and value == math.floor(value)
+                and info.min <= value <= info.max):
+            raise ValueError(f"nodata: {nodata!r} can never equal a sample of {what}, whose "
+                             f"type {dtype.name} holds integers in [{info.min}, {info.max}]; "
+                             "give a value of that type (or leave nodata out to use the "
+                             "file's own)")
+    elif dtype.kind == "f" and math.isfinite(value) and float(dtype.type(value)) != value:
+        raise ValueError(f"nodata: {nodata!r} can never equal a sample of {what}, whose type "
+                         f"{dtype.name} cannot hold it exactly (nearest "
+                         f"{float(dtype.type(value))!r})")
+    if file_nodata is not None:
+        same = (math.isnan(value) and math.isnan(file_nodata)) or value == file_nodata
+        if not same:
+            raise ValueError(f"nodata: {nodata!r} contradicts the nodata value {file_nodata!r} "
+                             f"that {what} declares; leave nodata out to use the file's, or "
+                             "correct the file first (gdal_edit.py -a_nodata VALUE FILE)")

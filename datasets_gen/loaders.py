@@ -32,7 +32,7 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, check_crs, unit_name
+from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, check_crs, check_nodata, unit_name
 from algos.validate import check_spacing
 
 from .cache import cached_array
@@ -243,6 +243,7 @@ def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_po
     heights = data.astype(np.float64) * vertical_scale
     mask = ~np.isfinite(heights)
     if nodata is not None:
+        check_nodata(nodata, data.dtype, None, path)
         mask |= data == nodata
     heights, mask = _apply_nodata(heights, path, mask, nodata_policy, fill_value)
     return HeightField(heights, os.path.basename(path), spacing=spacing,

@@ -43,7 +43,15 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import check_axis_aligned, check_crs, check_georeferencing, crs_unit, ground_size, utm_epsg
+from algos.georef import (
+    check_axis_aligned,
+    check_crs,
+    check_georeferencing,
+    check_nodata,
+    crs_unit,
+    ground_size,
+    utm_epsg,
+)
 
 __all__ = ["read_raster", "check_crs", "crs_unit", "write_product", "create_product", "write_window",
            "product_nodata", "save_product", "LazyRaster", "REPROJECT"]
@@ -148,10 +156,11 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
         offset = float(ds.offsets[band - 1] if ds.offsets else 0.0)
         file_nodata = ds.nodatavals[band - 1]
         raw = ds.read(band)
+        mask = ds.read_masks(band) == 0
         if nodata is not None:
-            mask = raw == nodata
-        else:
-            mask = ds.read_masks(band) == 0
+            check_nodata(nodata, raw.dtype, file_nodata, f"{path} (band {band})")
+            if file_nodata is None:  # the file's own mask (internal mask, NaN) stays
+                mask |= (raw == nodata) if not math.isnan(nodata) else np.isnan(raw)
         crs = ds.crs
         geographic = crs is not None and crs.is_geographic
         if geographic:
