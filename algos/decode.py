@@ -9,6 +9,8 @@ them into physical ones, in two places:
   opened with ``decode_cf=False`` or ``mask_and_scale=False`` keeps the CF attributes
   ``scale_factor``, ``add_offset``, ``_FillValue``, ``missing_value``, ``valid_min``,
   ``valid_max`` and ``valid_range`` (CF Conventions 1.11, sections 2.5.1 and 8.1).
+  The per-band lists of GDAL (``scales``, ``offsets``, ``nodatavals``, as xarray's
+  former ``open_rasterio`` wrote them) are the same rules for a one-band array.
 * ``encoding``: xarray's decoder has applied them already (values scaled, voids NaN);
   they are kept only to write the file back, and must not be applied twice.
 
@@ -22,13 +24,15 @@ import math
 
 import numpy as np
 
-__all__ = ["decode", "PACKING_ATTRS", "VOID_ATTRS"]
+__all__ = ["decode", "PACKING_ATTRS", "VOID_ATTRS", "BAND_LISTS"]
 
 #: Attributes that scale raw values: ``physical = raw * scale_factor + add_offset``.
 PACKING_ATTRS = ("scale_factor", "add_offset")
 #: Attributes that mark raw values as voids (compared before scaling, as CF says).
 VOID_ATTRS = ("_FillValue", "missing_value", "nodata", "valid_min", "valid_max",
               "valid_range")
+#: GDAL's per-band lists (xarray's former ``open_rasterio``) -> the single-value name.
+BAND_LISTS = {"scales": "scale_factor", "offsets": "add_offset", "nodatavals": "nodata"}
 
 
 def _numbers(value, name, what):
@@ -59,16 +63,18 @@ def decode(array, data, what, extra_fills=None):
     Rules found in ``array.attrs`` are applied: values equal to ``_FillValue``,
     ``missing_value`` or ``nodata``, or outside ``valid_min``/``valid_max``/
     ``valid_range``, are voids (raw values compared), then ``raw * scale_factor +
-    add_offset`` (as float64). ``extra_fills`` are more raw void values (rioxarray's
-    ``rio.nodata`` where no attribute holds it). Rules found in ``array.encoding`` are already applied by
-    xarray's decoder and are left alone.
+    add_offset`` (as float64); the per-band lists ``scales``, ``offsets`` and
+    ``nodatavals`` of one band count as those. ``extra_fills`` are more raw void values
+    (rioxarray's ``rio.nodata`` where no attribute holds it). Rules found in
+    ``array.encoding`` are already applied by xarray's decoder and are left alone.
 
     Raises
     ------
     ValueError
         Naming ``what`` and the attribute: a rule given in both ``attrs`` and
         ``encoding`` (applied already, or not?), a non-numeric value, a zero or
-        non-finite ``scale_factor``.
+        non-finite ``scale_factor``, a per-band list of more than one value, or a list
+        that disagrees with its single-value name.
     """
     attrs = dict(array.attrs)
     encoding = dict(getattr(array, "encoding", {}) or {})
@@ -77,6 +83,19 @@ def decode(array, data, what, extra_fills=None):
             raise ValueError(f"{what}: {name} is both an attribute ({attrs[name]!r}: not "
                              f"applied yet) and an encoding ({encoding[name]!r}: applied by "
                              "the decoder); keep one")
+    # GDAL's per-band lists (xarray's former open_rasterio: scales, offsets, nodatavals):
+    # one band here, so one value each, the same rule as the CF names
+    for plural, single in BAND_LISTS.items():
+        if plural in attrs:
+            values = _numbers(attrs[plural], plural, what)
+            if len(values) != 1:
+                raise ValueError(f"{what}: attribute {plural}={attrs[plural]!r} holds one "
+                                 f"value per band, but the array is one band; select the "
+                                 "band's value or drop the attribute")
+            if single in attrs and _numbers(attrs[single], single, what) != values:
+                raise ValueError(f"{what}: attributes {plural}={attrs[plural]!r} and "
+                                 f"{single}={attrs[single]!r} disagree; keep one")
+            attrs.setdefault(single, values[0])
     scale = _scale(attrs, "scale_factor", 1.0, what)
     offset = _scale(attrs, "add_offset", 0.0, what)
     fills = [float(v) for v in extra_fills or ()]

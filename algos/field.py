@@ -396,7 +396,12 @@ class HeightField:
         without spatial coordinates, ``spacing`` (default 1: cell units) describes the
         pixels. The CRS's linear unit is the field's unit; without a CRS, ``unit`` names
         it (as for the constructor; default none: curvature refuses the field). A
-        geographic CRS is refused (:func:`algos.georef.check_crs`)."""
+        geographic CRS is refused (:func:`algos.georef.check_crs`), and so is an array
+        read from a raster placed by GCPs, RPCs or geolocation arrays
+        (:func:`algos.georef.check_dataarray_georeferencing`). Raw values are decoded by
+        the scale, offset and fill attributes they carry (:func:`algos.decode.decode`:
+        rioxarray's default ``open_rasterio`` keeps counts with ``scale_factor`` and
+        ``add_offset``)."""
         if array.ndim != 2:
             raise ValueError(f"heights: expected a 2D DataArray, got dims {array.dims}")
         data = array.data

@@ -13,7 +13,9 @@ unit (``unit``, with ``params["unit_metres"]`` metres per unit); heights are tak
 in that same unit (times ``vertical_scale``, e.g. 0.3048 for feet over a metre grid).
 Rows are kept as stored: a south-up raster (positive y pixel size) is read in its true
 orientation (``north="+y"``) and the products return their results on the same grid.
-Rotated or sheared geotransforms are refused. A geographic CRS (degrees) is refused
+Rotated or sheared geotransforms are refused, and so is a file georeferenced only by
+ground control points, RPCs or geolocation arrays, with the ``gdalwarp`` command that
+warps it to a projected grid (:func:`algos.georef.check_georeferencing`). A geographic CRS (degrees) is refused
 with the exact ``gdalwarp`` command that fixes the file, or reprojected on request
 (``reproject="utm"``: to the WGS 84 UTM zone of the centre, bilinear, at the ground size
 of the pixel at the centre, through ``rasterio.warp``; see :func:`_to_utm`). A file without georeferencing
@@ -103,7 +105,9 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
     vertical_scale : float
         A factor on the heights after scale/offset (a unit change of the heights).
     nodata : float, optional
-        A nodata value to use in place of the file's.
+        The nodata value of a file that declares none (its internal mask, if any, is
+        kept); it must be a value of the file's type, and equal the file's own if it has
+        one (:func:`algos.georef.check_nodata`).
     reproject : None or "utm"
         What to do with a geographic CRS: refuse (None) or reproject to the UTM zone of
         the centre.
@@ -118,9 +122,10 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
     Raises
     ------
     ValueError
-        A missing file, a band out of range, a rotated transform, a geographic CRS
-        without ``reproject``, a bad ``spacing``/``vertical_scale``; each names the
-        file or argument.
+        A missing file, a band out of range, a rotated transform, georeferencing by
+        GCPs, RPCs or geolocation arrays, a geographic CRS without ``reproject``, a
+        ``nodata`` no sample can equal or that contradicts the file's, a bad
+        ``spacing``/``vertical_scale``; each names the file or argument.
     """
     import rasterio
 

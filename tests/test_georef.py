@@ -694,9 +694,11 @@ def test_rioxarray_raw_counts_are_scaled_as_the_file_is(tmp_path):
     np.testing.assert_array_equal(np.asarray(from_array), from_file)
     # the count 65535 is the void, as in the file
     assert np.isnan(np.asarray(from_array)[0, 3, 4])
-    # decoded by rioxarray (mask_and_scale=True): the rules are in encoding, not applied twice
-    decoded = rioxarray.open_rasterio(path, mask_and_scale=True).squeeze("band", drop=True)
-    np.testing.assert_array_equal(np.asarray(algos.horizon(decoded, [90])), from_file)
+    # decoded by rioxarray (mask_and_scale=True): the rules are in encoding, not applied twice;
+    # masked only (masked=True): voids NaN, scale and offset still in attrs and applied here
+    for options in (dict(mask_and_scale=True), dict(masked=True)):
+        decoded = rioxarray.open_rasterio(path, **options).squeeze("band", drop=True)
+        np.testing.assert_array_equal(np.asarray(algos.horizon(decoded, [90])), from_file)
 
 
 def test_cf_packing_and_missing_values_in_attrs_are_applied():
@@ -722,6 +724,15 @@ def test_cf_packing_and_missing_values_in_attrs_are_applied():
     both.encoding["add_offset"] = -100.0
     with pytest.raises(ValueError, match="add_offset is both an attribute"):
         algos.HeightField.from_dataarray(both, unit="m")
+    # GDAL's per-band lists of one band are the same rules; lists of several are refused
+    listed = array.copy()
+    listed.attrs = {"scales": (1.0,), "offsets": (-100.0,), "nodatavals": (-32768.0,),
+                    "missing_value": -1}
+    np.testing.assert_array_equal(algos.HeightField.from_dataarray(listed, unit="m").heights,
+                                  field.heights)
+    listed.attrs["scales"] = (1.0, 2.0)
+    with pytest.raises(ValueError, match=r"scales=\(1.0, 2.0\) holds one value per band"):
+        algos.HeightField.from_dataarray(listed, unit="m")
 
 
 def test_an_explicit_nodata_no_sample_can_equal_is_refused_with_both_values(tmp_path):
