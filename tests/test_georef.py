@@ -12,6 +12,7 @@ import pytest
 import algos
 import datasets_gen
 from algos import HeightField
+from algos.field import is_dask
 from datasets_gen import fields, raster
 
 rasterio = pytest.importorskip("rasterio")
@@ -699,6 +700,12 @@ def test_rioxarray_raw_counts_are_scaled_as_the_file_is(tmp_path):
     for options in (dict(mask_and_scale=True), dict(masked=True)):
         decoded = rioxarray.open_rasterio(path, **options).squeeze("band", drop=True)
         np.testing.assert_array_equal(np.asarray(algos.horizon(decoded, [90])), from_file)
+    # chunked (dask) raw counts are decoded lazily, to the file's heights
+    lazy = algos.HeightField.from_dataarray(
+        rioxarray.open_rasterio(path, chunks=8).squeeze("band", drop=True))
+    assert is_dask(lazy.heights)
+    np.testing.assert_array_equal(np.asarray(lazy.heights.compute()),
+                                  datasets_gen.load_file(path).heights)
 
 
 def test_cf_packing_and_missing_values_in_attrs_are_applied():
