@@ -250,6 +250,8 @@ def check_nodata(nodata, dtype, file_nodata, what) -> None:
     never mark a void of a file: no sample of ``dtype`` can equal it (-9999 or 2.5 in
     uint8, NaN in an integer type, 1e40 in float32), or the file declares another nodata
     value (``file_nodata``; None: it declares none). A NaN nodata equals a NaN one."""
+    if isinstance(nodata, (bool, np.bool_)) or not isinstance(nodata, (int, float, np.number)):
+        raise TypeError(f"nodata: expected a number, got {nodata!r}")
     value = float(nodata)
     dtype = np.dtype(dtype)
     if dtype.kind in "iu":

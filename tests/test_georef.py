@@ -757,6 +757,8 @@ def test_an_explicit_nodata_no_sample_can_equal_is_refused_with_both_values(tmp_
     assert datasets_gen.load_file(plain, nodata=255).nodata_mask[2, 2]
     with pytest.raises(ValueError, match=r"nodata: 2.5 can never equal"):
         datasets_gen.load_file(plain, nodata=2.5)
+    with pytest.raises(TypeError, match=r"nodata: expected a number, got 'abc'"):
+        datasets_gen.load_file(plain, nodata="abc")
     np.save(tmp_path / "u8.npy", data)
     with pytest.raises(ValueError, match=r"nodata: -9999 can never equal"):
         datasets_gen.load_file(tmp_path / "u8.npy", nodata=-9999)
