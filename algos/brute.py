@@ -221,8 +221,18 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
 def brute_force_hits(heights, origins, directions, surface="triangles", tmin=None, tmax=None):
     """(t, cell) of the first hit of every ray, testing every cell; t = inf on a miss.
 
-    Same conventions as ``algos.intersect`` (docs/CONVENTIONS.md, "The first hit"); a
+    Same conventions as ``algos.intersect`` (docs/CONVENTIONS.md, "The first hit"),
+    points on a cell border included: each is tested against the one cell that holds it
+    for the ray's direction (a zero component takes the ``+`` side; the box's far side
+    and a one-point range take the nearest cell of the grid). A
     :class:`algos.HeightField` gives its cell heights.
+
+    Returns
+    -------
+    t : ndarray (n,) float64
+    cell : ndarray (n, 2) int32
+        ``(i, j)`` of the cell whose surface or wall is hit (the first in row-major
+        order when two cells reach it at the same t), ``(-1, -1)`` on a miss.
     """
     H = heights.cell_heights if isinstance(heights, HeightField) else \
         np.asarray(heights, dtype=np.float32)
