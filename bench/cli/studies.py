@@ -54,12 +54,28 @@ def reproduce(args):
     load_plugins(args)
     if args.full and args.preset not in (None, "full"):
         raise ValueError(f"--full: contradicts --preset {args.preset}")
-    kernels = names(args.kernels, algos.get_intersector)
+    preset_name = "full" if args.full else (args.preset or "headline")
+    kernels = names(args.kernels, lambda name: _reproduce_kernel(name, preset_name))
     study.run(full=args.full, out_dir=args.out, resume=args.resume,
               progress=not args.no_progress, counts=not args.no_counts, publish=args.publish,
               preset_name=args.preset, kernels=kernels, isolate=args.isolate,
               all_kernels=args.all_kernels)
     return 0
+
+
+def _reproduce_kernel(name, preset_name):
+    """Check one ``--kernels`` name: an intersector, or a 2D traversal (a plugin among
+    them) where the preset measures the visit workload; ValueError naming what it lacks."""
+    if name in algos.INTERSECTOR_REGISTRY:
+        return
+    if name in algos.TRAVERSAL_REGISTRY:
+        if preset_name == "headline":
+            raise ValueError(f"--kernels: {name!r} is a 2D traversal (the visit workload) "
+                             "with no first-hit kernel, and the headline preset measures "
+                             "first hits only; add --preset standard (or --full) to measure "
+                             "its visit workload")
+        return
+    algos.get_intersector(name)  # unknown: the error lists the valid names
 
 
 def scale(args):
@@ -161,8 +177,8 @@ def register(sub):
                         "paper's measure; standard: every workload and surface plus the "
                         "parallel rays part; full: the paper-scale sweep")
     p.add_argument("--kernels", default=None,
-                   help="comma-separated first-hit kernels to measure (dda always; plugins "
-                        "by name)")
+                   help="comma-separated kernels to measure (dda always; plugins by name; "
+                        "2D traversals with --preset standard or full)")
     p.add_argument("--isolate", action="store_true",
                    help="measure plugin kernels in a child process (a crash is contained)")
     p.add_argument("--all-kernels", action="store_true", help="plot every kernel")
