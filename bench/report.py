@@ -47,6 +47,10 @@ class RowWriter:
 #: What each cache regime and ray coherence means, for the captions of every speedup
 #: table (docs/METHOD.md, "Cache regimes and coherence").
 REGIME_TEXT = {"flushed": "caches flushed before every timed run",
+               "flushed-per-call": "caches flushed before every timed call",
+               "flushed-per-round": "caches flushed once per round of calls, kernels in a "
+                                    "fresh random order each round",
+               "unflushed": "caches never flushed, kernels in a fresh random order each round",
                "warm": "each kernel warmed on its own rays (an untimed run right before)"}
 COHERENCE_TEXT = {"random": "random rays (origins over the field, azimuth atan(1/r), all octants)",
                   "parallel": "parallel rays (one direction of slope 1/r per batch)",

@@ -16,6 +16,7 @@ Config (TOML or dict), every key checked before any work starts:
     precision = 0.02                  # optional: sequential paired rounds to +-2 % (docs/METHOD.md)
     group_budget = 3.0                # with precision: seconds a group may spend measuring
     call_ms = 8.0                     # with precision: the baseline's call is at least this long
+    flush = "round"                   # with precision: flush the caches per "call", "round" or "none"
     seed = 2004
     algorithms = ["dda", "runs"]      # default: every algorithm of each workload
     workloads = ["visit", "runs", "first_hit"]
@@ -49,6 +50,7 @@ from datasets_gen import rays as raysets
 from . import load as machine_load
 from .report import RowWriter
 from .timing import (
+    FLUSH_MODES,
     call_rays,
     environment,
     log_ratio_interval,
@@ -78,7 +80,7 @@ COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "r
 #: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels).
 COHERENCE = ("random", "parallel", "camera")
 _KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
-         "run_lengths", "datasets", "plugins", "precision", "group_budget", "call_ms"}
+         "run_lengths", "datasets", "plugins", "precision", "group_budget", "call_ms", "flush"}
 _DATASET_KEYS = {"name", "size", "seed", "params"}
 
 
@@ -112,6 +114,7 @@ class SweepConfig:
     precision: float | None = None
     group_budget: float = 3.0
     call_ms: float = 8.0
+    flush: str = "round"
 
 
 def _check_int(key, value, low):
@@ -163,6 +166,8 @@ def load_config(source) -> SweepConfig:
             cfg.precision, (int, float)) or not 0 < cfg.precision < 1):
         raise ConfigError(f"precision: expected a fraction in (0, 1) (0.02 is ±2 %), got "
                           f"{cfg.precision!r}")
+    if cfg.flush not in FLUSH_MODES:
+        raise ConfigError(f"flush: expected one of {', '.join(FLUSH_MODES)}, got {cfg.flush!r}")
     for key in ("group_budget", "call_ms"):
         value = getattr(cfg, key)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
@@ -369,7 +374,7 @@ def _group_rays(field, workload, surface, r, rays, seed, coherence="random"):
 
 def measure_group(field, label, workload, surface, r, names, rays, repeats, seed,
                   keep_samples=False, regime="flushed", coherence="random", precision=None,
-                  budget_s=3.0, call_ms=8.0, flush="round"):
+                  budget_s=3.0, call_ms=8.0, flush="round", rays_per_call=None):
     """Rows for one group: every algorithm on the same rays, interleaved. With
     ``keep_samples`` each row also holds ``ratio_samples``, the per-round paired ratios
     time(baseline) / time(algorithm). ``regime`` is the cache regime
@@ -386,7 +391,9 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
       in ``call_rays``); the caches are flushed per ``flush``; a kernel's rounds stop
       when its ratio's 95 % interval is within ``precision`` on either side, after at
       least ``repeats`` rounds, or when the group has spent ``budget_s`` seconds
-      (``stop``: precision, budget or rounds). ``regime`` is then recorded as
+      (``stop``: precision, budget or rounds). ``rays_per_call`` fixes the rays of a
+      call instead (a sweep sizes it once, in its noise calibration, so every group of a
+      run times calls of the same rays). ``regime`` is then recorded as
       ``flushed-per-call``, ``flushed-per-round`` or ``unflushed``.
 
     In both, ``speedup`` and its interval are the geometric mean of the paired per-round
@@ -409,8 +416,8 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
     mode = "visit" if workload == "visit" else "runs"
-    n_rays = rays
-    if precision is not None and BASELINE in names:
+    n_rays = rays if rays_per_call is None else int(rays_per_call)
+    if precision is not None and BASELINE in names and rays_per_call is None:
         # the call length: the baseline timed once on the configured rays
         o, d, *_ = _group_rays(field, workload, surface, r, rays, seed, coherence)
         probe, _ = _prepare(BASELINE, workload, field, o, d, shape, surface, mode)
@@ -711,7 +718,8 @@ def _design(cfg) -> dict:
     """measure_group's keyword arguments for the config's measurement design."""
     if cfg.precision is None:
         return {}
-    return {"precision": cfg.precision, "budget_s": cfg.group_budget, "call_ms": cfg.call_ms}
+    return {"precision": cfg.precision, "budget_s": cfg.group_budget, "call_ms": cfg.call_ms,
+            "flush": cfg.flush}
 
 
 def wait_until_quiet(limit_s: float, step_s: float = 0.5) -> float:
@@ -746,7 +754,8 @@ def calibrate_noise(field, workload, surface, r, cfg, kernels, seconds=1.0) -> d
     job()
     call_s = min(job(), job()) / 1e9
     affordable = int(cfg.group_budget / max(call_s * max(kernels, 2), 1e-6))
-    out = noise_floor(job, seconds=seconds, rounds_affordable=max(affordable, 2))
+    out = noise_floor(job, seconds=seconds, rounds_affordable=max(affordable, 2),
+                      flush=cfg.flush)
     return dict(out, call_rays=n, call_s=round(call_s, 5), kernels=kernels)
 
 
@@ -774,12 +783,14 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     failed = []
     design = _design(cfg)
     if cfg.precision is not None and todo:
+        # the noise floor and the rays of a call, once per run
         # the noise floor: the baseline against itself on the first group's rays
         ds, label, workload, surface, r, names, _ = todo[0]
         fields_cache[label] = load_field(ds)
         env["noise"] = calibrate_noise(fields_cache[label], workload, surface, r, cfg,
                                        len(names))
         env["noise"]["load"] = machine_load.load_average()
+        design["rays_per_call"] = env["noise"]["call_rays"]
         write_json(os.path.join(out_dir, "env.json"), env)
     measure0 = time.perf_counter()
     # contended groups are measured again once the machine is quiet, within this allowance

@@ -1,0 +1,143 @@
+"""Which cache regime the sweep needs: the same groups measured under several designs,
+each design's speedups divided by those of the flushed design (docs/METHOD.md, "Cache
+regimes compared").
+
+Designs (``bench.sweep.measure_group`` with ``bench.timing.paired_rounds``):
+
+* ``call-1000``: the caches flushed before every timed call of 1000 rays (the former
+  design; the reference);
+* ``round-1000``: flushed once per round of calls, 1000 rays;
+* ``call-long``, ``round-long``, ``none-long``: calls of ``call_ms`` (rays doubled from
+  1000 until the baseline's call lasts that long), flushed per call, per round, never;
+* ``big-none-long`` against ``big-call-long``: a field larger than the last-level cache
+  (fBm 4096^2, 128 MiB of heights) never flushed, against flushed per call.
+
+Each group runs until every ratio is within ``precision`` or ``budget_s`` is spent. The
+table gives, per design and kernel, the speedup over ``dda``, its half-width, the ratio
+to the reference design's speedup (with the two half-widths added in quadrature), the
+timed share of the group's wall time, and the load average. Run it on a quiet machine,
+one core: ``taskset -c 1 python -m bench.studies.cache_regimes``.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import sys
+
+from .. import load as machine_load
+from ..sweep import load_field, measure_group
+from ..timing import environment, write_json
+
+KERNELS = ["dda", "runs", "dda_maxmip", "embree"]
+BIG_KERNELS = ["dda", "runs", "dda_maxmip"]
+#: (design, flush, long calls, field): the reference first.
+DESIGNS = [("call-1000", "call", False, "fbm1024"), ("round-1000", "round", False, "fbm1024"),
+           ("call-long", "call", True, "fbm1024"), ("round-long", "round", True, "fbm1024"),
+           ("none-long", "none", True, "fbm1024"), ("big-call-long", "call", True, "fbm4096"),
+           ("big-none-long", "none", True, "fbm4096")]
+REFERENCE = {"fbm1024": "call-1000", "fbm4096": "big-call-long"}
+FIELDS = {"fbm1024": {"name": "fbm", "size": 1024, "seed": 1},
+          "fbm4096": {"name": "fbm", "size": 4096, "seed": 1}}
+
+
+def run(out_dir="results/cache_regimes", run_lengths=(5, "random"), precision=0.005,
+        budget_s=5.0, call_ms=8.0, big=True, echo=print) -> list:
+    """Measure every design of :data:`DESIGNS` on fBm (1024^2, and 4096^2 with ``big``)
+    for each run length; write ``regimes.csv``, ``regimes.md`` and ``env.json`` to
+    ``out_dir`` and return the rows."""
+    os.makedirs(out_dir, exist_ok=True)
+    rows = []
+    for field_name in ("fbm1024", "fbm4096") if big else ("fbm1024",):
+        field = load_field(FIELDS[field_name])
+        kernels = KERNELS if field_name == "fbm1024" else BIG_KERNELS
+        for r in run_lengths:
+            long_rays = None  # sized by the first long design, then the same for the others
+            for design, flush, long_calls, where in DESIGNS:
+                if where != field_name:
+                    continue
+                load_before = machine_load.load_average()
+                got = measure_group(field, field_name, "first_hit", "triangles", r, kernels,
+                                    1000, 10, 2004, precision=precision, budget_s=budget_s,
+                                    call_ms=call_ms, flush=flush,
+                                    rays_per_call=long_rays if long_calls else 1000)
+                if long_calls and long_rays is None:
+                    long_rays = got[0]["call_rays"]
+                for row in got:
+                    rows.append({"field": field_name, "run_length": r, "design": design,
+                                 "kernel": row["algorithm"], "call_rays": row["call_rays"],
+                                 "rounds": row["rounds"], "speedup": row["speedup"],
+                                 "half_width": row["half_width"],
+                                 "timed_share": round(row["timed_s"] / row["wall_s"], 3),
+                                 "flush_s": row["flush_s"], "wall_s": row["wall_s"],
+                                 "other_cpu": row["other_cpu"], "load_before": load_before,
+                                 "contended": row["contended"]})
+                echo(f"  {field_name} r={r} {design}: {got[0]['wall_s']:.1f} s")
+        del field  # one field in memory at a time
+    _relative(rows)
+    with open(os.path.join(out_dir, "regimes.csv"), "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    text = markdown(rows)
+    with open(os.path.join(out_dir, "regimes.md"), "w") as f:
+        f.write(text)
+    write_json(os.path.join(out_dir, "env.json"),
+               dict(environment(), load_after=machine_load.load_average()))
+    echo(text)
+    return rows
+
+
+def _relative(rows):
+    """Each row's speedup over its reference design's, same field, r and kernel."""
+    ref = {(x["field"], str(x["run_length"]), x["kernel"]): x for x in rows
+           if x["design"] == REFERENCE[x["field"]]}
+    for x in rows:
+        base = ref.get((x["field"], str(x["run_length"]), x["kernel"]))
+        if base is None or x["kernel"] == "dda" or not base["speedup"]:
+            x["vs_reference"], x["vs_half_width"] = "", ""
+            continue
+        x["vs_reference"] = round(x["speedup"] / base["speedup"], 4)
+        x["vs_half_width"] = round(math.hypot(x["half_width"], base["half_width"]), 4)
+
+
+def markdown(rows) -> str:
+    """The comparison table: one line per (field, r, design), one column per kernel, each
+    cell the speedup's ratio to the reference design's ±the combined half-width."""
+    kernels = list(dict.fromkeys(x["kernel"] for x in rows if x["kernel"] != "dda"))
+    head = ["field", "r", "design", "rays/call", "timed share", "load"] + kernels
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    keys = list(dict.fromkeys((x["field"], str(x["run_length"]), x["design"]) for x in rows))
+    for key in keys:
+        part = {x["kernel"]: x for x in rows if (x["field"], str(x["run_length"]), x["design"]) == key}
+        any_row = next(iter(part.values()))
+        cells = []
+        for k in kernels:
+            x = part.get(k)
+            if x is None or x["vs_reference"] == "":
+                cells.append("")
+                continue
+            cells.append(f"{x['vs_reference']:.3f} ±{100 * x['vs_half_width']:.1f} % "
+                         f"({x['speedup']:.2f})")
+        lines.append("| " + " | ".join([*key[:2], key[2], str(any_row["call_rays"]),
+                                         f"{100 * any_row['timed_share']:.0f} %",
+                                         f"{any_row['load_before']}"] + cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m bench.studies.cache_regimes",
+                                description="compare the cache regimes of the sweep's design")
+    p.add_argument("--out", default="results/cache_regimes")
+    p.add_argument("--budget", type=float, default=5.0, help="seconds per group and design")
+    p.add_argument("--no-big", action="store_true", help="skip the 4096^2 field")
+    args = p.parse_args(argv)
+    if not args.budget > 0:
+        raise SystemExit(f"--budget: expected a positive number of seconds, got {args.budget}")
+    run(out_dir=args.out, budget_s=args.budget, big=not args.no_big)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
