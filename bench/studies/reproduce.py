@@ -49,6 +49,9 @@ PUBLISHED = {"headline": "reproduce-headline", "standard": "reproduce", "full": 
 #: and the shortest baseline call (``call_ms``) a group's rays are sized for.
 GROUP_BUDGET = {"headline": 2.5, "standard": 3.0, "full": 4.0}
 CALL_MS = 8.0
+#: Where the caches are flushed (``bench.timing.FLUSH_MODES``; docs/METHOD.md, "Cache
+#: regimes compared"): once per round of calls.
+FLUSH = "round"
 #: The fewest paired rounds of every kernel (``repeats``).
 MIN_ROUNDS = 10
 #: Seconds per group (used for the first line's estimate): the budget and the group's
@@ -93,7 +96,8 @@ def preset(full=False, name=None, kernels=None, precision=0.02) -> SweepConfig:
         raise ValueError(f"--preset: unknown preset {name!r}; valid: {', '.join(PRESETS)}")
     _check_precision(precision)
     out = OUT_NAMES[name]
-    design = dict(precision=float(precision), group_budget=GROUP_BUDGET[name], call_ms=CALL_MS)
+    design = dict(precision=float(precision), group_budget=GROUP_BUDGET[name], call_ms=CALL_MS,
+                  flush=FLUSH)
     if name == "full":
         return SweepConfig(
             name=out, rays=3000, repeats=MIN_ROUNDS, seed=2004, **design,
