@@ -127,6 +127,7 @@ def markdown(rows) -> str:
 
 
 def main(argv=None) -> int:
+    """``python -m bench.studies.cache_regimes [--out DIR] [--budget S] [--no-big]``."""
     p = argparse.ArgumentParser(prog="python -m bench.studies.cache_regimes",
                                 description="compare the cache regimes of the sweep's design")
     p.add_argument("--out", default="results/cache_regimes")
