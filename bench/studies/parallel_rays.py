@@ -131,7 +131,8 @@ def run_parallel(out_dir="results/reproduce", size=None, run_lengths=RUN_LENGTHS
                 return "no interval (per-repeat times not recorded): inconclusive"
             top = np.array([float(v) for v in got[num].split(";")])
             bottom = np.array([float(v) for v in got[den].split(";")])
-            return ratio_text(*log_ratio_interval(top, bottom)).replace(" ", "x ", 1)
+            text = ratio_text(*log_ratio_interval(top, bottom)).replace(" ", "x ", 1)
+            return text or "no interval (fewer than two repeats): inconclusive"
         text.append(f"- r = {r}: `runs_periodic` {ratio('first_hit', 'runs', 'runs_periodic')} "
                     f"`runs` on orthographic first hits; the shared pattern "
                     f"{ratio('horizon', 'dda', 'pattern')} and the sweep "
