@@ -585,11 +585,12 @@ def _write_group(writer, rows, missing, bar, label, commit=""):
         bar.update(1)
 
 
-def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed):
-    """One group on a Dask worker: load the field there, measure, return the rows and the
+def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed, **design):
+    """One group on a Dask worker: load the field there, measure (``design``: the
+    sequential design's arguments of :func:`measure_group`), return the rows and the
     worker's environment. Module-level (importable) so any worker can run it."""
     rows = measure_group(load_field(ds), label, workload, surface, r, names, rays,
-                         repeats, seed)
+                         repeats, seed, **design)
     import socket
 
     return rows, dict(environment(), hostname=socket.gethostname(), pid=os.getpid())
@@ -634,7 +635,7 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
         for item in todo:
             ds, label, workload, surface, r, names, missing = item
             future = client.submit(measure_task, ds, label, workload, surface, r, names,
-                                   cfg.rays, cfg.repeats, cfg.seed, pure=False)
+                                   cfg.rays, cfg.repeats, cfg.seed, pure=False, **_design(cfg))
             futures[future] = item
         bar = _bar(progress, len(todo), f"{cfg.name} (dask)")
         start = time.perf_counter()
