@@ -184,6 +184,7 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     measure0 = time.perf_counter()
     run_sweep(cfg, out_dir, resume=resume, progress=progress, echo=echo, isolate=isolate)
     measure_s = time.perf_counter() - measure0
+    counts0 = time.perf_counter()
     if affinity is not None:  # nothing is timed from here on: every core may count
         os.sched_setaffinity(0, affinity)
     if counts:
@@ -213,6 +214,8 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
         from . import packets
 
         packets.run(os.path.join(out_dir, "packets"), quick=False, counts=counts, echo=echo)
+    reports0 = time.perf_counter()
+    other_phases_s = reports0 - counts0  # counts, and the parallel rays part beyond headline
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace reproduce ({name} preset)",
                                    all_kernels=all_kernels)
@@ -225,6 +228,8 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     total = time.perf_counter() - wall0
     timed = (env.get("run") or {}).get("timed_s") or 0.0
     env["reproduce"] = {"preset": name, "wall_s": round(total, 1), "measure_s": round(measure_s, 1),
+                        "after_measure_s": round(other_phases_s, 1),
+                        "reports_s": round(time.perf_counter() - reports0, 1),
                         "timed_share_of_total": round(timed / total, 4) if total else None,
                         "precision": cfg.precision}
     # timed seconds over the measure phase (the sweep, noise calibration included)
