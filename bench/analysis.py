@@ -401,7 +401,9 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
                   f"{env.get('python')}, NumPy {env.get('numpy')}, commit "
                   f"`{env.get('git_commit')}`.", ""]
     datasets = list(dict.fromkeys(df["dataset"]))
-    rounds = pd.to_numeric(df["rounds"], errors="coerce") if "rounds" in df else df["repeats"]
+    rounds = pd.to_numeric(df["rounds"], errors="coerce") if "rounds" in df else None
+    if rounds is None or rounds.isna().all():  # results of the fixed-repeats design
+        rounds = pd.to_numeric(df["repeats"], errors="coerce")
     calls = sorted(set(df["call_rays"].dropna().astype(int))) if "call_rays" in df else []
     lines += [f"Datasets: {', '.join(datasets)}. Rays per timed call: "
               f"{', '.join(map(str, calls or sorted(set(df['rays']))))}; rounds per kernel: "
