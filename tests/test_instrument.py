@@ -258,7 +258,12 @@ def test_a_contended_group_is_measured_again_when_quiet(tmp_path, monkeypatch):
     env = json.load(open(tmp_path / "env.json"))
     assert env["run"]["remeasured_groups"] == 1 and env["run"]["contended_groups"] == 0
     text = open(analysis.write_reports(str(tmp_path / "results.csv"))["speedup"]).read()
-    assert "faster 1" in text.split("## ")[1] or "faster 1 " in text
+    assert "Group ratios: faster 1 (of 1)." in text.split("## ")[0]
+    from bench.studies import instrument_figures as F
+
+    got = F.run_figures(str(tmp_path))
+    assert got["ratios"] == 1 and got["share_within"] == 1.0 and got["contended_groups"] == 0
+    assert F.inside(str(tmp_path), str(tmp_path)) == {"matched": 1, "inside": 1.0}
 
 
 def test_reproduce_strict_exits_non_zero_when_every_group_was_contended(monkeypatch, capsys):
