@@ -1,8 +1,9 @@
 """Tables and plots from any results.csv (``hftrace plot``, ``hftrace reproduce``).
 
 Speedups are aggregated over datasets by the geometric mean (the mean of ratios that
-treats 2x and 0.5x symmetrically); per-dataset tables keep each row's own bootstrap
-interval.
+treats 2x and 0.5x symmetrically); per-dataset tables keep each row's own interval.
+Every cell and written conclusion is labelled by :func:`finding` (docs/METHOD.md,
+"Labels" under "Paired rounds").
 """
 from __future__ import annotations
 
