@@ -431,7 +431,8 @@ def call_rays(first_call_ns: float, rays: int, call_ms: float, max_factor: int =
 def noise_floor(job: Callable[[], int], seconds: float = 1.0, rounds_affordable: int = 40,
                 confidence: float = 0.95, flush: str = "round") -> dict:
     """The smallest effect this machine resolves now: the same job timed against itself
-    (A/A) in paired rounds for about ``seconds``; returns ``{"log_sd": the standard
+    (A/A) in paired rounds for about ``seconds`` (at least ten pairs, within three times
+    that); returns ``{"log_sd": the standard
     deviation of one paired log-ratio, "pairs": how many, "floor": the relative half-width
     a ratio reaches in ``rounds_affordable`` rounds at that noise}``."""
     from scipy import stats
@@ -439,7 +440,9 @@ def noise_floor(job: Callable[[], int], seconds: float = 1.0, rounds_affordable:
     job()
     logs = []
     start = time.perf_counter()
-    while time.perf_counter() - start < seconds or len(logs) < 4:
+    # at least ten pairs for a usable standard deviation, unless that takes thrice the time
+    while (time.perf_counter() - start < seconds or len(logs) < 10) and \
+            (len(logs) < 4 or time.perf_counter() - start < 3 * seconds):
         if flush == "round":
             flush_caches()
         a, b = float(job()), float(job())
