@@ -69,8 +69,9 @@ def test_median_interval_covers_the_median_distribution_free():
 
 
 def _synthetic_jobs(rng, speeds, noise):
-    """Jobs that return nanoseconds drawn around ``1e6 / speed``, a shared per-round factor
-    included (each round starts with the baseline's draw of it)."""
+    """Jobs that return nanoseconds drawn around ``1e6 / speed`` times a disturbance that
+    is drawn afresh whenever the first job runs and shared by the calls after it (a
+    machine state that drifts between rounds), times each call's own noise."""
     state = {"shared": 0.0}
 
     def job(speed, first):
