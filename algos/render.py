@@ -21,6 +21,7 @@ import numpy as np
 
 from .field import Field
 from .intersect import intersect
+from .registry import get_intersector
 
 __all__ = ["Rendering", "default_camera", "render", "shade"]
 
@@ -37,7 +38,8 @@ class Rendering:
         Unit surface normal at the hit, NaN on a miss.
     cells_visited, runs_visited : (height, width)
         The intersector's per-ray statistics (``algos.intersect`` outputs "stats"); zero
-        for a rasteriser, which visits no cells per ray.
+        for a rasteriser, which visits no cells per ray, and for a registered plugin
+        (``algos.plugins``), which reports none.
     points : float64 (height, width, 3)
         The hit points (the camera position on a miss).
     rgb : float64 (height, width, 3)
@@ -140,11 +142,17 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         t, normal, cell, elapsed = image.t.ravel(), image.normal, image.cell, image.elapsed_ns
         cells_visited = runs_visited = np.zeros(shape, dtype=np.int64)
     else:
+        # a registered plugin reports no per-ray statistics: its count images are zero
+        entry = get_intersector(algorithm)
+        outputs = ("t", "cell", "normal") + (("stats",) if entry.plugin is None else ())
         hits = intersect(algorithm, field, rs.origins, rs.directions, surface=surface,
-                         outputs=("t", "cell", "normal", "stats"), threads=threads)
+                         outputs=outputs, threads=threads)
         t, normal, cell, elapsed = hits.t, hits.normal, hits.cell, hits.elapsed_ns
-        cells_visited = hits.stats["cells_visited"].reshape(shape)
-        runs_visited = hits.stats["runs_visited"].reshape(shape)
+        if hits.stats is None:
+            cells_visited = runs_visited = np.zeros(shape, dtype=np.int64)
+        else:
+            cells_visited = hits.stats["cells_visited"].reshape(shape)
+            runs_visited = hits.stats["runs_visited"].reshape(shape)
     depth = t.reshape(shape)  # unit directions: t is a distance
     normal = normal.reshape(height, width, 3)
     points = rs.origins + np.where(np.isfinite(t), t, 0)[:, None] * rs.directions

@@ -7,11 +7,16 @@ Every cell and written conclusion is labelled by :func:`finding` (docs/METHOD.md
 """
 from __future__ import annotations
 
+import csv
+import io
 import json
 import os
+import sys
 
 import numpy as np
 import pandas as pd
+
+from .report import scan_csv
 
 #: Henning & Stephenson 2004 as summarised in the seeds: speedup of the run walk over the
 #: cell walk by mean run length, and over all orientations.
@@ -109,21 +114,61 @@ def group_label(rows) -> dict:
             "contended": bool(column("contended", False).astype(bool).any()), "stop": stop}
 
 
-def load(path) -> pd.DataFrame:
+def _warn(text):
+    print(text, file=sys.stderr)
+
+
+def load(path, run=None, echo=_warn) -> pd.DataFrame:
     """A results.csv as a DataFrame: run lengths kept as text ("random" among numbers),
-    the 2D workloads' empty surface as "-"."""
+    the 2D workloads' empty surface as "-". Rows of different runs are never blended.
+
+    Parameters
+    ----------
+    path : str
+    run : str, optional
+        The run to read: a prefix of its ``run_id`` (files without that column: of its
+        ``commit``). Needed when the file holds more than one run.
+    echo : callable or None
+        Receives one line per damaged line of the file (a row a kill cut short, a
+        malformed row, a repeated header), which is left out; default: standard error.
+
+    Returns
+    -------
+    DataFrame
+        ``df.attrs["runs"]``: the run read, as a list of one dict (``run_id``, ``commit``,
+        ``machine``, ``started``, ``rows``); ``df.attrs["bad_lines"]``: the damaged lines
+        as (line number, reason).
+
+    Raises
+    ------
+    ValueError
+        The file is missing or not a results.csv; it holds several runs and ``run`` is
+        not given (the message lists them); ``run`` names none of them.
+    """
     if not os.path.isfile(path):
         raise ValueError(f"results: {path} does not exist")
     try:
-        df = pd.read_csv(path, dtype={"run_length": str, "surface": str})
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        header, rows, bad = scan_csv(path, ("algorithm", "workload", "dataset", "run_length"))
+    except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"results: {path} is not a readable CSV ({exc})") from None
     needed = {"algorithm", "workload", "surface", "dataset", "run_length", "speedup",
               "speedup_ci_low", "speedup_ci_high", "ns_per_ray", "agree"}
-    missing = sorted(needed - set(df.columns))
+    missing = sorted(needed - set(header))
     if missing:
         raise ValueError(f"results: {path} is not a results.csv of hftrace (no column "
                          f"{', '.join(missing)})")
+    for number, reason in bad:
+        if echo:
+            echo(f"warning: results: line {number} of {path}: {reason}; left out")
+    text = io.StringIO()
+    writer = csv.writer(text)
+    writer.writerow(header)
+    writer.writerows([row[c] for c in header] for row in rows)
+    text.seek(0)
+    df = pd.read_csv(text, dtype={"run_length": str, "surface": str, "run_id": str,
+                                  "commit": str, "machine": str, "started": str})
+    df, runs = _one_run(df, path, run)
+    df.attrs.update(runs=runs, bad_lines=bad)
     df["surface"] = df["surface"].fillna("-")
     if "contended" in df.columns:
         df["contended"] = df["contended"].astype(str).str.lower().isin(("true", "1"))
@@ -133,6 +178,57 @@ def load(path) -> pd.DataFrame:
         df["error"] = ""
     df["error"] = df["error"].astype(object).fillna("").astype(str)
     return df
+
+
+def _run_key(df):
+    """Each row's run: its ``run_id``, or where that is missing (files written before
+    runs were identified, studies that write no identifier) its ``commit``; "" when
+    neither is known."""
+    empty = pd.Series([""] * len(df), index=df.index)
+    commit = df["commit"].fillna("").astype(str) if "commit" in df.columns else empty
+    run_id = df["run_id"].fillna("").astype(str) if "run_id" in df.columns else empty
+    return run_id.where(run_id != "", commit)
+
+
+def _one_run(df, path, run):
+    """The rows of one run and its description; ValueError when ``df`` holds several
+    and ``run`` does not choose one (results of two runs are never blended)."""
+    keys = _run_key(df)
+    runs = []
+    for key in dict.fromkeys(keys):
+        part = df[keys == key]
+        first = part.iloc[0]
+        runs.append({"run_id": str(first.get("run_id", "") if "run_id" in df else ""),
+                     "commit": str(first.get("commit", "") if "commit" in df else ""),
+                     "machine": str(first.get("machine", "") if "machine" in df else ""),
+                     "started": str(first.get("started", "") if "started" in df else ""),
+                     "key": key, "rows": len(part)})
+    for r in runs:
+        for field in ("run_id", "commit", "machine", "started"):
+            r[field] = "" if r[field] == "nan" else r[field]
+    if run is not None:
+        chosen = [r for r in runs if r["key"] and r["key"].startswith(str(run))]
+        if len(chosen) != 1:
+            raise ValueError(f"--run: {run!r} names {'none' if not chosen else 'several'} of "
+                             f"the {len(runs)} run(s) in {path}: {describe_runs(runs)}")
+        return df[keys == chosen[0]["key"]].copy(), chosen
+    if len(runs) > 1:
+        raise ValueError(f"results: {path} holds {len(runs)} runs, which are never blended: "
+                         f"{describe_runs(runs)}; choose one with --run ID")
+    return df, runs
+
+
+def describe_runs(runs) -> str:
+    """``run 1a2b3c4d5e6f (commit 0123456789, machine host, started ...; 40 rows)``, ..."""
+    out = []
+    for r in runs:
+        name = r["run_id"] or (f"commit {r['commit']}" if r["commit"] else "unidentified")
+        facts = [f"commit {r['commit'][:10]}" if r["run_id"] and r["commit"] else "",
+                 f"machine {r['machine']}" if r["machine"] else "",
+                 f"started {r['started']}" if r["started"] else ""]
+        facts = ", ".join(f for f in facts if f)
+        out.append(f"run {name} ({facts + '; ' if facts else ''}{r['rows']} rows)")
+    return "; ".join(out)
 
 
 def _r_value(r):
@@ -401,6 +497,9 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
         lines += [f"Machine: {env.get('cpu')} ({env.get('cores')} cores, one used), Python "
                   f"{env.get('python')}, NumPy {env.get('numpy')}, commit "
                   f"`{env.get('git_commit')}`.", ""]
+    runs = df.attrs.get("runs")
+    if runs:
+        lines += [f"Rows of {describe_runs(runs)}.", ""]
     datasets = list(dict.fromkeys(df["dataset"]))
     rounds = pd.to_numeric(df["rounds"], errors="coerce") if "rounds" in df else None
     if rounds is None or rounds.isna().all():  # results of the fixed-repeats design
@@ -457,9 +556,11 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
     for (workload, surface), _ in df.groupby(["workload", "surface"], sort=False):
         if (workload, surface) == PRIMARY:
             continue
-        t = pivot(df, workload, surface)
+        t = pivot_ci(df, workload, surface)
         label = workload if surface == "-" else f"{workload}, {surface}"
-        lines += [f"## Workload: {label}", "", _markdown(t), ""]
+        lines += [f"## Workload: {label}", "",
+                  "Each cell: speedup over dda [95 % interval], as in the first table.", "",
+                  _markdown(t), ""]
     lines += cost_model(df, counts)
     lines += load_section(df, env)
     errors = df[df["error"] != ""]
@@ -512,11 +613,17 @@ def load_section(df, env=None) -> list:
 
 
 def _style(name):
-    """Line style by accuracy: exact solid, float dashed, approximate dotted, peer dash-dot."""
+    """Line style by accuracy: exact solid, float dashed, approximate dotted, peer
+    dash-dot. A plugin is solid only when it registered ``exact=True``, else dashed; a
+    kernel this process does not know (a plugin not loaded) is dashed too, since nothing
+    here backs an exactness claim."""
     import algos
 
-    entry = algos.INTERSECTOR_REGISTRY.get(name)
-    accuracy = entry.accuracy if entry else "exact"
+    entry = algos.INTERSECTOR_REGISTRY.get(name) or algos.TRAVERSAL_REGISTRY.get(name)
+    if entry is None or entry.plugin is not None:
+        return "-" if entry is not None and entry.plugin.exact else "--"
+    accuracy = entry.accuracy if hasattr(entry, "accuracy") else \
+        ("exact" if entry.exact else entry.precision)
     return {"exact": "-", "float64": "--", "float32": "--", "approximate": ":"}.get(accuracy, "-.")
 
 
@@ -549,8 +656,8 @@ def _colours(n):
 def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernels=False):
     """Speedup over dda against mean run length for one workload and surface, one line per
     algorithm (geometric mean over datasets), saved as a PNG at ``path``. By default the
-    kernels of :data:`PLOT_KERNELS` and every plugin (``all_kernels`` for all), with a
-    the 95 % interval of every kernel shown drawn as a light band and as error bars set
+    kernels of :data:`PLOT_KERNELS` and every plugin (``all_kernels`` for all); the 95 %
+    interval of every kernel shown is drawn as a light band and as error bars set
     slightly apart along the run-length axis, so overlapping intervals stay apart."""
     import matplotlib
 
@@ -587,9 +694,9 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     ax.set_xscale("log")
     ax.set_xlabel("mean run length r (log)")
     ax.set_ylabel("speedup over dda (geometric mean of paired ratios)")
-    ax.set_title(f"{workload} on {surface}: run length vs speedup\n"
-                 "(solid exact, dashed float, dotted marching; bars and bands: 95 % intervals)",
-                 fontsize=10)
+    where = workload if surface == "-" else f"{workload} on {surface}"
+    ax.set_title(f"{where}: run length vs speedup\n(solid exact, dashed float or not claimed "
+                 "exact, dotted marching; bars and bands: 95 % intervals)", fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
@@ -656,14 +763,19 @@ def cost_model(df, counts=None) -> list:
     return lines
 
 
-def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels=False) -> dict:
+def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels=False,
+                  run=None, echo=_warn) -> dict:
     """speedup.md (the headline table), speedup_full.md (every kernel),
-    run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV
-    (``all_kernels``: every kernel in the plots, not the default subset). ``ValueError``
-    when the CSV is missing or not a results.csv."""
+    run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV (``all_kernels``:
+    every kernel in the plots, not the default subset), of one run (``run``: see
+    :func:`load`). ``echo`` receives the run read and each damaged line left out.
+    ``ValueError`` when the CSV is missing, not a results.csv, or holds several runs and
+    ``run`` does not choose one."""
     out_dir = out_dir or os.path.dirname(os.path.abspath(csv_path))
+    df = load(csv_path, run=run, echo=echo)
+    if echo:
+        echo(f"read {describe_runs(df.attrs['runs'])} from {csv_path}")
     os.makedirs(out_dir, exist_ok=True)
-    df = load(csv_path)
     env_path = os.path.join(os.path.dirname(os.path.abspath(csv_path)), "env.json")
     try:
         env = json.load(open(env_path)) if os.path.exists(env_path) else None
@@ -680,6 +792,9 @@ def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels
         f.write(speedup_markdown(df, env, title, counts=counts))
     with open(paths["full"], "w") as f:
         f.write(speedup_markdown(df, env, title + ", every kernel", counts=counts, full=True))
-    plot_speedup(df, paths["plot"], all_kernels=all_kernels)
+    # the paper's measure when the rows hold it, else the first workload they hold
+    pairs = list(dict.fromkeys(zip(df["workload"], df["surface"])))
+    workload, surface = PRIMARY if PRIMARY in pairs or not pairs else pairs[0]
+    plot_speedup(df, paths["plot"], workload, surface, all_kernels=all_kernels)
     plot_cost(df, paths["cost"], all_kernels=all_kernels)
     return paths

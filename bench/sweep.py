@@ -33,8 +33,10 @@ An unknown key is an error naming it and the closest valid key.
 """
 from __future__ import annotations
 
-import csv
+import dataclasses
 import difflib
+import hashlib
+import json
 import math
 import os
 import time
@@ -48,7 +50,7 @@ from algos.intersect import prepare_timed_intersect
 from datasets_gen import rays as raysets
 
 from . import load as machine_load
-from .report import RowWriter
+from .report import RowWriter, scan_csv
 from .timing import (
     FLUSH_MODES,
     call_rays,
@@ -63,8 +65,8 @@ from .timing import (
 )
 
 __all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "run_sweep_dask", "COLUMNS",
-           "row_key", "WORKLOADS", "first_hit_rays", "traversal_rays", "measure_group",
-           "dask_client"]
+           "RUN_COLUMNS", "config_hash", "new_run", "scan_results", "row_key", "WORKLOADS",
+           "first_hit_rays", "traversal_rays", "measure_group", "dask_client"]
 
 WORKLOADS = ("visit", "runs", "first_hit")
 BASELINE = "dda"
@@ -73,7 +75,16 @@ COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "r
            "ns_per_ray_ci_high", "speedup", "speedup_ci_low", "speedup_ci_high",
            "ns_per_cell", "ns_per_run", "agree", "repeats", "seed", "contended",
            "other_cpu", "load_before", "load_after", "timed_s", "wall_s", "commit", "error",
-           "regime", "coherence", "call_rays", "rounds", "precision", "half_width", "stop", "flush_s"]
+           "regime", "coherence", "run_id", "machine", "config_hash", "started",
+           "call_rays", "rounds", "precision", "half_width", "stop", "flush_s"]
+#: The columns that say which run measured a row: ``run_id`` (12 hex digits of the
+#: SHA-256 of the other three, the commit and the process id), the ``machine`` (host name), the
+#: ``config_hash`` (of the sweep's config, :func:`config_hash`) and the UTC time the run
+#: ``started``. A resumed run keeps its identifier; the readers (``bench.analysis.load``)
+#: keep runs apart.
+RUN_COLUMNS = ("run_id", "machine", "config_hash", "started")
+#: Columns a whole sweep row never leaves empty (``bench.report.scan_csv``)
+REQUIRED = ("algorithm", "workload", "dataset", "run_length", "rays", "repeats", "seed")
 #: Ray batches of a first-hit group, from incoherent to coherent (docs/METHOD.md, "Cache
 #: regimes and coherence"): "random" origins over the field at azimuth atan(1/r) in all
 #: octants; "parallel" rays of one direction, slope 1/r (orthographic, sun shadows);
@@ -146,16 +157,16 @@ def load_config(source) -> SweepConfig:
     if not isinstance(cfg.plugins, list) or not all(isinstance(p, str) for p in cfg.plugins):
         raise ConfigError("plugins: expected a list of strings (library paths or module:callable)")
     if cfg.plugins:
-        from algos.plugins import load_plugin_spec
+        from algos.plugins import PluginError, load_plugin_spec
 
+        # library paths and modules resolve from the config's folder (then the current
+        # directory), so a documented config runs as written from any directory
         base = os.path.dirname(os.path.abspath(os.fspath(source))) \
             if isinstance(source, (str, os.PathLike)) else os.getcwd()
         for k, spec in enumerate(cfg.plugins):
-            if spec.endswith((".so", ".dylib", ".dll")) and not os.path.isabs(spec):
-                spec = os.path.join(base, spec)
             try:
-                load_plugin_spec(spec)
-            except ValueError as exc:
+                load_plugin_spec(spec, base=base)
+            except (ValueError, PluginError) as exc:
                 raise ConfigError(f"plugins[{k}]: {exc}") from None
     if not isinstance(cfg.name, str) or not cfg.name or "/" in cfg.name:
         raise ConfigError(f"name: expected a plain directory name, got {cfg.name!r}")
@@ -513,12 +524,42 @@ def _claims_exact(name, workload):
     return bool(table[name].plugin.exact)
 
 
-def read_rows(path) -> list[dict]:
-    """The rows of a CSV as dicts of strings; [] when ``path`` does not exist."""
-    if not os.path.exists(path):
-        return []
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
+def read_rows(path, bad=None) -> list[dict]:
+    """The whole rows of a CSV as dicts of strings; [] when ``path`` does not exist.
+    Lines a kill cut short or that are malformed are left out; pass a list as ``bad``
+    to receive them as (line number, reason) (``bench.report.scan_csv``)."""
+    _, rows, damaged = scan_csv(path)
+    if bad is not None:
+        bad.extend(damaged)
+    return rows
+
+
+def scan_results(path):
+    """(whole rows, damaged lines as (line number, reason)) of a sweep's results.csv."""
+    _, rows, bad = scan_csv(path, REQUIRED)
+    return rows, bad
+
+
+def config_hash(cfg) -> str:
+    """12 hex digits of the SHA-256 of the config's every key (canonical JSON); ``cfg`` a
+    :class:`SweepConfig` or a study's dict of settings."""
+    settings = dataclasses.asdict(cfg) if dataclasses.is_dataclass(cfg) else dict(cfg)
+    text = json.dumps(settings, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def new_run(cfg, commit) -> dict:
+    """The :data:`RUN_COLUMNS` of a run starting now on this machine."""
+    import datetime
+    import socket
+
+    machine = socket.gethostname() or "unknown"
+    started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    digest = config_hash(cfg)
+    # the process id tells apart two runs started in the same microsecond
+    key = f"{commit}|{machine}|{digest}|{started}|{os.getpid()}"
+    run_id = hashlib.sha256(key.encode()).hexdigest()[:12]
+    return {"run_id": run_id, "machine": machine, "config_hash": digest, "started": started}
 
 
 def load_field(ds) -> algos.Field:
@@ -527,21 +568,41 @@ def load_field(ds) -> algos.Field:
                                          **ds.get("params", {})).heights)
 
 
-def _pending(cfg, out_dir, resume, commit=None):
+def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machine=True):
     """(results.csv path, the groups still to measure with their missing algorithms).
 
     Without ``resume`` a results.csv that holds rows is never replaced: ``ValueError``
     says to resume or to choose another ``--out``. With ``resume`` the kept rows must have
     been measured with this config's rays, repeats and seed and, when ``commit`` is given
-    and the rows record one, the same code commit; otherwise ``ValueError`` names the
-    mismatch (nothing is measured or removed)."""
+    and the rows record one, the same code commit, by one run on this machine; otherwise
+    ``ValueError`` names the mismatch (nothing is measured or removed). A line a kill cut
+    short, or a malformed one, is no kept row: its group is measured again (the writer
+    sets the line aside), and it is added to ``bad`` as (line number, reason). ``run``
+    (:func:`new_run`) takes the kept rows' run identifier, so the resumed run stays one.
+    ``check_machine=False`` (Dask: each row names the worker that measured it) skips the
+    machine check."""
     os.makedirs(out_dir, exist_ok=True)
     csv_path = os.path.join(out_dir, "results.csv")
-    kept = read_rows(csv_path)
-    if kept and not resume:
-        raise ValueError(f"--out: {csv_path} already holds {len(kept)} rows; rerun with "
-                         "--resume to continue that run, or choose another --out "
-                         "(results are never replaced)")
+    kept, damaged = scan_results(csv_path)
+    if bad is not None:
+        bad.extend(damaged)
+    if (kept or damaged) and not resume:
+        cut = (f" and {len(damaged)} damaged line(s) (line {damaged[0][0]}: {damaged[0][1]})"
+               if damaged else "")
+        raise ValueError(f"--out: {csv_path} already holds {len(kept)} rows{cut}; rerun with "
+                         "--resume to continue that run (damaged rows are measured again), "
+                         "or choose another --out (results are never replaced)")
+    if kept and run is not None:
+        runs = list(dict.fromkeys(r.get("run_id", "") for r in kept))
+        if len(runs) > 1:
+            raise ValueError(f"--resume: {csv_path} holds {len(runs)} runs ({', '.join(runs)}); "
+                             "--resume continues one run: choose another --out")
+        first = kept[0]
+        if check_machine and first.get("machine") and first["machine"] != run["machine"]:
+            raise ValueError(f"--resume: {csv_path} was measured on {first['machine']}, this is "
+                             f"{run['machine']}; choose another --out rather than mix machines")
+        run.update(run_id=first.get("run_id") or run["run_id"],
+                   started=first.get("started") or run["started"])
     labels = {dataset_label(ds) for ds in cfg.datasets}
     for k, row in enumerate(kept):
         if row.get("dataset") not in labels:
@@ -567,6 +628,15 @@ def _pending(cfg, out_dir, resume, commit=None):
     return csv_path, todo
 
 
+def _report_damaged(csv_path, bad, echo):
+    """Say which lines of results.csv were cut short or malformed: they are set aside in
+    results.csv.rejected and their groups measured again."""
+    if echo:
+        for number, reason in bad:
+            echo(f"warning: line {number} of {csv_path}: {reason}; set aside in "
+                 f"{os.path.basename(csv_path)}.rejected and measured again")
+
+
 def _bar(progress, total, desc):
     if not progress:
         return None
@@ -575,11 +645,12 @@ def _bar(progress, total, desc):
     return tqdm(total=total, unit="group", desc=desc, dynamic_ncols=True)
 
 
-def _write_group(writer, rows, missing, bar, label, commit=""):
-    """Append a finished group's rows (only the missing algorithms'), then tick the bar."""
+def _write_group(writer, rows, missing, bar, label, commit="", run=None):
+    """Append a finished group's rows (only the missing algorithms'), each with the
+    commit and the run's identifier (:data:`RUN_COLUMNS`), then tick the bar."""
     for row in rows:
         if row["algorithm"] in missing:
-            writer.write(dict(row, commit=commit))
+            writer.write(dict(row, commit=commit, **(run or {})))
     if bar is not None:
         bar.set_postfix_str(label)
         bar.update(1)
@@ -625,7 +696,11 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
     the scheduler and its rows are written once, by the driver. Each worker's environment
     goes into env.json under "workers"."""
     commit = environment().get("git_commit", "")
-    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit)
+    run = new_run(cfg, commit)
+    bad = []
+    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad,
+                              check_machine=False)
+    _report_damaged(csv_path, bad, echo)
     from dask.distributed import as_completed
 
     client, cluster = dask_client(address)
@@ -639,7 +714,7 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
             futures[future] = item
         bar = _bar(progress, len(todo), f"{cfg.name} (dask)")
         start = time.perf_counter()
-        with RowWriter(csv_path, COLUMNS, append=resume) as writer:
+        with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED) as writer:
             # this client's loop: as_completed otherwise tracks the futures on the default
             # client's, and a second client in the process then waits on an event bound
             # to another loop ("bound to a different event loop")
@@ -649,8 +724,10 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
                 worker = worker_env.get("hostname", "") + f" pid {worker_env.get('pid', '')}"
                 env["workers"].setdefault(worker, worker_env)
                 write_json(os.path.join(out_dir, "env.json"), env)
+                # the rows were measured on the worker's machine
                 _write_group(writer, rows, missing, bar, f"{label} {workload} {surface} r={r}",
-                             commit=commit)
+                             commit=commit, run=dict(run, machine=worker_env.get("hostname")
+                                                     or run["machine"]))
         if bar is not None:
             bar.close()
         if echo and todo:
@@ -775,7 +852,11 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
 
     env = environment()
     commit = env.get("git_commit", "")
-    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit)
+    run = new_run(cfg, commit)
+    bad = []
+    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad)
+    _report_damaged(csv_path, bad, echo)
+    env["run_identity"] = run  # the RUN_COLUMNS of every row this session writes
     env["load_before"] = machine_load.load_average()
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)
@@ -785,8 +866,8 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     failed = []
     design = _design(cfg)
     if cfg.precision is not None and todo:
-        # the noise floor and the rays of a call, once per run
-        # the noise floor: the baseline against itself on the first group's rays
+        # the noise floor and the rays of a call, once per run: the baseline against
+        # itself on the first group's rays
         ds, label, workload, surface, r, names, _ = todo[0]
         fields_cache[label] = load_field(ds)
         env["noise"] = calibrate_noise(fields_cache[label], workload, surface, r, cfg,
@@ -799,7 +880,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     spare = 0.25 * len(todo) * cfg.group_budget if cfg.precision is not None else 0.0
     remeasured = 0
     flushing = 0.0
-    with RowWriter(csv_path, COLUMNS, append=resume) as writer:
+    with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED) as writer:
         for ds, label, workload, surface, r, names, missing in todo:
             if label not in fields_cache:
                 fields_cache.clear()  # one field in memory at a time
@@ -829,7 +910,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
             failed += [f"{label} {workload} r={r} {row['algorithm']}: {row['error']}"
                        for row in measured if row.get("error")]
             _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}",
-                         commit=commit)
+                         commit=commit, run=run)
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - start

@@ -7,7 +7,7 @@ CRS, orientation and nodata; the other files (``.npy``, ``.npz``, PNG, JPEG, Ope
 take ``spacing`` (default 1: cell units) and their heights as they are, times
 ``vertical_scale`` (a unit change such as 0.3048 for feet over a metre grid, or an
 exaggeration). Before this version the loaders divided heights by the spacing (cell
-units); they no longer do: the products convert (see README, "Terrain products").
+units); they no longer do: the products convert (see docs/gis.md, "Map units").
 
 Nodata. The policy is explicit (``nodata_policy``):
 
