@@ -1,11 +1,20 @@
-"""Side-by-side timing: interleaved repeats, medians, bootstrap intervals, environment.
+"""Side-by-side timing: interleaved repeats, paired rounds, their intervals, environment.
 
 Method (docs/METHOD.md): every algorithm in a comparison is timed on the same rays,
-in the same process, on one thread, interleaved A B C A B C ... with the starting
-algorithm rotated each repeat, after one untimed warm-up round, and with the caches
-flushed before every timed run (so no kernel inherits the cache lines its predecessor
-left, which on the same rays are its own). The clock (CLOCK_MONOTONIC) runs in C around
-the whole batch. A speedup is the ratio of two medians from the same run.
+in the same process, on one thread; the clock (CLOCK_MONOTONIC) runs in C around the
+whole batch. Two designs:
+
+* :func:`interleaved` (the studies' fixed repeats): A B C A B C ... with the starting
+  algorithm rotated each repeat, after one untimed warm-up round, with the caches flushed
+  before every timed run (so no kernel inherits the cache lines its predecessor left,
+  which on the same rays are its own).
+* :func:`paired_rounds` (the sweeps): rounds in a fresh random order, the caches flushed
+  per call, per round or never, each kernel's rounds stopping once its paired ratio's
+  interval (:func:`log_ratio_interval`) is as precise as asked, or the group's budget is
+  spent.
+
+A speedup is the geometric mean of the per-repeat paired ratios with Student's t
+interval of their logs; a time per ray, the median with its order-statistic interval.
 """
 from __future__ import annotations
 
