@@ -264,7 +264,8 @@ def test_a_contended_group_is_measured_again_when_quiet(tmp_path, monkeypatch):
 
     got = F.run_figures(str(tmp_path))
     assert got["ratios"] == 1 and got["share_within"] == 1.0 and got["contended_groups"] == 0
-    assert F.inside(str(tmp_path), str(tmp_path)) == {"matched": 1, "inside": 1.0}
+    assert F.inside(str(tmp_path), str(tmp_path)) == {"matched": 1, "inside": 1.0,
+                                                      "consistent": 1.0}
 
 
 def test_reproduce_strict_exits_non_zero_when_every_group_was_contended(monkeypatch, capsys):
