@@ -278,3 +278,24 @@ def test_reproduce_strict_exits_non_zero_when_every_group_was_contended(monkeypa
     assert main(["reproduce", "--no-counts", "--no-progress"]) == 0
     assert main(["reproduce", "--precision", "0"]) != 0
     assert "--precision: expected a percentage in (0, 100), got 0.0" in capsys.readouterr().err
+
+
+def test_cache_regime_comparison_divides_by_the_flushed_design(tmp_path, monkeypatch):
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "1")
+    from bench.studies import cache_regimes as C
+
+    small = {"name": "fbm", "size": 48, "seed": 1}
+    rows = C.run(out_dir=str(tmp_path), run_lengths=(5,), budget_s=0.05, call_ms=0.5, big=True,
+                 echo=None, fields={"fbm1024": small, "fbm4096": small},
+                 kernels=["dda", "runs"])
+    designs = [d for d, *_ in C.DESIGNS]
+    assert [x["design"] for x in rows if x["kernel"] == "runs"] == designs
+    for x in rows:
+        if x["kernel"] == "runs" and x["design"] in C.REFERENCE.values():
+            assert x["vs_reference"] == 1.0
+        if x["kernel"] == "runs":
+            assert x["vs_reference"] > 0 and x["vs_half_width"] >= x["half_width"] - 1e-9
+    long_rays = {x["call_rays"] for x in rows if x["design"].endswith("long")}
+    assert len({x["call_rays"] for x in rows if x["design"] in ("call-long", "round-long",
+                                                                "none-long")}) == 1, long_rays
+    assert (tmp_path / "regimes.md").read_text().count("\n") == len(designs) + 2

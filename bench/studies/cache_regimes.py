@@ -43,22 +43,24 @@ FIELDS = {"fbm1024": {"name": "fbm", "size": 1024, "seed": 1},
 
 
 def run(out_dir="results/cache_regimes", run_lengths=(5, "random"), precision=0.005,
-        budget_s=5.0, call_ms=8.0, big=True, echo=print) -> list:
+        budget_s=5.0, call_ms=8.0, big=True, echo=print, fields=None, kernels=None) -> list:
     """Measure every design of :data:`DESIGNS` on fBm (1024^2, and 4096^2 with ``big``)
     for each run length; write ``regimes.csv``, ``regimes.md`` and ``env.json`` to
-    ``out_dir`` and return the rows."""
+    ``out_dir`` and return the rows. ``fields`` (name -> dataset entry) and ``kernels``
+    replace :data:`FIELDS` and the kernels (tests use small ones)."""
     os.makedirs(out_dir, exist_ok=True)
+    fields = fields or FIELDS
     rows = []
     for field_name in ("fbm1024", "fbm4096") if big else ("fbm1024",):
-        field = load_field(FIELDS[field_name])
-        kernels = KERNELS if field_name == "fbm1024" else BIG_KERNELS
+        field = load_field(fields[field_name])
+        chosen = kernels or (KERNELS if field_name == "fbm1024" else BIG_KERNELS)
         for r in run_lengths:
             long_rays = None  # sized by the first long design, then the same for the others
             for design, flush, long_calls, where in DESIGNS:
                 if where != field_name:
                     continue
                 load_before = machine_load.load_average()
-                got = measure_group(field, field_name, "first_hit", "triangles", r, kernels,
+                got = measure_group(field, field_name, "first_hit", "triangles", r, chosen,
                                     1000, 10, 2004, precision=precision, budget_s=budget_s,
                                     call_ms=call_ms, flush=flush,
                                     rays_per_call=long_rays if long_calls else 1000)
@@ -73,7 +75,8 @@ def run(out_dir="results/cache_regimes", run_lengths=(5, "random"), precision=0.
                                  "flush_s": row["flush_s"], "wall_s": row["wall_s"],
                                  "other_cpu": row["other_cpu"], "load_before": load_before,
                                  "contended": row["contended"]})
-                echo(f"  {field_name} r={r} {design}: {got[0]['wall_s']:.1f} s")
+                if echo:
+                    echo(f"  {field_name} r={r} {design}: {got[0]['wall_s']:.1f} s")
         del field  # one field in memory at a time
     _relative(rows)
     with open(os.path.join(out_dir, "regimes.csv"), "w", newline="") as f:
@@ -85,7 +88,8 @@ def run(out_dir="results/cache_regimes", run_lengths=(5, "random"), precision=0.
         f.write(text)
     write_json(os.path.join(out_dir, "env.json"),
                dict(environment(), load_after=machine_load.load_average()))
-    echo(text)
+    if echo:
+        echo(text)
     return rows
 
 
