@@ -69,19 +69,18 @@ def test_median_interval_covers_the_median_distribution_free():
 
 
 def _synthetic_jobs(rng, speeds, noise):
-    """Jobs that return nanoseconds drawn around ``1e6 / speed`` times a disturbance that
-    is drawn afresh whenever the first job runs and shared by the calls after it (a
-    machine state that drifts between rounds), times each call's own noise."""
-    state = {"shared": 0.0}
+    """Jobs that return nanoseconds drawn around ``1e6 / speed`` times a machine state
+    that drifts from call to call (an AR(1) process in the log: neighbouring calls share
+    most of it, which pairing cancels), times each call's own noise."""
+    state = {"drift": 0.0}
 
-    def job(speed, first):
+    def job(speed):
         def run():
-            if first:
-                state["shared"] = rng.normal(0.0, 0.1)
-            return int(1e6 / speed * np.exp(state["shared"] + rng.normal(0.0, noise)))
+            state["drift"] = 0.9 * state["drift"] + rng.normal(0.0, 0.05)
+            return int(1e6 / speed * np.exp(state["drift"] + rng.normal(0.0, noise)))
         return run
 
-    return {name: job(speed, k == 0) for k, (name, speed) in enumerate(speeds.items())}
+    return {name: job(speed) for name, speed in speeds.items()}
 
 
 def test_paired_rounds_stops_at_the_precision_with_coverage(monkeypatch):
