@@ -298,3 +298,9 @@ def test_cache_regime_comparison_divides_by_the_flushed_design(tmp_path, monkeyp
     assert len({x["call_rays"] for x in rows if x["design"] in ("call-long", "round-long",
                                                                 "none-long")}) == 1, long_rays
     assert (tmp_path / "regimes.md").read_text().count("\n") == len(designs) + 2
+    # the side-by-side comparison: the reference's ratio to itself is exactly 1
+    paired = C.paired_designs(__import__("bench.sweep", fromlist=["load_field"]).load_field(small),
+                              5, ["dda", "runs"], seconds=0.05, call_ms=0.5)
+    assert [x["design"] for x in paired] == [d for d, *_ in C.PAIRED_DESIGNS]
+    assert paired[0]["vs_reference"] == 1.0 and paired[0]["meta_rounds"] >= 10
+    assert C.paired_markdown(paired).count("\n") == len(C.PAIRED_DESIGNS) + 2
