@@ -4,7 +4,7 @@
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
 #   make bench-ci   the pytest-benchmark suite (pytest bench/benchmarks --benchmark-only)
 #   make terrain-bench  the terrain products' targets against the peers (results/terrain-bench)
-#   make targets    issue 22's targets table, full tier (hftrace targets --full: results/targets;
+#   make targets    the kernel round's targets table, full tier (hftrace targets --full: results/targets;
 #                   an hour or more, on a quiet machine)
 #   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
 #   make regress-counts  instruction counts (callgrind) and the exact algorithmic counters against
@@ -14,6 +14,7 @@
 #   make validate-compare  the A/A and injected-slowdown validation of `hftrace compare`
 #                   (reports/regress/; tens of minutes, on a quiet machine only)
 #   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
+#   make docs       the documentation site (Sphinx, warnings as errors) into build/docs/html
 #   make reports    regenerate the committed reference reports in reports/ (hours; the only
 #                   step besides `hftrace reproduce --publish` that writes there)
 # Every other target writes under results/ (untracked), never into the source tree.
@@ -29,7 +30,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all install test lint reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts compare history validate-compare sanitize fuzz clean
+.PHONY: all install test lint docs reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts compare history validate-compare sanitize fuzz clean
 
 all: test
 
@@ -49,6 +50,22 @@ test: $(STAMP)
 # ruff's rules as configured in pyproject.toml (the C side has its own .clang-format)
 lint: $(STAMP)
 	$(BIN)/python -m ruff check .
+
+# The documentation: Sphinx over docs/ (Markdown pages, the API reference from the docstrings,
+# the gallery of examples/gallery/, which runs), warnings as errors. Only the docs extra's
+# packages are added to the test environment, so the C extension is not built again.
+DOCS_STAMP := $(VENV)/.hftrace-docs
+
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(BIN)/python -c "import sys; t = __import__('tomllib' if sys.version_info >= (3, 11) else 'tomli'); \
+		print('\n'.join(t.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']))" \
+		> $(VENV)/docs-requirements.txt
+	$(BIN)/python -m pip install --quiet -r $(VENV)/docs-requirements.txt
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(BIN)/python -m sphinx -W --keep-going -b html -q docs build/docs/html
+	@echo "docs: build/docs/html/index.html"
 
 # the peers' optional extra (xarray-spatial) joins the figure and the viewshed comparison;
 # a machine where it cannot be installed still reproduces everything else. rvt-py (RVT's

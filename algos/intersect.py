@@ -11,7 +11,7 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
-from . import _kernels
+from . import _kernels, plugin_calls
 from .compact import compact_for
 from .cone import cone_for, relaxed_cone_for
 from .field import HeightField, as_field, bound_kind
@@ -55,6 +55,28 @@ class Hits:
         if self.t is None:
             raise ValueError("hit: ask for the 't' output")
         return np.isfinite(self.t)
+
+
+def _plugin_hits(hits, algorithm, fld, o, d, lo, hi, outputs) -> Hits:
+    """``intersect`` for a registered plugin: its t and cells, normals where the surface
+    is continuous (``algos.plugins``)."""
+    plugin = algorithm.plugin
+    if "stats" in outputs:
+        raise ValueError(f"outputs: kernel {plugin.describe(algorithm.name)} reports no "
+                         "per-ray statistics; leave 'stats' out")
+    if "normal" in outputs and hits.surface not in ("triangles", "bilinear"):
+        raise ValueError(f"outputs: kernel {plugin.describe(algorithm.name)} returns t only, "
+                         f"and on {hits.surface!r} (a surface with walls) t does not tell a "
+                         "wall from a top: leave 'normal' out, or use triangles or bilinear")
+    heights = fld.cell_heights
+    start = time.perf_counter_ns()
+    t, cell = plugin_calls.first_hits(algorithm.name, heights, o, d, hits.surface, lo, hi)
+    hits.elapsed_ns = time.perf_counter_ns() - start
+    hits.t = t if "t" in outputs else None
+    hits.cell = cell if "cell" in outputs else None
+    if "normal" in outputs:
+        hits.normal = plugin_calls.surface_normals(heights, hits.surface, o, d, t, cell, lo)
+    return hits
 
 
 def _options(algorithm, given: dict) -> dict:
@@ -129,6 +151,12 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         marching parameters ``march_steps``, ``march_refinements``, ``march_growth``,
         ``march_first_fraction``, ``march_min_step``.
 
+    Registered plugins (``algos.plugins``) are called on the calling thread. They give
+    ``t`` and ``cell`` (a Python kernel's cell is the one holding the hit point, by the
+    half-open rule toward the direction of travel), ``normal`` on the continuous surfaces
+    (``triangles``, ``bilinear``: the surface's up-facing normal at the hit); ``stats``,
+    and a ray range for a Python kernel, are refused with an error naming the kernel.
+
     Returns
     -------
     Hits
@@ -157,6 +185,8 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     hi = check_t(tmax, "tmax", n)
     hits = Hits(name, surface)
     nthreads = resolve_threads(threads)
+    if algorithm.plugin is not None:
+        return _plugin_hits(hits, algorithm, fld, o, d, lo, hi, outputs)
 
     if algorithm.name == "embree3":
         from .embree3_peer import embree3_hits
@@ -307,6 +337,9 @@ def prepare_timed_intersect(name, heights, origins, directions, surface="triangl
 
         # the peer's fastest documented configuration (embree_peer.embree_timed)
         return embree_timed(fld, o, d, threads=resolve_threads(threads))
+    if algorithm.plugin is not None:
+        _options(algorithm, options)  # a plugin takes none: an option given is refused
+        return plugin_calls.prepare_timed_first_hit(name, fld.cell_heights, o, d, surface)
     if surface not in algorithm.surfaces:
         raise ValueError(f"surface: {name} supports only {', '.join(algorithm.surfaces)}")
     opts = _options(algorithm, options)

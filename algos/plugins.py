@@ -1,7 +1,10 @@
 """Your own kernel in every table: register a traversal or a first-hit intersector.
 
-Three ways in, one treatment (``hftrace list``, sweeps, ``reproduce --kernels``, the
-plots, the agreement check against the exact reference, ``regress``):
+Three ways in, one treatment: the public calls (``algos.traverse``, ``algos.intersect``,
+``algos.render``), ``hftrace list``, sweeps, ``reproduce --kernels``, the plots (an
+``exact=False`` kernel is drawn dashed), the agreement check against the exact reference
+and ``regress``. The terrain products (horizon, shadows, sky-view factor, openness,
+viewshed) run their own exact sweeps, not an intersector, so plugins do not reach them.
 
 * **Python** (plain, NumPy or Numba callables): :func:`register_traversal` and
   :func:`register_intersector`. The harness times the call with ``time.monotonic_ns``
@@ -17,17 +20,39 @@ plots, the agreement check against the exact reference, ``regress``):
   show their kernels. The entry point is a callable taking no argument, or a C plugin's
   path (a ``str`` or ``os.PathLike``).
 
+Every failure to load a plugin (a registering function that raises, a library that
+cannot be loaded or whose ``hftrace_plugin()`` returns NULL) is a :class:`PluginError`
+whose message is one line naming the plugin; the ``hftrace`` command prints it without a
+traceback on every route (``--plugin``, a config's ``plugins``, entry points).
+
 Signatures (shapes in the project's conventions, ``docs/CONVENTIONS.md``):
 
 * traversal ``fn(origins, directions, shape) -> checksums or cells``: ``origins``,
   ``directions`` (N, 2) float64, ``shape`` = (nx, ny) cells; return either the per-ray
   visit checksums, (N,) uint64 (the fold :func:`fold_cells` computes), or a sequence of N
   integer arrays of shape (k, 2) holding the visited cells (i, j) in order, which the
-  harness folds after the timed call.
+  harness folds after the timed call. The rays run over ``[0, inf)``. Only a kernel that
+  returns the cells serves ``algos.traverse`` (every output: the runs are grouped from
+  the cells, each ray's major axis the larger ``|d|``, x on a tie); a ``tmin``/``tmax``
+  there is refused, since the signature takes no ray range.
 * first hit ``fn(heights, origins, directions[, surface=...]) -> t``: ``heights``
   (rows, cols) float32, ``H[j, i]`` in cell units; ``origins``, ``directions`` (N, 3)
   float64; returns (N,) float ray parameters of the first hit, ``inf`` (or NaN) on a
   miss. ``surface`` is passed as a keyword only when the kernel registered more than one.
+  In ``algos.intersect`` the hit ``cell`` is the cell holding the hit point by the
+  half-open rule toward the direction of travel (a hit exactly on a cell border is given
+  the cell the ray enters there), and the ``normal`` is the up-facing normal of the
+  surface there, or the box side's where the ray enters the field below the surface
+  (``triangles`` and ``bilinear`` only: ``flat`` and ``plane3`` have walls, whose hits
+  the returned ``t`` alone cannot tell from a top); ``stats`` and a ray range are
+  refused.
+* C: the kernels of ``cext/hftrace_plugin.h``; a traversal library that also exports
+  ``hftrace_traverse_cells`` serves ``algos.traverse``, one without it only sweeps. A
+  first-hit library serves ``algos.intersect`` with ``tmin``/``tmax`` and its own hit
+  cells; normals as for Python kernels.
+
+Calling a registered kernel (the public calls, the timed calls, the checks of what it
+returns) lives in :mod:`algos.plugin_calls`; this module registers and loads.
 
 A kernel that raises, returns a non-zero status (C) or takes longer than its time limit
 in one call gets an error in its row; the other kernels' rows are kept. ``hftrace sweep
@@ -37,17 +62,31 @@ contained too.
 from __future__ import annotations
 
 import ctypes
+import hashlib
+import importlib
 import os
-import time
+import shutil
+import sys
+import tempfile
 from dataclasses import dataclass
 
-import numpy as np
-
 from . import registry
+from .plugin_calls import (
+    PluginError,
+    _one_line,
+    first_hits,
+    fold_cells,
+    prepare_timed_first_hit,
+    prepare_timed_traversal,
+    surface_normals,
+    traversal_cells,
+)
 
 __all__ = ["register_traversal", "register_intersector", "load_c_plugin", "unregister",
-           "load_entry_points", "fold_cells", "is_plugin", "plugin_names", "PluginError",
-           "DEFAULT_TIME_LIMIT", "ENTRY_POINT_GROUP", "PLUGIN_ABI"]
+           "load_entry_points", "load_plugin_spec", "fold_cells", "is_plugin", "plugin_names",
+           "traversal_cells", "first_hits", "surface_normals", "PluginError",
+           "prepare_timed_traversal", "prepare_timed_first_hit", "DEFAULT_TIME_LIMIT",
+           "ENTRY_POINT_GROUP", "PLUGIN_ABI"]
 
 #: The entry-point group a package declares its kernels in.
 ENTRY_POINT_GROUP = "hftrace.kernels"
@@ -55,11 +94,6 @@ ENTRY_POINT_GROUP = "hftrace.kernels"
 DEFAULT_TIME_LIMIT = 60.0
 #: ``HFTRACE_PLUGIN_ABI`` of ``cext/hftrace_plugin.h``.
 PLUGIN_ABI = 1
-_MASK = (1 << 64) - 1
-
-
-class PluginError(RuntimeError):
-    """A plugin kernel failed: a non-zero status, a wrong output shape or a bad library."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +112,12 @@ class Plugin:
     time_limit : float
         Seconds one call may take.
     path : str
-        The shared library of a C plugin ("" for Python).
+        The shared library of a C plugin as given ("" for Python).
+    loaded_from : str
+        The private copy of that library that was loaded (named by its content hash, so
+        a library rebuilt at ``path`` and loaded again runs its new code).
+    cells_fn : callable or None
+        A C traversal's ``hftrace_traverse_cells`` (None when it does not export one).
     """
 
     fn: object
@@ -86,6 +125,15 @@ class Plugin:
     exact: bool
     time_limit: float = DEFAULT_TIME_LIMIT
     path: str = ""
+    loaded_from: str = ""
+    cells_fn: object = None
+
+    def describe(self, name) -> str:
+        """``'name' (C plugin /path/lib.so)`` or ``'name' (Python plugin)``: how errors
+        name the kernel."""
+        if self.language == "c":
+            return f"{name!r} (C plugin {self.path})"
+        return f"{name!r} (Python plugin)"
 
 
 def _check_name(name):
@@ -106,14 +154,6 @@ def _check_limit(time_limit):
             not time_limit > 0:
         raise ValueError(f"time_limit: expected seconds > 0, got {time_limit!r}")
     return float(time_limit)
-
-
-def _publish():
-    """Refresh the name tuples, in the registry module and in ``algos``."""
-    import algos
-
-    registry.TRAVERSALS = algos.TRAVERSALS = tuple(registry.TRAVERSAL_REGISTRY)
-    registry.INTERSECTORS = algos.INTERSECTORS = tuple(registry.INTERSECTOR_REGISTRY)
 
 
 def register_traversal(name, fn, exact=False, summary="", citation="", time_limit=None,
@@ -152,7 +192,6 @@ def register_traversal(name, fn, exact=False, summary="", citation="", time_limi
                                citation=citation, summary=summary or f"plugin ({plugin.language})",
                                plugin=plugin)
     registry.TRAVERSAL_REGISTRY[name] = entry
-    _publish()
     return entry
 
 
@@ -201,7 +240,6 @@ def register_intersector(name, fn, exact=False, surfaces=("triangles",), summary
                                  summary=summary or f"plugin ({plugin.language})",
                                  citation=citation, plugin=plugin)
     registry.INTERSECTOR_REGISTRY[name] = entry
-    _publish()
     return entry
 
 
@@ -221,7 +259,6 @@ def unregister(name):
             found = True
     if not found:
         raise ValueError(f"name: {name!r} is not a registered plugin")
-    _publish()
 
 
 def is_plugin(name, workload="first_hit") -> bool:
@@ -238,121 +275,6 @@ def plugin_names() -> list:
                     if e.plugin is not None and n not in names]
 
 
-# ---- the checksum fold ------------------------------------------------------------------
-def fold_cells(cells) -> int:
-    """The visit checksum of one ray's cells, as the C kernels compute it
-    (``hf_fold`` of ``cext/internal.h``, reproduced in ``cext/hftrace_plugin.h``):
-    ``hash = rotl(hash, 7) ^ ((i << 32) | j)`` over the cells in order, from 0."""
-    h = 0
-    for i, j in np.asarray(cells, dtype=np.int64).reshape(-1, 2).tolist():
-        key = ((i & 0xFFFFFFFF) << 32) | (j & 0xFFFFFFFF)
-        h = (((h << 7) | (h >> 57)) & _MASK) ^ key
-    return h
-
-
-def _checksums(result, n, name):
-    """A traversal plugin's output as (N,) uint64 checksums."""
-    if isinstance(result, np.ndarray) and result.ndim == 1 and result.dtype == np.uint64:
-        if len(result) != n:
-            raise PluginError(f"{name}: returned {len(result)} checksums for {n} rays")
-        return result
-    try:
-        paths = list(result)
-    except TypeError:
-        raise PluginError(f"{name}: returned {type(result).__name__}; expected (N,) uint64 "
-                          "checksums or N arrays of cells") from None
-    if len(paths) != n:
-        raise PluginError(f"{name}: returned {len(paths)} paths for {n} rays")
-    return np.array([fold_cells(p) for p in paths], dtype=np.uint64)
-
-
-# ---- timed calls (bench.sweep) ----------------------------------------------------------
-def _timed_c_call(plugin, name, args):
-    """``run()`` for a C plugin: one call of its kernel on ``args``, timed with
-    CLOCK_MONOTONIC right around the ctypes call; a non-zero status raises PluginError."""
-    def run():
-        t0 = time.monotonic_ns()
-        status = plugin.fn(*args)
-        elapsed = time.monotonic_ns() - t0
-        if status != 0:
-            raise PluginError(f"{name}: returned status {status}")
-        return elapsed
-
-    return run
-
-
-def prepare_timed_traversal(name, origins, directions, shape):
-    """``(run, checksums)`` for a traversal plugin: each ``run()`` calls the kernel on the
-    whole batch and returns the elapsed nanoseconds around the call (CLOCK_MONOTONIC);
-    ``checksums()`` folds the latest output (outside the timing)."""
-    plugin = registry.TRAVERSAL_REGISTRY[name].plugin
-    o = np.ascontiguousarray(origins, dtype=np.float64)
-    d = np.ascontiguousarray(directions, dtype=np.float64)
-    n = len(o)
-    nx, ny = int(shape[0]), int(shape[1])
-    state = {}
-    if plugin.language == "c":
-        sums = np.zeros(n, dtype=np.uint64)
-        cells = np.zeros(n, dtype=np.int64)
-        args = (ctypes.c_int64(nx), ctypes.c_int64(ny), ctypes.c_int64(n), _ptr(o), _ptr(d),
-                None, None, _ptr(sums), _ptr(cells))
-        return _timed_c_call(plugin, name, args), lambda: sums.copy()
-
-    def run():
-        t0 = time.monotonic_ns()
-        out = plugin.fn(o, d, (nx, ny))
-        elapsed = time.monotonic_ns() - t0
-        state["out"] = out
-        return elapsed
-
-    def checksums():
-        return _checksums(state.get("out"), n, name)
-
-    return run, checksums
-
-
-def prepare_timed_first_hit(name, heights, origins, directions, surface):
-    """``(run, t)`` for a first-hit plugin, as :func:`prepare_timed_traversal`; ``t()``
-    gives the latest (N,) float64 ray parameters."""
-    entry = registry.INTERSECTOR_REGISTRY[name]
-    plugin = entry.plugin
-    if surface not in entry.surfaces:
-        raise ValueError(f"surface: {name} supports only {', '.join(entry.surfaces)}")
-    h = np.ascontiguousarray(heights, dtype=np.float32)
-    o = np.ascontiguousarray(origins, dtype=np.float64)
-    d = np.ascontiguousarray(directions, dtype=np.float64)
-    n = len(o)
-    if plugin.language == "c":
-        t = np.full(n, np.inf)
-        cells = np.zeros((n, 2), dtype=np.int32)
-        surface_id = registry.SURFACES.index(surface)
-        args = (_ptr(h), ctypes.c_int64(h.shape[0]), ctypes.c_int64(h.shape[1]),
-                ctypes.c_int(surface_id), ctypes.c_int64(n), _ptr(o), _ptr(d), None, None,
-                _ptr(t), _ptr(cells))
-        return _timed_c_call(plugin, name, args), lambda: t.copy()
-    state = {}
-    kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
-
-    def run():
-        t0 = time.monotonic_ns()
-        out = plugin.fn(h, o, d, **kwargs)
-        elapsed = time.monotonic_ns() - t0
-        state["t"] = out
-        return elapsed
-
-    def hits():
-        out = np.asarray(state.get("t"), dtype=np.float64)
-        if out.shape != (n,):
-            raise PluginError(f"{name}: returned t of shape {out.shape}; expected ({n},)")
-        return np.where(np.isnan(out), np.inf, out)
-
-    return run, hits
-
-
-def _ptr(a):
-    return a.ctypes.data_as(ctypes.c_void_p)
-
-
 # ---- C plugins ----------------------------------------------------------------------------
 class _Info(ctypes.Structure):
     _fields_ = [("abi", ctypes.c_int), ("name", ctypes.c_char_p), ("kind", ctypes.c_char_p),
@@ -361,12 +283,12 @@ class _Info(ctypes.Structure):
 
 
 def _exported(lib, symbol, kind, path):
-    """The function ``symbol`` of a plugin library, or ValueError naming what is missing."""
+    """The function ``symbol`` of a plugin library, or PluginError naming what is missing."""
     try:
         return getattr(lib, symbol)
     except AttributeError:
-        raise ValueError(f"path: {path} declares kind {kind} but does not export "
-                         f"{symbol}") from None
+        raise PluginError(f"C plugin {path}: declares kind {kind} but does not export "
+                          f"{symbol}") from None
 
 
 def load_c_plugin(path, name=None, time_limit=None):
@@ -389,65 +311,157 @@ def load_c_plugin(path, name=None, time_limit=None):
     Raises
     ------
     ValueError
-        The file does not exist or cannot be loaded, misses a symbol, or declares another
-        ABI version or an unknown kind.
+        The file does not exist.
+    PluginError
+        It cannot be loaded, misses a symbol, its ``hftrace_plugin()`` returns NULL, or
+        it declares another ABI version or an unknown kind (one line naming the path).
+
+    Notes
+    -----
+    The library is loaded from a private copy named by its content hash
+    (:func:`_private_copy`): a library rebuilt at the same path and loaded again in the
+    same process runs its new code, and re-registers the kernel.
     """
     path = os.path.abspath(os.fspath(path))
     if not os.path.isfile(path):
         raise ValueError(f"path: {path} does not exist")
+    private = _private_copy(path)
     try:
-        lib = ctypes.CDLL(path)
+        lib = ctypes.CDLL(private)
     except OSError as exc:
-        raise ValueError(f"path: cannot load {path} ({exc})") from None
+        raise PluginError(f"C plugin {path}: cannot load it ({exc})") from None
     try:
         info_fn = lib.hftrace_plugin
     except AttributeError:
-        raise ValueError(f"path: {path} does not export hftrace_plugin() "
-                         "(cext/hftrace_plugin.h)") from None
+        raise PluginError(f"C plugin {path}: does not export hftrace_plugin() "
+                          "(cext/hftrace_plugin.h)") from None
     info_fn.restype = ctypes.POINTER(_Info)
-    info = info_fn().contents
+    info_fn.argtypes = []
+    pointer = info_fn()
+    if not pointer:
+        raise PluginError(f"C plugin {path}: hftrace_plugin() returned NULL; it must return "
+                          "a pointer to a static hftrace_plugin_info")
+    info = pointer.contents
     if info.abi != PLUGIN_ABI:
-        raise ValueError(f"path: {path} declares plugin ABI {info.abi}; this hftrace "
-                         f"reads ABI {PLUGIN_ABI}")
-    kind = (info.kind or b"").decode()
-    name = name or (info.name or b"").decode()
-    summary = (info.summary or b"").decode() or f"C plugin {os.path.basename(path)}"
+        raise PluginError(f"C plugin {path}: declares plugin ABI {info.abi}; this hftrace "
+                          f"reads ABI {PLUGIN_ABI}")
+    kind = (info.kind or b"").decode(errors="replace")
+    name = name or (info.name or b"").decode(errors="replace")
+    if not name:
+        raise PluginError(f"C plugin {path}: its hftrace_plugin_info has no name")
+    summary = (info.summary or b"").decode(errors="replace") or \
+        f"C plugin {os.path.basename(path)}"
     limit = _check_limit(time_limit)
     if kind == "traversal":
         fn = _exported(lib, "hftrace_traverse", kind, path)
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 6
-        plugin = Plugin(fn, "c", bool(info.exact), limit, path)
+        cells_fn = getattr(lib, "hftrace_traverse_cells", None)
+        if cells_fn is not None:
+            cells_fn.restype = ctypes.c_int
+            cells_fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_int64] + \
+                [ctypes.c_void_p] * 6
+        plugin = Plugin(fn, "c", bool(info.exact), limit, path, private, cells_fn)
         return register_traversal(name, fn, plugin.exact, summary, _plugin=plugin)
     if kind == "first_hit":
         fn = _exported(lib, "hftrace_first_hit", kind, path)
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64, ctypes.c_int,
                        ctypes.c_int64] + [ctypes.c_void_p] * 6
-        surfaces = [s.strip() for s in (info.surfaces or b"triangles").decode().split(",") if s.strip()]
-        plugin = Plugin(fn, "c", bool(info.exact), limit, path)
+        surfaces = [s.strip() for s in (info.surfaces or b"triangles").decode().split(",")
+                    if s.strip()]
+        plugin = Plugin(fn, "c", bool(info.exact), limit, path, private)
         return register_intersector(name, fn, plugin.exact, surfaces, summary, _plugin=plugin)
-    raise ValueError(f"path: {path} declares kind {kind!r}; expected 'traversal' or 'first_hit'")
+    raise PluginError(f"C plugin {path}: declares kind {kind!r}; expected 'traversal' or "
+                      "'first_hit'")
 
 
-def load_plugin_spec(spec):
-    """Register what ``spec`` names: a C plugin's path (``*.so``, ``*.dylib``, ``*.dll``)
-    or ``module:callable`` (a Python function registering kernels). Returns the names
-    registered. ``ValueError`` names the spec when it cannot be loaded."""
+#: This process's private folder of loaded C plugins (made on first use, removed at exit)
+_COPIES = {"folder": None}
+
+
+def _private_copy(path) -> str:
+    """A copy of the library at ``path`` in this process's private folder, named by the
+    SHA-256 of its bytes. The dynamic loader caches libraries by path: loading a library
+    rebuilt at the same path again would return the old code. A new build has a new hash,
+    hence a new path, hence a fresh load; an unchanged one maps to the copy already loaded."""
+    with open(path, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()[:20]
+    if _COPIES["folder"] is None:
+        import atexit
+
+        _COPIES["folder"] = tempfile.mkdtemp(prefix="hftrace-plugins-")
+        atexit.register(shutil.rmtree, _COPIES["folder"], True)
+    stem, ext = os.path.splitext(os.path.basename(path))
+    copy = os.path.join(_COPIES["folder"], f"{stem}-{digest}{ext}")
+    if not os.path.exists(copy):
+        partial = copy + ".part"
+        shutil.copyfile(path, partial)
+        os.replace(partial, copy)
+    return copy
+
+
+def _import_callable(spec, bases):
+    """The object ``module:callable`` names, importing ``module`` from the folders
+    ``bases`` (the config's folder, the current directory) before ``sys.path``."""
+    module, _, attr = spec.partition(":")
+    added = [b for b in dict.fromkeys(os.path.abspath(b) for b in bases) if b not in sys.path]
+    sys.path[:0] = added
+    try:
+        try:
+            target = importlib.import_module(module)
+        except ImportError as exc:
+            where = ", ".join(added + ["sys.path"]) if added else "sys.path"
+            raise PluginError(f"plugin {spec}: cannot import {module} ({_one_line(exc)}; "
+                              f"looked in {where})") from None
+        except Exception as exc:
+            raise PluginError(f"plugin {spec}: importing {module} raised "
+                              f"{type(exc).__name__}: {_one_line(exc)}") from None
+    finally:
+        for b in added:
+            if b in sys.path:
+                sys.path.remove(b)
+    try:
+        obj = target
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except AttributeError:
+        raise PluginError(f"plugin {spec}: module {module} has no {attr}") from None
+    return obj
+
+
+def load_plugin_spec(spec, base=None):
+    """Register what ``spec`` names: a C plugin's path (``*.so``, ``*.dylib``, ``*.dll``),
+    relative to ``base`` (default the current directory), or ``module:callable`` (a
+    function registering kernels), the module looked up in ``base``, then the current
+    directory, then ``sys.path``. Returns the names registered.
+
+    Raises
+    ------
+    ValueError
+        ``spec`` is neither form.
+    PluginError
+        The plugin cannot be loaded, or its function raised: one line naming ``spec``.
+    """
     before = set(plugin_names())
-    if os.fspath(spec).endswith((".so", ".dylib", ".dll")):
-        load_c_plugin(spec)
+    text = os.fspath(spec)
+    if text.endswith((".so", ".dylib", ".dll")):
+        if base and not os.path.isabs(text):
+            text = os.path.join(base, text)
+        try:
+            load_c_plugin(text)
+        except ValueError as exc:
+            raise PluginError(f"plugin {spec}: {_one_line(exc)}") from None
     else:
-        module, sep, attr = str(spec).partition(":")
+        module, sep, attr = str(text).partition(":")
         if not sep or not module or not attr:
             raise ValueError(f"--plugin: expected a library path or module:callable, got {spec!r}")
-        import importlib
-
+        target = _import_callable(text, [b for b in (base, os.getcwd()) if b])
         try:
-            target = getattr(importlib.import_module(module), attr)
-        except (ImportError, AttributeError) as exc:
-            raise ValueError(f"--plugin {spec}: cannot import ({exc})") from None
-        target()
+            target()
+        except Exception as exc:
+            raise PluginError(f"plugin {spec}: {attr}() raised {type(exc).__name__}: "
+                              f"{_one_line(exc)}") from None
     return sorted(set(plugin_names()) - before)
 
 
@@ -470,6 +484,7 @@ def load_entry_points(warn=None) -> list:
                 target()
         except Exception as exc:  # someone else's package must not stop hftrace
             if warn:
-                warn(f"hftrace: plugin entry point {point.name!r} ({point.value}) failed: "
-                     f"{type(exc).__name__}: {exc}")
+                text = _one_line(exc) if isinstance(exc, PluginError) else \
+                    f"{type(exc).__name__}: {_one_line(exc)}"
+                warn(f"hftrace: plugin entry point {point.name!r} ({point.value}) failed: {text}")
     return sorted(set(plugin_names()) - before)

@@ -56,7 +56,7 @@ _HIDDEN_LINES = 3
 COUNTS = ("cells", "cells_culled", "cells_drawn", "triangles", "fragments", "pixels_written",
           "samples", "stopped_full")
 
-#: largest |coordinate| of a camera position or look_at, in cells
+#: largest absolute coordinate of a camera position or look_at, in cells
 MAX_COORDINATE = 1e12
 
 #: geometry nearer than this (cells, along the viewing direction) is clipped away

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Traversal", "TRAVERSAL_REGISTRY", "TRAVERSALS", "get_traversal", "Intersector",
-           "INTERSECTOR_REGISTRY", "INTERSECTORS", "get_intersector", "SURFACES",
-           "register_traversal", "register_intersector"]
+# TRAVERSALS and INTERSECTORS are served by the module's __getattr__ (bottom)
+__all__ = ["Traversal", "TRAVERSAL_REGISTRY", "TRAVERSALS", "get_traversal",  # noqa: F822
+           "Intersector", "INTERSECTOR_REGISTRY", "INTERSECTORS", "get_intersector", "SURFACES"]
 
 
 @dataclass(frozen=True)
@@ -88,17 +88,16 @@ TRAVERSAL_REGISTRY: dict[str, Traversal] = {
     )
 }
 
-#: Names of the 2D traversal kernels, in registry order.
-TRAVERSALS: tuple[str, ...] = tuple(TRAVERSAL_REGISTRY)
-
-
 def get_traversal(name: str) -> Traversal:
     """The registry entry for ``name``; ``ValueError`` listing the valid names otherwise."""
     try:
         return TRAVERSAL_REGISTRY[name]
     except (KeyError, TypeError):
+        if isinstance(name, str) and name in INTERSECTOR_REGISTRY:
+            raise ValueError(f"name: {name!r} is a first-hit intersector; it has no 2D "
+                             "traversal kernel (algos.intersect serves it)") from None
         raise ValueError(
-            f"name: unknown traversal {name!r}; valid names are {', '.join(TRAVERSALS)}"
+            f"name: unknown traversal {name!r}; valid names are {', '.join(TRAVERSAL_REGISTRY)}"
         ) from None
 
 
@@ -236,29 +235,27 @@ def _register_embree3():
 
 _register_embree3()
 
-#: Names accepted by ``algos.intersect``.
-INTERSECTORS: tuple[str, ...] = tuple(INTERSECTOR_REGISTRY)
-
 
 def get_intersector(name: str) -> Intersector:
     """The registry entry for ``name``; ``ValueError`` listing the valid names otherwise."""
     try:
         return INTERSECTOR_REGISTRY[name]
     except (KeyError, TypeError):
+        if isinstance(name, str) and name in TRAVERSAL_REGISTRY:
+            raise ValueError(f"name: {name!r} is a 2D traversal (the visit workload); it has "
+                             "no first-hit kernel (algos.traverse serves it)") from None
         raise ValueError(
-            f"name: unknown intersector {name!r}; valid names are {', '.join(INTERSECTORS)}"
+            f"name: unknown intersector {name!r}; valid names are "
+            f"{', '.join(INTERSECTOR_REGISTRY)}"
         ) from None
 
 
-def register_traversal(*args, **kwargs):
-    """Register a plugin traversal: :func:`algos.plugins.register_traversal`."""
-    from .plugins import register_traversal as register
-
-    return register(*args, **kwargs)
-
-
-def register_intersector(*args, **kwargs):
-    """Register a plugin first-hit intersector: :func:`algos.plugins.register_intersector`."""
-    from .plugins import register_intersector as register
-
-    return register(*args, **kwargs)
+def __getattr__(name):
+    """``TRAVERSALS`` and ``INTERSECTORS``: the registered names, in registry order, read
+    from the tables at each access, so that a plugin registered later (``algos.plugins``)
+    is listed without any module having to refresh a copy."""
+    if name == "TRAVERSALS":
+        return tuple(TRAVERSAL_REGISTRY)
+    if name == "INTERSECTORS":
+        return tuple(INTERSECTOR_REGISTRY)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,6 +21,7 @@ import numpy as np
 
 from .field import Field
 from .intersect import intersect
+from .registry import get_intersector
 
 __all__ = ["Rendering", "default_camera", "render", "shade"]
 
@@ -37,7 +38,8 @@ class Rendering:
         Unit surface normal at the hit, NaN on a miss.
     cells_visited, runs_visited : (height, width)
         The intersector's per-ray statistics (``algos.intersect`` outputs "stats"); zero
-        for a rasteriser, which visits no cells per ray.
+        for a rasteriser, which visits no cells per ray, and for a registered plugin
+        (``algos.plugins``), which reports none.
     points : float64 (height, width, 3)
         The hit points (the camera position on a miss).
     rgb : float64 (height, width, 3)
@@ -126,11 +128,14 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     cam, centre = default_camera(heights)
     position = np.asarray(position if position is not None else cam, dtype=float)
     look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)
-    from datasets_gen import rays as raysets
-
     from . import raster
 
-    rs = raysets.pinhole(position, look_at, fov, width, height)
+    # the pinhole's primary rays: unit directions through the pixel centres, row 0 on top
+    frame, sx, sy = raster.pinhole_frame(position, look_at, fov, width, height)
+    forward, right, up = frame[3:6], frame[6:9], frame[9:12]
+    directions = (forward + sx[None, :, None] * right + sy[:, None, None] * up).reshape(-1, 3)
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    origins = np.tile(position, (len(directions), 1))
     shape = (height, width)
     if algorithm in raster.RASTERISERS:
         if surface != "triangles":
@@ -140,14 +145,20 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         t, normal, cell, elapsed = image.t.ravel(), image.normal, image.cell, image.elapsed_ns
         cells_visited = runs_visited = np.zeros(shape, dtype=np.int64)
     else:
-        hits = intersect(algorithm, field, rs.origins, rs.directions, surface=surface,
-                         outputs=("t", "cell", "normal", "stats"), threads=threads)
+        # a registered plugin reports no per-ray statistics: its count images are zero
+        entry = get_intersector(algorithm)
+        outputs = ("t", "cell", "normal") + (("stats",) if entry.plugin is None else ())
+        hits = intersect(algorithm, field, origins, directions, surface=surface,
+                         outputs=outputs, threads=threads)
         t, normal, cell, elapsed = hits.t, hits.normal, hits.cell, hits.elapsed_ns
-        cells_visited = hits.stats["cells_visited"].reshape(shape)
-        runs_visited = hits.stats["runs_visited"].reshape(shape)
+        if hits.stats is None:
+            cells_visited = runs_visited = np.zeros(shape, dtype=np.int64)
+        else:
+            cells_visited = hits.stats["cells_visited"].reshape(shape)
+            runs_visited = hits.stats["runs_visited"].reshape(shape)
     depth = t.reshape(shape)  # unit directions: t is a distance
     normal = normal.reshape(height, width, 3)
-    points = rs.origins + np.where(np.isfinite(t), t, 0)[:, None] * rs.directions
+    points = origins + np.where(np.isfinite(t), t, 0)[:, None] * directions
     points = points.reshape(height, width, 3)
     return Rendering(depth=depth, normal=normal, cells_visited=cells_visited,
                      runs_visited=runs_visited, points=points,

@@ -10,10 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _kernels
+from . import _kernels, plugin_calls
 from .field import HeightField
 from .lattice import quantize
 from .parallel import resolve_threads, run_ranges, split
+from .reference import runs_from_cells
 from .registry import Traversal, get_traversal
 from .validate import check_rays, check_shape, check_t
 
@@ -215,12 +216,25 @@ def traverse(name, origins, directions, shape, tmin=None, tmax=None, *, output="
     Raises
     ------
     ValueError, TypeError
-        Bad input, with a message naming the argument and the offending ray.
+        Bad input, with a message naming the argument and the offending ray; a plugin
+        kernel (``algos.plugins``) that cannot serve the call (a Python kernel given a
+        ray range, a C library without ``hftrace_traverse_cells``), naming the kernel and
+        what it lacks.
+    algos.plugins.PluginError (defined in algos.plugin_calls)
+        A plugin kernel failed or returned cells that are not inside the grid.
+
+    Notes
+    -----
+    A registered plugin runs on the calling thread (``threads`` is not passed to it);
+    its runs are grouped from its cells, with each ray's major axis the larger ``|d|``
+    of the ray as given (x on a tie).
     """
     batch = _Batch(name, origins, directions, shape, tmin, tmax, max_denominator)
     if output not in OUTPUTS:
         raise ValueError(f"output: expected one of {OUTPUTS}, got {output!r}")
     nthreads = resolve_threads(threads)
+    if batch.algorithm.plugin is not None:
+        return _plugin_paths(batch, output)
     n_cells, n_runs = batch.counts(nthreads)
     if output == "count":
         return PathCounts(n_cells, n_runs, batch.algorithm.name)
@@ -233,6 +247,26 @@ def traverse(name, origins, directions, shape, tmin=None, tmax=None, *, output="
     runs = np.empty((int(offsets[-1]), 3), dtype=np.int32)
     batch.run("runs", offsets=offsets, out=runs, threads=nthreads)
     return RunPaths(offsets, runs, batch.major(), batch.algorithm.name)
+
+
+def _plugin_paths(batch, output):
+    """``traverse``'s result for a registered plugin: its cells (``algos.plugins``), and
+    the runs and counts grouped from them."""
+    name = batch.algorithm.name
+    offsets, cells = plugin_calls.traversal_cells(name, batch.origins, batch.directions,
+                                             (batch.nx, batch.ny), batch.tmin, batch.tmax)
+    if output == "cells":
+        return CellPaths(offsets, cells, name)
+    d = batch.directions
+    major = (np.abs(d[:, 1]) > np.abs(d[:, 0])).astype(np.int8)
+    per_ray = [runs_from_cells(cells[offsets[k]:offsets[k + 1]].tolist(), int(major[k]))
+               for k in range(batch.n)]
+    n_runs = np.array([len(r) for r in per_ray], dtype=np.int64)
+    if output == "count":
+        return PathCounts(np.diff(offsets), n_runs, name)
+    run_offsets = _offsets(n_runs)
+    runs = np.array([run for r in per_ray for run in r], dtype=np.int32).reshape(-1, 3)
+    return RunPaths(run_offsets, runs, major, name)
 
 
 def prepare_timed(name, origins, directions, shape, workload="visit", tmin=None,
@@ -250,6 +284,22 @@ def prepare_timed(name, origins, directions, shape, workload="visit", tmin=None,
         raise ValueError(f"workload: expected one of {tuple(WORKLOADS)}, got {workload!r}")
     batch = _Batch(name, origins, directions, shape, tmin, tmax, max_denominator)
     checksums = np.zeros(batch.n, dtype=np.uint64)
+    plugin = batch.algorithm.plugin
+    if plugin is not None:
+        if workload != "visit":
+            raise ValueError(f"workload: kernel {plugin.describe(name)} folds visited cells "
+                             f"(the visit workload); it has no {workload!r} fold")
+        if plugin.language == "python" and (batch.tmin is not None or batch.tmax is not None):
+            raise ValueError(f"tmin: kernel {plugin.describe(name)} takes no ray range")
+        run_plugin, sums = plugin_calls.prepare_timed_traversal(name, batch.origins,
+                                                           batch.directions, (batch.nx, batch.ny))
+
+        def run_and_fold() -> int:
+            elapsed = run_plugin()
+            checksums[:] = sums()  # folded after the clock stopped
+            return elapsed
+
+        return run_and_fold, checksums
     mode = WORKLOADS[workload]
 
     nthreads = resolve_threads(threads)

@@ -1,17 +1,93 @@
-"""Shared pieces of the benchmark reports: the speedup table and the row writer."""
+"""Shared pieces of the benchmark reports: the speedup table, the row writer and the
+reader that finds the rows a kill cut short."""
 from __future__ import annotations
 
 import csv
+import io
 import os
+
+
+def scan_csv(path, required=()):
+    """Read a CSV that :class:`RowWriter` wrote, telling whole rows from damaged lines.
+
+    Parameters
+    ----------
+    path : str
+        The CSV; a missing or empty file has no header and no rows.
+    required : sequence of str
+        Columns that must not be empty in a whole row.
+
+    Returns
+    -------
+    header : list of str
+    rows : list of dict
+        The whole rows, column -> text, in file order.
+    bad : list of (int, str)
+        Each damaged line's number (1-based, the header is line 1) and what is wrong: a
+        last row without its line end (a kill mid-write), a row with another number of
+        fields than the header, a required column left empty, a byte the CSV reader
+        refuses, or the header repeated (files concatenated).
+    """
+    if not os.path.exists(path):
+        return [], [], []
+    with open(path, newline="", errors="replace") as f:
+        text = f.read()
+    reader = csv.reader(io.StringIO(text))
+    header, rows, bad = None, [], []
+    records = []
+    line = 0
+    while True:
+        start = line + 1
+        try:
+            record = next(reader)
+        except StopIteration:
+            break
+        except csv.Error as exc:
+            line = reader.line_num
+            bad.append((start, f"unreadable ({exc})"))
+            continue
+        line = reader.line_num
+        if header is None:
+            header = record
+            continue
+        records.append((start, record))
+    if header is None:
+        return [], [], []
+    for k, (start, record) in enumerate(records):
+        if not record:
+            continue  # a blank line
+        last = k == len(records) - 1
+        if last and not text.endswith(("\n", "\r")):
+            bad.append((start, f"truncated: the row has no line end ({len(record)} of "
+                               f"{len(header)} fields, the last one possibly cut), as a kill "
+                               "mid-write leaves it"))
+        elif record == header:
+            bad.append((start, "repeats the header (two files concatenated?)"))
+        elif len(record) != len(header):
+            bad.append((start, f"malformed: {len(record)} fields, the header has {len(header)}"))
+        else:
+            row = dict(zip(header, record))
+            empty = [c for c in required if c in row and row[c] == ""]
+            if empty:
+                bad.append((start, f"malformed: no {', '.join(empty)}"))
+            else:
+                rows.append(row)
+    bad.sort()
+    return header, rows, bad
 
 
 class RowWriter:
     """Append result rows to a CSV, flushing each one, so an interrupted run keeps every
-    row it measured."""
+    row it measured.
 
-    def __init__(self, path, columns, append=False):
+    Appending to a file whose lines a kill damaged (:func:`scan_csv`) first moves those
+    lines to ``<path>.rejected`` and rewrites the file with its whole rows, so that a new
+    row never continues a cut one; :attr:`rejected` lists them as (line, reason)."""
+
+    def __init__(self, path, columns, append=False, required=()):
         self.path = path
         self.columns = list(columns)
+        self.rejected = []
         exists = append and os.path.exists(path) and os.path.getsize(path) > 0
         if exists:
             with open(path, newline="") as f:
@@ -21,11 +97,33 @@ class RowWriter:
                     f"{path}: its columns {header} differ from this version's {self.columns}; "
                     "it was written by another version of hftrace, so rows cannot be appended "
                     "to it: choose another --out or start afresh")
+            _, rows, self.rejected = scan_csv(path, required)
+            if self.rejected:
+                self._set_aside(rows)
         self._file = open(path, "a" if exists else "w", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore")
         if not exists:
             self._writer.writeheader()
             self._file.flush()
+
+    def _set_aside(self, rows):
+        """Move the damaged lines to ``<path>.rejected`` and rewrite the file with the
+        header and the whole ``rows`` (their text unchanged)."""
+        with open(self.path, newline="", errors="replace") as f:
+            lines = f.read().splitlines(keepends=True)
+        with open(self.path + ".rejected", "a", newline="") as f:
+            for number, reason in self.rejected:
+                text = lines[number - 1].rstrip("\r\n") if number <= len(lines) else ""
+                f.write(f"# line {number} of {os.path.basename(self.path)}: {reason}\n{text}\n")
+        partial = self.path + ".partial"
+        with open(partial, "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(self.columns)
+            for row in rows:
+                writer.writerow([row[c] for c in self.columns])
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(partial, self.path)
 
     def write(self, row: dict) -> None:
         """Append ``row`` (extra keys ignored) and flush it to disk."""
@@ -47,6 +145,10 @@ class RowWriter:
 #: What each cache regime and ray coherence means, for the captions of every speedup
 #: table (docs/METHOD.md, "Cache regimes and coherence").
 REGIME_TEXT = {"flushed": "caches flushed before every timed run",
+               "flushed-per-call": "caches flushed before every timed call",
+               "flushed-per-round": "caches flushed once per round of calls, kernels in a "
+                                    "fresh random order each round",
+               "unflushed": "caches never flushed, kernels in a fresh random order each round",
                "warm": "each kernel warmed on its own rays (an untimed run right before)"}
 COHERENCE_TEXT = {"random": "random rays (origins over the field, azimuth atan(1/r), all octants)",
                   "parallel": "parallel rays (one direction of slope 1/r per batch)",
@@ -65,7 +167,11 @@ def axes_caption(regime="flushed", coherence="random") -> str:
 
 def speedup_table(rows, column_key="run_length", column_label="r", footer=None) -> str:
     """A Markdown table: one row per algorithm, one column per value of ``column_key``;
-    each cell ``speedup [CI], ns/ray`` plus the agreement when below 100 %."""
+    each cell ``speedup ±half-width %`` labelled by ``bench.analysis.finding`` (the
+    rows' ``precision``, ``contended`` and ``stop`` where they record them), then ns/ray,
+    plus the agreement when below 100 %."""
+    from .analysis import DEFAULT_PRECISION, ratio_text
+
     columns = list(dict.fromkeys(row[column_key] for row in rows))
     names = list(dict.fromkeys(row["algorithm"] for row in rows))
     lookup = {(row["algorithm"], row[column_key]): row for row in rows}
@@ -80,8 +186,12 @@ def speedup_table(rows, column_key="run_length", column_label="r", footer=None) 
                 continue
             agree = float(row["agree"])
             flag = "" if agree == 1.0 else f" ({100 * agree:.2f} % agree)"
-            cells.append(f"{float(row['speedup']):.2f}x [{float(row['speedup_ci_low']):.2f}, "
-                         f"{float(row['speedup_ci_high']):.2f}], {float(row['ns_per_ray']):.0f} ns{flag}")
+            contended = str(row.get("contended", "")).lower() in ("true", "1")
+            precision = row.get("precision") or DEFAULT_PRECISION
+            text = ("1 (baseline)" if row["algorithm"] == row.get("baseline", "dda") else
+                    ratio_text(row["speedup"], row["speedup_ci_low"], row["speedup_ci_high"],
+                               precision, contended, row.get("stop", "")))
+            cells.append(f"{text}, {float(row['ns_per_ray']):.0f} ns{flag}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     if footer:
         lines.append(footer(columns, lookup, names))

@@ -51,6 +51,15 @@ int hftrace_traverse(int64_t nx, int64_t ny, int64_t n, const double *origins,
                      const double *directions, const double *tmin, const double *tmax,
                      uint64_t *checksums, int64_t *cells);
 
+/* Optional, for algos.traverse: the visited cells themselves. The harness first calls
+ * hftrace_traverse for the counts, then this with offsets (n + 1 int64, offsets[0] = 0,
+ * offsets[ray + 1] - offsets[ray] = cells[ray] of that call): store ray r's cells in
+ * visiting order as int32 pairs (i, j) at cells_out[2 * offsets[r]] onwards, exactly as
+ * many as counted. A traversal library without it serves sweeps (the checksum) only. */
+int hftrace_traverse_cells(int64_t nx, int64_t ny, int64_t n, const double *origins,
+                           const double *directions, const double *tmin, const double *tmax,
+                           const int64_t *offsets, int32_t *cells_out);
+
 /* The first hit of n rays, origins and directions (n, 3) float64, on the surface
  * `surface` (enum above) of the height field heights (rows, cols) float32. Store the ray
  * parameter of the first hit in t[ray] (+infinity on a miss) and the hit cell (i, j) in

@@ -64,17 +64,17 @@ def _warn(text):
 
 def main(argv=None) -> int:
     """Run one ``hftrace`` command; the exit status: 2 on a user error (a ValueError,
-    TypeError or unreadable file, printed as one line ``hftrace: error: ...``, never a
-    traceback), 130 on Ctrl-C (with how to resume). The kernels of installed packages'
-    ``hftrace.kernels`` entry points are registered first (``algos.plugins``)."""
-    from algos.plugins import load_entry_points
+    TypeError, a plugin that fails to load or run, or an unreadable file, printed as one
+    line ``hftrace: error: ...``, never a traceback), 130 on Ctrl-C (with how to resume).
+    The kernels of installed packages' ``hftrace.kernels`` entry points are registered first (``algos.plugins``)."""
+    from algos.plugins import PluginError, load_entry_points
 
     load_entry_points(warn=_warn)
     parser = build_parser()
     args = parser.parse_args(_join_signed_values(list(sys.argv[1:] if argv is None else argv)))
     try:
         return args.func(args)
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, PluginError) as exc:
         print(f"hftrace: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:  # an unreadable input, an unwritable --out: the path and why

@@ -30,7 +30,7 @@ import numpy as np
 
 import algos
 
-from .args import param, positive_int, results_dir, vector
+from .args import add_plugin, load_plugins, param, positive_int, results_dir, vector
 
 __all__ = ["render_files", "load_render_field", "write_exr", "register"]
 
@@ -180,7 +180,9 @@ def _check_renderer(name):
 
 
 def render_command(args):
-    """``hftrace render``: check the renderer names, then :func:`render_files`."""
+    """``hftrace render``: register ``--plugin`` kernels, check the renderer names, then
+    :func:`render_files`."""
+    load_plugins(args)
     _check_renderer(args.algorithm)
     for name in args.diff or ():
         _check_renderer(name)
@@ -218,6 +220,7 @@ def register(sub):
     p.add_argument("--diff", nargs=2, metavar=("A", "B"), default=None,
                    help="also compare two renderers (intersectors or rasterisers): the depth "
                         "difference, the step ratio and the fraction of differing hit cells")
+    add_plugin(p)
     default = os.path.join(results_dir("render"), "render")
     p.add_argument("--out", default=default, help=f"output path prefix (default {default})")
     p.add_argument("--threads", type=positive_int, default=None,

@@ -54,12 +54,31 @@ def reproduce(args):
     load_plugins(args)
     if args.full and args.preset not in (None, "full"):
         raise ValueError(f"--full: contradicts --preset {args.preset}")
-    kernels = names(args.kernels, algos.get_intersector)
-    study.run(full=args.full, out_dir=args.out, resume=args.resume,
-              progress=not args.no_progress, counts=not args.no_counts, publish=args.publish,
-              preset_name=args.preset, kernels=kernels, isolate=args.isolate,
-              all_kernels=args.all_kernels)
-    return 0
+    preset_name = "full" if args.full else (args.preset or "headline")
+    kernels = names(args.kernels, lambda name: _reproduce_kernel(name, preset_name))
+    if not 0 < args.precision < 100:
+        raise ValueError(f"--precision: expected a percentage in (0, 100), got {args.precision}")
+    paths = study.run(full=args.full, out_dir=args.out, resume=args.resume,
+                      progress=not args.no_progress, counts=not args.no_counts,
+                      publish=args.publish, preset_name=args.preset, kernels=kernels,
+                      isolate=args.isolate, all_kernels=args.all_kernels,
+                      precision=args.precision / 100)
+    return 1 if args.strict and paths.get("all_contended") else 0
+
+
+def _reproduce_kernel(name, preset_name):
+    """Check one ``--kernels`` name: an intersector, or a 2D traversal (a plugin among
+    them) where the preset measures the visit workload; ValueError naming what it lacks."""
+    if name in algos.INTERSECTOR_REGISTRY:
+        return
+    if name in algos.TRAVERSAL_REGISTRY:
+        if preset_name == "headline":
+            raise ValueError(f"--kernels: {name!r} is a 2D traversal (the visit workload) "
+                             "with no first-hit kernel, and the headline preset measures "
+                             "first hits only; add --preset standard (or --full) to measure "
+                             "its visit workload")
+        return
+    algos.get_intersector(name)  # unknown: the error lists the valid names
 
 
 def scale(args):
@@ -161,11 +180,17 @@ def register(sub):
                         "paper's measure; standard: every workload and surface plus the "
                         "parallel rays part; full: the paper-scale sweep")
     p.add_argument("--kernels", default=None,
-                   help="comma-separated first-hit kernels to measure (dda always; plugins "
-                        "by name)")
+                   help="comma-separated kernels to measure (dda always; plugins by name; "
+                        "2D traversals with --preset standard or full)")
     p.add_argument("--isolate", action="store_true",
                    help="measure plugin kernels in a child process (a crash is contained)")
     p.add_argument("--all-kernels", action="store_true", help="plot every kernel")
+    p.add_argument("--precision", type=float, default=2.0,
+                   help="percent: a kernel's paired rounds stop once its speedup's 95 %% "
+                        "interval is within this on either side (default 2)")
+    p.add_argument("--strict", action="store_true",
+                   help="exit with status 1 when every group ran while other processes used "
+                        "the machine (no cell is then a finding)")
     add_plugin(p)
     where = p.add_mutually_exclusive_group()
     where.add_argument("--out", default=None, help="output directory (default "

@@ -27,7 +27,7 @@ def run_sweep(args):
                                 isolate=args.isolate)
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace sweep {cfg.name}", all_kernels=args.all_kernels)
-    df = analysis.load(os.path.join(out_dir, "results.csv"))
+    df = analysis.load(os.path.join(out_dir, "results.csv"), echo=None)  # (said above)
     for (workload, surface), _ in df.groupby(["workload", "surface"], sort=False):
         label = workload if surface == "-" else f"{workload}, {surface}"
         print(f"\n{label}: speedup over dda (geometric mean over datasets)")
@@ -41,11 +41,12 @@ def run_sweep(args):
 
 
 def plot(args):
-    """``hftrace plot``: bench.analysis.write_reports of one results.csv."""
+    """``hftrace plot``: bench.analysis.write_reports of one run of a results.csv."""
     from .. import analysis
 
     load_plugins(args)
-    paths = analysis.write_reports(args.results, args.out, all_kernels=args.all_kernels)
+    paths = analysis.write_reports(args.results, args.out, all_kernels=args.all_kernels,
+                                   run=args.run, echo=print)
     for label, path in paths.items():
         print(f"{label:8s} {path}")
     return 0
@@ -75,5 +76,9 @@ def register(sub):
     p.add_argument("--out", default=None, help="output directory (default: beside the CSV)")
     p.add_argument("--all-kernels", action="store_true",
                    help="plot every kernel (default: a readable subset and every plugin)")
+    p.add_argument("--run", default=None, metavar="ID",
+                   help="the run to plot when the file holds several (a prefix of its run_id; "
+                        "of its commit for files without run identifiers); runs are never "
+                        "blended")
     add_plugin(p)
     p.set_defaults(func=plot)

@@ -103,8 +103,9 @@ def assess(base: list, now: list, tolerance: float, confidence=DEFAULT_CONFIDENC
 
 def compare(baseline: dict, measured: dict, tolerance: float,
             confidence=DEFAULT_CONFIDENCE) -> list[dict]:
-    """Every ratio of ``baseline`` (name -> samples) that ``measured`` lacks or that
-    regressed by :func:`assess`."""
+    """Every ratio of ``baseline`` (name -> samples) that ``measured`` lacks (marked
+    ``missing``, with why: a kernel not registered in this run, such as a plugin not
+    loaded) or that regressed by :func:`assess`."""
     if not 0 <= tolerance < 1:
         raise ValueError(f"tolerance: expected a fraction in [0, 1), got {tolerance}")
     if not 0.5 <= confidence < 1:
@@ -113,7 +114,7 @@ def compare(baseline: dict, measured: dict, tolerance: float,
     for name, base in sorted(baseline.items()):
         got = measured.get(name)
         if got is None:
-            failures.append(dict(ratio=name, reason="not measured"))
+            failures.append(dict(ratio=name, missing=True, reason=_missing_reason(name)))
             continue
         a = assess(base, got, tolerance, confidence)
         if a["regressed"]:
@@ -121,6 +122,15 @@ def compare(baseline: dict, measured: dict, tolerance: float,
                 f"{-100 * a['change']:.1f} % below the baseline (at {100 * confidence:g} % "
                 f"confidence at least {-100 * a['upper']:.1f} %)")))
     return failures
+
+
+def _missing_reason(name) -> str:
+    """Why the ratio ``workload/surface/r=R/algorithm`` was not measured."""
+    kernel = name.rsplit("/", 1)[-1]
+    if kernel not in algos.TRAVERSAL_REGISTRY and kernel not in algos.INTERSECTOR_REGISTRY:
+        return (f"not measured: kernel {kernel!r} is not registered in this run (a plugin? "
+                "load it with --plugin, or drop it from the baseline with --update)")
+    return "not measured: this run's checks do not include it"
 
 
 def load_baseline(path) -> dict:
@@ -157,7 +167,7 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
     for name, b in sorted(base["samples"].items()):
         m = measured.get(name)
         if m is None:
-            echo(f"{name:45s} {np.median(b):9.3f} {'-':>9s}")
+            echo(f"{name:45s} {np.median(b):9.3f} {'-':>9s}  MISSING")
             continue
         a = assess(b, m, tol, confidence)
         worst = max(worst, a["detectable"])
@@ -169,10 +179,17 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
              "(--update, or --baseline FILE of your own)")
     echo(f"smallest drop this run could flag, at {100 * confidence:g} % confidence and "
          f"tolerance {100 * tol:g} %: {100 * worst:.1f} % (the noisiest ratio)")
-    if failures:
-        echo(f"{len(failures)} ratio(s) regressed:")
-        for f in failures:
+    missing = [f for f in failures if f.get("missing")]
+    regressed = [f for f in failures if not f.get("missing")]
+    if missing:
+        echo(f"{len(missing)} ratio(s) missing (not measured, so not judged):")
+        for f in missing:
             echo(f"  {f['ratio']}: {f['reason']}")
+    if regressed:
+        echo(f"{len(regressed)} ratio(s) regressed:")
+        for f in regressed:
+            echo(f"  {f['ratio']}: {f['reason']}")
+    if failures:
         return 1
     echo(f"all {len(base['samples'])} ratios hold")
     return 0

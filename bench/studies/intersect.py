@@ -30,7 +30,7 @@ import datasets_gen
 
 from ..report import RowWriter, axes_caption, speedup_table
 from ..sweep import COLUMNS as SWEEP_COLUMNS
-from ..sweep import measure_group
+from ..sweep import measure_group, new_run
 from ..timing import environment, pin_to_one_cpu, write_json
 
 BASELINE = "dda"
@@ -131,6 +131,10 @@ def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
     os.makedirs(out_dir, exist_ok=True)
     cpu = pin_to_one_cpu()
     env = dict(environment(), pinned_cpu=cpu)
+    # every row names its run (bench.sweep.RUN_COLUMNS), so files never blend
+    settings = dict(n=n, repeats=repeats, seed=seed, datasets=datasets, run_lengths=run_lengths,
+                    surfaces=surfaces, names=names, regimes=regimes, coherences=coherences)
+    identity = dict(new_run(settings, env.get("git_commit", "")), commit=env.get("git_commit", ""))
     write_json(os.path.join(out_dir, "env.json"), env)
     names = list(names or algos.INTERSECTORS)
     if BASELINE not in names:
@@ -152,6 +156,7 @@ def run(out_dir="results/bench-intersect", n=1000, repeats=7, seed=2008,
                         for r in lengths:
                             for row in measure(label, side, field, surface, r, n, repeats, seed,
                                                names, regime, coherence):
+                                row.update(identity)
                                 writer.write(row)
                                 rows.append(row)
                             echo(f"  {label} {surface} {regime} {coherence} r={r:<4} done "

@@ -6,6 +6,7 @@
  * The ray is clipped to the grid's box, the first cell taken by the half-open rule, and
  * the walk steps to whichever grid line comes first (both at a vertex crossing). */
 #include <math.h>
+#include <stddef.h>
 
 #include "hftrace_plugin.h"
 
@@ -16,8 +17,10 @@ const hftrace_plugin_info *hftrace_plugin(void) {
     return &INFO;
 }
 
+/* One ray's walk: folds each cell into *hash, counts it, and stores it at out[2 * k] when
+ * out is not NULL (the caller sized out from a counting walk of the same ray). */
 static void walk(int64_t nx, int64_t ny, const double o[2], const double d[2], double t0, double t1,
-                 uint64_t *hash, int64_t *count) {
+                 uint64_t *hash, int64_t *count, int32_t *out) {
     double t_max[2], t_delta[2];
     int64_t cell[2], step[2], size[2] = {nx, ny};
     for (int a = 0; a < 2; a++) { /* slab clipping to [0, size] */
@@ -43,6 +46,10 @@ static void walk(int64_t nx, int64_t ny, const double o[2], const double d[2], d
     for (;;) {
         double t;
         *hash = hftrace_fold_cell(*hash, (int32_t)cell[0], (int32_t)cell[1]);
+        if (out) {
+            out[2 * *count] = (int32_t)cell[0];
+            out[2 * *count + 1] = (int32_t)cell[1];
+        }
         *count += 1;
         if (t_max[0] < t_max[1]) {
             t = t_max[0];
@@ -72,9 +79,23 @@ int hftrace_traverse(int64_t nx, int64_t ny, int64_t n, const double *origins,
         uint64_t hash = 0;
         int64_t count = 0;
         walk(nx, ny, origins + 2 * r, directions + 2 * r, tmin ? tmin[r] : 0.0,
-             tmax ? tmax[r] : INFINITY, &hash, &count);
+             tmax ? tmax[r] : INFINITY, &hash, &count, NULL);
         checksums[r] = hash;
         cells[r] = count;
+    }
+    return HFTRACE_PLUGIN_OK;
+}
+
+int hftrace_traverse_cells(int64_t nx, int64_t ny, int64_t n, const double *origins,
+                           const double *directions, const double *tmin, const double *tmax,
+                           const int64_t *offsets, int32_t *cells_out) {
+    if (nx < 1 || ny < 1 || n < 0) return 1;
+    for (int64_t r = 0; r < n; r++) {
+        uint64_t hash = 0;
+        int64_t count = 0;
+        walk(nx, ny, origins + 2 * r, directions + 2 * r, tmin ? tmin[r] : 0.0,
+             tmax ? tmax[r] : INFINITY, &hash, &count, cells_out + 2 * offsets[r]);
+        if (count != offsets[r + 1] - offsets[r]) return 2; /* not the counted walk */
     }
     return HFTRACE_PLUGIN_OK;
 }
