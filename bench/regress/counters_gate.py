@@ -98,6 +98,9 @@ def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
              f"{pair('runs_visited'):>9s}{flag}")
     for c in changes:
         echo(f"  changed (not a regression): {c['case']}: {c['reason']}")
+    unbaselined = sorted(set(measured) - set(base_cases))
+    if unbaselined:
+        echo(f"  not in the baseline, so not gated (refresh it with --update): {', '.join(unbaselined)}")
     if failures:
         echo(f"{len(failures)} case(s) do more work than the baseline:")
         for f in failures:

@@ -296,6 +296,9 @@ def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
     tol = tolerance if tolerance is not None else base.get("tolerance", DEFAULT_TOLERANCE)
     failures = compare(base_cases, measured, tol)
     print_table(base_cases, measured, failures, echo)
+    unbaselined = sorted(set(measured) - set(base_cases))
+    if unbaselined:
+        echo(f"  not in the baseline, so not gated (refresh it with --update): {', '.join(unbaselined)}")
     if failures:
         echo(f"{len(failures)} case(s) grew by more than {100 * tol:g} %:")
         for f in failures:
