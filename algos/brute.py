@@ -1,14 +1,21 @@
 """Brute-force first hits: every cell tested, no traversal, vectorised NumPy float64.
 
 The reference the intersectors are compared with (tests, accuracy study). For each ray
-it computes, for all cells at once, the closed parameter interval in which the ray lies
-over the cell's closed footprint, the earliest parameter in it where the ray is at or
-below that cell's surface, and takes the minimum over all cells. Cells share their
-borders, so a point on a border is tested against every cell around it: where flat and
-plane3 jump, the solid is the union (the higher side), which is the closure of
-``{z <= s(x, y)}``. Slow (O(cells) per ray) by design.
+and every cell at once it computes the half-open parameter interval ``[ta, tb)`` in which
+the ray lies in that cell by the half-open rule of the visited cells (docs/CONVENTIONS.md,
+"The visited-cell sequence"), keeps the cells whose interval is not empty, finds in each
+the earliest parameter of the closed ``[ta, tb]`` at which the ray is at or below that
+cell's own surface, and takes the minimum over the cells. So a point on a cell border is
+tested against the one cell that holds it for this ray's direction ("Points on a cell
+border", under "The first hit"): a taller neighbour that the ray only touches along an
+edge or at a vertex is never hit. Which cells are visited is decided exactly (rational
+arithmetic wherever float64 cannot tell a tie apart), so rays along grid lines and
+through vertices follow the rule. Slow (O(cells) per ray) by design.
 """
 from __future__ import annotations
+
+import math
+from fractions import Fraction
 
 import numpy as np
 
@@ -17,21 +24,62 @@ from .field import HeightField
 __all__ = ["brute_force_hits"]
 
 
-def _interval(o, d, lo_edge, n_cells):
-    """Per cell k in 0..n_cells-1 along one axis: the parameter interval over [k, k+1]."""
+def _axis_intervals(o, d, n_cells):
+    """Per cell k in 0..n_cells-1 along one axis: the half-open parameter interval
+    ``[lo, hi)`` in which the coordinate lies in that cell's half-open range (``[k, k+1)``
+    for ``d >= 0``, ``(k, k+1]`` for ``d < 0``); an empty one is ``(inf, -inf)``. With
+    ``d = 0`` the far border ``o = n_cells`` belongs to the last cell: it has no cell on
+    its ``+`` side, and the box is closed."""
     k = np.arange(n_cells, dtype=np.float64)
-    if d == 0:
-        inside = (o >= k) & (o <= k + 1)
+    if d == 0:  # -0.0 included: the cell on the + side
+        inside = ((k <= o) & (o < k + 1)) | ((k == n_cells - 1) & (o == n_cells))
         return np.where(inside, -np.inf, np.inf), np.where(inside, np.inf, -np.inf)
-    a = (k - o) / d
-    b = (k + 1 - o) / d
-    return np.minimum(a, b), np.maximum(a, b)
+    if d > 0:
+        return (k - o) / d, (k + 1 - o) / d
+    return (k + 1 - o) / d, (k - o) / d
+
+
+def _exact(value):
+    """A finite float at its exact binary value."""
+    return Fraction(float(value))
+
+
+def _exactly_visited(i, j, o, d, tmin, tmax):
+    """Whether cell (i, j) holds p(t) for some t in [tmin, tmax), in rational arithmetic."""
+    lows = [_exact(tmin)] if np.isfinite(tmin) else []
+    highs = [_exact(tmax)] if np.isfinite(tmax) else []
+    for k, oa, da in ((i, o[0], d[0]), (j, o[1], d[1])):
+        if da == 0:
+            continue  # decided exactly by the float test: the cell holds it for every t
+        near, far = (k, k + 1) if da > 0 else (k + 1, k)
+        lows.append((near - _exact(oa)) / _exact(da))
+        highs.append((far - _exact(oa)) / _exact(da))
+    if not lows or not highs:
+        return True  # unbounded on one side; the float test found the other side finite
+    return max(lows) < min(highs)
+
+
+def _cell_at_start(o, d, nx, ny, tmin):
+    """The cell holding p(t0) when the clipped range ``[t0, t1]`` is one point (the ray
+    starts on a box face it leaves through, or ``tmin = tmax``): the half-open rule's cell,
+    clamped into the grid, from the exact t0."""
+    t0 = _exact(tmin) if np.isfinite(tmin) else None
+    for oa, da, n in ((o[0], d[0], nx), (o[1], d[1], ny)):
+        if da != 0:
+            entry = min((0 - _exact(oa)) / _exact(da), (n - _exact(oa)) / _exact(da))
+            t0 = entry if t0 is None else max(t0, entry)
+    index = []
+    for oa, da, n in ((o[0], d[0], nx), (o[1], d[1], ny)):
+        x = _exact(oa) + (t0 * _exact(da) if da != 0 else 0)
+        k = math.ceil(x) - 1 if da < 0 else math.floor(x)
+        index.append(min(max(k, 0), n - 1))
+    return index[1], index[0]
 
 
 def _first_hit_one(H, o, d, surface, tmin, tmax):
     rows, cols = H.shape
     nx, ny = cols - 1, rows - 1
-    # the box [0, cols-1] x [0, rows-1]
+    # the closed range [t0, t1]: [tmin, tmax] clipped to the box [0, nx] x [0, ny]
     t0, t1 = tmin, tmax
     for axis, top in ((0, nx), (1, ny)):
         if d[axis] == 0:
@@ -42,23 +90,39 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
             t0, t1 = max(t0, a), min(t1, b)
     if not t0 <= t1:
         return np.inf, (-1, -1)
-    if not np.isfinite(t1):
+    xa, xb = _axis_intervals(o[0], d[0], nx)
+    ya, yb = _axis_intervals(o[1], d[1], ny)
+    # per cell (ny, nx): the half-open interval [ta, tb) of the ray inside it (the cells
+    # lie in the box, so it is clipped to the box already)
+    ta = np.maximum(np.maximum(xa[None, :], ya[:, None]), tmin)
+    tb = np.minimum(np.minimum(xb[None, :], yb[:, None]), tmax)
+    # a cell is visited when ta < tb. Each bound is (k - o) / d with two roundings, so
+    # within a few ulps the float test cannot tell an exact vertex or edge touch (empty)
+    # from a tiny visit: those cells are decided in rational arithmetic
+    finite_ta = np.where(np.isfinite(ta), ta, 0.0)
+    finite_tb = np.where(np.isfinite(tb), tb, 0.0)
+    scale = np.maximum(np.abs(finite_ta), np.abs(finite_tb))
+    with np.errstate(invalid="ignore"):
+        margin = tb - ta
+    unsure = np.abs(finite_tb - finite_ta) <= 8 * np.finfo(np.float64).eps * scale
+    unsure &= np.isfinite(ta) & np.isfinite(tb)
+    visited = (margin > 0) & ~unsure
+    for j, i in zip(*np.nonzero(unsure)):
+        visited[j, i] = _exactly_visited(i, j, o, d, tmin, tmax)
+    if not visited.any():
+        # [t0, t1) is empty, [t0, t1] one point: the one cell that holds it
+        j, i = _cell_at_start(o, d, nx, ny, tmin)
+        visited[j, i] = True
+        ta[j, i] = tb[j, i] = t0
+    if d[0] == 0 and d[1] == 0 and not np.isfinite(t1):
         # a vertical ray: end it where z has passed every possible surface height (plane3
         # extrapolates to 2 min - max at worst); below them the ray is inside the solid
         lo_s = 2.0 * float(H.min()) - float(H.max()) - 1.0
         hi_s = 2.0 * float(H.max()) - float(H.min()) + 1.0
-        t1 = min(t1, ((lo_s if d[2] < 0 else hi_s) - o[2]) / d[2])
-        if not t0 <= t1:
-            t1 = t0
-    xa, xb = _interval(o[0], d[0], 0, nx)
-    ya, yb = _interval(o[1], d[1], 0, ny)
-    ta = np.maximum(np.maximum(xa[None, :], ya[:, None]), t0)  # (ny, nx)
-    tb = np.minimum(np.minimum(xb[None, :], yb[:, None]), t1)
-    valid = ta <= tb
-    if not valid.any():
-        return np.inf, (-1, -1)
-    jj, ii = np.nonzero(valid)
-    ta, tb = ta[valid], tb[valid]
+        end = ((lo_s if d[2] < 0 else hi_s) - o[2]) / d[2] if d[2] != 0 else t0
+        tb = np.minimum(tb, max(end, t0))
+    jj, ii = np.nonzero(visited)
+    ta, tb = ta[visited], tb[visited]
     h00, h10 = H[jj, ii].astype(np.float64), H[jj, ii + 1].astype(np.float64)
     h01, h11 = H[jj + 1, ii].astype(np.float64), H[jj + 1, ii + 1].astype(np.float64)
 
@@ -157,8 +221,18 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
 def brute_force_hits(heights, origins, directions, surface="triangles", tmin=None, tmax=None):
     """(t, cell) of the first hit of every ray, testing every cell; t = inf on a miss.
 
-    Same conventions as ``algos.intersect`` (docs/CONVENTIONS.md, "The first hit"); a
+    Same conventions as ``algos.intersect`` (docs/CONVENTIONS.md, "The first hit"),
+    points on a cell border included: each is tested against the one cell that holds it
+    for the ray's direction (a zero component takes the ``+`` side; the box's far side
+    and a one-point range take the nearest cell of the grid). A
     :class:`algos.HeightField` gives its cell heights.
+
+    Returns
+    -------
+    t : ndarray (n,) float64
+    cell : ndarray (n, 2) int32
+        ``(i, j)`` of the cell whose surface or wall is hit (the first in row-major
+        order when two cells reach it at the same t), ``(-1, -1)`` on a miss.
     """
     H = heights.cell_heights if isinstance(heights, HeightField) else \
         np.asarray(heights, dtype=np.float32)

@@ -57,7 +57,16 @@ from dataclasses import field as dc_field
 import numpy as np
 
 from . import hugepages
-from .georef import LINEAR_UNITS, UNIT_ALIASES, pixel_size, unit_name
+from .decode import decode
+from .georef import (
+    LINEAR_UNITS,
+    UNIT_ALIASES,
+    check_crs,
+    check_dataarray_georeferencing,
+    crs_unit,
+    pixel_size,
+    unit_name,
+)
 from .validate import as_float_array, check_heights, check_spacing
 
 __all__ = ["HeightField", "Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind", "max_mipmap",
@@ -339,8 +348,6 @@ class HeightField:
         else ``unit`` checked against :data:`algos.georef.LINEAR_UNITS` (default ``"cell"``
         for spacing 1, else ``"map unit"``: no real unit)."""
         if self.crs is not None:
-            from datasets_gen.raster import crs_unit  # the CRS rules live with the readers
-
             bounds, pixel = None, (dx, dy)
             if self.transform is not None:
                 from rasterio.coords import BoundingBox
@@ -390,7 +397,12 @@ class HeightField:
         without spatial coordinates, ``spacing`` (default 1: cell units) describes the
         pixels. The CRS's linear unit is the field's unit; without a CRS, ``unit`` names
         it (as for the constructor; default none: curvature refuses the field). A
-        geographic CRS is refused (:func:`datasets_gen.raster.check_crs`)."""
+        geographic CRS is refused (:func:`algos.georef.check_crs`), and so is an array
+        read from a raster placed by GCPs, RPCs or geolocation arrays
+        (:func:`algos.georef.check_dataarray_georeferencing`). Raw values are decoded by
+        the scale, offset and fill attributes they carry (:func:`algos.decode.decode`:
+        rioxarray's default ``open_rasterio`` keeps counts with ``scale_factor`` and
+        ``add_offset``)."""
         if array.ndim != 2:
             raise ValueError(f"heights: expected a 2D DataArray, got dims {array.dims}")
         data = array.data
@@ -405,7 +417,7 @@ class HeightField:
             try:
                 crs = rio.crs
                 transform = rio.transform(recalc=True)
-                nodata = rio.nodata if rio.nodata is not None else rio.encoded_nodata
+                nodata = rio.nodata if rio.encoded_nodata is None else None
             except Exception:  # no spatial dimensions: a plain array
                 crs = transform = None
         if transform is not None and crs is None and tuple(transform)[:6] == \
@@ -414,19 +426,18 @@ class HeightField:
         if transform is not None and spacing is not None:
             raise ValueError("spacing: the DataArray's coordinates give the pixel size; "
                              "leave spacing out")
+        what = f"DataArray {array.name!r}"
+        if transform is None or tuple(transform)[:6] == (1.0, 0.0, 0.0, 0.0, 1.0, 0.0):
+            check_dataarray_georeferencing(array, what)
         if crs is not None:
-            from datasets_gen.raster import check_crs  # the CRS rules live with the readers
-
-            unit = check_crs(crs, f"DataArray {array.name!r}")
-        mask = None
-        if nodata is not None and not (isinstance(nodata, float) and math.isnan(nodata)):
-            mask = data == nodata
-            if is_dask(data):
-                import dask.array as da
-
-                data = da.where(mask, np.nan, data)
-            else:
-                data = np.where(mask, np.nan, data)
+            unit = check_crs(crs, what)
+        # raw values with their scale, offset and fill values in attrs are decoded here;
+        # rioxarray's encoded nodata belongs to values its decoder has masked already
+        extra = None if nodata is None or (isinstance(nodata, float) and math.isnan(nodata)) \
+            else [nodata]
+        data, mask = decode(array, data, what, extra_fills=extra)
+        if mask is not None and not is_dask(data):
+            mask = np.asarray(mask) | ~np.isfinite(data)  # NaN samples are voids too
         return cls(data, name if name is not None else str(array.name or "DataArray"),
                    spacing=None if transform is not None else spacing, unit=unit, crs=crs,
                    transform=transform, nodata_mask=mask,

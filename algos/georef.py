@@ -22,10 +22,15 @@ Earth radii (one constant per meaning):
 from __future__ import annotations
 
 import math
+import os
+
+import numpy as np
 
 __all__ = ["WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M", "pixel_size", "utm_epsg",
            "check_axis_aligned", "LINEAR_UNITS", "UNIT_ALIASES", "NO_UNIT", "unit_name",
-           "unit_metres"]
+           "unit_metres", "crs_unit", "check_crs", "ground_size",
+           "unusable_georeferencing", "check_georeferencing",
+           "check_dataarray_georeferencing", "check_nodata"]
 
 #: Equatorial radius of the WGS 84 ellipsoid (m): the curvature default (as GDAL's viewshed).
 WGS84_SEMI_MAJOR_AXIS_M = 6378137.0
@@ -100,3 +105,170 @@ def utm_epsg(longitude: float, latitude: float) -> int:
     zone = int(math.floor((((longitude + 180.0) % 360.0)) / 6.0)) + 1
     zone = min(max(zone, 1), 60)
     return (32600 if latitude >= 0 else 32700) + zone
+
+
+def ground_size(pixel, latitude):
+    """East-west and north-south ground lengths (m) of a pixel of ``pixel`` = (dlon,
+    dlat) degrees at ``latitude``, on the IUGG mean sphere."""
+    metres_per_degree = math.pi / 180.0 * IUGG_MEAN_EARTH_RADIUS_M
+    return (abs(pixel[0]) * metres_per_degree * math.cos(math.radians(latitude)),
+            abs(pixel[1]) * metres_per_degree)
+
+
+def _gdalwarp_fix(path, pixel, bounds) -> str:
+    """The command that reprojects a geographic raster to the UTM zone of its centre."""
+    lon = (bounds.left + bounds.right) / 2
+    lat = (bounds.bottom + bounds.top) / 2
+    epsg = utm_epsg(lon, lat)
+    dx, dy = ground_size(pixel, lat)
+    stem, _ = os.path.splitext(os.fspath(path))
+    return (f"gdalwarp -t_srs EPSG:{epsg} -tr {dx:.6g} {dy:.6g} -r bilinear {path} "
+            f"{stem}_utm.tif "
+            f"(or read it with reproject='utm'; the CLI option is --reproject utm)")
+
+
+def crs_unit(crs, what, *, bounds=None, pixel=(1.0, 1.0), source=None):
+    """``(name, metres)`` of a CRS's linear unit: the name a field uses
+    (:func:`unit_name` for the units it knows, else PROJ's own name) and
+    metres per unit, both from rasterio (``CRS.linear_units_factor``). A geographic CRS
+    raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size in
+    degrees), the exact ``gdalwarp`` command that fixes ``source`` (default ``what``)."""
+    from rasterio.crs import CRS
+
+    crs = CRS.from_user_input(crs)
+    if crs.is_geographic:
+        fix = _gdalwarp_fix(what if source is None else source, pixel, bounds) \
+            if bounds is not None else "gdalwarp -t_srs EPSG:<UTM zone> IN.tif OUT.tif"
+        raise ValueError(f"{what}: its CRS ({crs.to_string()}) is geographic: pixel sizes in "
+                         f"degrees are not lengths, and heights in metres over degrees give "
+                         f"wrong angles. Reproject it first: {fix}")
+    name, factor = crs.linear_units_factor
+    return UNIT_ALIASES.get(name, name), float(factor)
+
+
+def check_crs(crs, what, *, bounds=None, pixel=(1.0, 1.0)) -> str:
+    """The linear unit name of a CRS (None: no CRS, returns "map unit"). A geographic CRS
+    raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size
+    in degrees), the exact ``gdalwarp`` command that fixes the file."""
+    if crs is None:
+        return "map unit"
+    return crs_unit(crs, what, bounds=bounds, pixel=pixel)[0]
+
+
+def _target_epsg(crs, longitude, latitude):
+    """The EPSG code to warp to: a projected CRS's own, else the WGS 84 UTM zone of the
+    point (longitude, latitude in degrees), else None when neither is known."""
+    if crs is not None and not crs.is_geographic and crs.to_epsg() is not None:
+        return crs.to_epsg()
+    if longitude is not None and latitude is not None:
+        return utm_epsg(longitude, latitude)
+    return None
+
+
+def unusable_georeferencing(ds):
+    """``(kind, gdalwarp command)`` when a rasterio dataset is georeferenced only by ground
+    control points (``"ground control points"``), rational polynomial coefficients
+    (``"RPCs"``) or geolocation arrays (``"geolocation arrays"``), which place pixels on the
+    map without an axis-aligned geotransform; None when it has a geotransform or no
+    georeferencing at all. The command orthorectifies (``-rpc``) or warps (``-geoloc``, or
+    the GCPs' polynomial) the file to a projected north-up grid, the UTM zone of its
+    centre when its own CRS is geographic (``<EPSG>`` when that centre is unknown)."""
+    if ds.crs is not None or not ds.transform.is_identity:
+        return None
+    path = ds.name
+    stem, _ = os.path.splitext(os.fspath(path))
+    out = f"{stem}_warped.tif"
+    gcps, gcp_crs = ds.gcps
+    if gcps:
+        xs = [p.x for p in gcps]
+        ys = [p.y for p in gcps]
+        centre = ((min(xs) + max(xs)) / 2, (min(ys) + max(ys)) / 2)
+        geographic = gcp_crs is None or gcp_crs.is_geographic
+        epsg = _target_epsg(gcp_crs, *(centre if geographic and gcp_crs is not None
+                                       else (None, None)))
+        return ("ground control points",
+                f"gdalwarp -t_srs EPSG:{epsg or '<EPSG>'} -r bilinear {path} {out}")
+    if ds.rpcs is not None:
+        epsg = _target_epsg(None, ds.rpcs.long_off, ds.rpcs.lat_off)
+        return ("RPCs", f"gdalwarp -rpc -t_srs EPSG:{epsg} -r bilinear {path} {out} "
+                        "(add -to RPC_DEM=<dem.tif> for terrain-corrected orthorectification)")
+    if "GEOLOCATION" in ds.tag_namespaces():
+        return ("geolocation arrays",
+                f"gdalwarp -geoloc -t_srs EPSG:<UTM zone of the area> -r bilinear {path} {out}")
+    return None
+
+
+def check_georeferencing(ds, what) -> None:
+    """Raise ValueError naming ``what`` when a rasterio dataset is georeferenced only by
+    ground control points, RPCs or geolocation arrays (:func:`unusable_georeferencing`):
+    read as a plain grid it would lose where its pixels lie and how large they are."""
+    found = unusable_georeferencing(ds)
+    if found is not None:
+        kind, fix = found
+        raise ValueError(f"{what}: is georeferenced by {kind}, not by an axis-aligned "
+                         "geotransform, so its pixel size and position are unknown to "
+                         f"hftrace; orthorectify or warp it to a projected grid first: {fix}")
+
+
+def check_dataarray_georeferencing(array, what) -> None:
+    """Raise ValueError naming ``what`` when a DataArray without a usable geotransform
+    came from a raster georeferenced only by ground control points, RPCs or geolocation
+    arrays: rioxarray keeps the GCPs in its grid-mapping coordinate (``gcps``), and the
+    file it was read from (``encoding["source"]``) tells the rest."""
+    grid_mapping = (getattr(array, "encoding", {}) or {}).get("grid_mapping", "spatial_ref")
+    if grid_mapping in array.coords and "gcps" in array.coords[grid_mapping].attrs:
+        crs = array.coords[grid_mapping].attrs.get("crs_wkt")
+        epsg = None
+        if crs:
+            from rasterio.crs import CRS
+
+            crs = CRS.from_user_input(crs)
+            epsg = None if crs.is_geographic else crs.to_epsg()
+        raise ValueError(f"{what}: is georeferenced by ground control points "
+                         f"({grid_mapping}.attrs['gcps']), not by an axis-aligned "
+                         "geotransform, so its pixel size and position are unknown to "
+                         "hftrace; warp the file it came from to a projected grid first: "
+                         f"gdalwarp -t_srs EPSG:{epsg or '<EPSG>'} -r bilinear IN.tif OUT.tif")
+    source = (getattr(array, "encoding", {}) or {}).get("source")
+    if isinstance(source, str) and os.path.isfile(source):
+        import warnings
+
+        import rasterio
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            try:
+                ds = rasterio.open(source)
+            except rasterio.errors.RasterioIOError:
+                return  # not a raster GDAL reads (a netCDF through another engine, ...)
+        with ds:
+            check_georeferencing(ds, f"{what} (read from {source})")
+
+
+def check_nodata(nodata, dtype, file_nodata, what) -> None:
+    """Raise ValueError naming ``what`` with both values when an explicit ``nodata`` can
+    never mark a void of a file: no sample of ``dtype`` can equal it (-9999 or 2.5 in
+    uint8, NaN in an integer type, 1e40 in float32), or the file declares another nodata
+    value (``file_nodata``; None: it declares none). A NaN nodata equals a NaN one."""
+    if isinstance(nodata, (bool, np.bool_)) or not isinstance(nodata, (int, float, np.number)):
+        raise TypeError(f"nodata: expected a number, got {nodata!r}")
+    value = float(nodata)
+    dtype = np.dtype(dtype)
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        if not (math.isfinite(value) and value == math.floor(value)
+                and info.min <= value <= info.max):
+            raise ValueError(f"nodata: {nodata!r} can never equal a sample of {what}, whose "
+                             f"type {dtype.name} holds integers in [{info.min}, {info.max}]; "
+                             "give a value of that type (or leave nodata out to use the "
+                             "file's own)")
+    elif dtype.kind == "f" and math.isfinite(value) and float(dtype.type(value)) != value:
+        raise ValueError(f"nodata: {nodata!r} can never equal a sample of {what}, whose type "
+                         f"{dtype.name} cannot hold it exactly (nearest "
+                         f"{float(dtype.type(value))!r})")
+    if file_nodata is not None:
+        same = (math.isnan(value) and math.isnan(file_nodata)) or value == file_nodata
+        if not same:
+            raise ValueError(f"nodata: {nodata!r} contradicts the nodata value {file_nodata!r} "
+                             f"that {what} declares; leave nodata out to use the file's, or "
+                             "correct the file first (gdal_edit.py -a_nodata VALUE FILE)")

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import plane_cameras
 from .field import Field
 from .intersect import intersect
 from .registry import get_intersector
@@ -26,8 +27,8 @@ from .registry import get_intersector
 __all__ = ["Rendering", "default_camera", "render", "shade", "PROJECTIONS"]
 
 
-#: The cameras of :func:`render`, each a ray generator of ``datasets_gen.rays`` taking
-#: (position, look_at, fov, width, height).
+#: The cameras of :func:`render`: the pinhole, and the two whose image columns are
+#: vertical planes (``algos.plane_cameras``).
 PROJECTIONS = ("pinhole", "level", "orthographic")
 
 
@@ -113,11 +114,11 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         As in ``algos.intersect`` (default every core); the image is bit-identical for
         every value.
     projection : str
-        One of :data:`PROJECTIONS`: ``"pinhole"`` (``datasets_gen.rays.pinhole``),
-        ``"level"`` (a level pinhole with a vertical lens shift that centres
-        ``look_at``: every image column one vertical plane, ``datasets_gen.rays.level_camera``)
-        or ``"orthographic"`` (parallel rays from ``position`` to ``look_at``, the film
-        ``2 |look_at - position| tan(fov / 2)`` cells wide, ``datasets_gen.rays.orthographic``;
+        One of :data:`PROJECTIONS`: ``"pinhole"``, ``"level"`` (a level pinhole with a
+        vertical lens shift that centres ``look_at``: every image column one vertical
+        plane, ``algos.plane_cameras.level_camera_rays``) or ``"orthographic"`` (parallel
+        rays from ``position`` to ``look_at``, the film ``2 |look_at - position|
+        tan(fov / 2)`` cells wide, ``algos.plane_cameras.orthographic_rays``;
         ``depth`` is then measured from the vertical film through ``position``). The last
         two are the batches ``plane_maxmip`` traces a column at a time.
 
@@ -143,16 +144,24 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     cam, centre = default_camera(heights)
     position = np.asarray(position if position is not None else cam, dtype=float)
     look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)
-    from datasets_gen import rays as raysets
-
     from . import raster
 
     if projection not in PROJECTIONS:
         raise ValueError(f"projection: expected one of {', '.join(PROJECTIONS)}, "
                          f"got {projection!r}")
-    generator = {"pinhole": raysets.pinhole, "level": raysets.level_camera,
-                 "orthographic": raysets.orthographic}[projection]
-    rs = generator(position, look_at, fov, width, height)
+    if projection == "pinhole":
+        # the pinhole's primary rays: unit directions through the pixel centres, row 0 on top
+        frame, sx, sy = raster.pinhole_frame(position, look_at, fov, width, height)
+        forward, right, up = frame[3:6], frame[6:9], frame[9:12]
+        directions = (forward + sx[None, :, None] * right + sy[:, None, None] * up).reshape(-1, 3)
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        origins = np.tile(position, (len(directions), 1))
+    elif projection == "level":
+        origins, directions, _ = plane_cameras.level_camera_rays(position, look_at, fov,
+                                                                 width, height)
+    else:
+        origins, directions = plane_cameras.orthographic_rays(position, look_at, fov, width,
+                                                              height)
     shape = (height, width)
     if algorithm in raster.RASTERISERS:
         if projection != "pinhole":
@@ -168,7 +177,7 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         # a registered plugin reports no per-ray statistics: its count images are zero
         entry = get_intersector(algorithm)
         outputs = ("t", "cell", "normal") + (("stats",) if entry.plugin is None else ())
-        hits = intersect(algorithm, field, rs.origins, rs.directions, surface=surface,
+        hits = intersect(algorithm, field, origins, directions, surface=surface,
                          outputs=outputs, threads=threads)
         t, normal, cell, elapsed = hits.t, hits.normal, hits.cell, hits.elapsed_ns
         if hits.stats is None:
@@ -177,9 +186,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
             cells_visited = hits.stats["cells_visited"].reshape(shape)
             runs_visited = hits.stats["runs_visited"].reshape(shape)
     # t is in units of each ray's |d| (the level camera's are not unit vectors)
-    depth = (t * np.linalg.norm(rs.directions, axis=1)).reshape(shape)
+    depth = (t * np.linalg.norm(directions, axis=1)).reshape(shape)
     normal = normal.reshape(height, width, 3)
-    points = rs.origins + np.where(np.isfinite(t), t, 0)[:, None] * rs.directions
+    points = origins + np.where(np.isfinite(t), t, 0)[:, None] * directions
     points = points.reshape(height, width, 3)
     return Rendering(depth=depth, normal=normal, cells_visited=cells_visited,
                      runs_visited=runs_visited, points=points,

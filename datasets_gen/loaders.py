@@ -32,12 +32,12 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, unit_name
+from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, check_crs, check_nodata, unit_name
 from algos.validate import check_spacing
 
 from .cache import cached_array
 from .fields import det_cos
-from .raster import LazyRaster, check_crs, read_raster
+from .raster import LazyRaster, read_raster
 
 __all__ = ["HeightField", "LoaderError", "load_file", "jacksboro", "resample_bilinear",
            "NODATA_POLICIES", "open_lazy", "LazyRaster", "RASTER_EXTENSIONS"]
@@ -129,7 +129,9 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
     vertical_scale : float
         Factor on the heights (a unit change, or exaggeration).
     nodata : float, optional
-        A nodata value (in place of a raster's own).
+        A nodata value for a file that declares none. It must be a value of the file's
+        sample type (-9999 on uint8 is refused) and, for a raster that declares one,
+        equal to it; both refusals name the two values.
     nodata_policy : {"void", "error", "fill-min", "fill"}
         See the module docstring; default "void".
     fill_value : float, optional
@@ -157,7 +159,9 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
     ------
     ValueError
         Naming the file or the parameter: unreadable files, wrong shapes, voids under
-        ``nodata_policy="error"``, geographic or rotated rasters.
+        ``nodata_policy="error"``, geographic or rotated rasters, rasters placed by
+        ground control points, RPCs or geolocation arrays (with the ``gdalwarp`` fix),
+        an impossible or contradicting ``nodata``.
     """
     return with_unit(_load_file(path, spacing=spacing, vertical_scale=vertical_scale,
                                 nodata=nodata, nodata_policy=nodata_policy,
@@ -243,6 +247,7 @@ def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_po
     heights = data.astype(np.float64) * vertical_scale
     mask = ~np.isfinite(heights)
     if nodata is not None:
+        check_nodata(nodata, data.dtype, None, path)
         mask |= data == nodata
     heights, mask = _apply_nodata(heights, path, mask, nodata_policy, fill_value)
     return HeightField(heights, os.path.basename(path), spacing=spacing,
@@ -369,7 +374,8 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
     where it is computed: for fields larger than memory (``algos.horizon`` and friends
     take it and work tile by tile). Heights are in the file's unit (scale, offset and
     ``vertical_scale`` applied), NaN at voids; a raster's CRS, transform and orientation
-    are carried (a geographic or rotated raster is refused, as by ``load_file``)."""
+    are carried (a geographic or rotated raster, or one placed by GCPs, RPCs or
+    geolocation arrays, is refused, as by ``load_file``)."""
     import dask.array as da
 
     path = os.fspath(path)
@@ -386,12 +392,13 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
         return HeightField(heights, name, spacing=spacing, params=params)
     import rasterio
 
-    from algos.georef import check_axis_aligned
+    from algos.georef import check_axis_aligned, check_georeferencing
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
         ds = rasterio.open(path)
     with ds:
+        check_georeferencing(ds, path)  # GCPs, RPCs, geolocation arrays: refused with the fix
         georef = ds.crs is not None or not ds.transform.is_identity
         if not georef:
             return HeightField(heights, name, spacing=spacing, params=params)

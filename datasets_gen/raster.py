@@ -13,7 +13,9 @@ unit (``unit``, with ``params["unit_metres"]`` metres per unit); heights are tak
 in that same unit (times ``vertical_scale``, e.g. 0.3048 for feet over a metre grid).
 Rows are kept as stored: a south-up raster (positive y pixel size) is read in its true
 orientation (``north="+y"``) and the products return their results on the same grid.
-Rotated or sheared geotransforms are refused. A geographic CRS (degrees) is refused
+Rotated or sheared geotransforms are refused, and so is a file georeferenced only by
+ground control points, RPCs or geolocation arrays, with the ``gdalwarp`` command that
+warps it to a projected grid (:func:`algos.georef.check_georeferencing`). A geographic CRS (degrees) is refused
 with the exact ``gdalwarp`` command that fixes the file, or reprojected on request
 (``reproject="utm"``: to the WGS 84 UTM zone of the centre, bilinear, at the ground size
 of the pixel at the centre, through ``rasterio.warp``; see :func:`_to_utm`). A file without georeferencing
@@ -43,7 +45,15 @@ import warnings
 import numpy as np
 
 from algos.field import HeightField
-from algos.georef import IUGG_MEAN_EARTH_RADIUS_M, UNIT_ALIASES, check_axis_aligned, utm_epsg
+from algos.georef import (
+    check_axis_aligned,
+    check_crs,
+    check_georeferencing,
+    check_nodata,
+    crs_unit,
+    ground_size,
+    utm_epsg,
+)
 
 __all__ = ["read_raster", "check_crs", "crs_unit", "write_product", "create_product", "write_window",
            "product_nodata", "save_product", "LazyRaster", "REPROJECT"]
@@ -54,54 +64,6 @@ REPROJECT = (None, "utm")
 #: counts as uint16 (voids 65535).
 BOOL_NODATA = 255
 COUNT_NODATA = 65535
-
-
-def _ground_size(pixel, latitude):
-    """East-west and north-south ground lengths (m) of a pixel of ``pixel`` = (dlon,
-    dlat) degrees at ``latitude``, on the IUGG mean sphere."""
-    metres_per_degree = math.pi / 180.0 * IUGG_MEAN_EARTH_RADIUS_M
-    return (abs(pixel[0]) * metres_per_degree * math.cos(math.radians(latitude)),
-            abs(pixel[1]) * metres_per_degree)
-
-
-def _gdalwarp_fix(path, pixel, bounds) -> str:
-    """The command that reprojects a geographic raster to the UTM zone of its centre."""
-    lon = (bounds.left + bounds.right) / 2
-    lat = (bounds.bottom + bounds.top) / 2
-    epsg = utm_epsg(lon, lat)
-    dx, dy = _ground_size(pixel, lat)
-    stem, _ = os.path.splitext(os.fspath(path))
-    return (f"gdalwarp -t_srs EPSG:{epsg} -tr {dx:.6g} {dy:.6g} -r bilinear {path} "
-            f"{stem}_utm.tif "
-            f"(or read it with reproject='utm'; the CLI option is --reproject utm)")
-
-
-def crs_unit(crs, what, *, bounds=None, pixel=(1.0, 1.0), source=None):
-    """``(name, metres)`` of a CRS's linear unit: the name a field uses
-    (:func:`algos.georef.unit_name` for the units it knows, else PROJ's own name) and
-    metres per unit, both from rasterio (``CRS.linear_units_factor``). A geographic CRS
-    raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size in
-    degrees), the exact ``gdalwarp`` command that fixes ``source`` (default ``what``)."""
-    from rasterio.crs import CRS
-
-    crs = CRS.from_user_input(crs)
-    if crs.is_geographic:
-        fix = _gdalwarp_fix(what if source is None else source, pixel, bounds) \
-            if bounds is not None else "gdalwarp -t_srs EPSG:<UTM zone> IN.tif OUT.tif"
-        raise ValueError(f"{what}: its CRS ({crs.to_string()}) is geographic: pixel sizes in "
-                         f"degrees are not lengths, and heights in metres over degrees give "
-                         f"wrong angles. Reproject it first: {fix}")
-    name, factor = crs.linear_units_factor
-    return UNIT_ALIASES.get(name, name), float(factor)
-
-
-def check_crs(crs, what, *, bounds=None, pixel=(1.0, 1.0)) -> str:
-    """The linear unit name of a CRS (None: no CRS, returns "map unit"). A geographic CRS
-    raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size
-    in degrees), the exact ``gdalwarp`` command that fixes the file."""
-    if crs is None:
-        return "map unit"
-    return crs_unit(crs, what, bounds=bounds, pixel=pixel)[0]
 
 
 def _check_band(ds, band, path):
@@ -143,7 +105,9 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
     vertical_scale : float
         A factor on the heights after scale/offset (a unit change of the heights).
     nodata : float, optional
-        A nodata value to use in place of the file's.
+        The nodata value of a file that declares none (its internal mask, if any, is
+        kept); it must be a value of the file's type, and equal the file's own if it has
+        one (:func:`algos.georef.check_nodata`).
     reproject : None or "utm"
         What to do with a geographic CRS: refuse (None) or reproject to the UTM zone of
         the centre.
@@ -158,9 +122,10 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
     Raises
     ------
     ValueError
-        A missing file, a band out of range, a rotated transform, a geographic CRS
-        without ``reproject``, a bad ``spacing``/``vertical_scale``; each names the
-        file or argument.
+        A missing file, a band out of range, a rotated transform, georeferencing by
+        GCPs, RPCs or geolocation arrays, a geographic CRS without ``reproject``, a
+        ``nodata`` no sample can equal or that contradicts the file's, a bad
+        ``spacing``/``vertical_scale``; each names the file or argument.
     """
     import rasterio
 
@@ -177,6 +142,7 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
             raise ValueError(f"{path}: cannot be read as a raster ({exc})") from None
     with ds:
         band = _check_band(ds, band, path)
+        check_georeferencing(ds, path)  # GCPs, RPCs, geolocation arrays: refused with the fix
         georef = _georeferenced(ds)
         if georef and spacing is not None:
             raise ValueError(f"spacing: {path} is georeferenced (pixel size "
@@ -195,10 +161,11 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
         offset = float(ds.offsets[band - 1] if ds.offsets else 0.0)
         file_nodata = ds.nodatavals[band - 1]
         raw = ds.read(band)
+        mask = ds.read_masks(band) == 0
         if nodata is not None:
-            mask = raw == nodata
-        else:
-            mask = ds.read_masks(band) == 0
+            check_nodata(nodata, raw.dtype, file_nodata, f"{path} (band {band})")
+            if file_nodata is None:  # the file's own mask (internal mask, NaN) stays
+                mask |= (raw == nodata) if not math.isnan(nodata) else np.isnan(raw)
         crs = ds.crs
         geographic = crs is not None and crs.is_geographic
         if geographic:
@@ -229,7 +196,7 @@ def _to_utm(ds, raw, mask, band):
     lon = (ds.bounds.left + ds.bounds.right) / 2
     lat = (ds.bounds.bottom + ds.bounds.top) / 2
     dst_crs = CRS.from_epsg(utm_epsg(lon, lat))
-    ground = _ground_size((ds.transform.a, ds.transform.e), lat)
+    ground = ground_size((ds.transform.a, ds.transform.e), lat)
     transform, width, height = calculate_default_transform(
         ds.crs, dst_crs, ds.width, ds.height, *ds.bounds, resolution=ground)
     data = raw.astype(np.float64)

@@ -251,101 +251,29 @@ def pinhole(position, look_at, fov, width, height, *, up=(0.0, 0.0, 1.0)):
                              height=int(height), up=list(map(float, up))))
 
 
-def _film_axes(position, look_at):
-    """The horizontal unit forward and right vectors of a camera at ``position`` facing
-    ``look_at`` (without roll), and the target's horizontal distance and rise."""
-    position = np.asarray(position, dtype=np.float64)
-    look_at = np.asarray(look_at, dtype=np.float64)
-    if position.shape != (3,) or look_at.shape != (3,) or not (
-            np.all(np.isfinite(position)) and np.all(np.isfinite(look_at))):
-        raise ValueError("position, look_at: expected finite 3-vectors")
-    ahead = look_at[:2] - position[:2]
-    distance = float(np.hypot(ahead[0], ahead[1]))
-    if not distance > 0:
-        raise ValueError("look_at: must differ from position horizontally (a level or "
-                         "orthographic camera without roll cannot look straight down)")
-    forward = ahead / distance
-    right = np.array([forward[1], -forward[0]])
-    return forward, right, distance, float(look_at[2] - position[2])
-
-
-def _check_image(fov, width, height):
-    if not 0 < fov < 180:
-        raise ValueError(f"fov: expected degrees in (0, 180), got {fov}")
-    if int(width) < 1 or int(height) < 1:
-        raise ValueError(f"width, height: expected positive sizes, got {width} x {height}")
-
-
 def level_camera(position, look_at, fov, width, height):
-    """Primary rays of a level pinhole camera with a vertical lens shift, one per pixel
-    in row-major order (row 0 at the top).
+    """Primary rays of a level pinhole camera with a vertical lens shift that centres
+    ``look_at`` (``algos.plane_cameras.level_camera_rays``: every image column one
+    vertical plane, directions not normalised), one per pixel in row-major order (row 0
+    at the top), as a :class:`RaySet`. Raises ``ValueError`` as that function does."""
+    from algos.plane_cameras import level_camera_rays
 
-    The camera does not pitch: its film is vertical, and the principal point is shifted
-    so that the image centre looks at ``look_at``. Every ray of an image column therefore
-    has the same horizontal direction, bit for bit, and only ``dz`` changes down the
-    column: each column is one vertical plane through the eye (the batch ``plane_maxmip``
-    traces a plane at a time). Directions are *not* normalised (that would break the
-    shared ``(dx, dy)``): ``d = forward + u right + (v + shift) up`` with ``forward`` and
-    ``right`` horizontal unit vectors, ``up = (0, 0, 1)``, ``u`` in ``[-tan(fov/2),
-    tan(fov/2)]`` and ``v`` scaled alike by ``height / width``; ``shift`` is the tangent of
-    the angle from the eye up to ``look_at``. ``t`` is then in units of each ray's ``|d|``.
-
-    Returns a :class:`RaySet` of ``(width * height, 3)`` float64 origins (all
-    ``position``) and directions. Raises ``ValueError`` for a bad size, ``fov`` outside
-    (0, 180) degrees, or a ``look_at`` straight above or below the eye.
-    """
-    _check_image(fov, width, height)
-    forward, right, distance, rise = _film_axes(position, look_at)
-    shift = rise / distance
-    half_w = math.tan(math.radians(fov) / 2)
-    half_h = half_w * height / width
-    u = ((np.arange(width) + 0.5) / width * 2 - 1) * half_w
-    v = (1 - (np.arange(height) + 0.5) / height * 2) * half_h + shift
-    # one (dx, dy) per column, the same float64 values in every row
-    dx = np.broadcast_to(forward[0] + u * right[0], (height, width))
-    dy = np.broadcast_to(forward[1] + u * right[1], (height, width))
-    dz = np.broadcast_to(v[:, None], (height, width))
-    d = np.stack([dx, dy, dz], axis=-1).reshape(-1, 3)
-    o = np.tile(np.asarray(position, dtype=np.float64), (len(d), 1))
+    o, d, shift = level_camera_rays(position, look_at, fov, width, height)
     return RaySet(o, d, dict(kind="level", position=list(map(float, position)),
                              look_at=list(map(float, look_at)), fov=fov, width=int(width),
                              height=int(height), shift=shift))
 
 
 def orthographic(position, look_at, fov, width, height):
-    """Primary rays of an orthographic camera without roll, one per pixel in row-major
-    order (row 0 at the top), all with the unit direction from ``position`` to
-    ``look_at`` (any pitch).
+    """Primary rays of an orthographic camera without roll
+    (``algos.plane_cameras.orthographic_rays``: unit directions from ``position`` to
+    ``look_at``, origins on the vertical film through ``position``, so every image
+    column is one vertical plane), one per pixel in row-major order, as a
+    :class:`RaySet`. Raises ``ValueError`` as that function does."""
+    from algos.plane_cameras import orthographic_rays
 
-    The film spans ``2 |look_at - position| tan(fov/2)`` cells across (the width a
-    pinhole with that ``fov`` sees at the target), its height in proportion. Each ray's
-    origin is slid along the view direction onto the vertical plane through
-    ``position`` across the view, which changes no ray's line: the rays of an image column
-    then share ``(ox, oy)`` and ``(dx, dy)`` bit for bit and differ only in ``oz`` (one
-    vertical plane, traced as one by ``plane_maxmip``). ``t`` is measured from that
-    vertical film, not from the tilted one.
-
-    Returns a :class:`RaySet` of ``(width * height, 3)`` float64 origins and directions.
-    Raises ``ValueError`` for a bad size or ``fov``, or a view straight down or up.
-    """
-    _check_image(fov, width, height)
-    forward2, right2, distance, rise = _film_axes(position, look_at)
-    position = np.asarray(position, dtype=np.float64)
-    slant = math.hypot(distance, rise)
-    cos_p, sin_p = distance / slant, rise / slant
-    half_w = slant * math.tan(math.radians(fov) / 2)
-    half_h = half_w * height / width
-    u = ((np.arange(width) + 0.5) / width * 2 - 1) * half_w
-    v = (1 - (np.arange(height) + 0.5) / height * 2) * half_h
-    # a film point position + u right + v up (up = (-sin_p forward2, cos_p)), slid by
-    # v tan(p) along the view: horizontal position + u right, height v / cos(p)
-    ox = np.broadcast_to(position[0] + u * right2[0], (height, width))
-    oy = np.broadcast_to(position[1] + u * right2[1], (height, width))
-    oz = np.broadcast_to((position[2] + v / cos_p)[:, None], (height, width))
-    o = np.stack([ox, oy, oz], axis=-1).reshape(-1, 3)
-    direction = np.array([cos_p * forward2[0], cos_p * forward2[1], sin_p])
-    d = np.tile(direction, (len(o), 1))
-    return RaySet(o, d, dict(kind="orthographic", position=position.tolist(),
+    o, d = orthographic_rays(position, look_at, fov, width, height)
+    return RaySet(o, d, dict(kind="orthographic", position=list(map(float, position)),
                              look_at=list(map(float, look_at)), fov=fov, width=int(width),
                              height=int(height)))
 

@@ -12,6 +12,7 @@ import pytest
 import algos
 import datasets_gen
 from algos import HeightField
+from algos.field import is_dask
 from datasets_gen import fields, raster
 
 rasterio = pytest.importorskip("rasterio")
@@ -596,3 +597,186 @@ def test_a_geographic_crs_built_by_hand_is_refused_as_load_file_refuses_it(tmp_p
     assert "gdalwarp -t_srs EPSG:32617 -tr" in str(built.value)
     with pytest.raises(ValueError, match=r"crs: its CRS \(EPSG:4326\) is geographic.*gdalwarp"):
         HeightField(h, crs="EPSG:4326", spacing=1 / 1200)
+
+
+# ---- georeferencing never silently lost -------------------------------------------------
+
+def _cliff():
+    """A 30 m cliff one 30 m pixel east of column 14: 45 degrees from its foot."""
+    h = np.zeros((20, 30), np.float32)
+    h[:, 15:] = 30.0
+    return h
+
+
+def _gcp_tif(path):
+    from rasterio.control import GroundControlPoint as GCP
+
+    gcps = [GCP(row=r, col=c, x=500000.0 + 30 * c, y=4000000.0 - 30 * r)
+            for r, c in ((0, 0), (0, 30), (20, 0), (20, 30))]
+    with rasterio.open(path, "w", driver="GTiff", height=20, width=30, count=1,
+                       dtype="float32", gcps=gcps, crs=UTM17) as dst:
+        dst.write(_cliff(), 1)
+    return path
+
+
+def _rpc_tif(path):
+    from rasterio.rpc import RPC
+
+    one = [1.0] + [0.0] * 19
+    rpcs = RPC(height_off=100, height_scale=500, lat_off=36.0, lat_scale=0.05,
+               line_den_coeff=one, line_num_coeff=[0, 0, -1.0] + [0.0] * 17, line_off=10,
+               line_scale=10, long_off=-81.0, long_scale=0.05, samp_den_coeff=one,
+               samp_num_coeff=[0, 1.0] + [0.0] * 18, samp_off=15, samp_scale=15)
+    with rasterio.open(path, "w", driver="GTiff", height=20, width=30, count=1,
+                       dtype="float32", rpcs=rpcs) as dst:
+        dst.write(_cliff(), 1)
+    return path
+
+
+def _geoloc_tif(path):
+    with rasterio.open(path, "w", driver="GTiff", height=20, width=30, count=1,
+                       dtype="float32") as dst:
+        dst.write(_cliff(), 1)
+        dst.update_tags(ns="GEOLOCATION", X_DATASET="lon.tif", X_BAND="1", Y_DATASET="lat.tif",
+                        Y_BAND="1", PIXEL_OFFSET="0", LINE_OFFSET="0", PIXEL_STEP="1",
+                        LINE_STEP="1", SRS="EPSG:4326")
+    return path
+
+
+# (maker, what the message names, the gdalwarp command it gives)
+NON_AFFINE = [
+    (_gcp_tif, "ground control points", r"gdalwarp -t_srs EPSG:32617 -r bilinear \S*gcp.tif"),
+    (_rpc_tif, "RPCs", r"gdalwarp -rpc -t_srs EPSG:32617 -r bilinear \S*rpc.tif"),
+    (_geoloc_tif, "geolocation arrays", r"gdalwarp -geoloc -t_srs EPSG:"),
+]
+
+
+@pytest.mark.parametrize("make,kind,fix", NON_AFFINE, ids=["gcps", "rpcs", "geoloc"])
+def test_gcp_rpc_and_geolocation_rasters_are_refused_with_the_gdalwarp_command(tmp_path, make,
+                                                                                kind, fix):
+    """Read as a plain grid such a file was cell units: 88 deg where the cliff is 45 deg."""
+    path = make(tmp_path / f"{make.__name__.strip('_').split('_')[0]}.tif")
+    for read in (datasets_gen.load_file, datasets_gen.open_lazy):
+        with pytest.raises(ValueError, match=rf"georeferenced by {kind}.*{fix}"):
+            read(path)
+
+
+@pytest.mark.parametrize("make,kind,fix", NON_AFFINE[:2], ids=["gcps", "rpcs"])
+def test_dataarray_of_a_gcp_or_rpc_raster_is_refused(tmp_path, make, kind, fix):
+    rioxarray = pytest.importorskip("rioxarray")
+    path = make(tmp_path / f"{make.__name__.strip('_').split('_')[0]}.tif")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        array = rioxarray.open_rasterio(path).squeeze("band", drop=True)
+    with pytest.raises(ValueError, match=rf"georeferenced by {kind}.*gdalwarp"):
+        algos.horizon(array, [90])
+
+
+def _counts_tif(path, *, nodata=None):
+    """The cliff stored as uint16 counts of 0.5 m above -10 m (scale 0.5, offset -10)."""
+    counts = ((_cliff() + 10.0) / 0.5).astype(np.uint16)
+    counts[3, 4] = 65535 if nodata is not None else counts[3, 4]
+    path = write_tif(path, counts, nodata=nodata)
+    with rasterio.open(path, "r+") as dst:
+        dst.scales, dst.offsets = (0.5,), (-10.0,)
+    return path
+
+
+def test_rioxarray_raw_counts_are_scaled_as_the_file_is(tmp_path):
+    """``open_rasterio(path)`` keeps raw counts with scale_factor/add_offset in attrs: the
+    horizon over it is the file's (45 deg), not the counts' (84 deg)."""
+    rioxarray = pytest.importorskip("rioxarray")
+    path = _counts_tif(tmp_path / "counts.tif", nodata=65535)
+    array = rioxarray.open_rasterio(path).squeeze("band", drop=True)
+    assert array.attrs["scale_factor"] == 0.5 and array.dtype == np.uint16
+    from_array = algos.horizon(array, [90])
+    from_file = algos.horizon(datasets_gen.load_file(path), [90])
+    assert deg(float(from_array[0, 10, 14])) == pytest.approx(45.0, abs=1e-9)
+    np.testing.assert_array_equal(np.asarray(from_array), from_file)
+    # the count 65535 is the void, as in the file
+    assert np.isnan(np.asarray(from_array)[0, 3, 4])
+    # decoded by rioxarray (mask_and_scale=True): the rules are in encoding, not applied twice;
+    # masked only (masked=True): voids NaN, scale and offset still in attrs and applied here
+    for options in (dict(mask_and_scale=True), dict(masked=True)):
+        decoded = rioxarray.open_rasterio(path, **options).squeeze("band", drop=True)
+        np.testing.assert_array_equal(np.asarray(algos.horizon(decoded, [90])), from_file)
+    # chunked (dask) raw counts are decoded lazily, to the file's heights
+    lazy = algos.HeightField.from_dataarray(
+        rioxarray.open_rasterio(path, chunks=8).squeeze("band", drop=True))
+    assert is_dask(lazy.heights)
+    np.testing.assert_array_equal(np.asarray(lazy.heights.compute()),
+                                  datasets_gen.load_file(path).heights)
+
+
+def test_cf_packing_and_missing_values_in_attrs_are_applied():
+    xr = pytest.importorskip("xarray")
+    rows, cols = 12, 16
+    raw = np.full((rows, cols), 100, np.int16)
+    raw[:, 8:] = 130  # 100 -> 0 m, 130 -> 30 m with scale 1, offset -100
+    raw[2, 3], raw[4, 5] = -32768, -1
+    y = 1000.0 - 30.0 * (np.arange(rows) + 0.5)
+    x = 30.0 * (np.arange(cols) + 0.5)
+    array = xr.DataArray(raw, dims=("y", "x"), coords={"y": y, "x": x},
+                         attrs={"scale_factor": 1.0, "add_offset": -100.0,
+                                "_FillValue": -32768, "missing_value": -1})
+    field = algos.HeightField.from_dataarray(array, unit="m")
+    assert field.heights[0, 0] == 0.0 and field.heights[0, 10] == 30.0
+    assert np.isnan(field.heights[2, 3]) and np.isnan(field.heights[4, 5])
+    assert field.nodata_mask[2, 3] and field.nodata_mask[4, 5] and field.nodata_mask.sum() == 2
+    bad = array.copy()
+    bad.attrs["scale_factor"] = 0.0
+    with pytest.raises(ValueError, match="scale_factor"):
+        algos.HeightField.from_dataarray(bad, unit="m")
+    both = array.copy()
+    both.encoding["add_offset"] = -100.0
+    with pytest.raises(ValueError, match="add_offset is both an attribute"):
+        algos.HeightField.from_dataarray(both, unit="m")
+    # GDAL's per-band lists of one band are the same rules; lists of several are refused
+    listed = array.copy()
+    listed.attrs = {"scales": (1.0,), "offsets": (-100.0,), "nodatavals": (-32768.0,),
+                    "missing_value": -1}
+    np.testing.assert_array_equal(algos.HeightField.from_dataarray(listed, unit="m").heights,
+                                  field.heights)
+    listed.attrs["scales"] = (1.0, 2.0)
+    with pytest.raises(ValueError, match=r"scales=\(1.0, 2.0\) holds one value per band"):
+        algos.HeightField.from_dataarray(listed, unit="m")
+
+
+def test_an_explicit_nodata_no_sample_can_equal_is_refused_with_both_values(tmp_path):
+    """-9999 on a uint8 file replaced its own nodata 255: its voids became 255 m spikes."""
+    data = np.full((8, 9), 20, np.uint8)
+    data[2, 2] = 255
+    path = write_tif(tmp_path / "u8.tif", data, nodata=255)
+    with pytest.raises(ValueError, match=r"nodata: -9999 can never equal.*uint8.*\[0, 255\]"):
+        datasets_gen.load_file(path, nodata=-9999)
+    with pytest.raises(ValueError, match=r"nodata: 20 contradicts the nodata value 255"):
+        datasets_gen.load_file(path, nodata=20)
+    field = datasets_gen.load_file(path, nodata=255)  # the file's own: fine
+    assert field.nodata_mask[2, 2] and np.nanmax(field.heights) == 20
+    plain = write_tif(tmp_path / "plain.tif", data)  # no nodata declared: 255 marks voids
+    assert datasets_gen.load_file(plain, nodata=255).nodata_mask[2, 2]
+    with pytest.raises(ValueError, match=r"nodata: 2.5 can never equal"):
+        datasets_gen.load_file(plain, nodata=2.5)
+    with pytest.raises(TypeError, match=r"nodata: expected a number, got 'abc'"):
+        datasets_gen.load_file(plain, nodata="abc")
+    np.save(tmp_path / "u8.npy", data)
+    with pytest.raises(ValueError, match=r"nodata: -9999 can never equal"):
+        datasets_gen.load_file(tmp_path / "u8.npy", nodata=-9999)
+
+
+def test_algos_imports_nothing_from_datasets_gen_or_bench():
+    """The package boundary bench -> datasets_gen -> algos is never crossed upward (the
+    CRS rules live in algos.georef)."""
+    import ast
+    import pathlib
+
+    root = pathlib.Path(algos.__file__).parent
+    upward = []
+    for source in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(source.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level \
+                else []
+            upward += [f"{source.relative_to(root)}:{node.lineno} imports {n}" for n in names
+                       if n.split(".")[0] in ("datasets_gen", "bench")]
+    assert not upward, upward

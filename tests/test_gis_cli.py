@@ -422,3 +422,26 @@ def test_curvature_on_a_npy_needs_its_unit(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:  # argparse: not one of the choices
         main(common + ["--unit", "furlong", "--out", str(tmp_path / "x")])
     assert exit_.value.code == 2 and "--unit" in capsys.readouterr().err
+
+
+def test_a_gcp_georeferenced_dem_is_refused_not_called_ungeoreferenced(tmp_path, capsys):
+    """A GeoTIFF placed by ground control points only was read as cell units, with a note
+    that it "has no georeferencing"; now one line with the gdalwarp command."""
+    from rasterio.control import GroundControlPoint as GCP
+
+    h = dem()
+    rows, cols = h.shape
+    gcps = [GCP(row=r, col=c, x=600000.0 + 30 * c, y=3650000.0 - 30 * r)
+            for r, c in ((0, 0), (0, cols), (rows, 0), (rows, cols))]
+    path = str(tmp_path / "gcp.tif")
+    with rasterio.open(path, "w", driver="GTiff", height=rows, width=cols, count=1,
+                       dtype="float32", gcps=gcps, crs=UTM15) as dst:
+        dst.write(h, 1)
+    for extra in ([], ["--dask", "local:1", "--max-distance", "300", "--chunk", "16"]):
+        code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--out", str(tmp_path / "s"),
+                               "--no-progress", *extra], capsys)
+        assert code == 2, stderr
+        assert "ground control points" in stderr and \
+            f"gdalwarp -t_srs EPSG:32615 -r bilinear {path}" in stderr
+        assert "has no georeferencing" not in stderr and "Traceback" not in stderr
+        assert len(stderr.strip().splitlines()) == 1
