@@ -500,6 +500,30 @@ def test_first_hit_plugin_failures_name_the_kernel(registered):
         algos.intersect("behind", field, o, d)
 
 
+def test_python_first_hit_outside_the_footprint_is_refused(registered):
+    """A Python kernel's hit whose point lies beyond the field is an error naming the ray
+    and the point, not a hit in the border cell it would be clipped to; a hit on the
+    footprint's border (a ray entering the box below the surface) stays a hit."""
+    field = algos.Field(np.zeros((9, 9), np.float32))
+    o, d = np.array([[0.5, 4.5, 3.0], [4.5, 4.5, 10.0]]), np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    algos.register_intersector("far_hit", lambda h, o, d: np.full(len(o), 1e300))
+    algos.register_intersector("off_grid", lambda h, o, d: np.array([20.0, 10.0]))
+    algos.register_intersector("text_hit", lambda h, o, d: np.array(["a"] * len(o)))
+    algos.register_intersector("edge_hit", lambda h, o, d: np.array([7.5, 10.0]))
+    registered += ["far_hit", "off_grid", "text_hit", "edge_hit"]
+    with pytest.raises(plugins.PluginError, match=r"far_hit: returned t\[0\] = 1e\+300, whose hit "
+                                                  r"point .* lies outside the field's footprint "
+                                                  r"\[0, 8\] x \[0, 8\]"):
+        algos.intersect("far_hit", field, o, d)
+    with pytest.raises(plugins.PluginError, match=r"off_grid: returned t\[0\] = 20.0, whose hit "
+                                                  r"point \(20.5, 4.5\)"):
+        algos.intersect("off_grid", field, o, d)
+    with pytest.raises(plugins.PluginError, match=r"text_hit: returned t of dtype <U1; expected"):
+        algos.intersect("text_hit", field, o, d)
+    hits = algos.intersect("edge_hit", field, o, d)  # x = 8.0 on the east border
+    assert hits.t.tolist() == [7.5, 10.0] and hits.cell.tolist() == [[7, 4], [4, 4]]
+
+
 def test_python_traversal_through_traverse(registered):
     """A registered traversal returning cells serves every output of ``algos.traverse``."""
     from examples.plugins.numpy_dda import register
