@@ -61,6 +61,7 @@ contained too.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import importlib
@@ -362,7 +363,8 @@ def load_c_plugin(path, name=None, time_limit=None):
             cells_fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_int64] + \
                 [ctypes.c_void_p] * 6
         plugin = Plugin(fn, "c", bool(info.exact), limit, path, private, cells_fn)
-        return register_traversal(name, fn, plugin.exact, summary, _plugin=plugin)
+        with _naming_library(path):
+            return register_traversal(name, fn, plugin.exact, summary, _plugin=plugin)
     if kind == "first_hit":
         fn = _exported(lib, "hftrace_first_hit", kind, path)
         fn.restype = ctypes.c_int
@@ -371,9 +373,22 @@ def load_c_plugin(path, name=None, time_limit=None):
         surfaces = [s.strip() for s in (info.surfaces or b"triangles").decode().split(",")
                     if s.strip()]
         plugin = Plugin(fn, "c", bool(info.exact), limit, path, private)
-        return register_intersector(name, fn, plugin.exact, surfaces, summary, _plugin=plugin)
+        with _naming_library(path):
+            return register_intersector(name, fn, plugin.exact, surfaces, summary,
+                                        _plugin=plugin)
     raise PluginError(f"C plugin {path}: declares kind {kind!r}; expected 'traversal' or "
                       "'first_hit'")
+
+
+@contextlib.contextmanager
+def _naming_library(path):
+    """Turn a refused registration (a built-in name, an unknown surface in the library's
+    info) into one PluginError line that names the library, as every other load failure."""
+    try:
+        yield
+    except ValueError as exc:
+        raise PluginError(f"C plugin {path}: its hftrace_plugin_info is refused: "
+                          f"{_one_line(exc)}") from None
 
 
 #: This process's private folder of loaded C plugins (made on first use, removed at exit)

@@ -609,6 +609,25 @@ def test_c_first_hit_through_intersect_and_rebuilt_library(tmp_path, registered)
     assert algos.intersect("constant_hit", field, o, d).t.tolist() == [2.5, 2.5]
 
 
+def test_c_plugin_refused_info_names_the_library(tmp_path, registered, capsys):
+    """A library whose info declares a built-in name or an unknown surface is refused in
+    one line that names the library, from Python and from ``--plugin``."""
+    builtin = build_source(tmp_path, C_FIRST_HIT.replace('"constant_hit"', '"runs"'),
+                           "takes_runs", "-DT=1.0")
+    spline = build_source(tmp_path, C_FIRST_HIT.replace('"triangles"', '"triangles,spline"'),
+                          "spline_hit", "-DT=1.0")
+    with pytest.raises(plugins.PluginError, match=r"C plugin .*takes_runs.so: .*refused: name: "
+                                                  r"'runs' is a built-in kernel"):
+        plugins.load_c_plugin(builtin)
+    with pytest.raises(plugins.PluginError, match=r"C plugin .*spline_hit.so: .*refused: "
+                                                  r"surfaces\[1\]: unknown surface 'spline'"):
+        plugins.load_c_plugin(spline)
+    assert "constant_hit" not in plugins.plugin_names()
+    assert main(["list", "--plugin", str(spline)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "spline_hit.so" in err and "unknown surface" in err
+
+
 def test_plugin_failures_are_one_line_on_every_route(tmp_path, monkeypatch, registered, capsys):
     """``--plugin MOD:FN`` whose function raises, a C plugin whose hftrace_plugin()
     returns NULL, and the same in a config: one line naming the plugin, no traceback."""
