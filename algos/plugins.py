@@ -445,11 +445,31 @@ def _import_callable(spec, bases):
     return obj
 
 
+def _package_root(base, module):
+    """The folder from which ``module`` imports when ``base`` (a config's folder) lies
+    inside the package it names: ``examples.plugins.numpy_dda`` named by a config in
+    ``/repo/examples`` imports from ``/repo``, whatever the current directory. None when
+    ``base`` is not such a folder."""
+    if not base:
+        return None
+    folder = os.path.abspath(base)
+    parts = module.split(".")[:-1]
+    for k in range(len(parts), 0, -1):
+        tail = folder.split(os.sep)[-k:]
+        if tail == parts[:k]:
+            root = folder
+            for _ in range(k):
+                root = os.path.dirname(root)
+            return root
+    return None
+
+
 def load_plugin_spec(spec, base=None):
     """Register what ``spec`` names: a C plugin's path (``*.so``, ``*.dylib``, ``*.dll``),
     relative to ``base`` (default the current directory), or ``module:callable`` (a
-    function registering kernels), the module looked up in ``base``, then the current
-    directory, then ``sys.path``. Returns the names registered.
+    function registering kernels), the module looked up in ``base``, then (when ``base``
+    lies inside the package the module names) that package's parent folder, then the
+    current directory, then ``sys.path``. Returns the names registered.
 
     Raises
     ------
@@ -471,7 +491,8 @@ def load_plugin_spec(spec, base=None):
         module, sep, attr = str(text).partition(":")
         if not sep or not module or not attr:
             raise ValueError(f"--plugin: expected a library path or module:callable, got {spec!r}")
-        target = _import_callable(text, [b for b in (base, os.getcwd()) if b])
+        target = _import_callable(text, [b for b in (base, _package_root(base, module),
+                                                     os.getcwd()) if b])
         try:
             target()
         except Exception as exc:

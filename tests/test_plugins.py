@@ -686,6 +686,31 @@ def test_config_module_resolves_from_its_folder_and_the_cwd(tmp_path, monkeypatc
         sweep.load_config(str(folder / "bad.toml"))
 
 
+def test_config_inside_the_package_it_names_resolves_from_any_cwd(tmp_path, monkeypatch,
+                                                                   registered):
+    """A config inside the package its ``module:callable`` names (the guide's
+    ``examples/sweep-plugin.toml`` naming ``examples.plugins.numpy_dda``) resolves from
+    any current directory, without PYTHONPATH."""
+    package = tmp_path / "mylab" / "kernels"
+    package.mkdir(parents=True)
+    (tmp_path / "mylab" / "__init__.py").write_text("")
+    (package / "__init__.py").write_text("")
+    (package / "walk.py").write_text(
+        "import algos\nfrom examples.plugins.numpy_dda import numpy_dda\n"
+        "def register():\n    algos.register_traversal('lab_walk', numpy_dda)\n")
+    (package / "c.toml").write_text('rays = 16\nrepeats = 3\n'
+                                    'plugins = ["mylab.kernels.walk:register"]\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    registered += ["lab_walk", "numpy_dda"]
+    sweep.load_config(str(package / "c.toml"))
+    assert "lab_walk" in algos.TRAVERSALS
+    # the guide's own config names its module from the repository's root
+    assert plugins.load_plugin_spec("examples.plugins.numpy_dda:register",
+                                    base=os.path.join(ROOT, "examples")) == ["numpy_dda"]
+
+
 def test_reproduce_kernels_accepts_a_registered_traversal(registered, capsys):
     """``--kernels NAME`` of a registered traversal is not "unknown intersector": the
     headline preset says what it lacks, the standard preset takes it."""
