@@ -419,6 +419,16 @@ class HeightField:
                 nodata = rio.nodata if rio.encoded_nodata is None else None
             except Exception:  # no spatial dimensions: a plain array
                 crs = transform = None
+        if rio is not None:
+            # rows are y: an array stored (x, y) would be traced with east and south swapped
+            try:
+                x_dim, y_dim = rio.x_dim, rio.y_dim
+            except Exception:  # no spatial dimensions
+                x_dim = y_dim = None
+            if x_dim is not None and tuple(array.dims) == (x_dim, y_dim):
+                raise ValueError(f"heights: the DataArray's dims {tuple(array.dims)} put x "
+                                 f"first; rows must be y: pass "
+                                 f"array.transpose({y_dim!r}, {x_dim!r})")
         if transform is not None and crs is None and tuple(transform)[:6] == \
                 (1.0, 0.0, 0.0, 0.0, 1.0, 0.0):
             transform = None  # rioxarray's answer for an array without coordinates

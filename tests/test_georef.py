@@ -423,6 +423,21 @@ def test_dataarray_in_dataarray_out():
     assert h.attrs["units"] == "radians"
 
 
+def test_dataarray_stored_x_first_is_refused():
+    """A DataArray transposed to dims (x, y) is refused with the transpose that fixes it;
+    before, its columns were read as rows and a 45-degree slope east gave 0 degrees."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))  # 45 degrees east
+    da = _dataarray(ramp)
+    assert deg(algos.horizon(da, [90]).values[0, 10, 10]) == pytest.approx(45.0, abs=1e-9)
+    with pytest.raises(ValueError, match=r"heights: the DataArray's dims \('x', 'y'\) put x "
+                                         r"first; rows must be y: pass "
+                                         r"array.transpose\('y', 'x'\)"):
+        algos.horizon(da.transpose("x", "y"), [90])
+    with pytest.raises(ValueError, match="put x first"):
+        HeightField.from_dataarray(da.transpose("x", "y"))
+
+
 def test_chunked_dataarray_stays_lazy():
     dem = fields.generate("fbm", (40, 40), seed=13, amplitude=50.0).astype(np.float64)
     da = _dataarray(dem).chunk(16)
