@@ -156,7 +156,7 @@ def traversal_cells(name, origins, directions, shape, tmin=None, tmax=None):
                               "hftrace_traverse counted)")
         return offsets, cells
     _refuse_range(plugin, name, tmin, tmax)
-    result = _call(plugin, name, o, d, (nx, ny))
+    result = _call(plugin, name, _read_only(o), _read_only(d), (nx, ny))
     if isinstance(result, np.ndarray) and result.ndim == 1 and result.dtype == np.uint64:
         raise PluginError(f"{name}: returned visit checksums only; algos.traverse needs the "
                           "visited cells (return N arrays of (i, j) cells)")
@@ -168,6 +168,15 @@ def traversal_cells(name, origins, directions, shape, tmin=None, tmax=None):
     if len(paths) != n:
         raise PluginError(f"{name}: returned {len(paths)} paths for {n} rays")
     return _checked_paths(paths, n, nx, ny, name)
+
+
+def _read_only(array):
+    """A read-only view of ``array`` for a Python kernel: its inputs are often the caller's
+    own arrays (a field's heights, the rays every kernel of a sweep group reuses), which a
+    kernel writing in place would silently change; the write raises instead."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def _call(plugin, name, *args, **kwargs):
@@ -223,7 +232,7 @@ def first_hits(name, heights, origins, directions, surface, tmin=None, tmax=None
     else:
         _refuse_range(plugin, name, tmin, tmax)
         kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
-        out = _call(plugin, name, h, o, d, **kwargs)
+        out = _call(plugin, name, _read_only(h), _read_only(o), _read_only(d), **kwargs)
         try:
             t = np.array(out, dtype=np.float64).reshape(-1) if np.ndim(out) == 1 else None
         except (TypeError, ValueError):
@@ -390,6 +399,7 @@ def prepare_timed_traversal(name, origins, directions, shape):
         args = (ctypes.c_int64(nx), ctypes.c_int64(ny), ctypes.c_int64(n), _ptr(o), _ptr(d),
                 None, None, _ptr(sums), _ptr(cells))
         return _timed_c_call(plugin, name, args), lambda: sums.copy()
+    o, d = _read_only(o), _read_only(d)  # the rays every other kernel of the group reuses
 
     def run():
         t0 = time.monotonic_ns()
@@ -425,6 +435,7 @@ def prepare_timed_first_hit(name, heights, origins, directions, surface):
         return _timed_c_call(plugin, name, args), lambda: t.copy()
     state = {}
     kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
+    h, o, d = _read_only(h), _read_only(o), _read_only(d)  # shared with the other kernels
 
     def run():
         t0 = time.monotonic_ns()

@@ -46,6 +46,8 @@ Signatures (shapes in the project's conventions, ``docs/CONVENTIONS.md``):
   (``triangles`` and ``bilinear`` only: ``flat`` and ``plane3`` have walls, whose hits
   the returned ``t`` alone cannot tell from a top); ``stats`` and a ray range are
   refused.
+* A Python kernel's input arrays are read-only views of the caller's field and rays,
+  which other kernels reuse: writing into them raises (work on a copy).
 * C: the kernels of ``cext/hftrace_plugin.h``; a traversal library that also exports
   ``hftrace_traverse_cells`` serves ``algos.traverse``, one without it only sweeps. A
   first-hit library serves ``algos.intersect`` with ``tmin``/``tmax`` and its own hit

@@ -524,6 +524,38 @@ def test_python_first_hit_outside_the_footprint_is_refused(registered):
     assert hits.t.tolist() == [7.5, 10.0] and hits.cell.tolist() == [[7, 4], [4, 4]]
 
 
+def test_python_kernel_cannot_change_the_callers_field_or_rays(registered):
+    """A Python kernel that writes into its inputs fails in one line naming it; the
+    caller's field and rays (which the other kernels reuse) stay as they were."""
+    heights = (np.arange(81, dtype=np.float32).reshape(9, 9) % 5)
+    field = algos.Field(heights.copy())
+    o, d = np.array([[0.5, 0.5, 10.0]]), np.array([[1.0, 1.0, -1.0]])
+
+    def flatten(h, o, d):
+        h[:] = 100.0
+        return np.full(len(o), np.inf)
+
+    def normalise(o, d, shape):
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        return [np.zeros((0, 2), np.int64) for _ in o]
+
+    algos.register_intersector("flatten", flatten)
+    algos.register_traversal("normalise", normalise)
+    registered += ["flatten", "normalise"]
+    with pytest.raises(plugins.PluginError, match="flatten: the kernel raised ValueError: "
+                                                  "assignment destination is read-only"):
+        algos.intersect("flatten", field, o, d)
+    np.testing.assert_array_equal(field.heights, heights)
+    o2, d2 = np.array([[0.5, 0.5]]), np.array([[2.0, 3.0]])
+    with pytest.raises(plugins.PluginError, match="normalise: the kernel raised ValueError"):
+        algos.traverse("normalise", o2, d2, (4, 4))
+    assert d2.tolist() == [[2.0, 3.0]] and o.tolist() == [[0.5, 0.5, 10.0]]
+    run, _ = plugins.prepare_timed_first_hit("flatten", field.heights, o, d, "triangles")
+    with pytest.raises(ValueError, match="read-only"):
+        run()
+    np.testing.assert_array_equal(field.heights, heights)
+
+
 def test_python_traversal_through_traverse(registered):
     """A registered traversal returning cells serves every output of ``algos.traverse``."""
     from examples.plugins.numpy_dda import register
