@@ -76,7 +76,8 @@ def unit_metres(unit):
 
 def check_axis_aligned(transform, name: str = "transform") -> None:
     """Raise ValueError when an affine geotransform is rotated or sheared (its b or d
-    term is not zero): the grid's rows and columns must run along the map axes."""
+    term is not zero), or when its columns run west (a negative x pixel size): the grid's
+    rows and columns must run along the map axes, columns eastward."""
     b, d = float(transform.b), float(transform.d)
     if b != 0.0 or d != 0.0:
         raise ValueError(
@@ -86,6 +87,15 @@ def check_axis_aligned(transform, name: str = "transform") -> None:
     if float(transform.a) == 0.0 or float(transform.e) == 0.0:
         raise ValueError(f"{name}: the geotransform has a zero pixel size "
                          f"({transform.a:g} x {transform.e:g})")
+    # columns must run east: azimuths are measured from the grid's axes, and only the
+    # rows' direction (north-up or south-up) is recorded, so a west-running x axis
+    # would mirror every azimuth east-west
+    if float(transform.a) < 0.0:
+        raise ValueError(
+            f"{name}: the geotransform's x pixel size is negative ({transform.a:g}): its "
+            "columns run west, and hftrace needs them running east. Resample it first, "
+            "e.g. `gdalwarp -r near IN.tif OUT.tif` (which writes a north-up grid); for a "
+            "DataArray, array.sortby('x')")
 
 
 def pixel_size(transform) -> tuple[float, float, bool]:

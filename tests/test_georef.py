@@ -91,6 +91,30 @@ def test_rotated_geotransform_is_refused(tmp_path):
         datasets_gen.load_file(path)
 
 
+def test_columns_running_west_are_refused(tmp_path):
+    """A geotransform with a negative x pixel size (columns running west) is refused by
+    load_file, open_lazy, the DataArray path and the constructor; before, every azimuth
+    was mirrored east-west (a slope rising 45 degrees to the west read -45 looking west)."""
+    rows, cols = 20, 24
+    rising_west = 30.0 * np.tile(np.arange(cols, dtype=np.float32), (rows, 1))
+    west = Affine(-30.0, 0.0, 500000.0, 0.0, -30.0, 4000000.0)
+    path = write_tif(tmp_path / "west.tif", rising_west, transform=west)
+    fix = r"x pixel size is negative \(-30\): its columns run west.*gdalwarp"
+    with pytest.raises(ValueError, match="west.tif: transform: the geotransform's " + fix):
+        datasets_gen.load_file(path)
+    with pytest.raises(ValueError, match=fix):
+        datasets_gen.open_lazy(path)
+    with pytest.raises(ValueError, match=fix):
+        HeightField(rising_west, crs=UTM17, transform=west)
+    # the DataArray of the east-running grid, stored with x descending
+    da = _dataarray(rising_west[:, ::-1].copy()).isel(x=slice(None, None, -1))
+    with pytest.raises(ValueError, match=fix + r".*sortby\('x'\)"):
+        algos.horizon(da, [270])
+    # sorted, the same terrain reads right: rising west, uphill looking west
+    assert deg(algos.horizon(da.sortby("x"), [270]).values[0, 10, 10]) == \
+        pytest.approx(45.0, abs=1e-9)
+
+
 def test_int16_scale_and_offset_are_applied(tmp_path):
     raw = np.zeros((5, 5), np.int16)
     raw[:, 3:] = 60
