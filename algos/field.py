@@ -357,7 +357,8 @@ class HeightField:
                                      max(south, north))
                 pixel = (self.transform.a, self.transform.e)
             name, metres = crs_unit(self.crs, "crs", bounds=bounds, pixel=pixel,
-                                    source="IN.tif")
+                                    source="IN.tif", heights_converted="heights_converted_from"
+                                    in self.params)
             if unit is not None and UNIT_ALIASES.get(unit, unit) != name:
                 raise ValueError(f"unit: {unit!r} contradicts the CRS's linear unit {name!r} "
                                  f"({metres!r} m); the CRS's unit is the field's unit: leave "

@@ -115,6 +115,35 @@ def test_columns_running_west_are_refused(tmp_path):
         pytest.approx(45.0, abs=1e-9)
 
 
+@pytest.mark.parametrize("crs, factor", [("EPSG:32617+6360", 1200 / 3937),  # ftUS heights
+                                          ("EPSG:2277+5703", 3937 / 1200),   # metre heights
+                                          ("EPSG:32617+5703", 1.0)])         # one unit
+def test_compound_crs_heights_in_another_unit(tmp_path, crs, factor):
+    """A compound CRS whose heights are in another unit than its lengths: load_file
+    converts the heights (a 45-degree ramp stays 45 degrees; before, UTM metres with
+    NAVD88 heights in US feet read 73 degrees), while a DataArray or a hand-built field,
+    which hftrace cannot rescale behind the caller's back, is refused with the factor."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))  # in length units
+    stored = (ramp / factor).astype(np.float32)  # the same terrain in the vertical unit
+    transform = Affine(30.0, 0.0, 500000.0, 0.0, -30.0, 4000000.0)
+    path = write_tif(tmp_path / "compound.tif", stored, crs=crs, transform=transform)
+    field = datasets_gen.load_file(path)
+    assert deg(algos.horizon(field, [90])[0, 10, 10]) == pytest.approx(45.0, abs=1e-4)
+    if factor == 1.0:
+        assert "heights_converted_from" not in field.params
+        return
+    assert field.params["heights_factor"] == pytest.approx(factor, rel=1e-12)
+    fix = r"gives heights in .* but lengths in .*multiply by " + f"{factor:.10g}"[:8]
+    with pytest.raises(ValueError, match=fix):
+        HeightField(stored, crs=crs, transform=transform)
+    pytest.importorskip("rioxarray")
+    import rioxarray
+
+    with pytest.raises(ValueError, match=fix):
+        algos.horizon(rioxarray.open_rasterio(path).squeeze("band"), [90])
+
+
 def test_int16_scale_and_offset_are_applied(tmp_path):
     raw = np.zeros((5, 5), np.int16)
     raw[:, 3:] = 60
