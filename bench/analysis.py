@@ -99,6 +99,9 @@ def load(path, run=None, echo=_warn) -> pd.DataFrame:
     for number, reason in bad:
         if echo:
             echo(f"warning: results: line {number} of {path}: {reason}; left out")
+    if not rows and bad:
+        raise ValueError(f"results: {path} has no whole row: all {len(bad)} lines are "
+                         f"damaged (line {bad[0][0]}: {bad[0][1]})")
     text = io.StringIO()
     writer = csv.writer(text)
     writer.writerow(header)

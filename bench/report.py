@@ -73,7 +73,8 @@ def scan_csv(path, required=(), check=None):
     """
     if not os.path.exists(path):
         return [], [], []
-    with open(path, newline="", errors="replace") as f:
+    # utf-8-sig: a file saved by a spreadsheet starts with a byte-order mark
+    with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
         text = f.read()
     reader = csv.reader(io.StringIO(text))
     header, rows, bad = None, [], []

@@ -121,6 +121,31 @@ def test_edited_and_repeated_rows_are_found_and_measured_again(tmp_path, capsys)
     assert analysis.load(str(path), echo=None).attrs["bad_lines"] == []
 
 
+def test_spreadsheet_saved_files(tmp_path, capsys):
+    """A results file saved by a spreadsheet: its byte-order mark is read past (it hid
+    the first column), and one whose numbers all use a decimal comma is refused in one
+    line rather than plotted as an empty report."""
+    measure(tmp_path)
+    path = tmp_path / "results.csv"
+    text = path.read_text()
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert len(analysis.load(str(bom), echo=None)) == 6
+    header, *rows = text.splitlines()
+    column = header.split(",").index("speedup")
+
+    def comma(line):
+        fields = line.split(",")
+        fields[column] = '"' + fields[column].replace(".", ",") + '"'
+        return ",".join(fields)
+
+    decimal = tmp_path / "comma.csv"
+    decimal.write_text("\n".join([header] + [comma(r) for r in rows]) + "\n")
+    assert main(["plot", str(decimal), "--out", str(tmp_path / "p")]) == 2
+    err = capsys.readouterr().err
+    assert "has no whole row: all 6 lines are damaged" in err and "is not a number" in err
+
+
 def test_plot_of_two_runs_refuses_then_plots_the_chosen_one(tmp_path, capsys):
     """``cat a.csv b.csv``: plot says it found 2 runs and refuses; ``--run`` picks one,
     whose table is that run's alone."""
