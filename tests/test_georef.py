@@ -122,7 +122,8 @@ def test_compound_crs_heights_in_another_unit(tmp_path, crs, factor):
     """A compound CRS whose heights are in another unit than its lengths: load_file
     converts the heights (a 45-degree ramp stays 45 degrees; before, UTM metres with
     NAVD88 heights in US feet read 73 degrees), while a DataArray or a hand-built field,
-    which hftrace cannot rescale behind the caller's back, is refused with the factor."""
+    which hftrace cannot rescale behind the caller's back, is refused with the factor;
+    open_lazy converts on read as load_file does."""
     rows, cols = 20, 24
     ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))  # in length units
     stored = (ramp / factor).astype(np.float32)  # the same terrain in the vertical unit
@@ -130,6 +131,8 @@ def test_compound_crs_heights_in_another_unit(tmp_path, crs, factor):
     path = write_tif(tmp_path / "compound.tif", stored, crs=crs, transform=transform)
     field = datasets_gen.load_file(path)
     assert deg(algos.horizon(field, [90])[0, 10, 10]) == pytest.approx(45.0, abs=1e-4)
+    lazy = datasets_gen.open_lazy(path, chunks=16)  # the --dask route converts on read
+    np.testing.assert_allclose(np.asarray(lazy.heights.compute()), field.heights, rtol=1e-6)
     if factor == 1.0:
         assert "heights_converted_from" not in field.params
         return
