@@ -503,11 +503,33 @@ def load_plugin_spec(spec, base=None):
     return sorted(set(plugin_names()) - before)
 
 
+#: Whether the entry points were loaded in this process (by the command line at
+#: start-up, or by the first lookup of an unregistered name)
+_ENTRY_POINTS = {"loaded": False}
+
+
+def _load_entry_points_on_miss():
+    """The registry's miss hook: an unregistered name may belong to an installed package's
+    entry point, which ``import algos`` alone has not loaded; load them all, once. A
+    failing one is a ``RuntimeWarning`` (one line), as the command line prints it."""
+    if _ENTRY_POINTS["loaded"]:
+        return
+    import warnings
+
+    load_entry_points(warn=lambda text: warnings.warn(text, RuntimeWarning, stacklevel=2))
+
+
+registry.MISS_HOOKS.append(_load_entry_points_on_miss)
+
+
 def load_entry_points(warn=None) -> list:
     """Register every kernel of the ``hftrace.kernels`` entry points; returns the names.
-    A failing entry point is reported through ``warn`` (one line) and skipped."""
+    A failing entry point is reported through ``warn`` (one line) and skipped. From
+    Python this runs by itself on the first lookup of a name no kernel is registered
+    under (``algos.intersect("theirs", ...)``)."""
     from importlib.metadata import entry_points
 
+    _ENTRY_POINTS["loaded"] = True
     try:
         points = entry_points(group=ENTRY_POINT_GROUP)
     except TypeError:  # Python < 3.10 API

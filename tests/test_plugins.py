@@ -314,6 +314,30 @@ def test_entry_points_register_kernels(monkeypatch, registered, capsys):
     assert "entry point 'broken'" in err and err.count("\n") == 1
 
 
+def test_entry_point_kernels_answer_the_python_api(monkeypatch, registered, tmp_path):
+    """An installed package's kernel answers ``algos.traverse``/``algos.intersect`` after a
+    bare ``import algos`` (before, only the ``hftrace`` command loaded entry points, and
+    the call said "unknown traversal"); a failing entry point is one RuntimeWarning."""
+    import importlib.metadata as md
+
+    (tmp_path / "theirs_pkg.py").write_text(
+        "import algos\nfrom examples.plugins.numpy_dda import numpy_dda\n"
+        "def register():\n    algos.register_traversal('theirs_walk', numpy_dda)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    points = [md.EntryPoint("theirs", "theirs_pkg:register", plugins.ENTRY_POINT_GROUP),
+              md.EntryPoint("broken", "no_such_module:register", plugins.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(md, "entry_points", lambda group=None: points if group else {})
+    monkeypatch.setattr(plugins, "_ENTRY_POINTS", {"loaded": False}, raising=False)
+    registered.append("theirs_walk")
+    o, d = np.array([[0.5, 0.5]]), np.array([[2.0, 3.0]])
+    with pytest.warns(RuntimeWarning, match="entry point 'broken'"):
+        paths = algos.traverse("theirs_walk", o, d, (4, 4))
+    assert paths[0].tolist() == [list(c) for c in algos.reference_cells((0.5, 0.5), (2, 3), (4, 4))]
+    # loaded once: a later unknown name does not import the packages again
+    with pytest.raises(ValueError, match="unknown traversal 'nobody'"):
+        algos.traverse("nobody", o, d, (4, 4))
+
+
 def test_reproduce_presets_and_new_run_directory(tmp_path, monkeypatch, quiet_flush):
     """The default preset is the headline (first hit on triangles by run length, 24
     groups); the former quick preset is `standard`; a rerun writes a new directory."""
