@@ -62,6 +62,7 @@ from .georef import (
     UNIT_ALIASES,
     check_crs,
     check_dataarray_georeferencing,
+    check_height_units,
     crs_unit,
     pixel_size,
     unit_name,
@@ -441,6 +442,7 @@ class HeightField:
             check_dataarray_georeferencing(array, what)
         if crs is not None:
             unit = check_crs(crs, what)
+            check_height_units(array.attrs.get("units"), unit, what)
         # raw values with their scale, offset and fill values in attrs are decoded here;
         # rioxarray's encoded nodata belongs to values its decoder has masked already
         extra = None if nodata is None or (isinstance(nodata, float) and math.isnan(nodata)) \

@@ -29,7 +29,8 @@ import numpy as np
 
 __all__ = ["WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M", "pixel_size", "utm_epsg",
            "check_axis_aligned", "LINEAR_UNITS", "UNIT_ALIASES", "NO_UNIT", "unit_name",
-           "unit_metres", "crs_unit", "check_crs", "vertical_unit", "heights_factor", "ground_size",
+           "unit_metres", "crs_unit", "check_crs", "vertical_unit", "heights_factor",
+           "check_height_units", "ground_size",
            "unusable_georeferencing", "check_georeferencing",
            "check_dataarray_georeferencing", "check_nodata"]
 
@@ -50,6 +51,32 @@ UNIT_ALIASES = {"metre": "m", "meter": "m", "kilometre": "km", "kilometer": "km"
 #: The names of a field without a real unit: ``"cell"`` (cell units, spacing 1) and
 #: ``"map unit"`` (a pixel size whose unit nobody gave). Curvature refuses both.
 NO_UNIT = ("cell", "map unit")
+
+
+#: Spellings of a linear unit in a DataArray's CF ``units`` attribute (lower case) -> name
+_HEIGHT_UNIT_SPELLINGS = {"m": "m", "metre": "m", "metres": "m", "meter": "m", "meters": "m",
+                          "km": "km", "kilometre": "km", "kilometres": "km",
+                          "kilometer": "km", "kilometers": "km", "ft": "ft", "foot": "ft",
+                          "feet": "ft", "international foot": "ft", "us-ft": "US survey foot",
+                          "ftus": "US survey foot", "us survey foot": "US survey foot",
+                          "us survey feet": "US survey foot"}
+
+
+def check_height_units(units, unit, what) -> None:
+    """Raise ValueError when a DataArray's CF ``units`` attribute names a linear unit other
+    than ``unit``, the field's (its CRS's) linear unit: heights in feet over a metre grid
+    would give every slope wrong by the ratio. An attribute that names no linear unit
+    (absent, "metres above sea level", "radians") is not read."""
+    name = _HEIGHT_UNIT_SPELLINGS.get(units.strip().lower()) if isinstance(units, str) else None
+    if name is None or unit not in LINEAR_UNITS or name == unit:
+        return
+    ratio = LINEAR_UNITS[name] / LINEAR_UNITS[unit]
+    if abs(ratio - 1.0) < 1e-5:  # "ft" on a US-survey-foot grid: 2 ppm, below any DEM's error
+        return
+    raise ValueError(f"{what}: its heights are in {units!r} (attrs['units']) but its "
+                     f"lengths in {unit} (its CRS); read as they are, every slope would be "
+                     f"off by a factor {ratio:.10g}. Convert them first: "
+                     f"(array * {ratio:.10g}).assign_attrs(units={unit!r})")
 
 
 def unit_name(unit) -> str:

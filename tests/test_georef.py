@@ -494,6 +494,25 @@ def test_dataarray_stored_x_first_is_refused():
         HeightField.from_dataarray(da.transpose("x", "y"))
 
 
+@pytest.mark.parametrize("units, factor", [("ft", 0.3048), ("feet", 0.3048), ("km", 1000.0)])
+def test_dataarray_heights_in_another_unit_are_refused(units, factor):
+    """A DataArray on a metre grid whose CF ``units`` attribute says its heights are in
+    feet or kilometres is refused with the factor (before, a 45-degree slope read 73 or
+    0.06 degrees); converted as the message says, it reads 45 degrees. Units that name
+    the CRS's own unit, or no linear unit, are not in the way."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))
+    da = _dataarray(ramp / factor).assign_attrs(units=units)
+    with pytest.raises(ValueError, match=rf"heights are in '{units}' \(attrs\['units'\]\) but "
+                                         r"its lengths in m .*assign_attrs\(units='m'\)"):
+        algos.horizon(da, [90])
+    fixed = (da * factor).assign_attrs(units="m")
+    assert deg(algos.horizon(fixed, [90]).values[0, 10, 10]) == pytest.approx(45.0, abs=1e-9)
+    for same in ("metres", "m", "metres above sea level"):
+        out = algos.horizon(_dataarray(ramp).assign_attrs(units=same), [90])
+        assert deg(out.values[0, 10, 10]) == pytest.approx(45.0, abs=1e-9)
+
+
 def test_chunked_dataarray_stays_lazy():
     dem = fields.generate("fbm", (40, 40), seed=13, amplitude=50.0).astype(np.float64)
     da = _dataarray(dem).chunk(16)
