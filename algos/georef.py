@@ -30,7 +30,7 @@ import numpy as np
 __all__ = ["WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M", "pixel_size", "utm_epsg",
            "check_axis_aligned", "LINEAR_UNITS", "UNIT_ALIASES", "NO_UNIT", "unit_name",
            "unit_metres", "crs_unit", "check_crs", "vertical_unit", "heights_factor",
-           "check_height_units", "ground_size",
+           "check_height_units", "height_units_factor", "ground_size",
            "unusable_georeferencing", "check_georeferencing",
            "check_dataarray_georeferencing", "check_nodata"]
 
@@ -62,16 +62,25 @@ _HEIGHT_UNIT_SPELLINGS = {"m": "m", "metre": "m", "metres": "m", "meter": "m", "
                           "us survey feet": "US survey foot"}
 
 
+def height_units_factor(units, unit):
+    """The factor that converts heights in ``units`` (a CF ``units`` attribute, a GDAL
+    band's unit type) into the linear unit ``unit``; None when ``units`` names no linear
+    unit, ``unit`` is no real unit, or the two agree (within 10 ppm: "ft" on a US survey
+    foot grid differs by 2 ppm, below any DEM's error)."""
+    name = _HEIGHT_UNIT_SPELLINGS.get(units.strip().lower()) if isinstance(units, str) else None
+    if name is None or unit not in LINEAR_UNITS or name == unit:
+        return None
+    ratio = LINEAR_UNITS[name] / LINEAR_UNITS[unit]
+    return None if abs(ratio - 1.0) < 1e-5 else ratio
+
+
 def check_height_units(units, unit, what) -> None:
     """Raise ValueError when a DataArray's CF ``units`` attribute names a linear unit other
     than ``unit``, the field's (its CRS's) linear unit: heights in feet over a metre grid
     would give every slope wrong by the ratio. An attribute that names no linear unit
     (absent, "metres above sea level", "radians") is not read."""
-    name = _HEIGHT_UNIT_SPELLINGS.get(units.strip().lower()) if isinstance(units, str) else None
-    if name is None or unit not in LINEAR_UNITS or name == unit:
-        return
-    ratio = LINEAR_UNITS[name] / LINEAR_UNITS[unit]
-    if abs(ratio - 1.0) < 1e-5:  # "ft" on a US-survey-foot grid: 2 ppm, below any DEM's error
+    ratio = height_units_factor(units, unit)
+    if ratio is None:
         return
     raise ValueError(f"{what}: its heights are in {units!r} (attrs['units']) but its "
                      f"lengths in {unit} (its CRS); read as they are, every slope would be "

@@ -392,7 +392,12 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
         return HeightField(heights, name, spacing=spacing, params=params)
     import rasterio
 
-    from algos.georef import check_axis_aligned, check_georeferencing, heights_factor
+    from algos.georef import (
+        check_axis_aligned,
+        check_georeferencing,
+        height_units_factor,
+        heights_factor,
+    )
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -411,6 +416,10 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
         unit = check_crs(ds.crs, path, bounds=ds.bounds,
                          pixel=(ds.transform.a, ds.transform.e),
                          heights_converted=mixed is not None)
+        band_units = ds.units[band - 1] if ds.units else None
+        ratio = height_units_factor(band_units, unit) if mixed is None else None
+        if ratio is not None:  # a band unit type ("ft") other than the CRS's unit
+            mixed = (band_units, ratio)
         if mixed is not None:
             raster = LazyRaster(path, scale=vertical_scale * mixed[1], band=band)
             heights = da.from_array(raster, chunks=chunks, asarray=False, lock=False,

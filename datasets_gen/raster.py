@@ -52,6 +52,7 @@ from algos.georef import (
     check_nodata,
     crs_unit,
     ground_size,
+    height_units_factor,
     heights_factor,
     utm_epsg,
     vertical_unit,
@@ -183,6 +184,11 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
                 mixed = None if mixed[1] == 1.0 else mixed
         unit = check_crs(crs, path, heights_converted=mixed is not None) if georef else \
             ("cell" if spacing is None else "map unit")
+        # a band whose unit type (GDAL's, e.g. "ft") differs from the CRS's linear unit
+        band_units = ds.units[band - 1] if ds.units else None
+        ratio = height_units_factor(band_units, unit) if mixed is None else None
+        if ratio is not None:
+            mixed = (band_units, ratio)
     heights, mask = _scaled(raw, mask, scale, offset,
                             vertical_scale * (mixed[1] if mixed else 1.0))
     params = dict(path=path, band=band, scale=scale, offset=offset,

@@ -494,6 +494,28 @@ def test_dataarray_stored_x_first_is_refused():
         HeightField.from_dataarray(da.transpose("x", "y"))
 
 
+def test_band_unit_type_other_than_the_crs_unit_is_converted(tmp_path):
+    """A GeoTIFF on a UTM grid whose band declares its unit type "ft" (gdal_edit.py
+    -units ft) has its heights converted by load_file and open_lazy (a 45-degree ramp
+    read 73 degrees before); rioxarray's DataArray of it carries units="ft" and is
+    refused with the factor."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))
+    path = write_tif(tmp_path / "feet.tif", (ramp / 0.3048).astype(np.float32))
+    with rasterio.open(path, "r+") as ds:
+        ds.units = ("ft",)
+    field = datasets_gen.load_file(path)
+    assert field.params["heights_converted_from"] == "ft"
+    assert deg(algos.horizon(field, [90])[0, 10, 10]) == pytest.approx(45.0, abs=1e-4)
+    lazy = datasets_gen.open_lazy(path, chunks=16)
+    np.testing.assert_allclose(np.asarray(lazy.heights.compute()), field.heights, rtol=1e-6)
+    rioxarray = pytest.importorskip("rioxarray")
+    da = rioxarray.open_rasterio(path).squeeze("band")
+    assert da.attrs["units"] == "ft"
+    with pytest.raises(ValueError, match="heights are in 'ft'"):
+        algos.horizon(da, [90])
+
+
 @pytest.mark.parametrize("units, factor", [("ft", 0.3048), ("feet", 0.3048), ("km", 1000.0)])
 def test_dataarray_heights_in_another_unit_are_refused(units, factor):
     """A DataArray on a metre grid whose CF ``units`` attribute says its heights are in
