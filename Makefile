@@ -7,7 +7,12 @@
 #   make targets    the kernel round's targets table, full tier (hftrace targets --full: results/targets;
 #                   an hour or more, on a quiet machine)
 #   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
-#   make regress-counts  instruction counts (callgrind) against bench/regress/instructions_baseline.json
+#   make regress-counts  instruction counts (callgrind) and the exact algorithmic counters against
+#                   bench/regress/instructions_baseline.json and counters_baseline.json
+#   make compare    this working tree against BASE (default main), built and timed side by side
+#   make history    asv over the last N commits of main (N=5), published to .asv/html
+#   make validate-compare  the A/A and injected-slowdown validation of `hftrace compare`
+#                   (reports/regress/; tens of minutes, on a quiet machine only)
 #   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
 #   make docs       the documentation site (Sphinx, warnings as errors) into build/docs/html
 #   make reports    regenerate the committed reference reports in reports/ (hours; the only
@@ -25,7 +30,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all install test lint docs reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts sanitize fuzz clean
+.PHONY: all install test lint docs reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts compare history validate-compare sanitize fuzz clean
 
 all: test
 
@@ -121,7 +126,30 @@ regress: $(STAMP)
 	$(BIN)/hftrace regress
 
 regress-counts: $(STAMP)
+	$(BIN)/hftrace regress --metric counters
 	$(BIN)/hftrace regress --metric instructions
+
+BASE ?= main
+compare: $(STAMP)
+	$(BIN)/hftrace compare $(BASE)
+
+# asv keeps one result file per commit and machine under .asv/ and draws the dashboard;
+# it builds each commit in its own virtual environment (asv.conf.json)
+N ?= 5
+HISTORY_STAMP := $(VENV)/.hftrace-history
+
+$(HISTORY_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e ".[test,regress]"
+	touch $(HISTORY_STAMP)
+
+history: $(HISTORY_STAMP)
+	$(BIN)/asv machine --yes
+	$(BIN)/asv run --skip-existing-commits "main~$(N)..main"
+	$(BIN)/asv publish
+	@echo "dashboard: .asv/html (asv preview serves it)"
+
+validate-compare: $(STAMP)
+	$(BIN)/python -m bench.regress.validate --out reports/regress
 
 # The sanitized build lives in its own copy of the tree (an editable install puts the
 # extension next to the sources, so it must not share them with .venv). Python itself is

@@ -1,8 +1,9 @@
 """Tables and plots from any results.csv (``hftrace plot``, ``hftrace reproduce``).
 
 Speedups are aggregated over datasets by the geometric mean (the mean of ratios that
-treats 2x and 0.5x symmetrically); per-dataset tables keep each row's own bootstrap
-interval.
+treats 2x and 0.5x symmetrically); per-dataset tables keep each row's own interval.
+Every cell and written conclusion is labelled by :func:`finding` (docs/METHOD.md,
+"Labels" under "Paired rounds").
 """
 from __future__ import annotations
 
@@ -22,34 +23,95 @@ from .report import results_row_check, scan_csv
 PAPER = {1.0: 1.0, 2.0: 1.1, 25.0: 1.8, "random": 1.25}
 PRIMARY = ("first_hit", "triangles")
 
-#: A speedup whose 95 % interval is wider than this fraction of the speedup, or spans
-#: 1.0, is printed as inconclusive, never as a finding.
-INCONCLUSIVE_WIDTH = 0.25
+#: The precision a ratio's 95 % interval must reach to be a finding when its rows do not
+#: record one (results of the fixed-repeats design): ±2 % of the speedup.
+DEFAULT_PRECISION = 0.02
+#: Why a cell is inconclusive, by the ``stop`` of its rows (``bench.timing.STOPS``).
+REASONS = {"budget": "budget spent", "rounds": "too few repeats", "precision": "too few repeats",
+           "": "too few repeats"}
 #: The kernels the plots show by default (plugins always join them; ``all_kernels``
 #: shows every one).
 PLOT_KERNELS = ("dda_f32", "midpoint", "runs", "runs_maxmip", "dda_maxmip", "embree")
-#: The kernels whose confidence band the speedup plot draws (plugins too, up to 4 bands).
-BAND_KERNELS = ("runs", "runs_maxmip")
+#: The headline table's columns at most (the full table goes to a second file).
+HEADLINE_COLUMNS = 8
+#: The paper's kernel (Henning & Stephenson 2004's run walk): always a headline column.
+PAPER_KERNELS = ("runs",)
 
 
-def verdict(speedup, low, high, width=INCONCLUSIVE_WIDTH) -> str:
-    """``"faster"``, ``"slower"`` or ``"inconclusive"`` (the interval [low, high] spans
-    1.0, is wider than ``width`` times the speedup, or is missing)."""
-    values = [float(v) for v in (speedup, low, high)]
-    if not all(np.isfinite(values)) or values[0] <= 0:
-        return "inconclusive"
-    s, lo, hi = values
-    if lo <= 1.0 <= hi or (hi - lo) > width * s:
-        return "inconclusive"
-    return "faster" if s > 1.0 else "slower"
+def finding(speedup, low, high, precision=DEFAULT_PRECISION, contended=False,
+            stop="") -> str:
+    """What a ratio's 95 % interval ``[low, high]`` says, the one rule of every table and
+    written conclusion (docs/METHOD.md, "Labels").
+
+    A cell is a finding when its half-width (:func:`bench.timing.relative_half_width`) is
+    at most ``precision`` (a fraction; 0.02 is ±2 %) and its group was not ``contended``:
+    ``"faster"`` (the interval lies above 1), ``"slower"`` (below 1) or ``"same within
+    ±x %"`` (it contains 1; x is the farthest bound's distance from 1, in percent). Any
+    other cell is ``"inconclusive: "`` and the reason: ``contended`` (other processes
+    used the machine: never a finding, whatever the interval), else, by the rows'
+    ``stop``, ``budget spent`` or ``too few repeats`` (also when the interval is missing).
+    """
+    from .timing import relative_half_width
+
+    if contended:
+        return "inconclusive: contended"
+    half = relative_half_width(speedup, low, high)
+    try:
+        precision = float(precision)
+    except (TypeError, ValueError):
+        precision = DEFAULT_PRECISION
+    if not np.isfinite(precision) or precision <= 0:
+        precision = DEFAULT_PRECISION
+    if not np.isfinite(half) or half > precision + 1e-12:
+        return "inconclusive: " + REASONS.get(str(stop or ""), "too few repeats")
+    lo, hi = float(low), float(high)
+    if lo > 1.0:
+        return "faster"
+    if hi < 1.0:
+        return "slower"
+    return f"same within ±{100 * max(hi - 1.0, 1.0 - lo):.1f} %"
 
 
-def ratio_text(speedup, low, high, fmt="{:.2f}") -> str:
-    """``1.23x [1.20, 1.27]``, followed by "inconclusive" when :func:`verdict` says so."""
+def verdict(speedup, low, high, precision=DEFAULT_PRECISION, contended=False, stop="") -> str:
+    """The word of :func:`finding`: ``"faster"``, ``"slower"``, ``"same"`` or
+    ``"inconclusive"``."""
+    return finding(speedup, low, high, precision, contended, stop).split(" ")[0].rstrip(":")
+
+
+def ratio_text(speedup, low, high, precision=DEFAULT_PRECISION, contended=False, stop="",
+               fmt="{:.2f}") -> str:
+    """A cell: ``1.53 ±1.8 %`` (the speedup and its interval's half-width in percent of
+    it), then ``(same)`` or, for an inconclusive cell, the reason in parentheses, from
+    :func:`finding`. Empty when the speedup is missing."""
+    from .timing import relative_half_width
+
     if not np.isfinite(float(speedup)):
         return ""
-    text = f"{fmt.format(float(speedup))} [{fmt.format(float(low))}, {fmt.format(float(high))}]"
-    return text + (" inconclusive" if verdict(speedup, low, high) == "inconclusive" else "")
+    half = relative_half_width(speedup, low, high)
+    text = fmt.format(float(speedup)) + (f" ±{100 * half:.1f} %" if np.isfinite(half) else "")
+    label = finding(speedup, low, high, precision, contended, stop)
+    if label.startswith("inconclusive"):
+        return f"{text} ({label.split(': ', 1)[1]})"
+    if label.startswith("same"):
+        return f"{text} (same)"
+    return text
+
+
+def group_label(rows) -> dict:
+    """The inputs of :func:`finding` for the rows of one cell (one or more groups, e.g.
+    one per dataset): geometric means of the speedup and of its bounds, the largest
+    precision asked, contended when any group was, and the stop ``budget`` when any
+    group's budget ran out (else ``rounds`` when any stopped on rounds)."""
+    def column(name, default):
+        return rows[name] if name in rows else pd.Series([default] * len(rows), index=rows.index)
+
+    stops = set(column("stop", "").fillna("").astype(str))
+    stop = "budget" if "budget" in stops else ("rounds" if stops - {"precision"} else "precision")
+    precision = pd.to_numeric(column("precision", DEFAULT_PRECISION), errors="coerce")
+    precision = float(precision.max()) if precision.notna().any() else DEFAULT_PRECISION
+    return {"speedup": _geomean(rows["speedup"]), "low": _geomean(rows["speedup_ci_low"]),
+            "high": _geomean(rows["speedup_ci_high"]), "precision": precision,
+            "contended": bool(column("contended", False).astype(bool).any()), "stop": stop}
 
 
 def _warn(text):
@@ -202,27 +264,68 @@ def pivot(df, workload, surface, value="speedup"):
     return table[[c for c in order if c in table.columns]]
 
 
-def pivot_ci(df, workload, surface) -> pd.DataFrame:
-    """Like :func:`pivot`, each cell the text of :func:`ratio_text`: the geometric mean
-    over datasets of the speedup and of its interval's bounds (an interval for the
-    typical dataset), "inconclusive" when it spans 1.0 or is wider than
-    :data:`INCONCLUSIVE_WIDTH` of the speedup, and a dagger when any of its groups ran
-    under contention (``bench.load``)."""
+def pivot_ci(df, workload, surface, columns=None) -> pd.DataFrame:
+    """Like :func:`pivot`, each cell the text of :func:`ratio_text` for the cell's groups
+    (:func:`group_label`: geometric means over datasets of the speedup and of its
+    interval's bounds, an interval for the typical dataset), labelled by
+    :func:`finding`. ``columns``: the algorithms to keep, in that order (default all)."""
     part = df[(df["workload"] == workload) & (df["surface"] == surface)]
     if part.empty:
         return pd.DataFrame()
     cells = {}
     for (r, name), g in part.groupby(["run_length", "algorithm"], sort=False):
-        text = ratio_text(_geomean(g["speedup"]), _geomean(g["speedup_ci_low"]),
-                          _geomean(g["speedup_ci_high"])) if name != "dda" else "1 (baseline)"
-        if text and bool(g["contended"].any()):
-            text += " †"
+        if name == "dda":
+            text = "1 (baseline)"
+        else:
+            ok = g[g["error"] == ""] if (g["error"] != "").any() else g
+            label = group_label(ok)
+            text = ratio_text(label["speedup"], label["low"], label["high"], label["precision"],
+                              label["contended"], label["stop"])
         if not text and (g["error"] != "").any():
             text = "error"
         cells.setdefault(name, {})[r] = text
     table = pd.DataFrame(cells)
     table = table.loc[sorted(table.index, key=_r_value)]
+    if columns is not None:
+        table = table[[c for c in columns if c in table.columns]]
     return table.fillna("")
+
+
+def headline_kernels(df, workload="first_hit", surface="triangles",
+                     limit=HEADLINE_COLUMNS) -> list:
+    """The headline table's kernel columns, at most ``limit``: the paper's kernels
+    (:data:`PAPER_KERNELS`), the fastest kernel of each family (the registry's ``kind``;
+    geometric mean of the speedup over the table's groups), Embree (the fastest peer),
+    then plugins while there is room; in the order of the rows."""
+    import algos
+
+    part = df[(df["workload"] == workload) & (df["surface"] == surface) & (df["algorithm"] != "dda")]
+    present = list(dict.fromkeys(part["algorithm"]))
+    speed = {n: _geomean(part.loc[part["algorithm"] == n, "speedup"]) for n in present}
+    registry = algos.INTERSECTOR_REGISTRY if workload == "first_hit" else algos.TRAVERSAL_REGISTRY
+    chosen = [n for n in PAPER_KERNELS if n in present]
+    families, plugins = {}, []
+    for n in present:
+        entry = registry.get(n)
+        if entry is None or getattr(entry, "plugin", None) is not None:
+            plugins.append(n)
+            continue
+        families.setdefault(getattr(entry, "kind", n), []).append(n)
+    peers = families.pop("peer", [])
+    for members in families.values():
+        ranked = [n for n in members if np.isfinite(speed[n])] or members
+        best = max(ranked, key=lambda n: speed[n] if np.isfinite(speed[n]) else -1.0)
+        if best not in chosen:
+            chosen.append(best)
+    if peers:
+        ranked = [n for n in peers if np.isfinite(speed[n])] or peers
+        chosen.append(max(ranked, key=lambda n: speed[n] if np.isfinite(speed[n]) else -1.0))
+    chosen += [n for n in plugins if n not in chosen]
+    # the room left goes to the other kernels, fastest first
+    rest = sorted((n for n in present if n not in chosen),
+                  key=lambda n: -speed[n] if np.isfinite(speed[n]) else np.inf)
+    keep = set((chosen + rest)[:limit])
+    return [n for n in present if n in keep]
 
 
 def _markdown(table, first="r", paper=False, fmt="{:.2f}"):
@@ -263,8 +366,12 @@ def targets(df) -> list[str]:
             best = max(runs_names, key=lambda n: value(r, n) if np.isfinite(value(r, n)) else -1)
             v, lo, hi = value(r, best), value(r, best, lows), value(r, best, highs)
             if np.isfinite(v):
-                if verdict(v, lo, hi) == "inconclusive":
-                    decided = "inconclusive (the interval spans 1.0 or is too wide)"
+                rows = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1]) &
+                          (df["algorithm"] == best) & (df["run_length"].map(_r_label) == r)]
+                label = group_label(rows)
+                said = finding(v, lo, hi, label["precision"], label["contended"], label["stop"])
+                if said.startswith("inconclusive"):
+                    decided = f"inconclusive ({said.split(': ', 1)[1]})"
                 elif lo <= goal <= hi:
                     decided = "inconclusive (the interval contains the target)"
                 else:
@@ -279,8 +386,11 @@ def targets(df) -> list[str]:
             best = max(table.loc[idx, n] for n in exact)
             ratios.append(best / e)
         v = _geomean(ratios)
+        primary = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1])]
+        decided = ("inconclusive (contended)" if bool(primary["contended"].any())
+                   else ("met" if v >= 2 else "missed"))
         out.append(f"- best exact kernel vs Embree (rays/s, geometric mean over r): {v:.2f}x "
-                   f"(target >= 2): **{'met' if v >= 2 else 'missed'}**")
+                   f"(target >= 2): **{decided}**")
     return out
 
 
@@ -324,11 +434,69 @@ def fair_baseline(df, workload="first_hit", surface="triangles") -> pd.DataFrame
     return table.loc[order]
 
 
-def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> str:
-    """The Markdown report of a sweep's rows ``df``: the machine (``env``), the paper's
-    measure, one speedup table per workload and surface (geometric mean over datasets)
-    and, with ``counts`` (kernel -> counts.csv row), the cost model."""
-    lines = [f"# {title}: speedup over `dda`", ""]
+def summary_lines(df, env=None) -> list:
+    """The report's first lines: what the cells found, whether the run was contended, and
+    the noise floor with the load (``env["noise"]``, ``bench.sweep.calibrate_noise``)."""
+    part = df[(df["algorithm"] != "dda") & (df["error"] == "")]
+    if part.empty:
+        return []
+    labels = [finding(s, lo, hi, p, c, st) for s, lo, hi, p, c, st in zip(
+        part["speedup"], part["speedup_ci_low"], part["speedup_ci_high"],
+        part["precision"] if "precision" in part else [DEFAULT_PRECISION] * len(part),
+        part["contended"], part["stop"].fillna("") if "stop" in part else [""] * len(part))]
+    words = pd.Series([w.split(" within")[0] for w in labels]).value_counts()
+    groups = df.drop_duplicates(["dataset", "workload", "surface", "run_length"])
+    n, bad = len(groups), int(groups["contended"].sum())
+    lines = []
+    if n and bad == n:
+        lines.append(f"**Every group ({n}) ran while other processes used the machine: no "
+                     "cell is a finding. Rerun on a quiet machine.**")
+    elif bad:
+        lines.append(f"{bad} of {n} groups ran while other processes used the machine; their "
+                     "cells are labelled contended.")
+    lines.append("Group ratios: " + ", ".join(f"{k} {v}" for k, v in words.items()) +
+                 f" (of {len(labels)}).")
+    noise = (env or {}).get("noise")
+    if noise:
+        lines.append(f"Noise floor: one paired call's log-ratio has a standard deviation of "
+                     f"{100 * noise['log_sd']:.1f} % (A/A, {noise['pairs']} pairs of "
+                     f"{noise['call_rays']} rays), so {noise['rounds_affordable']} rounds, "
+                     f"what a group affords in its budget, resolve ±{100 * noise['floor']:.1f} %; "
+                     f"load average {noise.get('load')}.")
+        asked = (env.get("run") or {}).get("precision")
+        if asked and noise["floor"] > asked:
+            lines.append(f"The floor is above the precision asked (±{100 * asked:.0f} %): "
+                         "cells that do not reach it are labelled, not reported as findings.")
+    return lines + [""]
+
+
+def _cell_texts(part):
+    """The per-row cell texts of :func:`ratio_text` (one group each)."""
+    precision = part["precision"] if "precision" in part else [DEFAULT_PRECISION] * len(part)
+    stops = part["stop"].fillna("") if "stop" in part else [""] * len(part)
+    return ["1 (baseline)" if a == "dda" else ratio_text(s, lo, hi, p, c, st)
+            for a, s, lo, hi, p, c, st in zip(part["algorithm"], part["speedup"],
+                                              part["speedup_ci_low"], part["speedup_ci_high"],
+                                              precision, part["contended"], stops)]
+
+
+CELL_LEGEND = ("Each cell: speedup ±half-width of its 95 % interval, in percent of the "
+               "speedup (geometric means over datasets of the groups' paired ratios and "
+               "bounds; docs/METHOD.md). A cell is a finding when the half-width is within "
+               "the precision asked: faster (interval above 1), slower (below 1), or "
+               "`(same)` (it contains 1). Otherwise the reason is in parentheses: "
+               "`contended` (other processes used the machine; never a finding), `budget "
+               "spent` or `too few repeats`.")
+
+
+def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
+                     full=False) -> str:
+    """The Markdown report of a sweep's rows ``df``: what was found and the noise floor
+    (:func:`summary_lines`), the machine (``env``), the paper's measure (the headline
+    table: :func:`headline_kernels`, or every kernel with ``full``), one speedup table per
+    workload and surface (geometric mean over datasets) and, with ``counts`` (kernel ->
+    counts.csv row), the cost model."""
+    lines = [f"# {title}: speedup over `dda`", ""] + summary_lines(df, env)
     if env:
         lines += [f"Machine: {env.get('cpu')} ({env.get('cores')} cores, one used), Python "
                   f"{env.get('python')}, NumPy {env.get('numpy')}, commit "
@@ -337,11 +505,16 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
     if runs:
         lines += [f"Rows of {describe_runs(runs)}.", ""]
     datasets = list(dict.fromkeys(df["dataset"]))
-    lines += [f"Datasets: {', '.join(datasets)}. Rays per group: "
-              f"{', '.join(map(str, sorted(set(df['rays']))))}; repeats: "
-              f"{', '.join(map(str, sorted(set(df['repeats']))))}. Speedup = median time of dda / "
-              "median time of the algorithm on the same rays in the same process (docs/"
-              "METHOD.md); tables aggregate datasets by the geometric mean.", ""]
+    rounds = pd.to_numeric(df["rounds"], errors="coerce") if "rounds" in df else None
+    if rounds is None or rounds.isna().all():  # results of the fixed-repeats design
+        rounds = pd.to_numeric(df["repeats"], errors="coerce")
+    calls = sorted(set(df["call_rays"].dropna().astype(int))) if "call_rays" in df else []
+    lines += [f"Datasets: {', '.join(datasets)}. Rays per timed call: "
+              f"{', '.join(map(str, calls or sorted(set(df['rays']))))}; rounds per kernel: "
+              f"{int(np.nanmin(rounds))} to {int(np.nanmax(rounds))}. Speedup = geometric mean "
+              "over paired rounds of time of dda / time of the algorithm on the same rays in "
+              "the same process (docs/METHOD.md); tables aggregate datasets by the geometric "
+              "mean.", ""]
     table = pivot(df, *PRIMARY)
     if not table.empty:
         from .report import EMBREE_NOTE, axes_caption
@@ -352,22 +525,19 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None) -> st
         caption = axes_caption(regimes[0] if len(regimes) == 1 else "flushed",
                                coherences[0] if len(coherences) == 1 else "random")
         embree = f" {EMBREE_NOTE}." if any(str(a).startswith("embree") for a in df["algorithm"]) else ""
+        shown = None if full else headline_kernels(df)
+        scope = ("every kernel measured" if full else
+                 "the paper's kernel, the fastest of each family and Embree; every kernel "
+                 "in `speedup_full.md`")
         lines += ["## The paper's measure: first hit on triangles, by mean run length", "",
-                  caption + embree, "",
-                  "Each cell: speedup [95 % interval] (geometric means over datasets of the "
-                  "groups' medians and bootstrap bounds). A speedup whose interval spans 1.0 "
-                  f"or is wider than {INCONCLUSIVE_WIDTH:.0%} of it is marked inconclusive: "
-                  "it is not a finding. † marks a cell with a group measured while other "
-                  "processes used the CPUs (`contended`).", "",
-                  _markdown(pivot_ci(df, *PRIMARY), paper=True), ""]
+                  caption + embree, "", CELL_LEGEND + f" Columns: {scope}.", "",
+                  _markdown(pivot_ci(df, *PRIMARY, columns=shown), paper=True), ""]
         part = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1]) &
                   (df["run_length"] == "random")]
+        if shown is not None:
+            part = part[part["algorithm"].isin(shown)]
         if not part.empty:
-            part = part.assign(text=[
-                ("1 (baseline)" if a == "dda" else ratio_text(s, lo, hi)) + (" †" if c else "")
-                for a, s, lo, hi, c in zip(part["algorithm"], part["speedup"],
-                                           part["speedup_ci_low"], part["speedup_ci_high"],
-                                           part["contended"])])
+            part = part.assign(text=_cell_texts(part))
             by_ds = part.pivot(index="dataset", columns="algorithm", values="text").fillna("")
             by_ds = by_ds.loc[list(dict.fromkeys(part["dataset"]))]
             by_ds = by_ds[[c for c in dict.fromkeys(part["algorithm"]) if c in by_ds.columns]]
@@ -434,9 +604,15 @@ def load_section(df, env=None) -> list:
     if run:
         lines.append(f"The sweep took {run['wall_s']:.0f} s, {100 * (run['timed_share'] or 0):.0f} % "
                      "of it inside timed calls.")
+        if run.get("timed_share_of_measure") is not None:
+            lines.append(f"Measuring took {run['measure_s']:.0f} s, "
+                         f"{100 * run['timed_share_of_measure']:.0f} % of it inside timed calls "
+                         f"and {run['flush_s']:.1f} s flushing caches; "
+                         f"{run.get('remeasured_groups', 0)} contended groups were measured "
+                         "again.")
     if bad:
-        lines.append("**Ratios from contended groups are less trustworthy; rerun on a quiet "
-                     "machine before quoting them.**")
+        lines.append("**Cells of contended groups are labelled `contended`, never findings; "
+                     "rerun on a quiet machine before quoting them.**")
     return lines + [""]
 
 
@@ -484,8 +660,9 @@ def _colours(n):
 def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernels=False):
     """Speedup over dda against mean run length for one workload and surface, one line per
     algorithm (geometric mean over datasets), saved as a PNG at ``path``. By default the
-    kernels of :data:`PLOT_KERNELS` and every plugin (``all_kernels`` for all), with a
-    95 % band only for :data:`BAND_KERNELS` and plugins (at most four bands)."""
+    kernels of :data:`PLOT_KERNELS` and every plugin (``all_kernels`` for all); the 95 %
+    interval of every kernel shown is drawn as a light band and as error bars set
+    slightly apart along the run-length axis, so overlapping intervals stay apart."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -497,9 +674,7 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     if part.empty:
         ax.text(0.5, 0.5, "no rows", ha="center")
     names = plot_kernels(dict.fromkeys(part["algorithm"]), all_kernels)
-    builtin = _builtin_names()
-    banded = [n for n in names if n in BAND_KERNELS or n not in builtin][:4]
-    for colour, name in zip(_colours(len(names)), names):
+    for k, (colour, name) in enumerate(zip(_colours(len(names)), names)):
         rows = part[(part["algorithm"] == name) & np.isfinite(part["speedup"].astype(float))]
         if rows.empty:
             continue
@@ -511,8 +686,10 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
         hi = np.array([_geomean(g.get_group(v)["speedup_ci_high"]) for v in r])
         style = _style(name)
         ax.plot(x, y, marker="o", ms=3, label=name, color=colour, ls=style, lw=1.6)
-        if name in banded:
-            ax.fill_between(x, lo, hi, color=colour, alpha=0.15, linewidth=0)
+        ax.fill_between(x, lo, hi, color=colour, alpha=0.10, linewidth=0)
+        dodge = x * 1.025 ** (k - (len(names) - 1) / 2)  # apart on the log axis
+        ax.errorbar(dodge, y, yerr=[np.maximum(y - lo, 0), np.maximum(hi - y, 0)], fmt="none",
+                    ecolor=colour, elinewidth=1.2, capsize=2.5)
     px = [k for k in PAPER if k != "random"]
     ax.plot(px, [PAPER[k] for k in px], "k*", ms=12, label="Henning & Stephenson 2004")
     ax.axhline(PAPER["random"], color="k", ls=":", lw=1)
@@ -520,11 +697,10 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     ax.axhline(1.0, color="grey", lw=0.8)
     ax.set_xscale("log")
     ax.set_xlabel("mean run length r (log)")
-    ax.set_ylabel("speedup over dda (median ratio)")
-    bands = ", ".join(banded) if banded else "none"
+    ax.set_ylabel("speedup over dda (geometric mean of paired ratios)")
     where = workload if surface == "-" else f"{workload} on {surface}"
-    ax.set_title(f"{where}: run length vs speedup\n(solid exact, dashed float "
-                 f"or not claimed exact, dotted marching; 95 % bands: {bands})", fontsize=10)
+    ax.set_title(f"{where}: run length vs speedup\n(solid exact, dashed float or not claimed "
+                 "exact, dotted marching; bars and bands: 95 % intervals)", fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
@@ -593,11 +769,12 @@ def cost_model(df, counts=None) -> list:
 
 def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels=False,
                   run=None, echo=_warn) -> dict:
-    """speedup.md, run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV
-    (``all_kernels``: every kernel in the plots, not the default subset), of one run
-    (``run``: see :func:`load`). ``echo`` receives the run read and each damaged line
-    left out. ``ValueError`` when the CSV is missing, not a results.csv, or holds several
-    runs and ``run`` does not choose one."""
+    """speedup.md (the headline table), speedup_full.md (every kernel),
+    run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV (``all_kernels``:
+    every kernel in the plots, not the default subset), of one run (``run``: see
+    :func:`load`). ``echo`` receives the run read and each damaged line left out.
+    ``ValueError`` when the CSV is missing, not a results.csv, or holds several runs and
+    ``run`` does not choose one."""
     out_dir = out_dir or os.path.dirname(os.path.abspath(csv_path))
     df = load(csv_path, run=run, echo=echo)
     if echo:
@@ -614,8 +791,11 @@ def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels
     from .counts import read_counts
 
     counts = read_counts(os.path.join(os.path.dirname(os.path.abspath(csv_path)), "counts.csv"))
+    paths["full"] = os.path.join(out_dir, "speedup_full.md")
     with open(paths["speedup"], "w") as f:
         f.write(speedup_markdown(df, env, title, counts=counts))
+    with open(paths["full"], "w") as f:
+        f.write(speedup_markdown(df, env, title + ", every kernel", counts=counts, full=True))
     # the paper's measure when the rows hold it, else the first workload they hold
     pairs = list(dict.fromkeys(zip(df["workload"], df["surface"])))
     workload, surface = PRIMARY if PRIMARY in pairs or not pairs else pairs[0]

@@ -191,6 +191,10 @@ class RowWriter:
 #: What each cache regime and ray coherence means, for the captions of every speedup
 #: table (docs/METHOD.md, "Cache regimes and coherence").
 REGIME_TEXT = {"flushed": "caches flushed before every timed run",
+               "flushed-per-call": "caches flushed before every timed call",
+               "flushed-per-round": "caches flushed once per round of calls, kernels in a "
+                                    "fresh random order each round",
+               "unflushed": "caches never flushed, kernels in a fresh random order each round",
                "warm": "each kernel warmed on its own rays (an untimed run right before)"}
 COHERENCE_TEXT = {"random": "random rays (origins over the field, azimuth atan(1/r), all octants)",
                   "parallel": "parallel rays (one direction of slope 1/r per batch)",
@@ -209,7 +213,11 @@ def axes_caption(regime="flushed", coherence="random") -> str:
 
 def speedup_table(rows, column_key="run_length", column_label="r", footer=None) -> str:
     """A Markdown table: one row per algorithm, one column per value of ``column_key``;
-    each cell ``speedup [CI], ns/ray`` plus the agreement when below 100 %."""
+    each cell ``speedup ±half-width %`` labelled by ``bench.analysis.finding`` (the
+    rows' ``precision``, ``contended`` and ``stop`` where they record them), then ns/ray,
+    plus the agreement when below 100 %."""
+    from .analysis import DEFAULT_PRECISION, ratio_text
+
     columns = list(dict.fromkeys(row[column_key] for row in rows))
     names = list(dict.fromkeys(row["algorithm"] for row in rows))
     lookup = {(row["algorithm"], row[column_key]): row for row in rows}
@@ -224,8 +232,12 @@ def speedup_table(rows, column_key="run_length", column_label="r", footer=None) 
                 continue
             agree = float(row["agree"])
             flag = "" if agree == 1.0 else f" ({100 * agree:.2f} % agree)"
-            cells.append(f"{float(row['speedup']):.2f}x [{float(row['speedup_ci_low']):.2f}, "
-                         f"{float(row['speedup_ci_high']):.2f}], {float(row['ns_per_ray']):.0f} ns{flag}")
+            contended = str(row.get("contended", "")).lower() in ("true", "1")
+            precision = row.get("precision") or DEFAULT_PRECISION
+            text = ("1 (baseline)" if row["algorithm"] == row.get("baseline", "dda") else
+                    ratio_text(row["speedup"], row["speedup_ci_low"], row["speedup_ci_high"],
+                               precision, contended, row.get("stop", "")))
+            cells.append(f"{text}, {float(row['ns_per_ray']):.0f} ns{flag}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     if footer:
         lines.append(footer(columns, lookup, names))

@@ -1,27 +1,41 @@
-"""Side-by-side timing: interleaved repeats, medians, bootstrap intervals, environment.
+"""Side-by-side timing: interleaved repeats, paired rounds, their intervals, environment.
 
 Method (docs/METHOD.md): every algorithm in a comparison is timed on the same rays,
-in the same process, on one thread, interleaved A B C A B C ... with the starting
-algorithm rotated each repeat, after one untimed warm-up round, and with the caches
-flushed before every timed run (so no kernel inherits the cache lines its predecessor
-left, which on the same rays are its own). The clock (CLOCK_MONOTONIC) runs in C around
-the whole batch. A speedup is the ratio of two medians from the same run.
+in the same process, on one thread; the clock (CLOCK_MONOTONIC) runs in C around the
+whole batch. Two designs:
+
+* :func:`interleaved` (the studies' fixed repeats): A B C A B C ... with the starting
+  algorithm rotated each repeat, after one untimed warm-up round, with the caches flushed
+  before every timed run (so no kernel inherits the cache lines its predecessor left,
+  which on the same rays are its own).
+* :func:`paired_rounds` (the sweeps): rounds in a fresh random order, the caches flushed
+  per call, per round or never, each kernel's rounds stopping once its paired ratio's
+  interval (:func:`log_ratio_interval`) is as precise as asked, or the group's budget is
+  spent.
+
+A speedup is the geometric mean of the per-repeat paired ratios with Student's t
+interval of their logs; a time per ray, the median with its order-statistic interval.
 """
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import subprocess
 import sys
 import sysconfig
+import time
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 
 __all__ = ["interleaved", "median_ci", "ratio_ci", "environment", "pin_to_one_cpu",
            "flush_caches", "cache_sizes", "last_level_cache_bytes", "resident_bytes",
-           "write_json", "REGIMES", "timed_in_regime"]
+           "write_json", "REGIMES", "timed_in_regime", "paired_rounds", "PairedTimes",
+           "log_ratio_interval", "relative_half_width", "median_interval", "call_rays",
+           "noise_floor", "FLUSH_MODES", "STOPS"]
 
 
 def cache_sizes() -> dict:
@@ -216,6 +230,241 @@ def ratio_ci(numerator: np.ndarray, denominator: np.ndarray, n_boot: int = 2000,
     else:
         low, high = _bootstrap(stat, [numerator, denominator], n_boot, seed)
     return stat(numerator, denominator), low, high
+
+
+
+# ---- paired, sequential rounds (the sweep's design; docs/METHOD.md, "Paired rounds") ----
+#: Where the caches are flushed in :func:`paired_rounds`: before every timed call, once
+#: before every round of calls, or never (docs/METHOD.md, "Cache regimes compared").
+FLUSH_MODES = ("call", "round", "none")
+#: Why a kernel left the rotation: its interval reached the precision asked for, the
+#: group's time budget was spent, or the largest number of rounds was reached.
+STOPS = ("precision", "budget", "rounds")
+
+
+def log_ratio_interval(baseline: np.ndarray, kernel: np.ndarray, confidence: float = 0.95):
+    """The speedup ``t_baseline / t_kernel`` of paired timings and its ``confidence``
+    interval: ``exp`` of the mean of the per-round log-ratios ``log(t_baseline /
+    t_kernel)`` and of Student's t interval of that mean (``scipy.stats.t``).
+
+    Parameters
+    ----------
+    baseline, kernel : array_like, shape (n,)
+        Paired times (any unit, the same for both), element k of each measured in the
+        same round. Rounds where either is NaN are left out.
+
+    Returns
+    -------
+    (speedup, low, high) : floats
+        The geometric mean of the paired ratios and its interval; NaN for fewer than 2
+        complete pairs.
+    """
+    from scipy import stats
+
+    b, k = np.asarray(baseline, np.float64), np.asarray(kernel, np.float64)
+    if b.shape != k.shape:
+        raise ValueError(f"kernel: expected the baseline's shape {b.shape} (paired rounds), "
+                         f"got {k.shape}")
+    ok = np.isfinite(b) & np.isfinite(k) & (b > 0) & (k > 0)
+    logs = np.log(b[ok]) - np.log(k[ok])
+    n = len(logs)
+    if n < 2:
+        return math.nan, math.nan, math.nan
+    mean = float(logs.mean())
+    half = float(stats.t.ppf(0.5 + confidence / 2, n - 1) * logs.std(ddof=1) / math.sqrt(n))
+    return math.exp(mean), math.exp(mean - half), math.exp(mean + half)
+
+
+def relative_half_width(speedup, low, high) -> float:
+    """Half the interval's width as a fraction of the speedup (``0.02`` is ``±2 %``);
+    NaN when any is missing."""
+    values = [float(v) for v in (speedup, low, high)]
+    if not all(np.isfinite(values)) or values[0] <= 0:
+        return math.nan
+    return (values[2] - values[1]) / (2.0 * values[0])
+
+
+def median_interval(x: np.ndarray, confidence: float = 0.95):
+    """The median of ``x`` and its distribution-free ``confidence`` interval: the order
+    statistics ``x_(j)`` and ``x_(n+1-j)`` with ``j`` the largest index whose binomial
+    tail ``P(Binom(n, 1/2) <= j - 1)`` is at most ``(1 - confidence) / 2``
+    (``scipy.stats.binom``). With too few values for any such ``j`` the interval is the
+    range. NaN values are left out; (nan, nan, nan) when none is left."""
+    from scipy import stats
+
+    x = np.sort(np.asarray(x, np.float64)[np.isfinite(np.asarray(x, np.float64))])
+    n = len(x)
+    if n == 0:
+        return math.nan, math.nan, math.nan
+    tail = (1 - confidence) / 2
+    k = int(stats.binom.ppf(tail, n, 0.5))
+    if stats.binom.cdf(k, n, 0.5) > tail:
+        k -= 1
+    k = max(k, 0)
+    return float(np.median(x)), float(x[k]), float(x[n - 1 - k])
+
+
+@dataclass
+class PairedTimes:
+    """What :func:`paired_rounds` measured.
+
+    ``times``: name -> float64 array (rounds,) of ns per timed call, NaN in the rounds
+    after the kernel left the rotation; ``rounds``: name -> its timed rounds; ``stop``:
+    name -> one of :data:`STOPS`; ``timed_s``: seconds inside timed calls; ``flush_s``:
+    seconds spent flushing; ``wall_s``: the whole, warm-up included."""
+
+    times: dict
+    rounds: dict
+    stop: dict
+    timed_s: float
+    flush_s: float
+    wall_s: float
+
+
+def paired_rounds(jobs: dict[str, Callable[[], int]], baseline: str, precision: float = 0.02,
+                  budget_s: float = 3.0, min_rounds: int = 8, max_rounds: int = 500,
+                  flush: str = "round", seed: int = 0, errors: dict | None = None,
+                  time_limit_ns: dict | None = None, confidence: float = 0.95) -> PairedTimes:
+    """Time every job in rounds on the same rays, sequentially, until each ratio over the
+    baseline is as precise as asked.
+
+    A round runs every job still in the rotation once, in an order drawn afresh each
+    round (seeded by ``seed``), so no kernel always follows the same predecessor; the
+    caches are flushed per :data:`FLUSH_MODES`. One untimed round comes first. Each job
+    returns its own elapsed nanoseconds (measured in C).
+
+    From round ``min_rounds`` on, a kernel leaves the rotation once the ``confidence``
+    interval of its speedup (:func:`log_ratio_interval` over the rounds so far) is at
+    most ``precision`` wide on either side (:func:`relative_half_width`): stop
+    ``"precision"``. The baseline runs while any kernel does. When ``budget_s`` seconds of
+    wall time are spent (at least ``min_rounds`` rounds are always run), or after
+    ``max_rounds`` rounds, the kernels still in the rotation stop with ``"budget"`` or
+    ``"rounds"``.
+
+    ``errors`` and ``time_limit_ns``: as in :func:`interleaved` (a failing job leaves the
+    rotation and ``errors[name]`` says why; without ``errors`` its exception propagates).
+    """
+    if flush not in FLUSH_MODES:
+        raise ValueError(f"flush: expected one of {', '.join(FLUSH_MODES)}, got {flush!r}")
+    if baseline not in jobs:
+        raise ValueError(f"baseline: {baseline!r} is not among the jobs ({', '.join(jobs)})")
+    if not (precision > 0):
+        raise ValueError(f"precision: expected a positive fraction (0.02 is ±2 %), got {precision!r}")
+    if min_rounds < 2 or max_rounds < min_rounds:
+        raise ValueError(f"min_rounds, max_rounds: expected 2 <= min_rounds <= max_rounds, "
+                         f"got {min_rounds}, {max_rounds}")
+    limits = time_limit_ns or {}
+    start = time.perf_counter()
+    rng = np.random.Generator(np.random.PCG64(seed))
+    alive = list(jobs)
+    failed = set()
+
+    def call(name):
+        if errors is None:
+            return jobs[name]()
+        try:
+            elapsed = jobs[name]()
+        except Exception as exc:  # a kernel's failure is its row's error, not the run's
+            errors[name] = f"{type(exc).__name__}: {exc}".strip()
+            failed.add(name)
+            return None
+        limit = limits.get(name)
+        if limit is not None and elapsed > limit:
+            errors[name] = (f"exceeded the time limit: one call took {elapsed / 1e9:.3g} s, "
+                            f"limit {limit / 1e9:.3g} s")
+            failed.add(name)
+            return None
+        return elapsed
+
+    for name in list(alive):  # warm-up: branch predictors, page faults
+        call(name)
+    alive = [n for n in alive if n not in failed]
+    times = {name: [] for name in jobs}
+    stop = {}
+    flush_s = timed = 0.0
+    rounds = 0
+    while baseline in alive and (len(alive) > 1 or (len(jobs) == 1 and rounds < min_rounds)):
+        order = [alive[k] for k in rng.permutation(len(alive))]
+        if flush == "round":
+            f0 = time.perf_counter()
+            flush_caches()
+            flush_s += time.perf_counter() - f0
+        got = {}
+        for name in order:
+            if flush == "call":
+                f0 = time.perf_counter()
+                flush_caches()
+                flush_s += time.perf_counter() - f0
+            elapsed = call(name)
+            if elapsed is not None:
+                got[name] = float(elapsed)
+                timed += elapsed / 1e9
+        rounds += 1
+        for name in jobs:
+            times[name].append(got.get(name, math.nan))
+        alive = [n for n in alive if n not in failed]
+        if baseline not in alive:
+            break
+        spent = time.perf_counter() - start
+        if rounds >= min_rounds:
+            base = np.asarray(times[baseline])
+            for name in [n for n in alive if n != baseline]:
+                s, lo, hi = log_ratio_interval(base, np.asarray(times[name]), confidence)
+                if relative_half_width(s, lo, hi) <= precision:
+                    stop[name] = "precision"
+                    alive.remove(name)
+            if len(alive) > 1 and (spent >= budget_s or rounds >= max_rounds):
+                for name in alive:
+                    if name != baseline:
+                        stop[name] = "budget" if spent >= budget_s else "rounds"
+                alive = [baseline]
+    out = {name: np.asarray(times[name], dtype=np.float64) for name in jobs if name not in failed}
+    done = {name: int(np.isfinite(v).sum()) for name, v in out.items()}
+    stop.setdefault(baseline, "precision" if all(stop.get(n) == "precision" for n in out
+                                                 if n != baseline) else "budget")
+    return PairedTimes(times=out, rounds=done, stop={n: stop.get(n, "rounds") for n in out},
+                       timed_s=timed, flush_s=flush_s, wall_s=time.perf_counter() - start)
+
+
+def call_rays(first_call_ns: float, rays: int, call_ms: float, max_factor: int = 16) -> int:
+    """The rays of a timed call: ``rays`` doubled until a call of the baseline, which took
+    ``first_call_ns`` on ``rays``, lasts at least ``call_ms`` milliseconds (at most
+    ``max_factor`` times ``rays``). A power of two of ``rays`` keeps the choice
+    reproducible from run to run when the timing shifts a little."""
+    factor = 1
+    while factor < max_factor and first_call_ns * factor < call_ms * 1e6:
+        factor *= 2
+    return rays * factor
+
+
+def noise_floor(job: Callable[[], int], seconds: float = 1.0, rounds_affordable: int = 40,
+                confidence: float = 0.95, flush: str = "round") -> dict:
+    """The smallest effect this machine resolves now: the same job timed against itself
+    (A/A) in paired rounds for about ``seconds`` (at least ten pairs, within three times
+    that); returns ``{"log_sd": the standard
+    deviation of one paired log-ratio, "pairs": how many, "floor": the relative half-width
+    a ratio reaches in ``rounds_affordable`` rounds at that noise}``."""
+    from scipy import stats
+
+    job()
+    logs = []
+    start = time.perf_counter()
+    # at least ten pairs for a usable standard deviation, unless that takes thrice the time
+    while (time.perf_counter() - start < seconds or len(logs) < 10) and \
+            (len(logs) < 4 or time.perf_counter() - start < 3 * seconds):
+        if flush == "round":
+            flush_caches()
+        a, b = float(job()), float(job())
+        if len(logs) % 2:  # alternate which copy goes first
+            a, b = b, a
+        logs.append(math.log(a) - math.log(b))
+        if len(logs) >= 2000:
+            break
+    sd = float(np.std(logs, ddof=1))
+    n = max(int(rounds_affordable), 2)
+    floor = math.expm1(float(stats.t.ppf(0.5 + confidence / 2, n - 1)) * sd / math.sqrt(n))
+    return {"log_sd": round(sd, 5), "pairs": len(logs), "floor": round(floor, 5),
+            "rounds_affordable": n}
 
 
 def _cpu_model() -> str:

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 
 def regress(args):
-    """Run the instruction-count gate or the time gate; its exit status. ``--plugin``
+    """Run the instruction-count, counter or time gate; its exit status. ``--plugin``
     kernels join the time gate's checks of their workload."""
     from .args import load_plugins
 
     load_plugins(args)
     if args.metric == "instructions":
         from ..regress import instructions_gate as gate
+    elif args.metric == "counters":
+        from ..regress import counters_gate as gate
     else:
         from ..regress import time_gate as gate
     return gate.run(args.baseline or gate.BASELINE, tolerance=args.tolerance,
@@ -21,17 +23,23 @@ def register(sub):
     """Add ``regress`` to the sub-parsers ``sub``."""
     p = sub.add_parser("regress", help="CI check: instruction counts or speedup ratios against "
                                        "a baseline")
-    p.add_argument("--metric", choices=("time", "instructions"), default="time",
+    p.add_argument("--metric", choices=("time", "instructions", "counters"), default="time",
                    help="time: speedup ratios (noisy machines; statistics); instructions: "
-                        "callgrind counts per ray (exact; needs valgrind)")
+                        "callgrind counts per ray (exact; needs valgrind); counters: cells, "
+                        "runs and tiles per ray (exact; any compiler)")
     p.add_argument("--baseline", default=None,
-                   help="default bench/regress/time_baseline.json (time) or "
-                        "bench/regress/instructions_baseline.json (instructions)")
+                   help="default bench/regress/<metric>_baseline.json")
     p.add_argument("--tolerance", type=float, default=None,
                    help="allowed fractional change (default: the baseline's; 0.01 for "
                         "instructions)")
-    p.add_argument("--update", action="store_true", help="write a new baseline instead")
+    p.add_argument("--update", action="store_true",
+                   help="write a new baseline instead (instructions, counters: from a clean "
+                        "tree, whose commit it records)")
     from .args import add_plugin
 
     add_plugin(p)
     p.set_defaults(func=regress)
+    # the same measures between two git revisions built here: compare and bisect
+    from . import compare
+
+    compare.register(sub)

@@ -56,11 +56,14 @@ def reproduce(args):
         raise ValueError(f"--full: contradicts --preset {args.preset}")
     preset_name = "full" if args.full else (args.preset or "headline")
     kernels = names(args.kernels, lambda name: _reproduce_kernel(name, preset_name))
-    study.run(full=args.full, out_dir=args.out, resume=args.resume,
-              progress=not args.no_progress, counts=not args.no_counts, publish=args.publish,
-              preset_name=args.preset, kernels=kernels, isolate=args.isolate,
-              all_kernels=args.all_kernels)
-    return 0
+    if not 0 < args.precision < 100:
+        raise ValueError(f"--precision: expected a percentage in (0, 100), got {args.precision}")
+    paths = study.run(full=args.full, out_dir=args.out, resume=args.resume,
+                      progress=not args.no_progress, counts=not args.no_counts,
+                      publish=args.publish, preset_name=args.preset, kernels=kernels,
+                      isolate=args.isolate, all_kernels=args.all_kernels,
+                      precision=args.precision / 100)
+    return 1 if args.strict and paths.get("all_contended") else 0
 
 
 def _reproduce_kernel(name, preset_name):
@@ -182,6 +185,12 @@ def register(sub):
     p.add_argument("--isolate", action="store_true",
                    help="measure plugin kernels in a child process (a crash is contained)")
     p.add_argument("--all-kernels", action="store_true", help="plot every kernel")
+    p.add_argument("--precision", type=float, default=2.0,
+                   help="percent: a kernel's paired rounds stop once its speedup's 95 %% "
+                        "interval is within this on either side (default 2)")
+    p.add_argument("--strict", action="store_true",
+                   help="exit with status 1 when every group ran while other processes used "
+                        "the machine (no cell is then a finding)")
     add_plugin(p)
     where = p.add_mutually_exclusive_group()
     where.add_argument("--out", default=None, help="output directory (default "

@@ -7,8 +7,13 @@ the two C batch entries cut the run into one profile per batch, and only instruc
 executed in the extension's own code (the ``algos._kernels`` object) are counted, so
 NumPy, the interpreter and the set-up between batches never enter. The counts are exact
 for one build on one input: two runs give identical numbers (tested), so the default
-tolerance is 1 %. Instructions and branches are recorded per ray, with each kernel's
-per-function counts so that a regression can name the functions that grew.
+tolerance is 1 %. The gate is on each case's instructions and branches per ray in
+total; the per-function counts recorded beside them only name the functions that grew,
+since the split between functions moves whenever the compiler inlines differently.
+
+The counts belong to one toolchain: the baseline records its commit, compiler, valgrind
+and inputs, and on any mismatch the gate counts that commit built here instead
+(:mod:`bench.regress.baseline`).
 """
 from __future__ import annotations
 
@@ -35,18 +40,18 @@ _CHILD = r"""
 import json, sys
 import numpy as np
 import algos
-from algos.intersect import prepare_timed_intersect
-from bench.sweep import first_hit_rays, traversal_rays
 spec = json.loads(sys.argv[1])
-heights = np.load(spec["heights"])
-field = algos.Field(heights)
+arrays = np.load(spec["inputs"])
+heights, o3, d3, o2, d2 = (arrays[k] for k in ("heights", "o3", "d3", "o2", "d2"))
 shape = (heights.shape[1] - 1, heights.shape[0] - 1)
-o3, d3 = first_hit_rays(field, spec["r"], spec["first_hit_rays"], spec["seed"])
-o2, d2 = traversal_rays(shape, spec["r"], spec["traversal_rays"], spec["seed"])
+prepare_hit = getattr(algos, "prepare_timed_intersect", None)
+if prepare_hit is None:
+    from algos.intersect import prepare_timed_intersect as prepare_hit
+field = algos.Field(heights)
 runs = []
 for workload, surface, kernel in spec["cases"]:
     if workload == "first_hit":
-        run, _ = prepare_timed_intersect(kernel, field, o3, d3, surface=surface)
+        run, _ = prepare_hit(kernel, field, o3, d3, surface=surface)
     else:
         run, _ = algos.prepare_timed(kernel, o2, d2, shape, workload)
     runs.append(run)
@@ -56,6 +61,14 @@ algos.intersect("dda", field, [[0.5, 0.5, 1e9]], [[1.0, 0.0, -1.0]])
 for run in runs:
     run()
 """
+
+
+def gate_inputs():
+    """The gate's fixed field and rays (:func:`bench.regress.workload.make_inputs`)."""
+    from .workload import make_inputs
+
+    return make_inputs(size=SIZE, first_hit_rays=FIRST_HIT_RAYS, traversal_rays=TRAVERSAL_RAYS,
+                       r=R, seed=SEED)
 
 
 def cases():
@@ -137,25 +150,31 @@ def _parse_dump(path: str, object_part: str) -> tuple[str, dict, dict]:
     return trigger, totals, per_fn
 
 
-def measure(echo=print, only=None) -> dict:
-    """Counts of every case (or of the cases in ``only``), now: {key:
-    {instructions_per_ray, branches_per_ray, functions}}."""
+def measure(echo=print, only=None, root=None, inputs=None, todo=None) -> dict:
+    """Counts of every case (or of the cases in ``only``, or of the explicit list ``todo``
+    of (workload, surface, kernel)), now: {key: {instructions_per_ray, branches_per_ray,
+    functions}}. ``root``: the directory whose ``algos`` package (and built extension)
+    is counted, default this checkout; ``inputs``: the field and rays
+    (:func:`gate_inputs` by default)."""
     if not callgrind_available():
         raise RuntimeError("regress --metric instructions needs valgrind (apt-get install "
                            "valgrind); it is not on PATH")
     import numpy as np
 
     import algos
-    import datasets_gen
 
-    heights = datasets_gen.load("fbm", size=SIZE, seed=1).heights
-    todo = [c for c in cases() if only is None or key(*c) in only]
+    inputs = inputs if inputs is not None else gate_inputs()
+    if todo is None:
+        todo = [c for c in cases() if only is None or key(*c) in only]
+    todo = [list(c) for c in todo]
     object_part = os.path.basename(algos._kernels.__file__)
+    if root is None:
+        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     with tempfile.TemporaryDirectory() as tmp:
-        np.save(os.path.join(tmp, "heights.npy"), heights)
-        spec = dict(heights=os.path.join(tmp, "heights.npy"), r=R, seed=SEED,
-                    first_hit_rays=FIRST_HIT_RAYS, traversal_rays=TRAVERSAL_RAYS,
-                    cases=todo)
+        arrays = os.path.join(tmp, "inputs.npz")
+        np.savez(arrays, heights=inputs.heights, o3=inputs.o3, d3=inputs.d3, o2=inputs.o2,
+                 d2=inputs.d2)
+        spec = dict(inputs=arrays, cases=todo)
         out = os.path.join(tmp, "cg.out")
         cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
                "--branch-sim=yes", "--dump-before=hf_intersect_batch",
@@ -164,10 +183,10 @@ def measure(echo=print, only=None) -> dict:
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
                    PYTHONHASHSEED="0")
         env.pop("LD_PRELOAD", None)
-        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+        # the counted tree first, alone: another checkout's algos must not shadow it
+        env["PYTHONPATH"] = root
         echo(f"regress: counting {len(todo)} batches under callgrind ...")
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp)
         if proc.returncode != 0:
             raise RuntimeError(f"regress: valgrind failed ({proc.returncode}):\n"
                                f"{proc.stderr[-2000:]}")
@@ -178,7 +197,7 @@ def measure(echo=print, only=None) -> dict:
         raise RuntimeError(f"regress: expected {len(todo)} batch profiles, got {len(batches)}")
     result = {}
     for (workload, surface, kernel), (totals, per_fn) in zip(todo, batches):
-        rays = FIRST_HIT_RAYS if workload == "first_hit" else TRAVERSAL_RAYS
+        rays = len(inputs.o3) if workload == "first_hit" else len(inputs.o2)
         instructions = totals.get("Ir", 0)
         branches = totals.get("Bc", 0) + totals.get("Bi", 0)
         top = {fn: v for fn, v in sorted(per_fn.items(), key=lambda kv: -kv[1])
@@ -219,51 +238,74 @@ def compare(baseline: dict, measured: dict, tolerance: float) -> list[dict]:
     return failures
 
 
-def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
-    """Count every case and compare with the baseline at ``baseline_path`` (or, with
-    ``update``, write it). Exit status: 0 when every case is within ``tolerance`` (default
-    the baseline's, else 1 %), 1 when any grew or is missing, 2 when the baseline is
-    missing or not an instruction-count baseline or valgrind is absent."""
-    from ..timing import environment, write_json
+#: What instruction counts depend on besides the code and the inputs
+TOOLCHAIN_KEYS = ("compiler", "valgrind", "python", "numpy", "machine", "switches")
 
-    try:
-        measured = measure(echo)
-    except RuntimeError as exc:
-        echo(f"hftrace: error: {exc}")
-        return 2
-    if update:
-        write_json(baseline_path, {"metric": "instructions", "cases": measured,
-                                   "tolerance": tolerance if tolerance is not None else DEFAULT_TOLERANCE,
-                                   "input": dict(dataset="fbm", size=SIZE, r=R, seed=SEED,
-                                                 first_hit_rays=FIRST_HIT_RAYS,
-                                                 traversal_rays=TRAVERSAL_RAYS),
-                                   "env": environment(),
-                                   "note": "callgrind counts per ray; see bench/regress/instructions_gate.py"})
-        echo(f"wrote {len(measured)} cases to {baseline_path}")
-        return 0
-    if not os.path.isfile(baseline_path):
-        echo(f"hftrace: error: baseline: {baseline_path} does not exist (create it with --update)")
-        return 2
-    with open(baseline_path) as f:
-        base = json.load(f)
-    if base.get("metric") != "instructions" or not isinstance(base.get("cases"), dict):
-        echo(f"hftrace: error: baseline: {baseline_path} is not an instruction-count baseline")
-        return 2
-    tol = tolerance if tolerance is not None else base.get("tolerance", DEFAULT_TOLERANCE)
-    failures = compare(base["cases"], measured, tol)
+
+def print_table(base_cases: dict, measured: dict, failures, echo=print) -> None:
+    """The per-case table: instructions and branches per ray, before and after."""
     echo(f"{'case':40s} {'instr/ray before':>17s} {'after':>12s} {'branches before':>16s} {'after':>10s}")
-    for name, b in sorted(base["cases"].items()):
+    for name, b in sorted(base_cases.items()):
         m = measured.get(name, {})
         flag = "  REGRESSED" if any(f["case"] == name for f in failures) else ""
         echo(f"{name:40s} {b['instructions_per_ray']:17,.1f} "
              f"{m.get('instructions_per_ray', float('nan')):12,.1f} "
              f"{b['branches_per_ray']:16,.1f} {m.get('branches_per_ray', float('nan')):10,.1f}{flag}")
+
+
+def run(baseline_path, tolerance=None, update=False, echo=print) -> int:
+    """Count every case and compare with the baseline at ``baseline_path`` (or, with
+    ``update``, write it from a clean tree). When the baseline was counted with another
+    toolchain or on other inputs, its commit is rebuilt and counted here instead
+    (:mod:`bench.regress.baseline`). The gate is on each case's totals per ray, never on
+    the split between functions, which moves when the compiler inlines differently.
+    Exit status: 0 when every case is within ``tolerance`` (default the baseline's, else
+    1 %), 1 when any grew or is missing, 2 on an error (no valgrind, an unreadable
+    baseline, a dirty tree for ``update``, a base that cannot be rebuilt)."""
+    from . import baseline as bl
+    from .revisions import toolchain
+
+    if not callgrind_available():
+        echo("hftrace: error: regress --metric instructions needs valgrind (apt-get install "
+             "valgrind); it is not on PATH")
+        return 2
+    try:
+        tc = toolchain()
+        inputs = gate_inputs()
+        if update:
+            commit = bl.provenance()
+            measured = measure(echo, inputs=inputs)
+            bl.write(baseline_path, "instructions", measured, inputs, tc, commit,
+                     tolerance if tolerance is not None else DEFAULT_TOLERANCE,
+                     "callgrind counts per ray; see bench/regress/instructions_gate.py")
+            echo(f"wrote {len(measured)} cases counted at {commit[:10]} to {baseline_path}")
+            return 0
+        base = bl.read(baseline_path, "instructions")
+        base_cases = base["cases"]
+        differ = bl.mismatches(base, inputs, tc, TOOLCHAIN_KEYS)
+        if differ:
+            echo("regress: the baseline was counted elsewhere (" + "; ".join(differ) + "): "
+                 f"counting its commit {str(base.get('commit'))[:10]} here instead of the snapshot")
+            built = bl.rebuilt_base(base, baseline_path, echo)
+            base_cases = measure(echo, inputs=inputs, root=built.root,
+                                 todo=[c for c in cases() if key(*c) in base_cases])
+        measured = measure(echo, inputs=inputs)
+    except (RuntimeError, OSError) as exc:
+        echo(f"hftrace: error: {exc}")
+        return 2
+    tol = tolerance if tolerance is not None else base.get("tolerance", DEFAULT_TOLERANCE)
+    failures = compare(base_cases, measured, tol)
+    print_table(base_cases, measured, failures, echo)
+    unbaselined = sorted(set(measured) - set(base_cases))
+    if unbaselined:
+        echo(f"  not in the baseline, so not gated (refresh it with --update): {', '.join(unbaselined)}")
     if failures:
         echo(f"{len(failures)} case(s) grew by more than {100 * tol:g} %:")
         for f in failures:
             echo(f"  {f['case']}: {f['reason']}")
             for fn, before, after in f["grew"]:
-                echo(f"      {fn}: {before:,.1f} -> {after:,.1f} instructions per ray")
+                echo(f"      {fn}: {before:,.1f} -> {after:,.1f} instructions per ray "
+                     "(attribution only: inlining moves it)")
         return 1
-    echo(f"all {len(base['cases'])} cases within {100 * tol:g} % of the baseline")
+    echo(f"all {len(base_cases)} cases within {100 * tol:g} % of the baseline")
     return 0

@@ -19,7 +19,7 @@ import datasets_gen
 
 from ..analysis import ratio_text
 from ..report import RowWriter
-from ..timing import ratio_ci
+from ..timing import log_ratio_interval
 from .terrain import (
     HIT_METHODS,
     HORIZON_METHODS,
@@ -118,9 +118,10 @@ def run_parallel(out_dir="results/reproduce", size=None, run_lengths=RUN_LENGTHS
         text += [f"## {title}", "",
                  _table(rows, workload, column, lambda v, d=digits: f"{v:.{d}}", methods), ""]
     text += ["## What the periodic patterns buy", "",
-             "Ratios of median times with their paired bootstrap 95 % intervals; a ratio "
-             "whose interval spans 1.0 or is wider than 25 % of it is inconclusive, not a "
-             "finding.", ""]
+             "Geometric means of the paired per-repeat ratios, ±the half-width of their 95 % "
+             "interval (Student's t on the log-ratios); labelled as every table is "
+             "(`bench.analysis.finding`, docs/METHOD.md): a ratio wider than ±2 % says why "
+             "it is inconclusive, one whose interval contains 1 says `(same)`.", ""]
     for r in sorted({int(x["run_length"]) for x in rows}):
         def ratio(workload, num, den):
             a = [x for x in rows if x["workload"] == workload and int(x["run_length"]) == r
@@ -130,7 +131,8 @@ def run_parallel(out_dir="results/reproduce", size=None, run_lengths=RUN_LENGTHS
                 return "no interval (per-repeat times not recorded): inconclusive"
             top = np.array([float(v) for v in got[num].split(";")])
             bottom = np.array([float(v) for v in got[den].split(";")])
-            return ratio_text(*ratio_ci(top, bottom, seed=r)).replace(" [", "x [", 1)
+            text = ratio_text(*log_ratio_interval(top, bottom)).replace(" ", "x ", 1)
+            return text or "no interval (fewer than two repeats): inconclusive"
         text.append(f"- r = {r}: `runs_periodic` {ratio('first_hit', 'runs', 'runs_periodic')} "
                     f"`runs` on orthographic first hits; the shared pattern "
                     f"{ratio('horizon', 'dda', 'pattern')} and the sweep "

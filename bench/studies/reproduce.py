@@ -3,16 +3,20 @@ measured here, next to every registered algorithm (plugins included) and Embree.
 
 Presets (all seeded; every field is generated or loaded from the embedded data):
 
-* headline (default, <= 3 minutes on 2 cores; every registered intersector, plugins
-  included, but for :data:`HEADLINE_LEAVES_OUT`): the paper's measure only, first hit on
-  two triangles per cell by mean run length, on fBm, terraces and uniform random at
-  1024^2 and the Jacksboro DEM upsampled to 2048 samples on its longer side; r in
-  {1, 2, 5, 25, 100} plus uniformly random azimuths; 1000 rays per group, 7
-  interleaved repeats: 24 groups. Writes the headline table with intervals, the
-  run-length plot, and the cost model with instruction counts of the kernels it shows.
+* headline (default, <= 3 minutes on 2 cores; the kernels of :data:`HEADLINE_KERNELS`
+  and every plugin): the paper's measure only, first hit on two triangles per cell by
+  mean run length, on fBm, terraces and uniform random at 1024^2 and the Jacksboro DEM
+  upsampled to 2048 samples on its longer side; r in {1, 2, 5, 25, 100} plus uniformly
+  random azimuths: 24 groups. Each group is measured in sequential paired rounds
+  (``bench.timing.paired_rounds``) until every ratio is within ``precision`` (default
+  ±2 %) or the group's :data:`GROUP_BUDGET` seconds are spent, on calls of at least
+  1000 rays lasting :data:`CALL_MS` ms. Writes the headline table (at most eight kernel
+  columns) and the full one, the run-length plot with every shown kernel's intervals,
+  and the cost model with instruction counts of the kernels it shows.
 * standard (``--preset standard``, the former quick preset): the same fields and run
   lengths with the workloads visit, runs and first_hit on all four surfaces (144
-  groups), then the "parallel rays" part (``bench.studies.parallel_rays``:
+  groups), every registered kernel, the same sequential design, then the "parallel
+  rays" part (``bench.studies.parallel_rays``:
   ``parallel.md``, ``parallel.csv``, ``products.png``).
 * full (``--full`` or ``--preset full``): adds fBm 2048^2; r in
   {1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100} plus random; 3000 rays, 9 repeats (about 330
@@ -41,10 +45,18 @@ PRESETS = ("headline", "standard", "full")
 #: (the standard preset keeps the committed reports/reproduce of the former quick preset).
 OUT_NAMES = {"headline": "reproduce", "standard": "reproduce-standard", "full": "reproduce-full"}
 PUBLISHED = {"headline": "reproduce-headline", "standard": "reproduce", "full": "reproduce-full"}
-#: Seconds per group measured on the 2-core machine this was written on, loaded (used for
-#: the first line's estimate): headline groups hold one workload, standard and full ones
-#: are averages over their workloads.
-SECONDS_PER_GROUP = {"headline": 2.0, "standard": 9.2, "full": 14.0}
+#: Seconds a group may spend in timed rounds (``bench.sweep.SweepConfig.group_budget``),
+#: and the shortest baseline call (``call_ms``) a group's rays are sized for.
+GROUP_BUDGET = {"headline": 2.5, "standard": 3.0, "full": 4.0}
+CALL_MS = 8.0
+#: Where the caches are flushed (``bench.timing.FLUSH_MODES``; docs/METHOD.md, "Cache
+#: regimes compared"): once per round of calls.
+FLUSH = "round"
+#: The fewest paired rounds of every kernel (``repeats``).
+MIN_ROUNDS = 10
+#: Seconds per group (used for the first line's estimate): the budget and the group's
+#: set-up (rays, reference, calibration, agreement).
+SECONDS_PER_GROUP = {name: budget + 0.6 for name, budget in GROUP_BUDGET.items()}
 #: Seconds of the parallel rays part and of the instruction counts (two at a time).
 SECONDS_PARALLEL = {"headline": 0, "standard": 240, "full": 420}
 SECONDS_PER_COUNT = 5.0
@@ -56,22 +68,39 @@ DATASETS_QUICK = [
     {"name": "jacksboro", "size": 2048},
 ]
 RUN_LENGTHS = [1, 2, 5, 25, 100, "random"]
-#: Intersectors the headline preset leaves out (every other registered one runs):
-#: bit-identical to dda_maxmip, or the optional C Embree peer.
+#: Intersectors the headline preset measures (plugins join them): the baseline, the cell
+#: walks of the fair baseline, the paper's run walk, the max-mipmap walks, the cone
+#: walk, one marcher and Embree. The other kernels (bit-identical to dda_maxmip, the
+#: other marchers, the run walk's float and periodic variants, the C Embree peer) are in
+#: the standard and full presets, bench-intersect and hftrace targets.
+HEADLINE_KERNELS = ("dda", "dda_f32", "midpoint", "runs", "dda_maxmip", "runs_maxmip", "cone",
+                    "march_linear", "embree")
+#: Among those left out: bit-identical to dda_maxmip, or the optional C Embree peer.
 HEADLINE_LEAVES_OUT = ("packet_maxmip", "dda_compact", "embree3")
 
 
-def preset(full=False, name=None, kernels=None) -> SweepConfig:
+def _check_precision(precision):
+    if isinstance(precision, bool) or not isinstance(precision, (int, float)) or \
+            not 0 < precision < 1:
+        raise ValueError(f"--precision: expected a fraction in (0, 1) (0.02 is ±2 %), got "
+                         f"{precision!r}")
+
+
+def preset(full=False, name=None, kernels=None, precision=0.02) -> SweepConfig:
     """The sweep of a preset (module docstring): ``name`` one of :data:`PRESETS` (default
     headline; ``full=True`` means "full"); ``kernels`` restricts the algorithms (dda, the
-    baseline, is always measured)."""
+    baseline, is always measured); ``precision`` the half-width, as a fraction of the
+    speedup, at which a ratio's rounds stop (docs/METHOD.md, "Paired rounds")."""
     name = "full" if full else (name or "headline")
     if name not in PRESETS:
         raise ValueError(f"--preset: unknown preset {name!r}; valid: {', '.join(PRESETS)}")
+    _check_precision(precision)
     out = OUT_NAMES[name]
+    design = dict(precision=float(precision), group_budget=GROUP_BUDGET[name], call_ms=CALL_MS,
+                  flush=FLUSH)
     if name == "full":
         return SweepConfig(
-            name=out, rays=3000, repeats=9, seed=2004,
+            name=out, rays=3000, repeats=MIN_ROUNDS, seed=2004, **design,
             workloads=["visit", "runs", "first_hit"],
             surfaces=["flat", "plane3", "triangles", "bilinear"],
             run_lengths=[1, 1.5, 2, 3, 5, 8, 13, 25, 50, 100, "random"],
@@ -79,18 +108,18 @@ def preset(full=False, name=None, kernels=None) -> SweepConfig:
             algorithms=kernels)
     if name == "standard":
         return SweepConfig(
-            name=out, rays=1000, repeats=7, seed=2004,
+            name=out, rays=1000, repeats=MIN_ROUNDS, seed=2004, **design,
             workloads=["visit", "runs", "first_hit"],
             surfaces=["flat", "plane3", "triangles", "bilinear"],
             run_lengths=list(RUN_LENGTHS), datasets=list(DATASETS_QUICK), algorithms=kernels)
     if kernels is None:
-        # the headline keeps its three minutes: the kernels bit-identical to dda_maxmip
-        # (packets, the compact tree) and the C Embree peer are in the standard and full
-        # presets, bench-intersect and hftrace targets
+        # the headline keeps its three minutes by measuring the kernels its table shows
         from algos import INTERSECTOR_REGISTRY
 
-        kernels = [n for n in INTERSECTOR_REGISTRY if n not in HEADLINE_LEAVES_OUT]
-    return SweepConfig(name=out, rays=1000, repeats=7, seed=2004, workloads=["first_hit"],
+        kernels = [n for n, a in INTERSECTOR_REGISTRY.items()
+                   if n in HEADLINE_KERNELS or a.plugin is not None]
+    return SweepConfig(name=out, rays=1000, repeats=MIN_ROUNDS, seed=2004, **design,
+                       workloads=["first_hit"],
                        surfaces=["triangles"], run_lengths=list(RUN_LENGTHS),
                        datasets=list(DATASETS_QUICK), algorithms=kernels)
 
@@ -104,8 +133,11 @@ def estimate_seconds(cfg, name, counts=True) -> float:
 
 
 def run(full=False, out_dir=None, resume=False, progress=True, echo=print, counts=True,
-        publish=False, preset_name=None, kernels=None, isolate=False, all_kernels=False):
-    """Run the study and write its reports; returns the paths of ``analysis.write_reports``.
+        publish=False, preset_name=None, kernels=None, isolate=False, all_kernels=False,
+        precision=0.02):
+    """Run the study and write its reports; returns the paths of ``analysis.write_reports``
+    and ``"all_contended"``: True when every group ran while other processes used the
+    machine (``--strict`` then exits non-zero).
 
     ``out_dir`` defaults to ``results/<name>`` under the current directory (untracked,
     :data:`OUT_NAMES`); ``publish`` writes to the committed reference,
@@ -114,7 +146,10 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     already measured; ``kernels``: a subset of algorithms; ``isolate``: plugins in a
     child process (``bench.sweep.run_sweep``)."""
     name = "full" if full else (preset_name or "headline")
+    _check_precision(precision)
     cfg = preset(name=name, kernels=kernels)
+    if cfg.precision is not None:
+        cfg.precision = float(precision)
     if publish and out_dir is not None:
         raise ValueError("out_dir: give either an output directory or publish, not both")
     if publish:
@@ -146,7 +181,10 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
          f"{', parallel rays' if name != 'headline' else ''}, reports) -> {out_dir}")
     affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     pin_to_one_cpu()
+    measure0 = time.perf_counter()
     run_sweep(cfg, out_dir, resume=resume, progress=progress, echo=echo, isolate=isolate)
+    measure_s = time.perf_counter() - measure0
+    counts0 = time.perf_counter()
     if affinity is not None:  # nothing is timed from here on: every core may count
         os.sched_setaffinity(0, affinity)
     if counts:
@@ -176,6 +214,8 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
         from . import packets
 
         packets.run(os.path.join(out_dir, "packets"), quick=False, counts=counts, echo=echo)
+    reports0 = time.perf_counter()
+    other_phases_s = reports0 - counts0  # counts, and the parallel rays part beyond headline
     paths = analysis.write_reports(os.path.join(out_dir, "results.csv"), out_dir,
                                    title=f"hftrace reproduce ({name} preset)",
                                    all_kernels=all_kernels)
@@ -187,12 +227,22 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     env = json.load(open(env_path))
     total = time.perf_counter() - wall0
     timed = (env.get("run") or {}).get("timed_s") or 0.0
-    env["reproduce"] = {"preset": name, "wall_s": round(total, 1),
-                        "timed_share_of_total": round(timed / total, 4) if total else None}
+    env["reproduce"] = {"preset": name, "wall_s": round(total, 1), "measure_s": round(measure_s, 1),
+                        "after_measure_s": round(other_phases_s, 1),
+                        "reports_s": round(time.perf_counter() - reports0, 1),
+                        "timed_share_of_total": round(timed / total, 4) if total else None,
+                        "precision": cfg.precision}
+    # timed seconds over the measure phase (the sweep, noise calibration included)
+    env["timed_share_of_measure"] = round(timed / measure_s, 4) if measure_s else None
     write_json(env_path, env)
+    df = analysis.load(os.path.join(out_dir, "results.csv"))
+    groups_ = df.drop_duplicates(["dataset", "workload", "surface", "run_length"])
+    paths["all_contended"] = bool(len(groups_)) and bool(groups_["contended"].all())
     with open(paths["speedup"]) as f:
         text = f.read()
     echo(text[: text.find("## Workload")] if "## Workload" in text else text)
-    echo(f"wrote {out_dir}/results.csv, speedup.md, run_length_vs_speedup.png, "
+    if paths["all_contended"]:
+        echo("every group ran while other processes used the machine: no cell is a finding")
+    echo(f"wrote {out_dir}/results.csv, speedup.md, speedup_full.md, run_length_vs_speedup.png, "
          f"ns_per_ray_vs_cells.png, env.json; {time.perf_counter() - wall0:.0f} s in all")
     return paths

@@ -135,14 +135,15 @@ def _versus_embree(field, o, d, repeats, regime, mesh_max_side, coherent, echo):
     ours = {k: v for k, v in per.items() if k in algos.INTERSECTOR_REGISTRY}
     best = min(ours, key=ours.get)
     agree = {k: hit_agreement(outs[k](), reference, 1e-9 if k in ours else 1e-4) for k in jobs}
-    embree = {k: (per[k], per[k] / per[best]) for k in per if k not in ours}
+    embree = {k: (per[k], per[k] / per[best], (times[k], times[best])) for k in per
+              if k not in ours}
     for label, prepare in alone:
         # one triangle mesh at a time, on a Field of its own freed after its pair
         own = algos.Field(field.heights)
         job, out = prepare(own, o, d)
         pair = timed_in_regime({best: jobs[best], label: job}, repeats, regime)
         p = _per_ray(pair, n)
-        embree[label] = (p[label], p[label] / p[best])
+        embree[label] = (p[label], p[label] / p[best], (pair[label], pair[best]))
         agree[label] = hit_agreement(out(), reference, 1e-4)
         del own, job, out
         echo(f"    {label}: {p[label]:.0f} ns/ray, in its pair with {best}")
@@ -158,23 +159,37 @@ def _camera_rays(heights, width, height):
     return rs.origins, rs.directions
 
 
-def _status(ratio, target, smaller_is_better=False):
+def _status(ratio, target, smaller_is_better=False, paired=None):
+    """met, missed, not measured or, for a timed ratio (``paired``: the numerator's and
+    the denominator's per-repeat times), inconclusive when ``bench.analysis.finding``
+    says so of its interval or the interval contains the target."""
     if not math.isfinite(ratio):
         return "not measured"
+    if paired is not None:
+        from ..analysis import finding
+        from ..timing import log_ratio_interval
+
+        geo, low, high = log_ratio_interval(*paired)
+        said = finding(geo, low, high)
+        if said.startswith("inconclusive"):
+            return f"inconclusive ({said.split(': ', 1)[1]}; {geo:.2f} [{low:.2f}, {high:.2f}])"
+        if low <= target <= high:
+            return f"inconclusive (the interval [{low:.2f}, {high:.2f}] contains the target)"
     ok = ratio <= target if smaller_is_better else ratio >= target
     return "met" if ok else "missed"
 
 
 def _embree_rows(row, measure, setting, ours, best, embree, agree, target, common):
     label = min(embree, key=lambda k: embree[k][1])
-    ns, ratio = embree[label]
+    ns, ratio, paired = embree[label]
     listing = "; ".join(f"{k} {v[0]:.0f} ns ({v[1]:.2f}x)" for k, v in sorted(embree.items()))
     note = (f"Embree's fastest configuration here: {label}. embreex reaches single-ray "
             f"triangle queries only; the C Embree 3 peer (grid, packets) is listed beside it "
             f"where built. All configurations: {listing}")
     return dict(common, row=row, measure=measure, setting=setting, ours=best,
                 ours_ns_per_ray=round(ours[best], 2), theirs=label, theirs_ns_per_ray=round(ns, 2),
-                ratio=round(ratio, 4), target=f">= {target}", status=_status(ratio, target),
+                ratio=round(ratio, 4), target=f">= {target}",
+                status=_status(ratio, target, paired=paired),
                 agree=f"{best} {agree[best]:.4f}; {label} {agree[label]:.4f}", note=note)
 
 
@@ -241,7 +256,9 @@ def run(out_dir="results/targets", tier="quick", regime="warm", seed=2008, count
             rows.append(dict(common, row=3, measure=measure, setting=setting, ours=packet_kernel,
                              ours_ns_per_ray=round(per[packet_kernel], 2), theirs=PER_RAY_KERNEL,
                              theirs_ns_per_ray=round(per[PER_RAY_KERNEL], 2), ratio=round(ratio, 4),
-                             target=f">= {TARGETS['packet']}", status=_status(ratio, TARGETS["packet"]),
+                             target=f">= {TARGETS['packet']}",
+                             status=_status(ratio, TARGETS["packet"],
+                                            paired=(times[PER_RAY_KERNEL], times[packet_kernel])),
                              agree=f"bit-identical t: {same}", note=""))
         else:
             rows.append(_missing(3, measure, setting, packet_kernel, f">= {TARGETS['packet']}", common))
@@ -264,7 +281,9 @@ def run(out_dir="results/targets", tier="quick", regime="warm", seed=2008, count
                          setting=f"{name} {side}^2, r = {r}, {n} parallel rays", ours="runs_periodic",
                          ours_ns_per_ray=round(per["runs_periodic"], 2), theirs="runs",
                          theirs_ns_per_ray=round(per["runs"], 2), ratio=round(ratio, 4),
-                         target=f">= {TARGETS['periodic']}", status=_status(ratio, TARGETS["periodic"]),
+                         target=f">= {TARGETS['periodic']}",
+                         status=_status(ratio, TARGETS["periodic"],
+                                        paired=(times["runs"], times["runs_periodic"])),
                          agree=f"equal t: {same}", note=""))
     echo(f"  row 4: done ({time.perf_counter() - start:.1f} s)")
     del field
@@ -276,7 +295,7 @@ def run(out_dir="results/targets", tier="quick", regime="warm", seed=2008, count
     load_after = _load()
     for row in rows:
         row["load_after"] = load_after
-        if not cfg.get("judge", True) and row["status"] in ("met", "missed"):
+        if not cfg.get("judge", True) and row["status"].startswith(("met", "missed", "inconclusive")):
             # the quick tier's fields fit in every cache and its counts are a handful:
             # it checks that each row runs, and judges no target
             row["status"] = f"not judged ({tier} tier)"

@@ -1,0 +1,87 @@
+"""``hftrace compare`` and ``hftrace bisect``: two git revisions of the kernels built here
+and measured side by side in one process (``bench.compare``)."""
+from __future__ import annotations
+
+import os
+import sys
+
+
+def _setup(args):
+    from ..compare import METRICS, Setup
+
+    metrics = METRICS if args.metric == "all" else tuple(m.strip() for m in args.metric.split(",") if m.strip())
+    kernels = tuple(k.strip() for k in args.kernels.split(",") if k.strip()) if args.kernels else None
+    setup = Setup(metrics=metrics, kernels=kernels, surface=args.surface, tolerance=args.tolerance,
+                  repeats=args.repeats)
+    setup.check()
+    return setup
+
+
+def _fail(text) -> int:
+    print(f"hftrace: error: {text}", file=sys.stderr)
+    return 2
+
+
+def compare(args):
+    """Compare BASE with HEAD; exit 0 (no kernel slower), 1 (one slower), 2 (error)."""
+    from ..compare import compare, publish
+
+    try:
+        setup = _setup(args)
+        report = compare(args.repo, args.base, args.head, setup, echo=_note)
+    except (RuntimeError, ValueError) as exc:  # CompareError, RevisionError, valgrind's failure
+        return _fail(exc)
+    publish(report, args.json)
+    return report["status"]
+
+
+def bisect(args):
+    """Find the first commit from GOOD to BAD whose kernels are slower than GOOD's."""
+    from ..compare import bisect, bisect_lines
+
+    try:
+        setup = _setup(args)
+        result = bisect(args.repo, args.good, args.bad, setup, echo=_note)
+    except (RuntimeError, ValueError) as exc:
+        return _fail(exc)
+    for line in bisect_lines(result, args.good, args.bad):
+        print(line)
+    return 0
+
+
+def _note(text):
+    print(text, file=sys.stderr)
+
+
+def _common(p, default_metric):
+    from ..compare import DEFAULT_KERNELS, DEFAULT_REPEATS, DEFAULT_TOLERANCE
+
+    p.add_argument("--repo", default=os.curdir, help="the git repository (default: the current directory)")
+    p.add_argument("--metric", default=default_metric,
+                   help="comma-separated: time, instructions (callgrind; needs valgrind), counters "
+                        f"(cells, runs, tiles per ray), or all (default {default_metric})")
+    p.add_argument("--kernels", default=None,
+                   help=f"comma-separated first-hit kernels (default {','.join(DEFAULT_KERNELS)})")
+    p.add_argument("--surface", default="triangles", help="the cell surface (default triangles)")
+    p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE,
+                   help=f"time change below which kernels are the same (default {DEFAULT_TOLERANCE})")
+    p.add_argument("--repeats", type=int, default=DEFAULT_REPEATS,
+                   help=f"paired timed repeats per kernel (default {DEFAULT_REPEATS})")
+
+
+def register(sub):
+    """Add ``compare`` and ``bisect`` to the sub-parsers ``sub``."""
+    p = sub.add_parser("compare", help="two git revisions built here, measured side by side: "
+                                       "a verdict per kernel (exit 1 when one is slower)")
+    p.add_argument("base", help="the base revision (a commit, branch or tag)")
+    p.add_argument("head", nargs="?", default=None,
+                   help="the head revision (default: the working tree)")
+    _common(p, "time,counters")
+    p.add_argument("--json", default=None, help="also write the verdicts to this JSON file")
+    p.set_defaults(func=compare)
+    p = sub.add_parser("bisect", help="the first commit between GOOD and BAD whose kernels are "
+                                      "slower than GOOD's")
+    p.add_argument("good", help="a revision without the regression")
+    p.add_argument("bad", help="a later revision with it")
+    _common(p, "counters")
+    p.set_defaults(func=bisect)

@@ -1,0 +1,306 @@
+"""The instrument: paired intervals that cover, sequential rounds that stop for the right
+reason, labels that say what was found, and contention that is never a finding.
+
+No assertion here is about speed: the synthetic tests feed known noise to the interval
+methods, and the real ones check coverage of 1.0 by an A/A pair and the labels of a
+deliberately contended run."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench import analysis, sweep
+from bench import timing as T
+
+
+def _aa_logs(rng, n, common=0.10, own=0.05, df=4):
+    """n paired log-ratios of an A/A pair: a shared per-round disturbance (the machine;
+    it cancels in the pair) and each copy's own heavy-tailed noise (Student's t, ``df``)."""
+    shared = rng.normal(0.0, common, n)
+    a = 14.0 + shared + own * rng.standard_t(df, n)
+    b = 14.0 + shared + own * rng.standard_t(df, n)
+    return np.exp(a), np.exp(b)
+
+
+def test_log_ratio_interval_covers_one_in_about_95_percent_of_aa_groups():
+    rng = np.random.Generator(np.random.PCG64(28))
+    covered = []
+    for _ in range(2000):
+        n = int(rng.integers(8, 60))
+        a, b = _aa_logs(rng, n)
+        s, lo, hi = T.log_ratio_interval(a, b)
+        assert lo <= s <= hi
+        covered.append(lo <= 1.0 <= hi)
+    rate = float(np.mean(covered))
+    # binomial sd of the rate over 2000 groups is 0.5 %; heavy tails make t conservative
+    assert 0.93 <= rate <= 0.98, rate
+
+
+def test_log_ratio_interval_is_the_geometric_mean_of_paired_ratios():
+    b = np.array([10.0, 12.0, 11.0, 13.0])
+    k = np.array([5.0, 6.0, 5.0, 7.0])
+    s, lo, hi = T.log_ratio_interval(b, k)
+    assert s == pytest.approx(float(np.exp(np.mean(np.log(b / k)))))
+    assert lo < s < hi
+    # rounds a kernel skipped (NaN) are left out of the pairs
+    s2, *_ = T.log_ratio_interval(np.append(b, 99.0), np.append(k, np.nan))
+    assert s2 == pytest.approx(s)
+    assert np.isnan(T.log_ratio_interval([1.0], [2.0])[0])
+    with pytest.raises(ValueError, match="kernel: expected the baseline's shape"):
+        T.log_ratio_interval([1.0, 2.0], [1.0])
+
+
+def test_median_interval_covers_the_median_distribution_free():
+    rng = np.random.Generator(np.random.PCG64(7))
+    covered = []
+    for _ in range(2000):
+        x = rng.lognormal(0.0, 0.5, int(rng.integers(10, 80)))  # true median 1.0
+        m, lo, hi = T.median_interval(x)
+        assert lo <= m <= hi
+        covered.append(lo <= 1.0 <= hi)
+    # order statistics give at least the nominal coverage (discreteness rounds it up)
+    assert 0.94 <= float(np.mean(covered)) <= 0.995
+
+
+def _synthetic_jobs(rng, speeds, noise):
+    """Jobs that return nanoseconds drawn around ``1e6 / speed`` times a machine state
+    that drifts from call to call (an AR(1) process in the log: neighbouring calls share
+    most of it, which pairing cancels), times each call's own noise."""
+    state = {"drift": 0.0}
+
+    def job(speed):
+        def run():
+            state["drift"] = 0.9 * state["drift"] + rng.normal(0.0, 0.05)
+            return int(1e6 / speed * np.exp(state["drift"] + rng.normal(0.0, noise)))
+        return run
+
+    return {name: job(speed) for name, speed in speeds.items()}
+
+
+def test_paired_rounds_stops_at_the_precision_with_coverage(monkeypatch):
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
+    rng = np.random.Generator(np.random.PCG64(2013))
+    covered, rounds = [], []
+    for _ in range(200):
+        # the baseline and an identical copy (A/A), and one truly 1.5x faster kernel
+        jobs = _synthetic_jobs(rng, {"dda": 1.0, "dda_again": 1.0, "fast": 1.5}, noise=0.04)
+        got = T.paired_rounds(jobs, "dda", precision=0.02, budget_s=60, min_rounds=8,
+                              max_rounds=400, flush="none", seed=int(rng.integers(1 << 30)))
+        assert got.stop["dda_again"] == got.stop["fast"] == "precision"
+        s, lo, hi = T.log_ratio_interval(got.times["dda"], got.times["dda_again"])
+        assert T.relative_half_width(s, lo, hi) <= 0.02
+        covered.append(lo <= 1.0 <= hi)
+        s, lo, hi = T.log_ratio_interval(got.times["dda"], got.times["fast"])
+        assert lo <= 1.5 * 1.05 and hi >= 1.5 / 1.05
+        rounds.append(got.rounds["dda_again"])
+    # stopping on a narrow interval costs a little coverage; it stays near the nominal
+    assert 0.88 <= float(np.mean(covered)) <= 0.99, np.mean(covered)
+    assert min(rounds) >= 8
+
+
+def test_paired_rounds_says_when_the_budget_ran_out(monkeypatch):
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
+    rng = np.random.Generator(np.random.PCG64(5))
+    jobs = _synthetic_jobs(rng, {"dda": 1.0, "noisy": 1.0}, noise=0.8)
+
+    def slow(job):
+        def run():
+            time.sleep(0.002)
+            return job()
+        return run
+
+    got = T.paired_rounds({k: slow(v) for k, v in jobs.items()}, "dda", precision=0.001,
+                          budget_s=0.1, min_rounds=4, flush="none")
+    assert got.stop["noisy"] == "budget" and got.rounds["noisy"] >= 4
+    got = T.paired_rounds(jobs, "dda", precision=0.001, budget_s=60, min_rounds=4,
+                          max_rounds=6, flush="none")
+    assert got.stop["noisy"] == "rounds" and got.rounds["noisy"] == 6
+    with pytest.raises(ValueError, match="flush: expected one of"):
+        T.paired_rounds(jobs, "dda", flush="sometimes")
+    with pytest.raises(ValueError, match="baseline: 'midpoint' is not among the jobs"):
+        T.paired_rounds(jobs, "midpoint")
+
+
+def test_call_rays_doubles_to_the_call_length():
+    assert T.call_rays(1e6, 1000, 8.0) == 8000          # 1 ms on 1000 rays -> 8 ms
+    assert T.call_rays(9e6, 1000, 8.0) == 1000
+    assert T.call_rays(1e3, 1000, 8.0, max_factor=16) == 16000
+
+
+@pytest.mark.parametrize("args, expected", [
+    ((1.50, 1.48, 1.52), "faster"),
+    ((0.70, 0.69, 0.71), "slower"),
+    ((1.00, 0.99, 1.012), "same within ±1.2 %"),
+    ((1.05, 0.98, 1.10), "inconclusive: too few repeats"),
+    ((1.05, 0.98, 1.10, 0.02, False, "budget"), "inconclusive: budget spent"),
+    ((1.50, 1.49, 1.51, 0.02, True), "inconclusive: contended"),   # narrow, yet contended
+    ((1.03, 0.99, 1.07, 0.05), "same within ±7.0 %"),              # within ±5 % asked
+    ((float("nan"), float("nan"), float("nan")), "inconclusive: too few repeats"),
+])
+def test_finding_labels(args, expected):
+    assert analysis.finding(*args) == expected
+
+
+def test_headline_table_has_at_most_eight_columns_and_the_papers_kernel():
+    import algos
+
+    names = [n for n in algos.INTERSECTOR_REGISTRY]
+    rng = np.random.Generator(np.random.PCG64(1))
+    rows = []
+    for r in ("1", "25", "random"):
+        for name in names:
+            s = float(rng.uniform(0.5, 2.0)) if name != "dda" else 1.0
+            rows.append(dict(algorithm=name, workload="first_hit", surface="triangles",
+                             dataset="fbm1024", run_length=r, speedup=s, speedup_ci_low=s * 0.99,
+                             speedup_ci_high=s * 1.01, contended=False, error="",
+                             precision=0.02, stop="precision"))
+    df = pd.DataFrame(rows)
+    shown = analysis.headline_kernels(df)
+    assert len(shown) <= analysis.HEADLINE_COLUMNS and "runs" in shown
+    assert any(n.startswith("embree") for n in shown)
+    table = analysis.pivot_ci(df, "first_hit", "triangles", columns=["dda"] + shown)
+    assert list(table.columns) == ["dda"] + shown
+    text = table.loc["25", shown[0]]
+    assert text.endswith("±1.0 %"), text
+
+
+def test_one_real_aa_group_contains_one(monkeypatch):
+    """dda against itself under another name on the same rays (a real group)."""
+    import algos
+    from bench.sweep import _group_rays, _prepare
+
+    field = algos.Field(__import__("datasets_gen").load("fbm", size=128, seed=1).heights)
+    o, d, *_ = _group_rays(field, "first_hit", "triangles", 5, 2000, 1)
+    attempts = []
+    for attempt in range(2):  # a 95 % interval misses 1 in 20 honest groups
+        jobs = {"dda": _prepare("dda", "first_hit", field, o, d, None, "triangles", "runs")[0],
+                "dda_again": _prepare("dda", "first_hit", field, o, d, None, "triangles",
+                                      "runs")[0]}
+        got = T.paired_rounds(jobs, "dda", precision=0.02, budget_s=3.0, min_rounds=10,
+                              flush="round", seed=attempt)
+        s, lo, hi = T.log_ratio_interval(got.times["dda"], got.times["dda_again"])
+        attempts.append((s, lo, hi, got.rounds["dda_again"], got.stop["dda_again"]))
+        if lo <= 1.0 <= hi:
+            break
+    else:
+        pytest.fail(f"A/A intervals excluded 1.0 twice: {attempts}")
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="needs two CPUs: the busy loop on one, the sweep on the other")
+def test_a_deliberately_noisy_run_gives_labelled_cells_not_findings(tmp_path, monkeypatch):
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
+    cpus = sorted(os.sched_getaffinity(0))
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"],
+                            preexec_fn=lambda: os.sched_setaffinity(0, {cpus[0]}))
+    os.sched_setaffinity(0, {cpus[-1]})
+    try:
+        time.sleep(0.3)
+        cfg = sweep.load_config({
+            "name": "noisy", "rays": 400, "repeats": 4, "seed": 1, "precision": 0.02,
+            "group_budget": 0.5, "call_ms": 1.0, "workloads": ["first_hit"],
+            "surfaces": ["triangles"], "run_lengths": [2, "random"],
+            "algorithms": ["dda", "dda_f32", "runs"],
+            "datasets": [{"name": "fbm", "size": 128, "seed": 1}]})
+        rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    finally:
+        os.sched_setaffinity(0, cpus)
+        busy.kill()
+        busy.wait()
+    assert rows and all(r["contended"] == "True" for r in rows)
+    df = analysis.load(str(tmp_path / "results.csv"))
+    table = analysis.pivot_ci(df, "first_hit", "triangles")
+    for name in ("dda_f32", "runs"):
+        for text in table[name]:
+            assert text.endswith("(contended)"), text
+    text = open(analysis.write_reports(str(tmp_path / "results.csv"))["speedup"]).read()
+    assert "no cell is a finding" in text.split("## ")[0]
+
+
+def test_a_contended_group_is_measured_again_when_quiet(tmp_path, monkeypatch):
+    """The first measurement of the group is contended, the machine is then quiet: the
+    rows written are the second measurement's, and env.json counts the re-measurement."""
+    import json
+
+    calls = []
+
+    def fake_group(field, label, workload, surface, r, names, rays, repeats, seed, **design):
+        calls.append(design)
+        contended = len(calls) == 1
+        return [dict(algorithm=n, baseline="dda", workload=workload, surface=surface,
+                     dataset=label, run_length=r, rays=rays, repeats=repeats, seed=seed,
+                     speedup=1.0 if n == "dda" else 1.5, speedup_ci_low=1.0 if n == "dda" else 1.49,
+                     speedup_ci_high=1.0 if n == "dda" else 1.51, ns_per_ray=100.0, agree=1.0,
+                     contended=contended, other_cpu=1.0 if contended else 0.0, timed_s=0.1,
+                     wall_s=0.2, flush_s=0.01, error="", precision=0.02, stop="precision",
+                     rounds=12)
+                for n in names]
+
+    monkeypatch.setattr(sweep, "measure_group", fake_group)
+    monkeypatch.setattr(sweep, "wait_until_quiet", lambda limit: 0.0)
+    monkeypatch.setattr(sweep, "calibrate_noise", lambda *a, **k: {
+        "log_sd": 0.03, "pairs": 40, "floor": 0.01, "rounds_affordable": 30, "call_rays": 800,
+        "call_s": 0.008, "kernels": 2})
+    cfg = sweep.load_config({"name": "again", "rays": 100, "repeats": 4, "seed": 1,
+                             "precision": 0.02, "group_budget": 2.0, "workloads": ["first_hit"],
+                             "surfaces": ["triangles"], "run_lengths": [2],
+                             "algorithms": ["dda", "runs"],
+                             "datasets": [{"name": "fbm", "size": 16, "seed": 1}]})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert len(calls) == 2 and calls[1]["rays_per_call"] == 800
+    assert all(r["contended"] == "False" for r in rows)
+    env = json.load(open(tmp_path / "env.json"))
+    assert env["run"]["remeasured_groups"] == 1 and env["run"]["contended_groups"] == 0
+    text = open(analysis.write_reports(str(tmp_path / "results.csv"))["speedup"]).read()
+    assert "Group ratios: faster 1 (of 1)." in text.split("## ")[0]
+    from bench.studies import instrument_figures as F
+
+    got = F.run_figures(str(tmp_path))
+    assert got["ratios"] == 1 and got["share_within"] == 1.0 and got["contended_groups"] == 0
+    assert F.inside(str(tmp_path), str(tmp_path)) == {"matched": 1, "inside": 1.0,
+                                                      "consistent": 1.0}
+
+
+def test_reproduce_strict_exits_non_zero_when_every_group_was_contended(monkeypatch, capsys):
+    from bench.cli import main
+    from bench.studies import reproduce
+
+    monkeypatch.setattr(reproduce, "run", lambda **kw: {"all_contended": True,
+                                                         "precision": kw["precision"]})
+    assert main(["reproduce", "--strict", "--no-counts", "--no-progress"]) == 1
+    assert main(["reproduce", "--no-counts", "--no-progress"]) == 0
+    assert main(["reproduce", "--precision", "0"]) != 0
+    assert "--precision: expected a percentage in (0, 100), got 0.0" in capsys.readouterr().err
+
+
+def test_cache_regime_comparison_divides_by_the_flushed_design(tmp_path, monkeypatch):
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "1")
+    from bench.studies import cache_regimes as C
+
+    small = {"name": "fbm", "size": 48, "seed": 1}
+    rows = C.run(out_dir=str(tmp_path), run_lengths=(5,), budget_s=0.05, call_ms=0.5, big=True,
+                 echo=None, fields={"fbm1024": small, "fbm4096": small},
+                 kernels=["dda", "runs"])
+    designs = [d for d, *_ in C.DESIGNS]
+    assert [x["design"] for x in rows if x["kernel"] == "runs"] == designs
+    for x in rows:
+        if x["kernel"] == "runs" and x["design"] in C.REFERENCE.values():
+            assert x["vs_reference"] == 1.0
+        if x["kernel"] == "runs":
+            assert x["vs_reference"] > 0 and x["vs_half_width"] >= x["half_width"] - 1e-9
+    long_rays = {x["call_rays"] for x in rows if x["design"].endswith("long")}
+    assert len({x["call_rays"] for x in rows if x["design"] in ("call-long", "round-long",
+                                                                "none-long")}) == 1, long_rays
+    assert (tmp_path / "regimes.md").read_text().count("\n") == len(designs) + 2
+    # the side-by-side comparison: the reference's ratio to itself is exactly 1
+    paired = C.paired_designs(__import__("bench.sweep", fromlist=["load_field"]).load_field(small),
+                              5, ["dda", "runs"], seconds=0.05, call_ms=0.5)
+    assert [x["design"] for x in paired] == [d for d, *_ in C.PAIRED_DESIGNS]
+    assert paired[0]["vs_reference"] == 1.0 and paired[0]["meta_rounds"] >= 10
+    assert C.paired_markdown(paired).count("\n") == len(C.PAIRED_DESIGNS) + 2
