@@ -63,6 +63,7 @@ from .georef import (
     UNIT_ALIASES,
     check_crs,
     check_dataarray_georeferencing,
+    check_height_units,
     crs_unit,
     pixel_size,
     unit_name,
@@ -358,7 +359,8 @@ class HeightField:
                                      max(south, north))
                 pixel = (self.transform.a, self.transform.e)
             name, metres = crs_unit(self.crs, "crs", bounds=bounds, pixel=pixel,
-                                    source="IN.tif")
+                                    source="IN.tif", heights_converted="heights_converted_from"
+                                    in self.params)
             if unit is not None and UNIT_ALIASES.get(unit, unit) != name:
                 raise ValueError(f"unit: {unit!r} contradicts the CRS's linear unit {name!r} "
                                  f"({metres!r} m); the CRS's unit is the field's unit: leave "
@@ -420,6 +422,16 @@ class HeightField:
                 nodata = rio.nodata if rio.encoded_nodata is None else None
             except Exception:  # no spatial dimensions: a plain array
                 crs = transform = None
+        if rio is not None:
+            # rows are y: an array stored (x, y) would be traced with east and south swapped
+            try:
+                x_dim, y_dim = rio.x_dim, rio.y_dim
+            except Exception:  # no spatial dimensions
+                x_dim = y_dim = None
+            if x_dim is not None and tuple(array.dims) == (x_dim, y_dim):
+                raise ValueError(f"heights: the DataArray's dims {tuple(array.dims)} put x "
+                                 f"first; rows must be y: pass "
+                                 f"array.transpose({y_dim!r}, {x_dim!r})")
         if transform is not None and crs is None and tuple(transform)[:6] == \
                 (1.0, 0.0, 0.0, 0.0, 1.0, 0.0):
             transform = None  # rioxarray's answer for an array without coordinates
@@ -431,6 +443,7 @@ class HeightField:
             check_dataarray_georeferencing(array, what)
         if crs is not None:
             unit = check_crs(crs, what)
+            check_height_units(array.attrs.get("units"), unit, what)
         # raw values with their scale, offset and fill values in attrs are decoded here;
         # rioxarray's encoded nodata belongs to values its decoder has masked already
         extra = None if nodata is None or (isinstance(nodata, float) and math.isnan(nodata)) \

@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import math
 import os
+import re
 
 import numpy as np
 
 __all__ = ["WGS84_SEMI_MAJOR_AXIS_M", "IUGG_MEAN_EARTH_RADIUS_M", "pixel_size", "utm_epsg",
            "check_axis_aligned", "LINEAR_UNITS", "UNIT_ALIASES", "NO_UNIT", "unit_name",
-           "unit_metres", "crs_unit", "check_crs", "ground_size",
+           "unit_metres", "crs_unit", "check_crs", "vertical_unit", "heights_factor",
+           "check_height_units", "height_units_factor", "ground_size",
            "unusable_georeferencing", "check_georeferencing",
            "check_dataarray_georeferencing", "check_nodata"]
 
@@ -49,6 +51,41 @@ UNIT_ALIASES = {"metre": "m", "meter": "m", "kilometre": "km", "kilometer": "km"
 #: The names of a field without a real unit: ``"cell"`` (cell units, spacing 1) and
 #: ``"map unit"`` (a pixel size whose unit nobody gave). Curvature refuses both.
 NO_UNIT = ("cell", "map unit")
+
+
+#: Spellings of a linear unit in a DataArray's CF ``units`` attribute (lower case) -> name
+_HEIGHT_UNIT_SPELLINGS = {"m": "m", "metre": "m", "metres": "m", "meter": "m", "meters": "m",
+                          "km": "km", "kilometre": "km", "kilometres": "km",
+                          "kilometer": "km", "kilometers": "km", "ft": "ft", "foot": "ft",
+                          "feet": "ft", "international foot": "ft", "us-ft": "US survey foot",
+                          "ftus": "US survey foot", "us survey foot": "US survey foot",
+                          "us survey feet": "US survey foot"}
+
+
+def height_units_factor(units, unit):
+    """The factor that converts heights in ``units`` (a CF ``units`` attribute, a GDAL
+    band's unit type) into the linear unit ``unit``; None when ``units`` names no linear
+    unit, ``unit`` is no real unit, or the two agree (within 10 ppm: "ft" on a US survey
+    foot grid differs by 2 ppm, below any DEM's error)."""
+    name = _HEIGHT_UNIT_SPELLINGS.get(units.strip().lower()) if isinstance(units, str) else None
+    if name is None or unit not in LINEAR_UNITS or name == unit:
+        return None
+    ratio = LINEAR_UNITS[name] / LINEAR_UNITS[unit]
+    return None if abs(ratio - 1.0) < 1e-5 else ratio
+
+
+def check_height_units(units, unit, what) -> None:
+    """Raise ValueError when a DataArray's CF ``units`` attribute names a linear unit other
+    than ``unit``, the field's (its CRS's) linear unit: heights in feet over a metre grid
+    would give every slope wrong by the ratio. An attribute that names no linear unit
+    (absent, "metres above sea level", "radians") is not read."""
+    ratio = height_units_factor(units, unit)
+    if ratio is None:
+        return
+    raise ValueError(f"{what}: its heights are in {units!r} (attrs['units']) but its "
+                     f"lengths in {unit} (its CRS); read as they are, every slope would be "
+                     f"off by a factor {ratio:.10g}. Convert them first: "
+                     f"(array * {ratio:.10g}).assign_attrs(units={unit!r})")
 
 
 def unit_name(unit) -> str:
@@ -76,7 +113,8 @@ def unit_metres(unit):
 
 def check_axis_aligned(transform, name: str = "transform") -> None:
     """Raise ValueError when an affine geotransform is rotated or sheared (its b or d
-    term is not zero): the grid's rows and columns must run along the map axes."""
+    term is not zero), or when its columns run west (a negative x pixel size): the grid's
+    rows and columns must run along the map axes, columns eastward."""
     b, d = float(transform.b), float(transform.d)
     if b != 0.0 or d != 0.0:
         raise ValueError(
@@ -86,6 +124,15 @@ def check_axis_aligned(transform, name: str = "transform") -> None:
     if float(transform.a) == 0.0 or float(transform.e) == 0.0:
         raise ValueError(f"{name}: the geotransform has a zero pixel size "
                          f"({transform.a:g} x {transform.e:g})")
+    # columns must run east: azimuths are measured from the grid's axes, and only the
+    # rows' direction (north-up or south-up) is recorded, so a west-running x axis
+    # would mirror every azimuth east-west
+    if float(transform.a) < 0.0:
+        raise ValueError(
+            f"{name}: the geotransform's x pixel size is negative ({transform.a:g}): its "
+            "columns run west, and hftrace needs them running east. Resample it first, "
+            "e.g. `gdalwarp -r near IN.tif OUT.tif` (which writes a north-up grid); for a "
+            "DataArray, array.sortby('x')")
 
 
 def pixel_size(transform) -> tuple[float, float, bool]:
@@ -127,7 +174,37 @@ def _gdalwarp_fix(path, pixel, bounds) -> str:
             f"(or read it with reproject='utm'; the CLI option is --reproject utm)")
 
 
-def crs_unit(crs, what, *, bounds=None, pixel=(1.0, 1.0), source=None):
+def vertical_unit(crs):
+    """``(name, metres per unit)`` of the vertical part of a compound CRS (its ``VERT_CS``
+    unit, as GDAL writes it in WKT 1), or None when the CRS has no vertical part."""
+    from rasterio.crs import CRS
+
+    wkt = CRS.from_user_input(crs).to_wkt()
+    start = wkt.find("VERT_CS[")
+    if start < 0:
+        return None
+    found = re.search(r'UNIT\["([^"]+)",\s*([0-9.eE+-]+)', wkt[start:])
+    return (UNIT_ALIASES.get(found.group(1), found.group(1)), float(found.group(2))) \
+        if found else None
+
+
+def heights_factor(crs):
+    """``(vertical unit name, factor)`` that converts the heights of a compound CRS whose
+    vertical unit differs from its linear unit into the linear unit (0.3048006096 for US
+    survey feet over a metre grid); None when the units agree or there is no vertical
+    part."""
+    vertical = vertical_unit(crs)
+    if vertical is None:
+        return None
+    from rasterio.crs import CRS
+
+    _, metres = CRS.from_user_input(crs).linear_units_factor
+    ratio = vertical[1] / float(metres)
+    return None if abs(ratio - 1.0) <= 1e-12 else (vertical[0], ratio)
+
+
+def crs_unit(crs, what, *, bounds=None, pixel=(1.0, 1.0), source=None,
+             heights_converted=False):
     """``(name, metres)`` of a CRS's linear unit: the name a field uses
     (:func:`unit_name` for the units it knows, else PROJ's own name) and
     metres per unit, both from rasterio (``CRS.linear_units_factor``). A geographic CRS
@@ -143,16 +220,32 @@ def crs_unit(crs, what, *, bounds=None, pixel=(1.0, 1.0), source=None):
                          f"degrees are not lengths, and heights in metres over degrees give "
                          f"wrong angles. Reproject it first: {fix}")
     name, factor = crs.linear_units_factor
-    return UNIT_ALIASES.get(name, name), float(factor)
+    name = UNIT_ALIASES.get(name, name)
+    # a compound CRS may put heights in another unit than lengths (UTM metres with
+    # NAVD88 heights in US survey feet): slopes would be off by the ratio
+    mixed = None if heights_converted else heights_factor(crs)
+    if mixed is not None:
+        vname, ratio = mixed
+        epsg = crs.to_epsg()
+        label = f"EPSG:{epsg}" if epsg else re.match(r'\w+\["([^"]*)"', crs.to_wkt()).group(1)
+        raise ValueError(f"{what}: its CRS ({label}) gives "
+                         f"heights in {vname} but lengths in {name}; read as they are, every "
+                         f"slope would be off by a factor {ratio:.10g}. Convert the heights "
+                         f"to {name} first (multiply by {ratio:.10g}) and drop the vertical "
+                         "CRS, or read the file with datasets_gen.load_file, which converts "
+                         "them")
+    return name, float(factor)
 
 
-def check_crs(crs, what, *, bounds=None, pixel=(1.0, 1.0)) -> str:
+def check_crs(crs, what, *, bounds=None, pixel=(1.0, 1.0), heights_converted=False) -> str:
     """The linear unit name of a CRS (None: no CRS, returns "map unit"). A geographic CRS
     raises ValueError naming ``what`` and, with ``bounds`` and ``pixel`` (the pixel size
-    in degrees), the exact ``gdalwarp`` command that fixes the file."""
+    in degrees), the exact ``gdalwarp`` command that fixes the file; so does a compound
+    CRS whose heights are in another unit, unless ``heights_converted``."""
     if crs is None:
         return "map unit"
-    return crs_unit(crs, what, bounds=bounds, pixel=pixel)[0]
+    return crs_unit(crs, what, bounds=bounds, pixel=pixel,
+                    heights_converted=heights_converted)[0]
 
 
 def _target_epsg(crs, longitude, latitude):

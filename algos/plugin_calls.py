@@ -156,7 +156,7 @@ def traversal_cells(name, origins, directions, shape, tmin=None, tmax=None):
                               "hftrace_traverse counted)")
         return offsets, cells
     _refuse_range(plugin, name, tmin, tmax)
-    result = _call(plugin, name, o, d, (nx, ny))
+    result = _call(plugin, name, _read_only(o), _read_only(d), (nx, ny))
     if isinstance(result, np.ndarray) and result.ndim == 1 and result.dtype == np.uint64:
         raise PluginError(f"{name}: returned visit checksums only; algos.traverse needs the "
                           "visited cells (return N arrays of (i, j) cells)")
@@ -168,6 +168,15 @@ def traversal_cells(name, origins, directions, shape, tmin=None, tmax=None):
     if len(paths) != n:
         raise PluginError(f"{name}: returned {len(paths)} paths for {n} rays")
     return _checked_paths(paths, n, nx, ny, name)
+
+
+def _read_only(array):
+    """A read-only view of ``array`` for a Python kernel: its inputs are often the caller's
+    own arrays (a field's heights, the rays every kernel of a sweep group reuses), which a
+    kernel writing in place would silently change; the write raises instead."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def _call(plugin, name, *args, **kwargs):
@@ -223,16 +232,20 @@ def first_hits(name, heights, origins, directions, surface, tmin=None, tmax=None
     else:
         _refuse_range(plugin, name, tmin, tmax)
         kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
-        out = _call(plugin, name, h, o, d, **kwargs)
+        out = _call(plugin, name, _read_only(h), _read_only(o), _read_only(d), **kwargs)
         try:
             t = np.array(out, dtype=np.float64).reshape(-1) if np.ndim(out) == 1 else None
         except (TypeError, ValueError):
             t = None
         if t is None or t.shape != (n,):
             shape = getattr(out, "shape", type(out).__name__)
+            dtype = getattr(out, "dtype", None)
+            if t is None and np.ndim(out) == 1 and len(out) == n:
+                raise PluginError(f"{name}: returned t of dtype {dtype or type(out[0]).__name__}; "
+                                  f"expected ({n},) numbers (float64, inf on a miss)")
             raise PluginError(f"{name}: returned t of shape {shape}; expected ({n},)")
         t = np.where(np.isnan(t), np.inf, t)
-        cell = _cells_at(o, d, t, rows, cols)
+        cell = None  # the cell holding each hit point, once t is known to be in range
     hit = np.isfinite(t)
     # a first hit lies in the ray's range [tmin, tmax] (default [0, inf))
     low = np.zeros(n) if tmin is None else np.asarray(tmin, dtype=np.float64)
@@ -242,6 +255,9 @@ def first_hits(name, heights, origins, directions, surface, tmin=None, tmax=None
         k = int(np.argmax(outside))
         raise PluginError(f"{name}: returned t[{k}] = {float(t[k])!r}, outside ray {k}'s "
                           f"range [{float(low[k])!r}, {float(high[k])!r}]")
+    if cell is None:
+        _check_hit_points(name, o, d, t, rows, cols)
+        cell = _cells_at(o, d, t, rows, cols)
     cell[~hit] = -1
     inside = (cell[hit, 0] >= 0) & (cell[hit, 0] < cols - 1) & (cell[hit, 1] >= 0) & \
         (cell[hit, 1] < rows - 1)
@@ -250,6 +266,26 @@ def first_hits(name, heights, origins, directions, surface, tmin=None, tmax=None
         raise PluginError(f"{name}: ray {k} hits cell ({int(cell[k, 0])}, {int(cell[k, 1])}), "
                           f"outside the {cols - 1} x {rows - 1} cells of the field")
     return t, cell
+
+
+def _check_hit_points(name, o, d, t, rows, cols):
+    """Refuse a Python kernel's hit whose point ``o + t d`` lies outside the field's
+    footprint ``[0, cols-1] x [0, rows-1]``: no cell holds it, and clipping it to a
+    border cell would report a hit the surface does not have. (The tolerance allows
+    for rounding in a hit computed on the footprint's border.)"""
+    hit = np.isfinite(t)
+    if not hit.any():
+        return
+    point = o[hit, :2] + t[hit, None] * d[hit, :2]
+    upper = np.array([cols - 1, rows - 1], dtype=np.float64)
+    slack = 1e-9 * (1.0 + np.abs(point))
+    outside = ((point < -slack) | (point > upper + slack)).any(axis=1)
+    if outside.any():
+        k = int(np.flatnonzero(hit)[np.argmax(outside)])
+        x, y = point[np.argmax(outside)]
+        raise PluginError(f"{name}: returned t[{k}] = {float(t[k])!r}, whose hit point "
+                          f"({float(x)!r}, {float(y)!r}) lies outside the field's footprint "
+                          f"[0, {cols - 1}] x [0, {rows - 1}]")
 
 
 def _cells_at(o, d, t, rows, cols):
@@ -363,6 +399,7 @@ def prepare_timed_traversal(name, origins, directions, shape):
         args = (ctypes.c_int64(nx), ctypes.c_int64(ny), ctypes.c_int64(n), _ptr(o), _ptr(d),
                 None, None, _ptr(sums), _ptr(cells))
         return _timed_c_call(plugin, name, args), lambda: sums.copy()
+    o, d = _read_only(o), _read_only(d)  # the rays every other kernel of the group reuses
 
     def run():
         t0 = time.monotonic_ns()
@@ -398,6 +435,7 @@ def prepare_timed_first_hit(name, heights, origins, directions, surface):
         return _timed_c_call(plugin, name, args), lambda: t.copy()
     state = {}
     kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
+    h, o, d = _read_only(h), _read_only(o), _read_only(d)  # shared with the other kernels
 
     def run():
         t0 = time.monotonic_ns()

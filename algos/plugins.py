@@ -46,6 +46,8 @@ Signatures (shapes in the project's conventions, ``docs/CONVENTIONS.md``):
   (``triangles`` and ``bilinear`` only: ``flat`` and ``plane3`` have walls, whose hits
   the returned ``t`` alone cannot tell from a top); ``stats`` and a ray range are
   refused.
+* A Python kernel's input arrays are read-only views of the caller's field and rays,
+  which other kernels reuse: writing into them raises (work on a copy).
 * C: the kernels of ``cext/hftrace_plugin.h``; a traversal library that also exports
   ``hftrace_traverse_cells`` serves ``algos.traverse``, one without it only sweeps. A
   first-hit library serves ``algos.intersect`` with ``tmin``/``tmax`` and its own hit
@@ -61,6 +63,7 @@ contained too.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import importlib
@@ -362,7 +365,8 @@ def load_c_plugin(path, name=None, time_limit=None):
             cells_fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_int64] + \
                 [ctypes.c_void_p] * 6
         plugin = Plugin(fn, "c", bool(info.exact), limit, path, private, cells_fn)
-        return register_traversal(name, fn, plugin.exact, summary, _plugin=plugin)
+        with _naming_library(path):
+            return register_traversal(name, fn, plugin.exact, summary, _plugin=plugin)
     if kind == "first_hit":
         fn = _exported(lib, "hftrace_first_hit", kind, path)
         fn.restype = ctypes.c_int
@@ -371,9 +375,22 @@ def load_c_plugin(path, name=None, time_limit=None):
         surfaces = [s.strip() for s in (info.surfaces or b"triangles").decode().split(",")
                     if s.strip()]
         plugin = Plugin(fn, "c", bool(info.exact), limit, path, private)
-        return register_intersector(name, fn, plugin.exact, surfaces, summary, _plugin=plugin)
+        with _naming_library(path):
+            return register_intersector(name, fn, plugin.exact, surfaces, summary,
+                                        _plugin=plugin)
     raise PluginError(f"C plugin {path}: declares kind {kind!r}; expected 'traversal' or "
                       "'first_hit'")
+
+
+@contextlib.contextmanager
+def _naming_library(path):
+    """Turn a refused registration (a built-in name, an unknown surface in the library's
+    info) into one PluginError line that names the library, as every other load failure."""
+    try:
+        yield
+    except ValueError as exc:
+        raise PluginError(f"C plugin {path}: its hftrace_plugin_info is refused: "
+                          f"{_one_line(exc)}") from None
 
 
 #: This process's private folder of loaded C plugins (made on first use, removed at exit)
@@ -430,11 +447,31 @@ def _import_callable(spec, bases):
     return obj
 
 
+def _package_root(base, module):
+    """The folder from which ``module`` imports when ``base`` (a config's folder) lies
+    inside the package it names: ``examples.plugins.numpy_dda`` named by a config in
+    ``/repo/examples`` imports from ``/repo``, whatever the current directory. None when
+    ``base`` is not such a folder."""
+    if not base:
+        return None
+    folder = os.path.abspath(base)
+    parts = module.split(".")[:-1]
+    for k in range(len(parts), 0, -1):
+        tail = folder.split(os.sep)[-k:]
+        if tail == parts[:k]:
+            root = folder
+            for _ in range(k):
+                root = os.path.dirname(root)
+            return root
+    return None
+
+
 def load_plugin_spec(spec, base=None):
     """Register what ``spec`` names: a C plugin's path (``*.so``, ``*.dylib``, ``*.dll``),
     relative to ``base`` (default the current directory), or ``module:callable`` (a
-    function registering kernels), the module looked up in ``base``, then the current
-    directory, then ``sys.path``. Returns the names registered.
+    function registering kernels), the module looked up in ``base``, then (when ``base``
+    lies inside the package the module names) that package's parent folder, then the
+    current directory, then ``sys.path``. Returns the names registered.
 
     Raises
     ------
@@ -456,7 +493,8 @@ def load_plugin_spec(spec, base=None):
         module, sep, attr = str(text).partition(":")
         if not sep or not module or not attr:
             raise ValueError(f"--plugin: expected a library path or module:callable, got {spec!r}")
-        target = _import_callable(text, [b for b in (base, os.getcwd()) if b])
+        target = _import_callable(text, [b for b in (base, _package_root(base, module),
+                                                     os.getcwd()) if b])
         try:
             target()
         except Exception as exc:
@@ -465,11 +503,33 @@ def load_plugin_spec(spec, base=None):
     return sorted(set(plugin_names()) - before)
 
 
+#: Whether the entry points were loaded in this process (by the command line at
+#: start-up, or by the first lookup of an unregistered name)
+_ENTRY_POINTS = {"loaded": False}
+
+
+def _load_entry_points_on_miss():
+    """The registry's miss hook: an unregistered name may belong to an installed package's
+    entry point, which ``import algos`` alone has not loaded; load them all, once. A
+    failing one is a ``RuntimeWarning`` (one line), as the command line prints it."""
+    if _ENTRY_POINTS["loaded"]:
+        return
+    import warnings
+
+    load_entry_points(warn=lambda text: warnings.warn(text, RuntimeWarning, stacklevel=2))
+
+
+registry.MISS_HOOKS.append(_load_entry_points_on_miss)
+
+
 def load_entry_points(warn=None) -> list:
     """Register every kernel of the ``hftrace.kernels`` entry points; returns the names.
-    A failing entry point is reported through ``warn`` (one line) and skipped."""
+    A failing entry point is reported through ``warn`` (one line) and skipped. From
+    Python this runs by itself on the first lookup of a name no kernel is registered
+    under (``algos.intersect("theirs", ...)``)."""
     from importlib.metadata import entry_points
 
+    _ENTRY_POINTS["loaded"] = True
     try:
         points = entry_points(group=ENTRY_POINT_GROUP)
     except TypeError:  # Python < 3.10 API

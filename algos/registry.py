@@ -88,11 +88,29 @@ TRAVERSAL_REGISTRY: dict[str, Traversal] = {
     )
 }
 
+#: Called, in order, when a name is not registered, before the lookup is refused: a hook
+#: may register more kernels (``algos.plugins`` adds the one that loads the installed
+#: packages' entry points), so that this module imports no other.
+MISS_HOOKS: list = []
+
+
+def _after_miss(name, table):
+    """The entry for ``name`` once the :data:`MISS_HOOKS` ran, or None."""
+    if not isinstance(name, str):
+        return None
+    for hook in MISS_HOOKS:
+        hook()
+    return table.get(name)
+
+
 def get_traversal(name: str) -> Traversal:
     """The registry entry for ``name``; ``ValueError`` listing the valid names otherwise."""
     try:
         return TRAVERSAL_REGISTRY[name]
     except (KeyError, TypeError):
+        found = _after_miss(name, TRAVERSAL_REGISTRY)
+        if found is not None:
+            return found
         if isinstance(name, str) and name in INTERSECTOR_REGISTRY:
             raise ValueError(f"name: {name!r} is a first-hit intersector; it has no 2D "
                              "traversal kernel (algos.intersect serves it)") from None
@@ -249,6 +267,9 @@ def get_intersector(name: str) -> Intersector:
     try:
         return INTERSECTOR_REGISTRY[name]
     except (KeyError, TypeError):
+        found = _after_miss(name, INTERSECTOR_REGISTRY)
+        if found is not None:
+            return found
         if isinstance(name, str) and name in TRAVERSAL_REGISTRY:
             raise ValueError(f"name: {name!r} is a 2D traversal (the visit workload); it has "
                              "no first-hit kernel (algos.traverse serves it)") from None

@@ -16,7 +16,7 @@ import sys
 import numpy as np
 import pandas as pd
 
-from .report import scan_csv
+from .report import results_row_check, scan_csv
 
 #: Henning & Stephenson 2004 as summarised in the seeds: speedup of the run walk over the
 #: cell walk by mean run length, and over all orientations.
@@ -148,7 +148,8 @@ def load(path, run=None, echo=_warn) -> pd.DataFrame:
     if not os.path.isfile(path):
         raise ValueError(f"results: {path} does not exist")
     try:
-        header, rows, bad = scan_csv(path, ("algorithm", "workload", "dataset", "run_length"))
+        header, rows, bad = scan_csv(path, ("algorithm", "workload", "dataset", "run_length"),
+                                     results_row_check())
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"results: {path} is not a readable CSV ({exc})") from None
     needed = {"algorithm", "workload", "surface", "dataset", "run_length", "speedup",
@@ -160,6 +161,9 @@ def load(path, run=None, echo=_warn) -> pd.DataFrame:
     for number, reason in bad:
         if echo:
             echo(f"warning: results: line {number} of {path}: {reason}; left out")
+    if not rows and bad:
+        raise ValueError(f"results: {path} has no whole row: all {len(bad)} lines are "
+                         f"damaged (line {bad[0][0]}: {bad[0][1]})")
     text = io.StringIO()
     writer = csv.writer(text)
     writer.writerow(header)

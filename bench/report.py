@@ -4,10 +4,50 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import os
 
+#: Measured columns of a results.csv that hold a number when not empty ("nan" allowed):
+#: a speedup, a time or an agreement that is text or negative was edited or corrupted.
+MEASURED_COLUMNS = ("ns_per_ray", "ns_per_ray_ci_low", "ns_per_ray_ci_high", "speedup",
+                    "speedup_ci_low", "speedup_ci_high", "agree")
 
-def scan_csv(path, required=()):
+
+def results_row_check():
+    """A ``check`` for :func:`scan_csv` of a results.csv: the reason a whole row cannot
+    be a measurement (a run length that is neither a positive number nor "random", a
+    measured column that is not a non-negative number, an agreement outside [0, 1], or
+    the very same row as an earlier line: a file appended to itself), or None."""
+    seen = {}
+
+    def check(row, line):
+        r = row.get("run_length", "random")
+        try:
+            bad_r = r != "random" and not (math.isfinite(float(r)) and float(r) > 0)
+        except ValueError:
+            bad_r = True
+        if bad_r:
+            return f"malformed: run_length {r!r} is neither a positive number nor 'random'"
+        for column in MEASURED_COLUMNS:
+            text = row.get(column, "")
+            if text == "":
+                continue
+            try:
+                value = float(text)
+            except ValueError:
+                return f"malformed: {column} {text!r} is not a number"
+            if value < 0 or (column == "agree" and value > 1):
+                return f"malformed: {column} {text!r} is out of range"
+        key = tuple(row.values())
+        if key in seen:
+            return f"repeats line {seen[key]} (the same measurement twice)"
+        seen[key] = line
+        return None
+
+    return check
+
+
+def scan_csv(path, required=(), check=None):
     """Read a CSV that :class:`RowWriter` wrote, telling whole rows from damaged lines.
 
     Parameters
@@ -16,6 +56,9 @@ def scan_csv(path, required=()):
         The CSV; a missing or empty file has no header and no rows.
     required : sequence of str
         Columns that must not be empty in a whole row.
+    check : callable, optional
+        ``check(row, line)`` -> the reason a whole row is damaged, or None
+        (:func:`results_row_check`).
 
     Returns
     -------
@@ -30,7 +73,8 @@ def scan_csv(path, required=()):
     """
     if not os.path.exists(path):
         return [], [], []
-    with open(path, newline="", errors="replace") as f:
+    # utf-8-sig: a file saved by a spreadsheet starts with a byte-order mark
+    with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
         text = f.read()
     reader = csv.reader(io.StringIO(text))
     header, rows, bad = None, [], []
@@ -68,8 +112,10 @@ def scan_csv(path, required=()):
         else:
             row = dict(zip(header, record))
             empty = [c for c in required if c in row and row[c] == ""]
-            if empty:
-                bad.append((start, f"malformed: no {', '.join(empty)}"))
+            reason = f"malformed: no {', '.join(empty)}" if empty else \
+                (check(row, start) if check else None)
+            if reason:
+                bad.append((start, reason))
             else:
                 rows.append(row)
     bad.sort()
@@ -84,7 +130,7 @@ class RowWriter:
     lines to ``<path>.rejected`` and rewrites the file with its whole rows, so that a new
     row never continues a cut one; :attr:`rejected` lists them as (line, reason)."""
 
-    def __init__(self, path, columns, append=False, required=()):
+    def __init__(self, path, columns, append=False, required=(), check=None):
         self.path = path
         self.columns = list(columns)
         self.rejected = []
@@ -97,7 +143,7 @@ class RowWriter:
                     f"{path}: its columns {header} differ from this version's {self.columns}; "
                     "it was written by another version of hftrace, so rows cannot be appended "
                     "to it: choose another --out or start afresh")
-            _, rows, self.rejected = scan_csv(path, required)
+            _, rows, self.rejected = scan_csv(path, required, check)
             if self.rejected:
                 self._set_aside(rows)
         self._file = open(path, "a" if exists else "w", newline="")

@@ -50,7 +50,7 @@ from algos.intersect import prepare_timed_intersect
 from datasets_gen import rays as raysets
 
 from . import load as machine_load
-from .report import RowWriter, scan_csv
+from .report import RowWriter, results_row_check, scan_csv
 from .timing import (
     FLUSH_MODES,
     call_rays,
@@ -542,7 +542,7 @@ def read_rows(path, bad=None) -> list[dict]:
 
 def scan_results(path):
     """(whole rows, damaged lines as (line number, reason)) of a sweep's results.csv."""
-    _, rows, bad = scan_csv(path, REQUIRED)
+    _, rows, bad = scan_csv(path, REQUIRED, results_row_check())
     return rows, bad
 
 
@@ -720,7 +720,8 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
             futures[future] = item
         bar = _bar(progress, len(todo), f"{cfg.name} (dask)")
         start = time.perf_counter()
-        with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED) as writer:
+        with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
+                       check=results_row_check()) as writer:
             # this client's loop: as_completed otherwise tracks the futures on the default
             # client's, and a second client in the process then waits on an event bound
             # to another loop ("bound to a different event loop")
@@ -886,7 +887,8 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     spare = 0.25 * len(todo) * cfg.group_budget if cfg.precision is not None else 0.0
     remeasured = 0
     flushing = 0.0
-    with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED) as writer:
+    with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
+                   check=results_row_check()) as writer:
         for ds, label, workload, surface, r, names, missing in todo:
             if label not in fields_cache:
                 fields_cache.clear()  # one field in memory at a time

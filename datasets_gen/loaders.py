@@ -392,7 +392,12 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
         return HeightField(heights, name, spacing=spacing, params=params)
     import rasterio
 
-    from algos.georef import check_axis_aligned, check_georeferencing
+    from algos.georef import (
+        check_axis_aligned,
+        check_georeferencing,
+        height_units_factor,
+        heights_factor,
+    )
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -406,8 +411,20 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
             raise ValueError(f"spacing: {path} is georeferenced; its geotransform gives the "
                              "spacing, so leave spacing out")
         check_axis_aligned(ds.transform, f"{path}: transform")
+        # heights in another unit than the lengths (a compound CRS): converted on read
+        mixed = heights_factor(ds.crs) if ds.crs is not None else None
         unit = check_crs(ds.crs, path, bounds=ds.bounds,
-                         pixel=(ds.transform.a, ds.transform.e))
+                         pixel=(ds.transform.a, ds.transform.e),
+                         heights_converted=mixed is not None)
+        band_units = ds.units[band - 1] if ds.units else None
+        ratio = height_units_factor(band_units, unit) if mixed is None else None
+        if ratio is not None:  # a band unit type ("ft") other than the CRS's unit
+            mixed = (band_units, ratio)
+        if mixed is not None:
+            raster = LazyRaster(path, scale=vertical_scale * mixed[1], band=band)
+            heights = da.from_array(raster, chunks=chunks, asarray=False, lock=False,
+                                    fancy=False)
+            params.update(heights_converted_from=mixed[0], heights_factor=mixed[1])
         params["unit_metres"] = float(ds.crs.linear_units_factor[1]) if ds.crs else 1.0
         params["nodata"] = ds.nodatavals[band - 1]
         return HeightField(heights, name, unit=unit, crs=ds.crs, transform=ds.transform,

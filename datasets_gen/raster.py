@@ -52,7 +52,10 @@ from algos.georef import (
     check_nodata,
     crs_unit,
     ground_size,
+    height_units_factor,
+    heights_factor,
     utm_epsg,
+    vertical_unit,
 )
 
 __all__ = ["read_raster", "check_crs", "crs_unit", "write_product", "create_product", "write_window",
@@ -172,12 +175,28 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
             if reproject is None:
                 check_crs(crs, path, bounds=ds.bounds, pixel=(ds.transform.a, ds.transform.e))
             raw, mask, transform, crs = _to_utm(ds, raw, mask, band)
-        unit = check_crs(crs, path) if georef else ("cell" if spacing is None else "map unit")
-    heights, mask = _scaled(raw, mask, scale, offset, vertical_scale)
+        # heights in another unit than the lengths (a compound CRS): converted here; a
+        # geographic one was reprojected onto a metre grid
+        mixed = None
+        if georef and ds.crs is not None:
+            mixed = heights_factor(ds.crs) if not geographic else vertical_unit(ds.crs)
+            if geographic and mixed is not None:
+                mixed = None if mixed[1] == 1.0 else mixed
+        unit = check_crs(crs, path, heights_converted=mixed is not None) if georef else \
+            ("cell" if spacing is None else "map unit")
+        # a band whose unit type (GDAL's, e.g. "ft") differs from the CRS's linear unit
+        band_units = ds.units[band - 1] if ds.units else None
+        ratio = height_units_factor(band_units, unit) if mixed is None else None
+        if ratio is not None:
+            mixed = (band_units, ratio)
+    heights, mask = _scaled(raw, mask, scale, offset,
+                            vertical_scale * (mixed[1] if mixed else 1.0))
     params = dict(path=path, band=band, scale=scale, offset=offset,
                   nodata=nodata if nodata is not None else file_nodata,
                   vertical_scale=vertical_scale,
                   reprojected=reproject if geographic else None)
+    if mixed:
+        params.update(heights_converted_from=mixed[0], heights_factor=mixed[1])
     if georef:
         return HeightField(heights, os.path.basename(path), unit=unit, crs=crs,
                            transform=transform, nodata_mask=mask, params=params)

@@ -91,6 +91,62 @@ def test_rotated_geotransform_is_refused(tmp_path):
         datasets_gen.load_file(path)
 
 
+def test_columns_running_west_are_refused(tmp_path):
+    """A geotransform with a negative x pixel size (columns running west) is refused by
+    load_file, open_lazy, the DataArray path and the constructor; before, every azimuth
+    was mirrored east-west (a slope rising 45 degrees to the west read -45 looking west)."""
+    rows, cols = 20, 24
+    rising_west = 30.0 * np.tile(np.arange(cols, dtype=np.float32), (rows, 1))
+    west = Affine(-30.0, 0.0, 500000.0, 0.0, -30.0, 4000000.0)
+    path = write_tif(tmp_path / "west.tif", rising_west, transform=west)
+    fix = r"x pixel size is negative \(-30\): its columns run west.*gdalwarp"
+    with pytest.raises(ValueError, match="west.tif: transform: the geotransform's " + fix):
+        datasets_gen.load_file(path)
+    with pytest.raises(ValueError, match=fix):
+        datasets_gen.open_lazy(path)
+    with pytest.raises(ValueError, match=fix):
+        HeightField(rising_west, crs=UTM17, transform=west)
+    # the DataArray of the east-running grid, stored with x descending
+    da = _dataarray(rising_west[:, ::-1].copy()).isel(x=slice(None, None, -1))
+    with pytest.raises(ValueError, match=fix + r".*sortby\('x'\)"):
+        algos.horizon(da, [270])
+    # sorted, the same terrain reads right: rising west, uphill looking west
+    assert deg(algos.horizon(da.sortby("x"), [270]).values[0, 10, 10]) == \
+        pytest.approx(45.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("crs, factor", [("EPSG:32617+6360", 1200 / 3937),  # ftUS heights
+                                          ("EPSG:2277+5703", 3937 / 1200),   # metre heights
+                                          ("EPSG:32617+5703", 1.0)])         # one unit
+def test_compound_crs_heights_in_another_unit(tmp_path, crs, factor):
+    """A compound CRS whose heights are in another unit than its lengths: load_file
+    converts the heights (a 45-degree ramp stays 45 degrees; before, UTM metres with
+    NAVD88 heights in US feet read 73 degrees), while a DataArray or a hand-built field,
+    which hftrace cannot rescale behind the caller's back, is refused with the factor;
+    open_lazy converts on read as load_file does."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))  # in length units
+    stored = (ramp / factor).astype(np.float32)  # the same terrain in the vertical unit
+    transform = Affine(30.0, 0.0, 500000.0, 0.0, -30.0, 4000000.0)
+    path = write_tif(tmp_path / "compound.tif", stored, crs=crs, transform=transform)
+    field = datasets_gen.load_file(path)
+    assert deg(algos.horizon(field, [90])[0, 10, 10]) == pytest.approx(45.0, abs=1e-4)
+    lazy = datasets_gen.open_lazy(path, chunks=16)  # the --dask route converts on read
+    np.testing.assert_allclose(np.asarray(lazy.heights.compute()), field.heights, rtol=1e-6)
+    if factor == 1.0:
+        assert "heights_converted_from" not in field.params
+        return
+    assert field.params["heights_factor"] == pytest.approx(factor, rel=1e-12)
+    fix = r"gives heights in .* but lengths in .*multiply by " + f"{factor:.10g}"[:8]
+    with pytest.raises(ValueError, match=fix):
+        HeightField(stored, crs=crs, transform=transform)
+    pytest.importorskip("rioxarray")
+    import rioxarray
+
+    with pytest.raises(ValueError, match=fix):
+        algos.horizon(rioxarray.open_rasterio(path).squeeze("band"), [90])
+
+
 def test_int16_scale_and_offset_are_applied(tmp_path):
     raw = np.zeros((5, 5), np.int16)
     raw[:, 3:] = 60
@@ -421,6 +477,62 @@ def test_dataarray_in_dataarray_out():
     h = algos.horizon(da, [0, 90])
     assert h.dims == ("azimuth", "y", "x") and list(h.azimuth.values) == [0.0, 90.0]
     assert h.attrs["units"] == "radians"
+
+
+def test_dataarray_stored_x_first_is_refused():
+    """A DataArray transposed to dims (x, y) is refused with the transpose that fixes it;
+    before, its columns were read as rows and a 45-degree slope east gave 0 degrees."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))  # 45 degrees east
+    da = _dataarray(ramp)
+    assert deg(algos.horizon(da, [90]).values[0, 10, 10]) == pytest.approx(45.0, abs=1e-9)
+    with pytest.raises(ValueError, match=r"heights: the DataArray's dims \('x', 'y'\) put x "
+                                         r"first; rows must be y: pass "
+                                         r"array.transpose\('y', 'x'\)"):
+        algos.horizon(da.transpose("x", "y"), [90])
+    with pytest.raises(ValueError, match="put x first"):
+        HeightField.from_dataarray(da.transpose("x", "y"))
+
+
+def test_band_unit_type_other_than_the_crs_unit_is_converted(tmp_path):
+    """A GeoTIFF on a UTM grid whose band declares its unit type "ft" (gdal_edit.py
+    -units ft) has its heights converted by load_file and open_lazy (a 45-degree ramp
+    read 73 degrees before); rioxarray's DataArray of it carries units="ft" and is
+    refused with the factor."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))
+    path = write_tif(tmp_path / "feet.tif", (ramp / 0.3048).astype(np.float32))
+    with rasterio.open(path, "r+") as ds:
+        ds.units = ("ft",)
+    field = datasets_gen.load_file(path)
+    assert field.params["heights_converted_from"] == "ft"
+    assert deg(algos.horizon(field, [90])[0, 10, 10]) == pytest.approx(45.0, abs=1e-4)
+    lazy = datasets_gen.open_lazy(path, chunks=16)
+    np.testing.assert_allclose(np.asarray(lazy.heights.compute()), field.heights, rtol=1e-6)
+    rioxarray = pytest.importorskip("rioxarray")
+    da = rioxarray.open_rasterio(path).squeeze("band")
+    assert da.attrs["units"] == "ft"
+    with pytest.raises(ValueError, match="heights are in 'ft'"):
+        algos.horizon(da, [90])
+
+
+@pytest.mark.parametrize("units, factor", [("ft", 0.3048), ("feet", 0.3048), ("km", 1000.0)])
+def test_dataarray_heights_in_another_unit_are_refused(units, factor):
+    """A DataArray on a metre grid whose CF ``units`` attribute says its heights are in
+    feet or kilometres is refused with the factor (before, a 45-degree slope read 73 or
+    0.06 degrees); converted as the message says, it reads 45 degrees. Units that name
+    the CRS's own unit, or no linear unit, are not in the way."""
+    rows, cols = 20, 24
+    ramp = 30.0 * np.tile(np.arange(cols, dtype=np.float64), (rows, 1))
+    da = _dataarray(ramp / factor).assign_attrs(units=units)
+    with pytest.raises(ValueError, match=rf"heights are in '{units}' \(attrs\['units'\]\) but "
+                                         r"its lengths in m .*assign_attrs\(units='m'\)"):
+        algos.horizon(da, [90])
+    fixed = (da * factor).assign_attrs(units="m")
+    assert deg(algos.horizon(fixed, [90]).values[0, 10, 10]) == pytest.approx(45.0, abs=1e-9)
+    for same in ("metres", "m", "metres above sea level"):
+        out = algos.horizon(_dataarray(ramp).assign_attrs(units=same), [90])
+        assert deg(out.values[0, 10, 10]) == pytest.approx(45.0, abs=1e-9)
 
 
 def test_chunked_dataarray_stays_lazy():

@@ -314,6 +314,30 @@ def test_entry_points_register_kernels(monkeypatch, registered, capsys):
     assert "entry point 'broken'" in err and err.count("\n") == 1
 
 
+def test_entry_point_kernels_answer_the_python_api(monkeypatch, registered, tmp_path):
+    """An installed package's kernel answers ``algos.traverse``/``algos.intersect`` after a
+    bare ``import algos`` (before, only the ``hftrace`` command loaded entry points, and
+    the call said "unknown traversal"); a failing entry point is one RuntimeWarning."""
+    import importlib.metadata as md
+
+    (tmp_path / "theirs_pkg.py").write_text(
+        "import algos\nfrom examples.plugins.numpy_dda import numpy_dda\n"
+        "def register():\n    algos.register_traversal('theirs_walk', numpy_dda)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    points = [md.EntryPoint("theirs", "theirs_pkg:register", plugins.ENTRY_POINT_GROUP),
+              md.EntryPoint("broken", "no_such_module:register", plugins.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(md, "entry_points", lambda group=None: points if group else {})
+    monkeypatch.setattr(plugins, "_ENTRY_POINTS", {"loaded": False}, raising=False)
+    registered.append("theirs_walk")
+    o, d = np.array([[0.5, 0.5]]), np.array([[2.0, 3.0]])
+    with pytest.warns(RuntimeWarning, match="entry point 'broken'"):
+        paths = algos.traverse("theirs_walk", o, d, (4, 4))
+    assert paths[0].tolist() == [list(c) for c in algos.reference_cells((0.5, 0.5), (2, 3), (4, 4))]
+    # loaded once: a later unknown name does not import the packages again
+    with pytest.raises(ValueError, match="unknown traversal 'nobody'"):
+        algos.traverse("nobody", o, d, (4, 4))
+
+
 def test_reproduce_presets_and_new_run_directory(tmp_path, monkeypatch, quiet_flush):
     """The default preset is the headline (first hit on triangles by run length, 24
     groups); the former quick preset is `standard`; a rerun writes a new directory."""
@@ -500,6 +524,62 @@ def test_first_hit_plugin_failures_name_the_kernel(registered):
         algos.intersect("behind", field, o, d)
 
 
+def test_python_first_hit_outside_the_footprint_is_refused(registered):
+    """A Python kernel's hit whose point lies beyond the field is an error naming the ray
+    and the point, not a hit in the border cell it would be clipped to; a hit on the
+    footprint's border (a ray entering the box below the surface) stays a hit."""
+    field = algos.Field(np.zeros((9, 9), np.float32))
+    o, d = np.array([[0.5, 4.5, 3.0], [4.5, 4.5, 10.0]]), np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    algos.register_intersector("far_hit", lambda h, o, d: np.full(len(o), 1e300))
+    algos.register_intersector("off_grid", lambda h, o, d: np.array([20.0, 10.0]))
+    algos.register_intersector("text_hit", lambda h, o, d: np.array(["a"] * len(o)))
+    algos.register_intersector("edge_hit", lambda h, o, d: np.array([7.5, 10.0]))
+    registered += ["far_hit", "off_grid", "text_hit", "edge_hit"]
+    with pytest.raises(plugins.PluginError, match=r"far_hit: returned t\[0\] = 1e\+300, whose hit "
+                                                  r"point .* lies outside the field's footprint "
+                                                  r"\[0, 8\] x \[0, 8\]"):
+        algos.intersect("far_hit", field, o, d)
+    with pytest.raises(plugins.PluginError, match=r"off_grid: returned t\[0\] = 20.0, whose hit "
+                                                  r"point \(20.5, 4.5\)"):
+        algos.intersect("off_grid", field, o, d)
+    with pytest.raises(plugins.PluginError, match=r"text_hit: returned t of dtype <U1; expected"):
+        algos.intersect("text_hit", field, o, d)
+    hits = algos.intersect("edge_hit", field, o, d)  # x = 8.0 on the east border
+    assert hits.t.tolist() == [7.5, 10.0] and hits.cell.tolist() == [[7, 4], [4, 4]]
+
+
+def test_python_kernel_cannot_change_the_callers_field_or_rays(registered):
+    """A Python kernel that writes into its inputs fails in one line naming it; the
+    caller's field and rays (which the other kernels reuse) stay as they were."""
+    heights = (np.arange(81, dtype=np.float32).reshape(9, 9) % 5)
+    field = algos.Field(heights.copy())
+    o, d = np.array([[0.5, 0.5, 10.0]]), np.array([[1.0, 1.0, -1.0]])
+
+    def flatten(h, o, d):
+        h[:] = 100.0
+        return np.full(len(o), np.inf)
+
+    def normalise(o, d, shape):
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        return [np.zeros((0, 2), np.int64) for _ in o]
+
+    algos.register_intersector("flatten", flatten)
+    algos.register_traversal("normalise", normalise)
+    registered += ["flatten", "normalise"]
+    with pytest.raises(plugins.PluginError, match="flatten: the kernel raised ValueError: "
+                                                  "assignment destination is read-only"):
+        algos.intersect("flatten", field, o, d)
+    np.testing.assert_array_equal(field.heights, heights)
+    o2, d2 = np.array([[0.5, 0.5]]), np.array([[2.0, 3.0]])
+    with pytest.raises(plugins.PluginError, match="normalise: the kernel raised ValueError"):
+        algos.traverse("normalise", o2, d2, (4, 4))
+    assert d2.tolist() == [[2.0, 3.0]] and o.tolist() == [[0.5, 0.5, 10.0]]
+    run, _ = plugins.prepare_timed_first_hit("flatten", field.heights, o, d, "triangles")
+    with pytest.raises(ValueError, match="read-only"):
+        run()
+    np.testing.assert_array_equal(field.heights, heights)
+
+
 def test_python_traversal_through_traverse(registered):
     """A registered traversal returning cells serves every output of ``algos.traverse``."""
     from examples.plugins.numpy_dda import register
@@ -585,6 +665,25 @@ def test_c_first_hit_through_intersect_and_rebuilt_library(tmp_path, registered)
     assert algos.intersect("constant_hit", field, o, d).t.tolist() == [2.5, 2.5]
 
 
+def test_c_plugin_refused_info_names_the_library(tmp_path, registered, capsys):
+    """A library whose info declares a built-in name or an unknown surface is refused in
+    one line that names the library, from Python and from ``--plugin``."""
+    builtin = build_source(tmp_path, C_FIRST_HIT.replace('"constant_hit"', '"runs"'),
+                           "takes_runs", "-DT=1.0")
+    spline = build_source(tmp_path, C_FIRST_HIT.replace('"triangles"', '"triangles,spline"'),
+                          "spline_hit", "-DT=1.0")
+    with pytest.raises(plugins.PluginError, match=r"C plugin .*takes_runs.so: .*refused: name: "
+                                                  r"'runs' is a built-in kernel"):
+        plugins.load_c_plugin(builtin)
+    with pytest.raises(plugins.PluginError, match=r"C plugin .*spline_hit.so: .*refused: "
+                                                  r"surfaces\[1\]: unknown surface 'spline'"):
+        plugins.load_c_plugin(spline)
+    assert "constant_hit" not in plugins.plugin_names()
+    assert main(["list", "--plugin", str(spline)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "spline_hit.so" in err and "unknown surface" in err
+
+
 def test_plugin_failures_are_one_line_on_every_route(tmp_path, monkeypatch, registered, capsys):
     """``--plugin MOD:FN`` whose function raises, a C plugin whose hftrace_plugin()
     returns NULL, and the same in a config: one line naming the plugin, no traceback."""
@@ -641,6 +740,31 @@ def test_config_module_resolves_from_its_folder_and_the_cwd(tmp_path, monkeypatc
     with pytest.raises(sweep.ConfigError, match="plugins\\[0\\]: plugin nowhere_module:register: "
                                                 "cannot import nowhere_module .*looked in"):
         sweep.load_config(str(folder / "bad.toml"))
+
+
+def test_config_inside_the_package_it_names_resolves_from_any_cwd(tmp_path, monkeypatch,
+                                                                   registered):
+    """A config inside the package its ``module:callable`` names (the guide's
+    ``examples/sweep-plugin.toml`` naming ``examples.plugins.numpy_dda``) resolves from
+    any current directory, without PYTHONPATH."""
+    package = tmp_path / "mylab" / "kernels"
+    package.mkdir(parents=True)
+    (tmp_path / "mylab" / "__init__.py").write_text("")
+    (package / "__init__.py").write_text("")
+    (package / "walk.py").write_text(
+        "import algos\nfrom examples.plugins.numpy_dda import numpy_dda\n"
+        "def register():\n    algos.register_traversal('lab_walk', numpy_dda)\n")
+    (package / "c.toml").write_text('rays = 16\nrepeats = 3\n'
+                                    'plugins = ["mylab.kernels.walk:register"]\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    registered += ["lab_walk", "numpy_dda"]
+    sweep.load_config(str(package / "c.toml"))
+    assert "lab_walk" in algos.TRAVERSALS
+    # the guide's own config names its module from the repository's root
+    assert plugins.load_plugin_spec("examples.plugins.numpy_dda:register",
+                                    base=os.path.join(ROOT, "examples")) == ["numpy_dda"]
 
 
 def test_reproduce_kernels_accepts_a_registered_traversal(registered, capsys):

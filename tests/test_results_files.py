@@ -84,6 +84,68 @@ def test_malformed_row_in_the_middle_is_found(tmp_path):
                         f"has {len(sweep.COLUMNS)}; left out"]
 
 
+def test_edited_and_repeated_rows_are_found_and_measured_again(tmp_path, capsys):
+    """A hand-edited row (a speedup of text, a negative one, a run length that is no run
+    length) and a row present twice (a file appended to itself) are reported by line
+    number and left out by ``plot``, not averaged in; ``--resume`` measures them again."""
+    cfg, rows, _ = measure(tmp_path)
+    path = tmp_path / "results.csv"
+    lines = path.read_text().splitlines(keepends=True)
+    header = lines[0].rstrip("\r\n").split(",")
+
+    def edit(line, column, value):
+        fields = line.rstrip("\r\n").split(",")
+        fields[header.index(column)] = value
+        return ",".join(fields) + "\r\n"
+
+    lines[2] = edit(lines[2], "speedup", "fast")
+    lines[3] = edit(lines[3], "speedup", "-5")
+    lines[4] = edit(lines[4], "run_length", "abc")
+    lines.append(lines[5])  # line 8 repeats line 6
+    path.write_text("".join(lines))
+    warnings = []
+    df = analysis.load(str(path), echo=warnings.append)
+    assert len(df) == 3
+    assert [n for n, _ in df.attrs["bad_lines"]] == [3, 4, 5, 8]
+    assert "speedup 'fast' is not a number" in warnings[0]
+    assert "speedup '-5' is out of range" in warnings[1]
+    assert "run_length 'abc' is neither a positive number nor 'random'" in warnings[2]
+    assert "line 8" in warnings[3] and "repeats line 6" in warnings[3]
+    assert main(["plot", str(path), "--out", str(tmp_path / "p")]) == 0
+    out = capsys.readouterr()
+    said = out.out + out.err
+    assert "line 3 of" in said and "line 8 of" in said and "3 rows" in out.out
+    again = sweep.run_sweep(cfg, str(tmp_path), resume=True, progress=False, echo=None)
+    assert len(again) == 6 and scan_csv(str(path), sweep.REQUIRED)[2] == []
+    assert {sweep.row_key(r) for r in again} == {sweep.row_key(r) for r in rows}
+    assert analysis.load(str(path), echo=None).attrs["bad_lines"] == []
+
+
+def test_spreadsheet_saved_files(tmp_path, capsys):
+    """A results file saved by a spreadsheet: its byte-order mark is read past (it hid
+    the first column), and one whose numbers all use a decimal comma is refused in one
+    line rather than plotted as an empty report."""
+    measure(tmp_path)
+    path = tmp_path / "results.csv"
+    text = path.read_text()
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert len(analysis.load(str(bom), echo=None)) == 6
+    header, *rows = text.splitlines()
+    column = header.split(",").index("speedup")
+
+    def comma(line):
+        fields = line.split(",")
+        fields[column] = '"' + fields[column].replace(".", ",") + '"'
+        return ",".join(fields)
+
+    decimal = tmp_path / "comma.csv"
+    decimal.write_text("\n".join([header] + [comma(r) for r in rows]) + "\n")
+    assert main(["plot", str(decimal), "--out", str(tmp_path / "p")]) == 2
+    err = capsys.readouterr().err
+    assert "has no whole row: all 6 lines are damaged" in err and "is not a number" in err
+
+
 def test_plot_of_two_runs_refuses_then_plots_the_chosen_one(tmp_path, capsys):
     """``cat a.csv b.csv``: plot says it found 2 runs and refuses; ``--run`` picks one,
     whose table is that run's alone."""

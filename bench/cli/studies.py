@@ -242,12 +242,13 @@ def register(sub):
     add_out(p, "raster-vs-trace")
     p.set_defaults(func=raster_vs_trace)
 
-    p = sub.add_parser("targets", help="issue 22's targets table: best exact vs Embree (random "
-                       "and camera rays), packets vs dda_maxmip, runs_periodic vs runs, cache "
-                       "misses; one process, one thread")
+    p = sub.add_parser("targets", help="the performance targets table: best exact vs Embree "
+                       "(random and camera rays), packets vs dda_maxmip, runs_periodic vs "
+                       "runs, cache misses; one process, one thread")
     p.add_argument("--full", action="store_true",
-                   help="the issue's fields (fbm 2048^2 and 8192^2, Jacksboro 2048, 1280x720; "
-                        "an hour or more, a quiet machine); default the quick tier")
+                   help="the targets' full-size fields (fbm 2048^2 and 8192^2, Jacksboro "
+                        "2048, 1280x720; an hour or more, a quiet machine); default the quick "
+                        "tier")
     p.add_argument("--tier", choices=("quick", "medium", "full"), default="quick",
                    help="quick (checks that every row runs), medium (2048^2 fields, a 640x360 "
                         "image: about 15 minutes) or full (= --full)")

@@ -123,6 +123,7 @@ def _summarise(reports, expect_slower: str | None) -> dict:
 
 
 def main(argv=None) -> int:
+    """Run the validation compares (A/A, injected slowdowns, a bisect); write reports/regress/."""
     parser = argparse.ArgumentParser(prog="python -m bench.regress.validate", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default=os.path.join("results", "regress"))
     parser.add_argument("--runs", type=int, default=20)
