@@ -123,6 +123,7 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
             w.i = chain->i;
             w.j = chain->j;
             w.t = chain->t;
+            w.level = r.floor_level; /* the hit is near: start at the floor tile */
         } else {
             /* a later start cuts the first cell short: test it on this ray's interval,
              * then the cells up to the chain's cell have the same intervals */
@@ -132,6 +133,7 @@ static int plane_ray(hf_hit_batch *b, int64_t ray, plane_chain *chain) {
                 w.i = chain->i;
                 w.j = chain->j;
                 w.t = chain->t;
+                w.level = r.floor_level;
             }
         }
     }
