@@ -47,8 +47,12 @@ from .parallel import resolve_threads, run_ranges, split
 __all__ = ["RASTERISERS", "Image", "pinhole_frame", "render", "hidden_lines", "trace",
            "diff_images", "COUNTS", "fuzz_one"]
 
-#: the rasterisers, by their C id
-RASTERISERS = ("zbuffer", "painter", "floating_horizon")
+#: the rasterisers
+RASTERISERS = ("zbuffer", "painter", "floating_horizon", "watkins", "warnock")
+#: the exact ones: the same pixels as an exact tracer (see :func:`render`)
+EXACT_RASTERISERS = ("zbuffer", "painter", "watkins", "warnock")
+#: their ids in C (cext/raster.h, enum hf_raster_algorithm)
+_C_ID = {"zbuffer": 0, "painter": 1, "floating_horizon": 2, "watkins": 4, "warnock": 5}
 #: the C id of the floating horizon's hidden-line drawing (:func:`hidden_lines`)
 _HIDDEN_LINES = 3
 
@@ -267,7 +271,7 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
     primitive = np.empty((height, width), dtype=np.int64)
     mask = np.empty((height, width), dtype=np.uint8) if algorithm == "painter" else None
     by_columns = algorithm == "floating_horizon"
-    kernel_id = RASTERISERS.index(algorithm)
+    kernel_id = _C_ID[algorithm]
 
     def part(begin, end):
         region = (0, height, begin, end) if by_columns else (begin, end, 0, width)
