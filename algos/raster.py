@@ -41,11 +41,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _kernels
+from .camera import MAX_COORDINATE, pinhole_frame, primary_directions
 from .field import as_field
 from .parallel import resolve_threads, run_ranges, split
 
-__all__ = ["RASTERISERS", "Image", "pinhole_frame", "render", "hidden_lines", "trace",
-           "diff_images", "COUNTS", "fuzz_one"]
+__all__ = ["RASTERISERS", "EXACT_RASTERISERS", "Image", "pinhole_frame", "render",
+           "hidden_lines", "trace", "diff_images", "COUNTS", "MAX_COORDINATE", "fuzz_one"]
 
 #: the rasterisers
 RASTERISERS = ("zbuffer", "painter", "floating_horizon", "watkins", "warnock")
@@ -59,9 +60,6 @@ _HIDDEN_LINES = 3
 #: the cost model's counts, in the C order (cext/raster.h, enum hf_raster_count)
 COUNTS = ("cells", "cells_culled", "cells_drawn", "triangles", "fragments", "pixels_written",
           "samples", "stopped_full")
-
-#: largest |coordinate| of a camera position or look_at, in cells
-MAX_COORDINATE = 1e12
 
 #: geometry nearer than this (cells, along the viewing direction) is clipped away
 NEAR = 1e-4
@@ -101,64 +99,6 @@ class Image:
     elapsed_ns: int = 0
     coverage: np.ndarray | None = None
     lines: np.ndarray | None = None
-
-
-def pinhole_frame(position, look_at, fov, width, height):
-    """The camera frame and per-pixel screen offsets of ``datasets_gen.rays.pinhole``.
-
-    Pixel ``(c, k)`` (column, row) looks along ``forward + sx[c] right + sy[k] up``, the
-    same floats the pinhole ray set uses.
-
-    Returns
-    -------
-    frame : ndarray (14,) float64
-        position (3), forward (3), right (3), up (3), ``tan(fov/2)``, and the vertical
-        half extent ``tan(fov/2) height / width``.
-    sx : ndarray (width,) float64
-    sy : ndarray (height,) float64
-
-    Raises
-    ------
-    ValueError
-        A position or look_at not finite or beyond ``MAX_COORDINATE``,
-        ``look_at == position``, a vertical viewing
-        direction (the camera would be rolled), ``fov`` outside (0, 180) degrees, or an
-        image side outside [1, 2^24].
-    TypeError
-        ``width`` or ``height`` not an integer.
-    """
-    position = np.asarray(position, dtype=np.float64)
-    look_at = np.asarray(look_at, dtype=np.float64)
-    for name, value in (("position", position), ("look_at", look_at)):
-        if value.shape != (3,) or not np.all(np.abs(value) <= MAX_COORDINATE):
-            raise ValueError(f"{name}: expected a 3-vector of finite coordinates within "
-                             f"+-{MAX_COORDINATE:g} cells, got {value.tolist()}")
-    forward = look_at - position
-    if not np.linalg.norm(forward) > 0:
-        raise ValueError("look_at: must differ from position")
-    fov = float(fov)
-    if not 0 < fov < 180:
-        raise ValueError(f"fov: expected degrees in (0, 180), got {fov}")
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-            raise TypeError(f"{name}: expected an integer, got {value!r}")
-        if not 1 <= int(value) <= 1 << 24:
-            raise ValueError(f"{name}: expected a size in [1, 2^24], got {value}")
-    width, height = int(width), int(height)
-    # the same floats as datasets_gen.rays.pinhole
-    forward = forward / np.linalg.norm(forward)
-    right = np.cross(forward, np.array([0.0, 0.0, 1.0]))
-    if not np.linalg.norm(right) > 1e-12:
-        raise ValueError("look_at: the viewing direction is vertical; the camera needs a "
-                         "horizontal right vector (up = +z)")
-    right /= np.linalg.norm(right)
-    true_up = np.cross(right, forward)
-    half_w = math.tan(math.radians(fov) / 2)
-    half_h = half_w * height / width
-    sx = ((np.arange(width) + 0.5) / width * 2 - 1) * half_w
-    sy = (1 - (np.arange(height) + 0.5) / height * 2) * half_h
-    frame = np.concatenate([position, forward, right, true_up, [half_w, half_h]])
-    return frame, np.ascontiguousarray(sx), np.ascontiguousarray(sy)
 
 
 def _surface_at(h: np.ndarray, x: float, y: float) -> float:
@@ -344,12 +284,8 @@ def trace(algorithm, heights, position, look_at, fov, width, height, *, threads=
     from .intersect import intersect
 
     frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
-    position = frame[:3]
-    forward, right, up = frame[3:6], frame[6:9], frame[9:12]
-    d = (forward[None, None, :] + sx[None, :, None] * right[None, None, :]
-         + sy[:, None, None] * up[None, None, :]).reshape(-1, 3)
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    o = np.broadcast_to(position, d.shape)
+    d = primary_directions(frame, sx, sy)
+    o = np.broadcast_to(frame[:3], d.shape)
     hits = intersect(algorithm, heights, o, d, surface="triangles",
                      outputs=tuple(outputs) + ("stats",), threads=threads)
     shape = (len(sy), len(sx))

@@ -1,6 +1,6 @@
 """A pinhole image of a height field with any intersector: ``algos.render``.
 
-:func:`render` traces one primary ray per pixel (``datasets_gen.rays.pinhole``) through
+:func:`render` traces one primary ray per pixel (the camera of :mod:`algos.camera`) through
 ``algos.intersect`` and returns the image as arrays: the depth, the unit normal, the
 intersector's per-ray statistics and a shaded RGB preview. :func:`shade` makes that
 preview: terrain colour by height, a sun light (Lambert plus ambient) and, with
@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camera import pinhole_frame, primary_directions
 from .field import Field
 from .intersect import intersect
 
@@ -88,15 +89,18 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         array is taken in cell units as it is.
     algorithm : str
         An intersector name (``algos.INTERSECTORS``), or a rasteriser of
-        ``algos.raster.RASTERISERS`` (``zbuffer``, ``painter``, ``floating_horizon``:
-        ``triangles`` only), which draws the same image from the same camera.
+        ``algos.raster.RASTERISERS`` (``zbuffer``, ``painter``, ``watkins``, ``warnock``,
+        ``floating_horizon``: ``triangles`` only), which draws the same image from the
+        same camera.
     surface : str
         One of ``algos.SURFACES``.
     width, height : int
         Image size in pixels.
     position, look_at : 3-vectors, optional
         Camera and target in grid coordinates (x = column, y = row, z = height, cell
-        units); default :func:`default_camera`.
+        units); default :func:`default_camera`. Any viewing direction works: a vertical
+        one (a nadir view) takes the frame of :mod:`algos.camera` (north, ``-y``, at the
+        top of the image).
     fov : float
         Horizontal field of view in degrees, in (0, 180).
     fog : float
@@ -126,11 +130,11 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     cam, centre = default_camera(heights)
     position = np.asarray(position if position is not None else cam, dtype=float)
     look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)
-    from datasets_gen import rays as raysets
-
     from . import raster
 
-    rs = raysets.pinhole(position, look_at, fov, width, height)
+    frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
+    directions = primary_directions(frame, sx, sy)
+    origins = np.broadcast_to(frame[:3], directions.shape)
     shape = (height, width)
     if algorithm in raster.RASTERISERS:
         if surface != "triangles":
@@ -140,14 +144,14 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         t, normal, cell, elapsed = image.t.ravel(), image.normal, image.cell, image.elapsed_ns
         cells_visited = runs_visited = np.zeros(shape, dtype=np.int64)
     else:
-        hits = intersect(algorithm, field, rs.origins, rs.directions, surface=surface,
+        hits = intersect(algorithm, field, origins, directions, surface=surface,
                          outputs=("t", "cell", "normal", "stats"), threads=threads)
         t, normal, cell, elapsed = hits.t, hits.normal, hits.cell, hits.elapsed_ns
         cells_visited = hits.stats["cells_visited"].reshape(shape)
         runs_visited = hits.stats["runs_visited"].reshape(shape)
     depth = t.reshape(shape)  # unit directions: t is a distance
     normal = normal.reshape(height, width, 3)
-    points = rs.origins + np.where(np.isfinite(t), t, 0)[:, None] * rs.directions
+    points = origins + np.where(np.isfinite(t), t, 0)[:, None] * directions
     points = points.reshape(height, width, 3)
     return Rendering(depth=depth, normal=normal, cells_visited=cells_visited,
                      runs_visited=runs_visited, points=points,

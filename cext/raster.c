@@ -159,8 +159,7 @@ static void draw_skirts(hf_raster *r, const int algorithm) {
             cam_vertex q[4];
             int64_t id;
             if (!skirt_segment(r, side, k, q, &id)) break; /* the side looks away */
-            if (outcode(r, q[0]) & outcode(r, q[1]) & outcode(r, q[2]) & outcode(r, q[3]))
-                continue;
+            if (outcode(r, q[0]) & outcode(r, q[1]) & outcode(r, q[2]) & outcode(r, q[3])) continue;
             draw_triangle(r, algorithm, q[0], q[1], q[2], id);
             draw_triangle(r, algorithm, q[0], q[2], q[3], id);
         }

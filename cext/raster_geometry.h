@@ -144,24 +144,42 @@ static inline int skirt_segment(const hf_raster *r, int side, int32_t k, cam_ver
 
 /* ---- the screen triangle of the scanline and area-subdivision renderers ----------------- */
 /* A projected triangle with what a pixel-centre test needs: its corners sorted by Y, the
- * rows its centres span, and the plane of 1/w. Unlike the zbuffer's incremental edge
- * trackers, an edge's x on a row and a pixel's 1/w are evaluated directly, so a pixel's
- * answer does not depend on which rows or columns were visited before it (a region of the
- * image can be decided alone). An edge's x depends only on its two end points and the row,
- * as in the zbuffer, so the fill rule stays watertight. */
+ * rows its centres span, and its plane. Unlike the zbuffer's incremental edge trackers, an
+ * edge's x on a row and a pixel's 1/w are evaluated directly, so a pixel's answer does not
+ * depend on which rows or columns were visited before it (a region of the image can be
+ * decided alone). An edge's x depends only on its two end points and the row, as in the
+ * zbuffer, so the fill rule stays watertight. */
 typedef struct {
     screen_vertex top, mid, bottom;
-    double dz_dx, dz_dy, z_lo, z_hi;
+    double plane_sx, plane_sy, plane_1;   /* 1/w = plane_sx sx + plane_sy sy + plane_1     */
+    double z_lo, z_hi;                    /* the corners' range of 1/w                      */
     int32_t row_top, row_mid, row_bottom; /* centre rows: [row_top, row_bottom)         */
     int32_t mid_left;                     /* the middle corner is on the left           */
     int64_t id;                           /* cell_index * 4 + kind                      */
 } screen_triangle;
 
-/* Fill in `t` from three projected corners; returns 0 when no pixel centre row lies inside
- * (degenerate on screen, NaN, or between two centre rows). */
+/* The plane of a camera-space triangle as 1/w over the image plane: a pixel's ray is
+ * (sx, sy, 1) w in camera coordinates, and it meets the plane n . v = n . v0 at
+ * 1/w = (n_a sx + n_b sy + n_w) / (n . v0), evaluated from the 3D triangle, not
+ * interpolated from its (possibly clipped, far off-screen) projected corners. Returns 0 for
+ * a plane through the camera (seen edge-on). */
+static inline int camera_plane(cam_vertex v0, cam_vertex v1, cam_vertex v2, double plane[3]) {
+    const double ea = v1.a - v0.a, eb = v1.b - v0.b, ew = v1.w - v0.w;
+    const double fa = v2.a - v0.a, fb = v2.b - v0.b, fw = v2.w - v0.w;
+    const double na = eb * fw - ew * fb, nb = ew * fa - ea * fw, nw = ea * fb - eb * fa;
+    const double offset = na * v0.a + nb * v0.b + nw * v0.w;
+    if (!(offset != 0)) return 0;
+    plane[0] = na / offset;
+    plane[1] = nb / offset;
+    plane[2] = nw / offset;
+    return 1;
+}
+
+/* Fill in `t` from three projected corners and the triangle's plane; returns 0 when no
+ * pixel centre row lies inside (degenerate on screen, NaN, or between two centre rows). */
 static inline int screen_triangle_setup(const hf_raster *r, const screen_vertex *p0,
                                         const screen_vertex *p1, const screen_vertex *p2,
-                                        int64_t id, screen_triangle *t) {
+                                        const double plane[3], int64_t id, screen_triangle *t) {
     const screen_vertex *top = p0, *mid = p1, *bottom = p2, *swap;
     double area2;
     if (mid->Y < top->Y) swap = top, top = mid, mid = swap;
@@ -177,12 +195,9 @@ static inline int screen_triangle_setup(const hf_raster *r, const screen_vertex 
     t->mid = *mid;
     t->bottom = *bottom;
     t->mid_left = area2 < 0;
-    t->dz_dx =
-        ((mid->Z - top->Z) * (bottom->Y - top->Y) - (bottom->Z - top->Z) * (mid->Y - top->Y)) /
-        area2;
-    t->dz_dy =
-        ((mid->X - top->X) * (bottom->Z - top->Z) - (bottom->X - top->X) * (mid->Z - top->Z)) /
-        area2;
+    t->plane_sx = plane[0];
+    t->plane_sy = plane[1];
+    t->plane_1 = plane[2];
     t->z_lo = fmin(top->Z, fmin(mid->Z, bottom->Z));
     t->z_hi = fmax(top->Z, fmax(mid->Z, bottom->Z));
     t->id = id;
@@ -206,12 +221,12 @@ static inline void screen_triangle_span(const hf_raster *r, const screen_triangl
     *c1 = first_index(t->mid_left ? x_long : x_short, r->width);
 }
 
-/* 1/w of the triangle's plane at the centre of pixel (column, row). Numerical hazard: on a
- * nearly edge-on triangle the gradient is huge; 1/w is affine, so clamp it to the corners'
- * range. */
-static inline double screen_triangle_depth(const screen_triangle *t, int32_t column, int32_t row) {
-    const double z = t->top.Z + ((double)column + 0.5 - t->top.X) * t->dz_dx +
-                     ((double)row + 0.5 - t->top.Y) * t->dz_dy;
+/* 1/w of the triangle's plane on the ray of pixel (column, row). Numerical hazard: on a
+ * plane seen nearly edge-on the three terms cancel; 1/w is affine over the triangle, so
+ * clamp it to the corners' range. */
+static inline double screen_triangle_depth(const hf_raster *r, const screen_triangle *t,
+                                           int32_t column, int32_t row) {
+    const double z = t->plane_sx * r->sx[column] + t->plane_sy * r->sy[row] + t->plane_1;
     return z < t->z_lo ? t->z_lo : (z > t->z_hi ? t->z_hi : z);
 }
 
@@ -267,10 +282,11 @@ static inline int cell_screen_triangles(const hf_raster *r, int32_t i, int32_t j
     }
     for (k = 0; k < n_tri; ++k) {
         screen_vertex s[4];
+        double plane[3];
         const int m = clip_project(r, tri[k][0], tri[k][1], tri[k][2], s);
-        if (m < 3) continue;
-        n += screen_triangle_setup(r, &s[0], &s[1], &s[2], ids[k], out + n);
-        if (m == 4) n += screen_triangle_setup(r, &s[0], &s[2], &s[3], ids[k], out + n);
+        if (m < 3 || !camera_plane(tri[k][0], tri[k][1], tri[k][2], plane)) continue;
+        n += screen_triangle_setup(r, &s[0], &s[1], &s[2], plane, ids[k], out + n);
+        if (m == 4) n += screen_triangle_setup(r, &s[0], &s[2], &s[3], plane, ids[k], out + n);
     }
     return n;
 }

@@ -263,10 +263,10 @@ static int64_t drop_hidden(warnock_state *s, const region *g, int64_t first, int
             }
             if (row < g->r1) continue;
             /* 1/w is affine: its smallest value over the region is at a corner pixel */
-            z = fmin(fmin(screen_triangle_depth(t, g->c0, g->r0),
-                          screen_triangle_depth(t, g->c1 - 1, g->r0)),
-                     fmin(screen_triangle_depth(t, g->c0, g->r1 - 1),
-                          screen_triangle_depth(t, g->c1 - 1, g->r1 - 1)));
+            z = fmin(fmin(screen_triangle_depth(r, t, g->c0, g->r0),
+                          screen_triangle_depth(r, t, g->c1 - 1, g->r0)),
+                     fmin(screen_triangle_depth(r, t, g->c0, g->r1 - 1),
+                          screen_triangle_depth(r, t, g->c1 - 1, g->r1 - 1)));
             if (z > z_far) z_far = z;
         }
     }
@@ -304,7 +304,7 @@ static void draw_cells(warnock_state *s, const region *g, int64_t first, int64_t
                 if (c1 > g->c1) c1 = g->c1;
                 for (c = c0; c < c1; ++c) {
                     const int64_t pixel = (int64_t)row * r->width + c;
-                    const double z = screen_triangle_depth(t, c, row);
+                    const double z = screen_triangle_depth(r, t, c, row);
                     r->counts[HF_COUNT_FRAGMENTS] += 1;
                     if (in_front(z, t->id, r->t[pixel], r->primitive[pixel])) {
                         r->t[pixel] = z;

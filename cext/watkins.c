@@ -105,7 +105,7 @@ static void draw_span(hf_raster *r, const screen_triangle *triangles, const int3
     r->counts[HF_COUNT_FRAGMENTS] += n_in;
     for (k = 0; k < n_in; ++k) {
         const screen_triangle *t = triangles + in_span[k];
-        const double z = screen_triangle_depth(t, middle, row);
+        const double z = screen_triangle_depth(r, t, middle, row);
         if (in_front(z, t->id, best_z, best ? best->id : -1)) {
             best = t;
             best_z = z;
@@ -113,7 +113,7 @@ static void draw_span(hf_raster *r, const screen_triangle *triangles, const int3
     }
     for (c = a; c < b; ++c) {
         const int64_t pixel = (int64_t)row * r->width + c;
-        r->t[pixel] = screen_triangle_depth(best, c, row);
+        r->t[pixel] = screen_triangle_depth(r, best, c, row);
         r->primitive[pixel] = best->id;
     }
     r->counts[HF_COUNT_WRITTEN] += b - a;
