@@ -1,7 +1,8 @@
 """Rasterisers of a height field, the seeds' other road (issue 23), and image comparison.
 
 The tracers answer "what does this pixel's ray hit first?"; a rasteriser answers "which
-pixels does this cell cover?". Three rasterisers run in C (``cext/raster.c``):
+pixels does this cell cover?". Five rasterisers run in C (``cext/raster.c``,
+``cext/watkins.c``, ``cext/warnock.c``; docs/rendering.md explains each on a height field):
 
 ``zbuffer``
     Scan conversion of the field's two triangles per cell (the split of CONVENTIONS
@@ -21,14 +22,28 @@ pixels does this cell cover?". Three rasterisers run in C (``cext/raster.c``):
     The chapter's algorithm for surfaces z = F(x, y), shaded column form: each image
     column marches front to back over the field in steps of ``step`` cells and draws only
     above its current horizon. Approximate by design (see :func:`render`).
+``watkins``
+    The chapter's scanline algorithm (Watkins 1970): per image row an active list of the
+    projected triangles crossing it; their edge crossings, sorted, cut the row into spans
+    over which the covering triangles do not change, and one depth decision per span picks
+    the visible one (the triangles of a height field never pass through each other, so the
+    depth order inside a span is fixed).
+``warnock``
+    The chapter's area subdivision (Warnock 1969): a screen region is classified against
+    the projected bounds of a min-max mipmap's tiles (Tevs et al. 2008) as empty, hidden
+    behind a surrounding triangle, simple enough to draw (a few cells, or a few pixels:
+    a depth test per pixel centre) or too complex, then split in four; tiles larger than
+    the region are replaced by their children, so the tile hierarchy follows the regions.
 
-All three draw the box's side faces below the surface ("skirts") where the camera sees
+``zbuffer``, ``painter``, ``watkins`` and ``warnock`` are exact (:data:`EXACT_RASTERISERS`).
+All of them draw the box's side faces below the surface ("skirts") where the camera sees
 them, because the tracers report a ray that enters the footprint below the surface as a
 hit on that wall (CONVENTIONS "The first hit").
 
-The camera is the pinhole of :func:`datasets_gen.rays.pinhole` (``position``,
-``look_at``, horizontal ``fov`` in degrees, ``up = +z``, so never rolled), and the
-images are those of ``hftrace render``: ``t`` is the ray parameter of the pixel's unit
+The camera is the pinhole of :mod:`algos.camera` (``position``, ``look_at``, horizontal
+``fov`` in degrees, ``up = +z``, so never rolled; a vertical view takes the frame of a
+camera heading north), shared with ``datasets_gen.rays.pinhole`` and :func:`algos.render`,
+and the images are those of ``hftrace render``: ``t`` is the ray parameter of the pixel's unit
 direction (a distance), ``cell`` the hit cell, ``normal`` the unit normal.
 """
 from __future__ import annotations
@@ -57,7 +72,13 @@ _C_ID = {"zbuffer": 0, "painter": 1, "floating_horizon": 2, "watkins": 4, "warno
 #: the C id of the floating horizon's hidden-line drawing (:func:`hidden_lines`)
 _HIDDEN_LINES = 3
 
-#: the cost model's counts, in the C order (cext/raster.h, enum hf_raster_count)
+#: the cost model's counts, in the C order (cext/raster.h, enum hf_raster_count). For
+#: ``watkins``: ``cells`` looked at, ``cells_culled`` by the frustum, ``triangles`` in the
+#: edge table, ``samples`` the spans decided, ``fragments`` the depths compared to decide
+#: them. For ``warnock``: ``cells`` the tile bounds computed (a cell is a tile of level 0),
+#: ``cells_culled`` the tiles dropped (outside a region or hidden behind a surrounding
+#: triangle), ``cells_drawn`` and ``triangles`` those drawn with a depth test,
+#: ``samples`` the regions classified.
 COUNTS = ("cells", "cells_culled", "cells_drawn", "triangles", "fragments", "pixels_written",
           "samples", "stopped_full")
 
@@ -138,7 +159,7 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
 
     Parameters
     ----------
-    algorithm : {"zbuffer", "painter", "floating_horizon"}
+    algorithm : {"zbuffer", "painter", "floating_horizon", "watkins", "warnock"}
     heights : array_like (rows, cols) or algos.Field
         ``H[j, i]`` is the height at ``(x=i, y=j)``, in cell units; at least 2 x 2, finite.
         A HeightField is drawn from its ``cell_heights`` (heights in the pixel size's unit
@@ -159,18 +180,23 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
         watertightness check: 1 everywhere a single sheet of surface is in view).
     threads : None or int
         Threads drawing disjoint parts of the image (``None``: every core in the
-        process's affinity): ``zbuffer`` and ``painter`` one band of rows per thread
-        (each band culls and projects the cells again, so the speedup is below the thread
-        count), ``floating_horizon`` ranges of columns. The image is bit-identical for
+        process's affinity): ``zbuffer``, ``painter``, ``watkins`` and ``warnock`` one band
+        of rows per thread (each band culls and projects the cells again, so the speedup
+        is below the thread count), ``floating_horizon`` ranges of columns. The image is bit-identical for
         every value; ``counts`` are summed over the parts and ``elapsed_ns`` is the C
         clock on one part, else the wall time of the pool. Default 1.
 
     Returns
     -------
     Image
-        ``zbuffer`` and ``painter`` agree with an exact tracer (``algos.intersect`` on
-        ``datasets_gen.rays.pinhole`` rays) on every pixel except those whose centre lies
-        within rounding of a projected triangle edge; depths agree to rounding.
+        ``zbuffer``, ``painter``, ``watkins`` and ``warnock`` agree with an exact tracer
+        (``algos.intersect`` on ``datasets_gen.rays.pinhole`` rays) on every pixel except
+        those whose centre lies within rounding of a projected triangle edge; depths agree
+        to rounding. ``watkins`` and ``warnock`` evaluate an edge's position on a row and
+        a pixel's depth directly (from the triangle's plane), where the zbuffer steps them
+        incrementally, so they agree with the zbuffer on the same terms. ``watkins`` and
+        ``warnock`` allocate a table once per call (the triangles holding a pixel centre;
+        the min-max mipmap) and raise MemoryError when that fails.
         ``floating_horizon`` is approximate. For a level camera (``look_at`` at the
         height of ``position``) each column is a vertical plane and a pixel's sample lies
         on its own ray's ground track; its depth is then the exact hit's ground distance
@@ -350,8 +376,10 @@ def fuzz_one(data: bytes) -> None:
     zeros, huge and tiny values), an image of up to 17 x 17 pixels and the march step.
     Invariants: the call returns or raises ValueError/TypeError; the heights are unmodified;
     ``t`` is positive or ``inf``; a hit has a cell inside the grid and a unit normal, a
-    miss has cell (-1, -1); ``zbuffer`` and ``painter`` draw the same cells wherever their
-    depths are not tied within 1e-9.
+    miss has cell (-1, -1); ``painter``, ``watkins`` and ``warnock`` draw the cells
+    ``zbuffer`` draws wherever their depths are not tied within 1e-9 (a pixel centre on a
+    projected edge, where the zbuffer's incremental edges may round the other way, is the
+    documented exception: there the two cells must border each other).
     """
     pos = 0
 
@@ -398,8 +426,24 @@ def fuzz_one(data: bytes) -> None:
     assert (ci[~hit] == -1).all() and (cj[~hit] == -1).all()
     lengths = np.linalg.norm(image.normal[hit], axis=-1)
     assert np.allclose(lengths, 1.0), "normal: not unit"
-    if algorithm == "painter":
+    if algorithm in ("painter", "watkins", "warnock"):
         other = render("zbuffer", heights, position, look_at, fov, width, height)
         same_cell = np.all(other.cell == image.cell, axis=-1)
         close = np.isclose(other.t, image.t, rtol=1e-9, atol=0) | ~(hit | np.isfinite(other.t))
-        assert (same_cell | close).all(), "painter and zbuffer disagree beyond a depth tie"
+        if algorithm == "painter":
+            assert (same_cell | close).all(), "painter and zbuffer disagree beyond a depth tie"
+        else:
+            # on a projected edge the two may pick the neighbours on either side of it, or
+            # (on a silhouette) a hit and a miss where the hit region's border runs
+            both = hit & np.isfinite(other.t)
+            step = np.abs(other.cell - image.cell).max(axis=-1)
+            border = np.zeros_like(hit)
+            for covered in (hit, np.isfinite(other.t)):
+                padded = np.pad(covered, 1, mode="edge")
+                border |= ((padded[1:-1, 1:-1] != padded[:-2, 1:-1])
+                           | (padded[1:-1, 1:-1] != padded[2:, 1:-1])
+                           | (padded[1:-1, 1:-1] != padded[1:-1, :-2])
+                           | (padded[1:-1, 1:-1] != padded[1:-1, 2:]))
+            edge = (both & (step <= 1)) | (~both & border)
+            assert (same_cell | close | edge).all(), (
+                f"{algorithm} and zbuffer disagree beyond a depth tie or an edge")
