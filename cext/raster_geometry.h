@@ -243,10 +243,10 @@ static inline int in_front(double z, int64_t id, double best_z, int64_t best_id)
     return wall != best_wall ? !wall : id < best_id;
 }
 
-/* Append the facing triangles of cell (i, j) (and, for a boundary cell, its skirts on the
- * sides the camera is outside of) to `out` as screen triangles that hold at least one pixel
- * centre row. `out` has room for 12; returns how many were written. */
-static inline int cell_screen_triangles(const hf_raster *r, int32_t i, int32_t j,
+/* Append the facing triangles of cell (i, j) (and, for a boundary cell with `skirts`, its
+ * skirts on the sides the camera is outside of) to `out` as screen triangles that hold at
+ * least one pixel centre row. `out` has room for 12; returns how many were written. */
+static inline int cell_screen_triangles(const hf_raster *r, int32_t i, int32_t j, int skirts,
                                         screen_triangle *out) {
     const cam_vertex v00 = to_camera(r, i, j, height_at(r, i, j));
     const cam_vertex v10 = to_camera(r, i + 1, j, height_at(r, i + 1, j));
@@ -264,7 +264,7 @@ static inline int cell_screen_triangles(const hf_raster *r, int32_t i, int32_t j
         tri[n_tri][0] = v00, tri[n_tri][1] = v11, tri[n_tri][2] = v01;
         ids[n_tri++] = id + HF_KIND_UPPER;
     }
-    for (side = 0; side < 4; ++side) {
+    for (side = 0; side < (skirts ? 4 : 0); ++side) {
         /* the skirt segment of this cell on a boundary side, if any */
         const int along_x = side < 2;
         const int32_t edge_index = along_x ? i : j;

@@ -3,8 +3,7 @@
  *
  * The polygons Warnock classifies against a screen region are here the tiles of a min-max
  * mipmap of the field (level L: tiles of 2^L x 2^L cells, each with the lowest and highest
- * sample under it; a tile on a boundary side the camera sees reaches down to the skirts'
- * lower edge). A tile's projected bound is the screen rectangle and depth range of its box.
+ * sample under it). A tile's projected bound is the screen rectangle and depth range of its box.
  * A region and its candidate tiles (those whose rectangle holds a pixel centre of the
  * region) fall into one of the classic cases:
  * - empty: no candidate; every pixel of the region misses;
@@ -18,8 +17,11 @@
  *   overlap it. A candidate tile whose rectangle is larger than the region is replaced by its
  *   four children first, so the candidates stay about as large as the region: the
  *   hierarchy of the mipmap follows the hierarchy of the regions.
- * A pixel's triangle is therefore the nearest of all triangles whose tile bound holds its
- * centre, which is every triangle covering it: the image is the zbuffer's (the same pixel
+ * The skirts (the box's side faces) are drawn last through the same depth test: each is a
+ * strip reaching towards the vertical vanishing point, whose screen rectangle would
+ * overlap most regions. A pixel's triangle is therefore the nearest of all triangles whose
+ * tile bound holds its centre, which is every triangle covering it: the image is the
+ * zbuffer's (the same pixel
  * centre tests as watkins, screen_triangle in raster_geometry.h, and the same tie order). */
 #include <stdlib.h>
 #include <string.h>
@@ -175,18 +177,13 @@ static int build_mipmap(warnock_state *s) {
     return 1;
 }
 
-/* The projected bound of a tile's box; 0 when it lies behind the near plane. A tile on a
- * boundary side the camera is outside of holds that side's skirts: its box reaches down to
- * z_bottom. */
+/* The projected bound of a tile's box; 0 when it lies behind the near plane. */
 static int make_tile(const warnock_state *s, int32_t level, int32_t ti, int32_t tj, tile *t) {
     const hf_raster *r = s->r;
     int32_t i0, i1, j0, j1;
     double lo[3], hi[3];
     tile_cells(s, level, ti, tj, &i0, &i1, &j0, &j1);
     tile_heights(s, level, ti, tj, &lo[2], &hi[2]);
-    if ((j0 == 0 && r->position[1] < 0) || (j1 == s->ny - 1 && r->position[1] > s->ny) ||
-        (i0 == 0 && r->position[0] < 0) || (i1 == s->nx - 1 && r->position[0] > s->nx))
-        lo[2] = r->z_bottom;
     lo[0] = i0;
     lo[1] = j0;
     hi[0] = i1 + 1.0;
@@ -251,7 +248,7 @@ static int64_t drop_hidden(warnock_state *s, const region *g, int64_t first, int
         screen_triangle triangles[12];
         int n, m;
         if (s->list[k].level != 0) continue;
-        n = cell_screen_triangles(r, s->list[k].ti, s->list[k].tj, triangles);
+        n = cell_screen_triangles(r, s->list[k].ti, s->list[k].tj, 0, triangles);
         for (m = 0; m < n; ++m) {
             const screen_triangle *t = triangles + m;
             int32_t row, c0, c1;
@@ -282,6 +279,30 @@ static int64_t drop_hidden(warnock_state *s, const region *g, int64_t first, int
     return kept;
 }
 
+/* The pixel centres of region g inside triangle t, each kept when t is in front there. */
+static void draw_triangle_in(hf_raster *r, const region *g, const screen_triangle *t) {
+    const int32_t row_first = t->row_top > g->r0 ? t->row_top : g->r0;
+    const int32_t row_last = t->row_bottom < g->r1 ? t->row_bottom : g->r1;
+    int32_t row, c, c0, c1;
+    if (row_first >= row_last) return;
+    r->counts[HF_COUNT_TRIANGLES] += 1;
+    for (row = row_first; row < row_last; ++row) {
+        screen_triangle_span(r, t, row, &c0, &c1);
+        if (c0 < g->c0) c0 = g->c0;
+        if (c1 > g->c1) c1 = g->c1;
+        for (c = c0; c < c1; ++c) {
+            const int64_t pixel = (int64_t)row * r->width + c;
+            const double z = screen_triangle_depth(r, t, c, row);
+            r->counts[HF_COUNT_FRAGMENTS] += 1;
+            if (in_front(z, t->id, r->t[pixel], r->primitive[pixel])) {
+                r->t[pixel] = z;
+                r->primitive[pixel] = t->id;
+                r->counts[HF_COUNT_WRITTEN] += 1;
+            }
+        }
+    }
+}
+
 /* Draw region g from its candidate cells: a depth test per pixel centre. */
 static void draw_cells(warnock_state *s, const region *g, int64_t first, int64_t last) {
     hf_raster *r = s->r;
@@ -290,28 +311,36 @@ static void draw_cells(warnock_state *s, const region *g, int64_t first, int64_t
         screen_triangle triangles[12];
         int n, m;
         r->counts[HF_COUNT_DRAWN] += 1;
-        n = cell_screen_triangles(r, s->list[k].ti, s->list[k].tj, triangles);
-        for (m = 0; m < n; ++m) {
-            const screen_triangle *t = triangles + m;
-            const int32_t row_first = t->row_top > g->r0 ? t->row_top : g->r0;
-            const int32_t row_last = t->row_bottom < g->r1 ? t->row_bottom : g->r1;
-            int32_t row, c, c0, c1;
-            if (row_first >= row_last) continue;
-            r->counts[HF_COUNT_TRIANGLES] += 1;
-            for (row = row_first; row < row_last; ++row) {
-                screen_triangle_span(r, t, row, &c0, &c1);
-                if (c0 < g->c0) c0 = g->c0;
-                if (c1 > g->c1) c1 = g->c1;
-                for (c = c0; c < c1; ++c) {
-                    const int64_t pixel = (int64_t)row * r->width + c;
-                    const double z = screen_triangle_depth(r, t, c, row);
-                    r->counts[HF_COUNT_FRAGMENTS] += 1;
-                    if (in_front(z, t->id, r->t[pixel], r->primitive[pixel])) {
-                        r->t[pixel] = z;
-                        r->primitive[pixel] = t->id;
-                        r->counts[HF_COUNT_WRITTEN] += 1;
-                    }
-                }
+        n = cell_screen_triangles(r, s->list[k].ti, s->list[k].tj, 0, triangles);
+        for (m = 0; m < n; ++m) draw_triangle_in(r, g, triangles + m);
+    }
+}
+
+/* The skirts (the box's side faces below the boundary), after the subdivision and through
+ * the same depth test: a skirt is a long strip reaching towards the vertical vanishing
+ * point, whose screen rectangle would overlap most regions, while it covers few pixels. */
+static void draw_skirts_after(hf_raster *r, const region *g) {
+    int side;
+    for (side = 0; side < 4; ++side) {
+        const int32_t n = side < 2 ? r->cols - 1 : r->rows - 1;
+        int32_t k;
+        for (k = 0; k < n; ++k) {
+            cam_vertex q[4];
+            int64_t id;
+            int half;
+            if (!skirt_segment(r, side, k, q, &id)) break; /* the side looks away */
+            if (outcode(r, q[0]) & outcode(r, q[1]) & outcode(r, q[2]) & outcode(r, q[3])) continue;
+            for (half = 0; half < 2; ++half) {
+                const cam_vertex a = q[0], b = q[half + 1], c = q[half + 2];
+                screen_vertex v[4];
+                screen_triangle t;
+                double plane[3];
+                const int m = clip_project(r, a, b, c, v);
+                if (m < 3 || !camera_plane(a, b, c, plane)) continue;
+                if (screen_triangle_setup(r, &v[0], &v[1], &v[2], plane, id, &t))
+                    draw_triangle_in(r, g, &t);
+                if (m == 4 && screen_triangle_setup(r, &v[0], &v[2], &v[3], plane, id, &t))
+                    draw_triangle_in(r, g, &t);
             }
         }
     }
@@ -376,6 +405,7 @@ int hf_warnock(hf_raster *r) {
         } else {
             status = HF_OK; /* the whole field lies behind the camera */
         }
+        if (status == HF_OK) draw_skirts_after(r, &whole);
     }
     for (level = 0; level < MAX_LEVELS; ++level) {
         free(s.zmin[level]);

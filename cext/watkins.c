@@ -79,7 +79,7 @@ static int build_edge_table(hf_raster *r, edge_table *table) {
             }
             r->counts[HF_COUNT_DRAWN] += 1;
             if (!table_reserve(table, 12)) return 0;
-            n = cell_screen_triangles(r, i, j, table->triangles + table->n);
+            n = cell_screen_triangles(r, i, j, 1, table->triangles + table->n);
             /* keep the triangles with a centre row inside the region */
             for (k = 0, kept = 0; k < n; ++k) {
                 const screen_triangle *t = table->triangles + table->n + k;
