@@ -1,4 +1,4 @@
-"""Rasterisers of a height field, the seeds' other road (issue 23), and image comparison.
+"""Rasterisers of a height field, the seeds' other road, and image comparison.
 
 The tracers answer "what does this pixel's ray hit first?"; a rasteriser answers "which
 pixels does this cell cover?". Five rasterisers run in C (``cext/raster.c``,

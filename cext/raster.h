@@ -1,5 +1,5 @@
 /* Rasterisers of a height field: the "convert to polygons" road of the seeds, against which
- * the tracers are measured (issue 23).
+ * the tracers are measured.
  *
  * - zbuffer: scan conversion of the field's two triangles per cell (the split of
  *   CONVENTIONS "triangles", Embree's vertices) with a depth buffer; trapezoid

@@ -421,7 +421,10 @@ def test_crossover_study_runs(tmp_path):
     with open(paths["csv"]) as f:
         rows = list(csv.DictReader(f))
     renderers = {r["renderer"] for r in rows}
-    assert {"zbuffer", "painter", "floating_horizon", "zbuffer@threads"} <= renderers
+    assert {"zbuffer", "painter", "floating_horizon", "watkins", "warnock",
+            "zbuffer@threads"} <= renderers
+    assert all(float(r["ns_per_pixel"]) > 0 for r in rows)
+    assert "| watkins ms | warnock ms |" in table
     assert all(float(r["median_ms"]) > 0 for r in rows)
 
 
