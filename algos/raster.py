@@ -204,14 +204,18 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
         ``0 <= t - t_exact <= step * |d| / |d_ground|`` wherever the surface along the
         ray is continuous and seen from above, with ``d`` the pixel's direction.
         Silhouettes thinner than a step can be missed. With pitch the column's rays fan
-        out and the march follows the ray above the current horizon only.
+        out and the march follows the ray above the current horizon only: the error grows
+        with the pitch (measured on a 65^2 random field, 64x48, fov 60, step 0.25: cells
+        differ on 9 % of the pixels at 20 degrees, 40 % at 55), and a view holding the
+        vertical (``|pitch|`` plus half the vertical field of view at 90 degrees or more,
+        a nadir view included) is refused.
 
     Raises
     ------
     ValueError
         Unknown algorithm or output; a bad camera (see :func:`pinhole_frame`); a camera
         at or below the surface inside the footprint (every ray would hit at t = 0);
-        ``step`` out of range.
+        ``step`` out of range; ``floating_horizon`` with the vertical in view.
     TypeError
         Non-integer image sizes, a non-numeric height array.
     """
@@ -227,6 +231,16 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
     if not 1e-3 <= step <= 64:
         raise ValueError(f"step: expected cells in [1e-3, 64], got {step}")
     fld, frame, sx, sy, z_bottom = _setup(heights, position, look_at, fov, width, height)
+    if algorithm == "floating_horizon":
+        # each column marches along the ground: the vertical must lie outside the view
+        pitch = math.degrees(math.asin(min(1.0, abs(float(frame[5])))))
+        half_v = math.degrees(math.atan(float(frame[13])))
+        if not pitch + half_v < 90:
+            raise ValueError(
+                f"look_at: floating_horizon needs the straight-down (and straight-up) "
+                f"direction outside the view, |pitch| + half the vertical field of view "
+                f"below 90 degrees; here {pitch:.6g} + {half_v:.6g}. Steep and nadir views "
+                f"render with {', '.join(EXACT_RASTERISERS)}")
     h = fld.cell_heights
     width, height = len(sx), len(sy)
     t = np.empty((height, width), dtype=np.float64)

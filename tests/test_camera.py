@@ -90,3 +90,20 @@ def test_nadir_through_the_render_command(tmp_path):
                  "--algorithm", "warnock", "--camera", "12,12,80",
                  "--look-at", "12,12,0", "--out", out, "--threads", "1"]) == 0
     assert (tmp_path / "nadir.exr").exists() and (tmp_path / "nadir.png").exists()
+
+
+def test_floating_horizon_refuses_views_holding_the_vertical_with_the_range():
+    """The floating horizon marches each column over the ground: a nadir view, or any view
+    whose vertical field of view holds the straight-down direction, is refused with the
+    range that works; a view just inside that range renders."""
+    h = random_field(3, rows=33, cols=33, relief=3.0)
+    with pytest.raises(ValueError, match="pitch.*below 90 degrees"):
+        raster.render("floating_horizon", h, (16.0, 16.0, 40.0), (16.0, 16.0, 0.0), 60, 16, 12)
+    # 60 degrees of pitch, 64x48 at fov 60 (half the vertical field 23.4 degrees): renders
+    position = np.array([16.0, -10.0, 30.0])
+    down = np.array([0.0, np.cos(np.radians(60)), -np.sin(np.radians(60))])
+    image = raster.render("floating_horizon", h, position, position + 30 * down, 60, 64, 48)
+    assert np.isfinite(image.t).any()
+    steeper = np.array([0.0, np.cos(np.radians(70)), -np.sin(np.radians(70))])
+    with pytest.raises(ValueError, match="70 \\+ 23.4"):
+        raster.render("floating_horizon", h, position, position + 30 * steeper, 60, 64, 48)
