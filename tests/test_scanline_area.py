@@ -159,3 +159,21 @@ def test_field_behind_the_camera_is_empty():
         image = raster.render(algorithm, h, (-2.0, -2.0, 10.0), (-20.0, -20.0, 10.0), 60, 16, 9)
         assert np.isinf(image.t).all() and (image.cell == -1).all(), algorithm
         assert image.counts["pixels_written"] == 0, algorithm
+
+
+@pytest.mark.parametrize("algorithm", RENDERERS)
+def test_render_command_writes_the_same_files(tmp_path, algorithm):
+    """``hftrace render --algorithm watkins|warnock`` writes the EXR and PNG the other
+    renderers write, and its image differs from ``dda``'s on no pixel of a small view."""
+    import OpenEXR
+
+    from bench.cli.render import render_files
+
+    out = str(tmp_path / algorithm)
+    paths = render_files("fbm", size=40, algorithm=algorithm, width=48, height=27, out=out,
+                         diff=(algorithm, "dda"), threads=1, echo=lambda *_: None)
+    with OpenEXR.File(out + ".exr") as f:
+        assert set(f.channels()) == {"Z", "N.x", "N.y", "N.z", "cellsVisited", "runsVisited"}
+    assert (tmp_path / f"{algorithm}.png").exists()
+    assert paths["diff"]["pixels"] == 48 * 27
+    assert paths["diff"]["cell_differs"] == 0.0
