@@ -31,8 +31,8 @@ pixels does this cell cover?". Five rasterisers run in C (``cext/raster.c``,
 ``warnock``
     The chapter's area subdivision (Warnock 1969): a screen region is classified against
     the projected bounds of a min-max mipmap's tiles (Tevs et al. 2008) as empty, hidden
-    behind a surrounding triangle, simple enough to draw (a few cells, or a few pixels:
-    a depth test per pixel centre) or too complex, then split in four; tiles larger than
+    behind a surrounding triangle, simple enough to draw (a few cells, or at most 16 x 16
+    pixels: a depth test per pixel centre) or too complex, then split in four; tiles larger than
     the region are replaced by their children, so the tile hierarchy follows the regions.
 
 ``zbuffer``, ``painter``, ``watkins`` and ``warnock`` are exact (:data:`EXACT_RASTERISERS`).

@@ -11,8 +11,9 @@
  *   of the region, and every other candidate tile lies farther away than that triangle's
  *   farthest point over the region; those tiles are dropped (hidden), and the region is
  *   drawn from that one cell;
- * - one or a few cells left (an intersecting or a contained polygon), or a region of a few
- *   pixels: drawn with a depth test per pixel centre, from those cells only;
+ * - one or a few cells left (an intersecting or a contained polygon), or a region of at
+ *   most 16 x 16 pixels: drawn from the cells of its candidates with a depth test per pixel
+ *   centre;
  * - too complex: the region is split in four, and each quarter keeps the candidates that
  *   overlap it. A candidate tile whose rectangle is larger than the region is replaced by its
  *   four children first, so the candidates stay about as large as the region: the

@@ -57,6 +57,20 @@ static int table_reserve(edge_table *table, int64_t more) {
     return 1;
 }
 
+/* Whether a triangle of at most two centre rows holds a pixel centre of the region (a
+ * taller one is kept unasked): far from the camera most triangles are smaller than a pixel
+ * and hold none, and the table stays about as large as the image. */
+static int holds_a_centre(const hf_raster *r, const screen_triangle *t) {
+    int32_t row, c0, c1;
+    if (t->row_bottom - t->row_top > 2) return 1;
+    for (row = t->row_top; row < t->row_bottom; ++row) {
+        if (row < r->row_begin || row >= r->row_end) continue;
+        screen_triangle_span(r, t, row, &c0, &c1);
+        if (c0 < c1) return 1;
+    }
+    return 0;
+}
+
 /* Project the field's triangles into the edge table; cells outside the region's frustum
  * are culled as the zbuffer culls them (a boundary cell is kept for its skirts). */
 static int build_edge_table(hf_raster *r, edge_table *table) {
@@ -84,6 +98,7 @@ static int build_edge_table(hf_raster *r, edge_table *table) {
             for (k = 0, kept = 0; k < n; ++k) {
                 const screen_triangle *t = table->triangles + table->n + k;
                 if (t->row_bottom <= r->row_begin || t->row_top >= r->row_end) continue;
+                if (!holds_a_centre(r, t)) continue;
                 if (kept != k) table->triangles[table->n + kept] = *t;
                 ++kept;
             }
