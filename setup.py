@@ -24,10 +24,11 @@ import numpy
 from setuptools import Extension, setup
 
 SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
-           "terrain.c", "horizon_fast.c", "raster.c", "cone.c", "packet.c", "compact.c"]
+           "terrain.c", "horizon_fast.c", "raster.c", "watkins.c", "warnock.c", "cone.c",
+           "packet.c", "compact.c"]
 
-HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h",
-           "maxmip.h", "terrain.h", "horizon_fast.h", "compact.h"]
+HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "raster_geometry.h",
+           "surfaces.h", "mipmap.h", "maxmip.h", "terrain.h", "horizon_fast.h", "compact.h"]
 
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
 link_args = []

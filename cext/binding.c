@@ -111,6 +111,7 @@ static const char *status_text(int status) {
     case HF_ERR_CAPACITY: return "an output buffer does not match the counting pass";
     case HF_ERR_INTERNAL: return "an exact walk missed its computed last cell";
     case HF_ERR_ARGUMENT: return "unknown kernel or mode";
+    case HF_ERR_MEMORY: return "out of memory for the renderer's table";
     default: return "unknown error";
     }
 }
@@ -1096,7 +1097,8 @@ PyDoc_STRVAR(raster_doc,
              "raster(algorithm, heights, hmin, hmax, camera, sx, sy, near, z_bottom, step,\n"
              "       region, t, cell, normal, coverage, primitive, mask, counts) -> int\n\n"
              "Draw one region (row_begin, row_end, column_begin, column_end) of an image with\n"
-             "a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon, 3 hidden lines);\n"
+             "a rasteriser (0 zbuffer, 1 painter, 2 floating_horizon, 3 hidden lines,\n"
+             "4 watkins, 5 warnock);\n"
              "camera is float64\n"
              "(position, forward, right, up, half_w, half_h); primitive (int64) and mask\n"
              "(uint8, painter) are whole-image workspaces. Returns the elapsed nanoseconds\n"
@@ -1164,7 +1166,8 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     }
     if (algorithm == HF_RASTER_FLOATING_HORIZON ? (region[0] != 0 || region[1] != height)
                                                 : (region[2] != 0 || region[3] != width)) {
-        PyErr_SetString(PyExc_ValueError, "region: zbuffer and painter draw whole rows, "
+        PyErr_SetString(PyExc_ValueError, "region: zbuffer, painter, watkins and warnock draw "
+                                          "whole rows, "
                                           "floating_horizon whole columns");
         return NULL;
     }
@@ -1231,6 +1234,7 @@ static PyObject *raster(PyObject *self, PyObject *args) {
     status = hf_raster_render(algorithm, &r);
     elapsed_ns = timed_end(&section);
     free(r.vertex_rows);
+    if (status == HF_ERR_MEMORY) return PyErr_NoMemory();
     if (status != HF_OK) {
         PyErr_Format(PyExc_RuntimeError, "rasteriser %d failed: %s", algorithm,
                      status_text(status));

@@ -44,7 +44,8 @@ enum hf_status {
     HF_OK = 0,
     HF_ERR_CAPACITY = -1, /* an output buffer was too small (a bug in the caller)      */
     HF_ERR_INTERNAL = -2, /* an exact walk did not reach its computed last cell        */
-    HF_ERR_ARGUMENT = -3  /* unknown kernel or mode                                    */
+    HF_ERR_ARGUMENT = -3, /* unknown kernel or mode                                    */
+    HF_ERR_MEMORY = -4    /* a renderer could not allocate its table                   */
 };
 
 /* One batch of rays and the buffers its mode writes to. Unused pointers may be NULL. */

@@ -19,56 +19,7 @@
 #include <string.h>
 #include "hftrace.h"
 #include "raster.h"
-
-typedef struct {
-    double a, b, w; /* camera coordinates */
-} cam_vertex;
-
-typedef struct {
-    double X, Y, Z; /* pixel coordinates and 1/w */
-} screen_vertex;
-
-/* ---- camera --------------------------------------------------------------------------- */
-/* Camera coordinates of a world point. Every rasteriser goes through this one function, so
- * a vertex shared by several triangles gets the same coordinates in all of them. */
-static inline cam_vertex to_camera(const hf_raster *r, double x, double y, double z) {
-    const double qx = x - r->position[0], qy = y - r->position[1], qz = z - r->position[2];
-    cam_vertex v;
-    v.a = qx * r->right[0] + qy * r->right[1] + qz * r->right[2];
-    v.b = qx * r->up[0] + qy * r->up[1] + qz * r->up[2];
-    v.w = qx * r->forward[0] + qy * r->forward[1] + qz * r->forward[2];
-    return v;
-}
-
-/* Which of the five half-spaces of the view frustum (near, left, right, and the bottom
- * and top of the region's rows) a point lies outside of, one bit each. A cell whose four
- * corners share a bit is culled. */
-static inline int outcode(const hf_raster *r, cam_vertex v) {
-    int code = 0;
-    if (v.w < r->near) code |= 1;
-    if (v.a < -r->half_w * v.w) code |= 2;
-    if (v.a > r->half_w * v.w) code |= 4;
-    if (v.b < r->band_bottom * v.w) code |= 8;
-    if (v.b > r->band_top * v.w) code |= 16;
-    return code;
-}
-
-static inline screen_vertex project(const hf_raster *r, cam_vertex v) {
-    screen_vertex s;
-    s.X = (v.a / (v.w * r->half_w) + 1.0) * 0.5 * (double)r->width;
-    s.Y = (1.0 - v.b / (v.w * r->half_h)) * 0.5 * (double)r->height;
-    s.Z = 1.0 / v.w;
-    return s;
-}
-
-/* The first row (or column) whose centre is at or after coordinate y, clamped to [0, n].
- * Numerical hazard: near the near plane coordinates can be huge; clamp before converting. */
-static inline int32_t first_index(double y, int32_t n) {
-    const double k = ceil(y - 0.5);
-    if (!(k > 0)) return 0;
-    if (k >= (double)n) return n;
-    return (int32_t)k;
-}
+#include "raster_geometry.h"
 
 /* ---- the fragment: one pixel centre inside one triangle ------------------------------- */
 static inline void fragment(hf_raster *r, const int algorithm, int64_t pixel, double Z,
@@ -167,61 +118,17 @@ static inline void scan_triangle(hf_raster *r, const int algorithm, const screen
 }
 
 /* ---- one triangle in camera space: near-plane clipping, then the scan ---------------- */
-/* The point of edge (inside, outside) on the near plane; computed from the edge's inside
- * end, so two triangles sharing the edge get the same point. */
-static inline cam_vertex near_cut(const hf_raster *r, cam_vertex in, cam_vertex out) {
-    const double s = (in.w - r->near) / (in.w - out.w);
-    cam_vertex v;
-    v.a = in.a + s * (out.a - in.a);
-    v.b = in.b + s * (out.b - in.b);
-    v.w = r->near;
-    return v;
-}
 
 static inline void draw_triangle(hf_raster *r, const int algorithm, cam_vertex v0, cam_vertex v1,
                                  cam_vertex v2, int64_t id) {
-    const cam_vertex v[3] = {v0, v1, v2};
-    cam_vertex polygon[4];
     screen_vertex s[4];
-    int n = 0, k;
-    if (v0.w >= r->near && v1.w >= r->near && v2.w >= r->near) {
-        s[0] = project(r, v0);
-        s[1] = project(r, v1);
-        s[2] = project(r, v2);
-        scan_triangle(r, algorithm, &s[0], &s[1], &s[2], id);
-        return;
-    }
-    /* Sutherland-Hodgman against w >= near: a triangle becomes a triangle or a quad */
-    for (k = 0; k < 3; ++k) {
-        const cam_vertex cur = v[k], next = v[(k + 1) % 3];
-        const int cur_in = cur.w >= r->near, next_in = next.w >= r->near;
-        if (cur_in) polygon[n++] = cur;
-        if (cur_in != next_in)
-            polygon[n++] = cur_in ? near_cut(r, cur, next) : near_cut(r, next, cur);
-    }
+    const int n = clip_project(r, v0, v1, v2, s);
     if (n < 3) return;
-    for (k = 0; k < n; ++k) s[k] = project(r, polygon[k]);
     scan_triangle(r, algorithm, &s[0], &s[1], &s[2], id);
     if (n == 4) scan_triangle(r, algorithm, &s[0], &s[2], &s[3], id);
 }
 
 /* ---- cells and skirts ------------------------------------------------------------------- */
-static inline double height_at(const hf_raster *r, int32_t i, int32_t j) {
-    return (double)r->heights[(int64_t)j * r->cols + i];
-}
-
-/* Which triangles of cell (i, j) face the camera (the camera above its plane; a back face
- * is hidden by the front of the solid); returns the cell's primitive id base. */
-static inline int64_t cell_faces(const hf_raster *r, int32_t i, int32_t j, int *lower_faces,
-                                 int *upper_faces) {
-    const double h00 = height_at(r, i, j), h10 = height_at(r, i + 1, j);
-    const double h01 = height_at(r, i, j + 1), h11 = height_at(r, i + 1, j + 1);
-    const double px = r->position[0] - i, py = r->position[1] - j, pz = r->position[2] - h00;
-    *lower_faces = pz - (h10 - h00) * px - (h11 - h10) * py > 0;
-    *upper_faces = pz - (h11 - h01) * px - (h01 - h00) * py > 0;
-    return ((int64_t)j * (r->cols - 1) + i) * 4;
-}
-
 /* The two triangles of cell (i, j) from its corners' camera coordinates, the facing ones
  * only. `lower_first`: draw the u >= v triangle first (the painter's order). */
 static inline void draw_cell(hf_raster *r, const int algorithm, int32_t i, int32_t j,
@@ -244,31 +151,17 @@ static inline void draw_cell(hf_raster *r, const int algorithm, int32_t i, int32
  * such a face only where it enters the footprint, before any surface point, and two faces
  * never cover the same ray, so the painter may draw them first. */
 static void draw_skirts(hf_raster *r, const int algorithm) {
-    const int32_t rows = r->rows, cols = r->cols;
     int side;
     for (side = 0; side < 4; ++side) {
-        /* 0: y = 0 (seen from y < 0), 1: y = rows-1, 2: x = 0, 3: x = cols-1 */
-        const int along_x = side < 2;
-        const double fixed = side == 0 || side == 2 ? 0.0 : (double)(along_x ? rows - 1 : cols - 1);
-        const double p = r->position[along_x ? 1 : 0];
-        const int32_t n = along_x ? cols - 1 : rows - 1;
+        const int32_t n = side < 2 ? r->cols - 1 : r->rows - 1;
         int32_t k;
-        if (side == 0 || side == 2 ? !(p < fixed) : !(p > fixed)) continue;
         for (k = 0; k < n; ++k) {
-            const int32_t ia = along_x ? k : (int32_t)fixed, ja = along_x ? (int32_t)fixed : k;
-            const int32_t ib = along_x ? k + 1 : ia, jb = along_x ? ja : k + 1;
-            const cam_vertex top_a = to_camera(r, ia, ja, height_at(r, ia, ja));
-            const cam_vertex top_b = to_camera(r, ib, jb, height_at(r, ib, jb));
-            const cam_vertex bottom_a = to_camera(r, ia, ja, r->z_bottom);
-            const cam_vertex bottom_b = to_camera(r, ib, jb, r->z_bottom);
-            const int32_t ci = along_x ? k : (side == 2 ? 0 : cols - 2);
-            const int32_t cj = along_x ? (side == 0 ? 0 : rows - 2) : k;
-            const int64_t id =
-                ((int64_t)cj * (cols - 1) + ci) * 4 + (along_x ? HF_KIND_WALL_Y : HF_KIND_WALL_X);
-            if (outcode(r, top_a) & outcode(r, top_b) & outcode(r, bottom_a) & outcode(r, bottom_b))
-                continue;
-            draw_triangle(r, algorithm, top_a, top_b, bottom_b, id);
-            draw_triangle(r, algorithm, top_a, bottom_b, bottom_a, id);
+            cam_vertex q[4];
+            int64_t id;
+            if (!skirt_segment(r, side, k, q, &id)) break; /* the side looks away */
+            if (outcode(r, q[0]) & outcode(r, q[1]) & outcode(r, q[2]) & outcode(r, q[3])) continue;
+            draw_triangle(r, algorithm, q[0], q[1], q[2], id);
+            draw_triangle(r, algorithm, q[0], q[2], q[3], id);
         }
     }
 }
@@ -624,7 +517,12 @@ int hf_raster_render(int algorithm, hf_raster *r) {
     case HF_RASTER_ZBUFFER: zbuffer(r); break;
     case HF_RASTER_PAINTER: painter(r); break;
     case HF_RASTER_FLOATING_HORIZON: floating_horizon(r); break;
-    default: hidden_lines(r); break;
+    case HF_RASTER_HIDDEN_LINES: hidden_lines(r); break;
+    default: {
+        const int status = algorithm == HF_RASTER_WATKINS ? hf_watkins(r) : hf_warnock(r);
+        if (status != HF_OK) return status;
+        break;
+    }
     }
     resolve(r);
     return HF_OK;

@@ -1,5 +1,5 @@
 /* Rasterisers of a height field: the "convert to polygons" road of the seeds, against which
- * the tracers are measured (issue 23).
+ * the tracers are measured.
  *
  * - zbuffer: scan conversion of the field's two triangles per cell (the split of
  *   CONVENTIONS "triangles", Embree's vertices) with a depth buffer; trapezoid
@@ -15,6 +15,12 @@
  *   back, zig-zagging through the column segments that join consecutive rows, each point
  *   drawn when it lies above the upper or below the lower horizon of the sections drawn
  *   before it (one point per image column and segment).
+ * - watkins (watkins.c): Watkins' scanline algorithm: per image row an active list of the
+ *   triangles crossing it, their edge crossings sorted into spans, one depth decision per
+ *   span.
+ * - warnock (warnock.c): Warnock's area subdivision: a screen region is classified
+ *   against the projected bounds of the max-mipmap's tiles (empty, hidden behind a
+ *   surrounding triangle, or split in four) down to the pixels that need a depth test.
  *
  * The camera is the pinhole of datasets_gen.rays.pinhole: pixel (c, k) (column, row; row 0
  * at the top) looks along d = forward + sx[c] right + sy[k] up, and the depth written is the
@@ -34,7 +40,9 @@ enum hf_raster_algorithm {
     HF_RASTER_PAINTER = 1,
     HF_RASTER_FLOATING_HORIZON = 2,
     HF_RASTER_HIDDEN_LINES = 3, /* the floating horizon's line drawing (whole image only) */
-    HF_N_RASTER = 4
+    HF_RASTER_WATKINS = 4,      /* scanline: active edges, one depth decision per span */
+    HF_RASTER_WARNOCK = 5,      /* area subdivision against max-mipmap tile bounds     */
+    HF_N_RASTER = 6
 };
 
 /* primitive kinds stored per pixel (id = cell_index * 4 + kind) */
@@ -89,10 +97,17 @@ typedef struct {
     int64_t counts[HF_N_COUNTS];
 } hf_raster;
 
-/* Render one region of an image. Returns 0 (HF_OK), or HF_ERR_ARGUMENT for an unknown
- * algorithm or a region outside the image. No allocation; thread-safe for disjoint
- * regions; the GIL may be released around it. */
+/* Render one region of an image. Returns 0 (HF_OK), HF_ERR_ARGUMENT for an unknown
+ * algorithm or a region outside the image, or HF_ERR_MEMORY when watkins or warnock cannot
+ * allocate their tables. No allocation in the other rasterisers (watkins and warnock
+ * allocate their triangle table or tile pyramid once per call, before drawing);
+ * thread-safe for disjoint regions; the GIL may be released around it. */
 int hf_raster_render(int algorithm, hf_raster *r);
+
+/* The two renderers of watkins.c and warnock.c, called by hf_raster_render on a cleared
+ * region (band_top and band_bottom set); HF_OK or HF_ERR_MEMORY. */
+int hf_watkins(hf_raster *r);
+int hf_warnock(hf_raster *r);
 
 /* The size of hf_raster.vertex_rows, in doubles (0: not used by this algorithm). */
 size_t hf_raster_workspace_doubles(int algorithm, int32_t cols, int32_t width);
