@@ -8,6 +8,7 @@
 #                   an hour or more, on a quiet machine)
 #   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
 #   make regress-counts  instruction counts (callgrind) against bench/regress/instructions_baseline.json
+#   make format-check  the C files against .clang-format (clang-format)
 #   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
 #   make reports    regenerate the committed reference reports in reports/ (hours; the only
 #                   step besides `hftrace reproduce --publish` that writes there)
@@ -15,7 +16,9 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-SOURCES := pyproject.toml setup.py $(wildcard cext/*.c cext/*.h)
+# every C file of cext/, found in its folders (setup.py finds the same .c files)
+C_FILES := $(shell find cext -name '*.[ch]' | sort)
+SOURCES := pyproject.toml setup.py $(C_FILES)
 STAMP := $(VENV)/.hftrace-installed
 
 ASAN_TREE := build/asan
@@ -24,7 +27,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all install test lint reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts sanitize fuzz clean
+.PHONY: all install test lint format-check reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts sanitize fuzz clean
 
 all: test
 
@@ -44,6 +47,10 @@ test: $(STAMP)
 # ruff's rules as configured in pyproject.toml (the C side has its own .clang-format)
 lint: $(STAMP)
 	$(BIN)/python -m ruff check .
+
+# the C layout: every C file of cext/ against .clang-format (needs clang-format)
+format-check:
+	clang-format --dry-run --Werror $(C_FILES)
 
 # the peers' optional extra (xarray-spatial) joins the figure and the viewshed comparison;
 # a machine where it cannot be installed still reproduces everything else. rvt-py (RVT's

@@ -31,6 +31,22 @@ enum hf_kernel {
     HF_N_KERNELS = 6
 };
 
+/* The first-hit intersectors: the traversal kernels above (each walks the cells it tests)
+ * and these. The binding exports every id by name (algos._kernels.KERNEL_IDS), so the
+ * numbers are written here only. */
+enum hf_hit_kernel {
+    HF_HIT_DDA_MAXMIP = 6,
+    HF_HIT_RUNS_MAXMIP = 7,
+    HF_HIT_MARCH_LINEAR = 8,
+    HF_HIT_MARCH_GROWING = 9,
+    HF_HIT_MARCH_BINARY = 10,
+    HF_HIT_CONE = 11,
+    HF_HIT_CONE_RELAXED = 12,
+    HF_HIT_PACKET_MAXMIP = 13,
+    HF_HIT_DDA_COMPACT = 14,
+    HF_N_HIT_KERNELS = 15
+};
+
 enum hf_mode {
     HF_MODE_COUNT = 0,   /* number of cells and runs per ray                            */
     HF_MODE_CELLS = 1,   /* store every cell (i, j)                                     */

@@ -8,7 +8,7 @@
  * E = 0: it passes exactly through the vertex, so both indices change at once and the
  *        two cells that touch the line only at that vertex are not visited.
  * |E| <= 2 A 2^16 < 2^48, so the loop runs in int64. */
-#include "internal.h"
+#include "walks/walk.h"
 
 /* The cell loop from (a, m), decision variable E. `swap` is a compile-time constant at
  * both call sites, so the hit mode's carried bound steps along a fixed axis. The loop

@@ -14,8 +14,8 @@
 
 #include <math.h>
 #include <stdint.h>
-#include "hitbatch.h"
-#include "mipmap.h"
+#include "surfaces/hitbatch.h"
+#include "core/mipmap.h"
 
 /* The constants of one ray's walk (from its clipped hf_hit and the batch). */
 typedef struct {

@@ -10,7 +10,7 @@
  * Every comparison against tmin/tmax below is exact: t is split into m 2^e with integer m
  * and compared in 128-bit integers. */
 #include <math.h>
-#include "internal.h"
+#include "walks/walk.h"
 
 /* ---- Exact floating-point helpers ------------------------------------------------------
  * Without SSE4.1 the libm calls nearbyint, frexp and ldexp are real function calls, and a

@@ -7,10 +7,13 @@
  * parameter where z reaches hmin, which ends the interval. */
 #include <math.h>
 #include <string.h>
-#include "hitbatch.h"
-#include "internal.h"
-#include "maxmip.h"
-#include "mipmap.h"
+#include "hierarchies/compact.h"
+#include "hierarchies/cone.h"
+#include "hierarchies/packet.h"
+#include "surfaces/hitbatch.h"
+#include "walks/walk.h"
+#include "hierarchies/maxmip.h"
+#include "core/mipmap.h"
 
 /* ---- clipping ----------------------------------------------------------------------- */
 /* [t0, t1] of the ray inside the box; returns 0 when empty. entry_axis: the face that

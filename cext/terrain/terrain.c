@@ -3,9 +3,9 @@
  * for viewsheds. See terrain.h for the contracts and algos/terrain.py for the maths. */
 #include <math.h>
 #include <stdlib.h>
-#include "mipmap.h"
-#include "surfaces.h"
-#include "terrain.h"
+#include "core/mipmap.h"
+#include "surfaces/surfaces.h"
+#include "terrain/terrain.h"
 
 #define HZ_INF HUGE_VAL
 

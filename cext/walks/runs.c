@@ -19,8 +19,8 @@
  * Start clipping: the first run starts at the clipped start cell and ends at the first
  * crossing, which is computed directly with one 128-bit division; the recurrence then
  * carries (c, R) from run to run in int64 (R < 2^47). */
-#include "internal.h"
-#include "mipmap.h"
+#include "walks/walk.h"
+#include "core/mipmap.h"
 
 /* ---- runs: the exact recurrence ------------------------------------------------------
  * The runs of a line with B = slope_minor > 0, from its start-clipped first run to its

@@ -3,22 +3,7 @@
 #define HFTRACE_HITBATCH_H
 
 #include <stdint.h>
-#include "compact.h"
-#include "hit.h"
-
-/* Intersector ids: the traversal kernels (enum hf_kernel) and these. */
-enum hf_hit_kernel {
-    HF_HIT_DDA_MAXMIP = 6,
-    HF_HIT_RUNS_MAXMIP = 7,
-    HF_HIT_MARCH_LINEAR = 8,
-    HF_HIT_MARCH_GROWING = 9,
-    HF_HIT_MARCH_BINARY = 10,
-    HF_HIT_CONE = 11,
-    HF_HIT_CONE_RELAXED = 12,
-    HF_HIT_PACKET_MAXMIP = 13,
-    HF_HIT_DDA_COMPACT = 14,
-    HF_N_HIT_KERNELS = 15
-};
+#include "surfaces/cell_test.h"
 
 #define HF_MAX_MIP_LEVELS 32
 
@@ -65,18 +50,5 @@ typedef struct {
 } hf_hit_batch;
 
 int hf_intersect_batch(int kernel, hf_hit_batch *batch);
-
-/* packet_maxmip: the dda_maxmip walks of the rays of hits[] whose bit is set in
- * `members` (clipped and prepared, each with a max-mipmap walk to do), together; each
- * hits[k] ends as dda_maxmip leaves it (packet.c). */
-void hf_packet_maxmip(hf_hit *hits, unsigned members, const hf_hit_batch *b);
-
-/* cone: the first hit of one clipped ray (1: found), cone.c. */
-int hf_cone_hit(hf_hit *h, const float *cone);
-
-/* cone_relaxed: the relaxed cone slope of every cell of an ny x nx grid of cell maxima,
- * from the destinations within `radius` rings (cone.c). */
-void hf_cone_relaxed_build(const float *cellmax, int32_t ny, int32_t nx, int32_t radius,
-                           float *slope);
 
 #endif

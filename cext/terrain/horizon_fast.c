@@ -3,9 +3,9 @@
  * algos/terrain.py for the maths. */
 #include <math.h>
 #include <stdlib.h>
-#include "horizon_fast.h"
-#include "mipmap.h"
-#include "surfaces.h"
+#include "terrain/horizon_fast.h"
+#include "core/mipmap.h"
+#include "surfaces/surfaces.h"
 
 #define HF_INF HUGE_VAL
 

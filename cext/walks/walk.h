@@ -1,13 +1,13 @@
 /* Shared internals of the kernels: the exact reduced line, the output sink, helpers. */
-#ifndef HFTRACE_INTERNAL_H
-#define HFTRACE_INTERNAL_H
+#ifndef HFTRACE_WALK_H
+#define HFTRACE_WALK_H
 
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <math.h>
-#include "hftrace.h"
-#include "hit.h"
+#include "core/hftrace.h"
+#include "surfaces/cell_test.h"
 
 /* A private mode: first hits. The sink hands each cell or run to an hf_hit, which may
  * end the walk. */

@@ -17,8 +17,8 @@
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
-#include "hftrace.h"
-#include "raster.h"
+#include "core/hftrace.h"
+#include "raster/raster.h"
 
 typedef struct {
     double a, b, w; /* camera coordinates */

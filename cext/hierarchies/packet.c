@@ -15,8 +15,9 @@
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
-#include "hitbatch.h"
-#include "maxmip.h"
+#include "hierarchies/packet.h"
+#include "surfaces/hitbatch.h"
+#include "hierarchies/maxmip.h"
 
 /* HF_PACKET_SIMD=1 (GCC or clang; build with CFLAGS=-DHF_PACKET_SIMD=1): the exit
  * parameters of a group in vector extensions, 4 doubles per vector (two SSE2 operations

@@ -7,7 +7,7 @@
 #define HF_HORIZON_FAST_H
 
 #include <stdint.h>
-#include "terrain.h"
+#include "terrain/terrain.h"
 
 /* Horizon tangents by one shared pattern, rows [row_start, row_stop) of the grid itself
  * (any direction), with the pattern outermost and a row of vertices innermost, so that the

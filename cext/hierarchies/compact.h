@@ -26,7 +26,7 @@
 #define HFTRACE_COMPACT_H
 
 #include <stdint.h>
-#include "hit.h"
+#include "surfaces/cell_test.h"
 
 #define HF_COMPACT_MAX_LEVELS 16 /* 4^16 cells per side: far beyond HF_MAX_GRID_SIDE */
 #define HF_COMPACT_NODE_BYTES 64

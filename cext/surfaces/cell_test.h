@@ -6,14 +6,14 @@
  * interval [ta, tb] in which that ray lies over the cell, clipped to [t0, t1]. The first
  * cell that reports a hit ends the walk, and cells come in order of t, so it is the first
  * hit. */
-#ifndef HFTRACE_HIT_H
-#define HFTRACE_HIT_H
+#ifndef HFTRACE_CELL_TEST_H
+#define HFTRACE_CELL_TEST_H
 
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
-#include "mipmap.h"
-#include "surfaces.h"
+#include "core/mipmap.h"
+#include "surfaces/surfaces.h"
 
 enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 };
 

@@ -21,9 +21,10 @@
  * the landing position can never skip the rest of the cell the ray is really in; a step
  * that fails this check is not taken. Hits are therefore those of the cell walk. */
 #include <math.h>
-#include "hitbatch.h"
-#include "internal.h"
-#include "mipmap.h"
+#include "hierarchies/cone.h"
+#include "surfaces/hitbatch.h"
+#include "walks/walk.h"
+#include "core/mipmap.h"
 
 /* A cone step must move the ray at least this many cells (Chebyshev) to be taken. */
 #ifndef HF_CONE_MIN_CELLS

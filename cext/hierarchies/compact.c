@@ -2,9 +2,9 @@
  * dda_compact first-hit walk. */
 #include <math.h>
 #include <string.h>
-#include "compact.h"
-#include "internal.h"
-#include "mipmap.h"
+#include "hierarchies/compact.h"
+#include "walks/walk.h"
+#include "core/mipmap.h"
 
 /* ---- layout ------------------------------------------------------------------------------ */
 int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {

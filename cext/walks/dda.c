@@ -7,7 +7,7 @@
  * Float kernels are measured, not trusted: rounding in the increments drifts on long
  * rays, and ties are decided by whatever the rounded values say. Every loop is bounded by
  * the grid, so drift can change the cells but never the memory touched. */
-#include "internal.h"
+#include "walks/walk.h"
 
 #define HF_DEFINE_DDA(NAME, REAL, FLOOR, CEIL, FMAX, FMIN)                                   \
     HF_INLINE int NAME(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {    \

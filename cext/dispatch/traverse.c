@@ -1,5 +1,5 @@
 /* Dispatch of a batch to its kernel. */
-#include "internal.h"
+#include "walks/walk.h"
 
 int hf_walk_batch(int kernel, int mode, hf_batch *batch) {
     hf_pattern pattern;
