@@ -3,6 +3,7 @@
 #include <math.h>
 #include <string.h>
 #include "hierarchies/compact.h"
+#include "hierarchies/maxmip.h"
 #include "walks/walk.h"
 #include "core/mipmap.h"
 
@@ -151,16 +152,18 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
     const int top = c->n_levels;
     const int climb = top > 1 ? top - 1 : 1; /* the coarsest tile level ever tested */
     const int descending = h->dz < 0;
-    const int32_t sx = h->dx > 0 ? 1 : -1, sy = h->dy > 0 ? 1 : -1;
     const int32_t fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
     const int has_x = h->dx != 0, has_y = h->dy != 0;
     const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
     const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
     const double inf = (double)INFINITY;
+    hf_mip_ray ray; /* the constants of the floor tiles' walks */
     double t = h->t0;
     int32_t i = hf_cell_at(h->ox, h->dx, t, nx), j = hf_cell_at(h->oy, h->dy, t, ny);
     int level = climb < 2 ? climb : 2;
     int64_t guard;
+    hf_mip_ray_of(h, &ray);
+    ray.cull = cull; /* (h->cull_cells is off while the walk runs: see hf_compact_hit) */
     /* every pass skips a tile, walks a floor tile or descends one level; descents are at
      * most top per move */
     for (guard = 0; guard <= (8 + 2 * (int64_t)top) * ((int64_t)nx + ny) + 64; ++guard) {
@@ -191,41 +194,15 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
             --level;
             continue;
         } else {
-            /* walk the 4 x 4 floor tile cell by cell, each cell culled by its maximum in
-             * the tile's leaf (one line); mx, my: the exit faces of the current cell */
+            /* walk the 4 x 4 floor tile cell by cell (maxmip.h), each cell culled by its
+             * maximum in the tile's leaf (one line) */
             const float *leaf = hf_compact_leaf_at(c, tile_i, tile_j)->max;
             const int32_t ilo = (int32_t)tile_i << 2, jlo = (int32_t)tile_j << 2;
             const uint32_t iw = (uint32_t)(ilo + 4 < nx ? 4 : nx - ilo) - 1;
             const uint32_t jw = (uint32_t)(jlo + 4 < ny ? 4 : ny - jlo) - 1;
-            double t_in = t;
-            double mx = has_x ? ((double)(i + fx) - ox) * inv_x : inf;
-            double my = has_y ? ((double)(j + fy) - oy) * inv_y : inf;
-            for (;;) {
-                const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
-                h->cells_visited += 1;
-                if (!cull || !(oz + (descending ? tb : t_in) * dz >
-                               (double)leaf[((j & 3) << 2) | (i & 3)])) {
-                    if (hf_hit_cell_exact(h, i, j)) return 1;
-                }
-                if (!(tb < t1)) return 0;
-                if (mx < my) {
-                    i += sx;
-                    t_in = mx;
-                    mx = ((double)(i + fx) - ox) * inv_x;
-                } else if (my < mx) {
-                    j += sy;
-                    t_in = my;
-                    my = ((double)(j + fy) - oy) * inv_y;
-                } else {
-                    i += sx;
-                    j += sy;
-                    t_in = mx;
-                    mx = ((double)(i + fx) - ox) * inv_x;
-                    my = ((double)(j + fy) - oy) * inv_y;
-                }
-                if ((uint32_t)(i - ilo) > iw || (uint32_t)(j - jlo) > jw) break;
-            }
-            if ((uint32_t)i >= (uint32_t)nx || (uint32_t)j >= (uint32_t)ny) return 0;
+            double t_in;
+            const int status = hf_floor_walk(h, &ray, ilo, jlo, iw, jw, leaf, 1, &i, &j, t, &t_in);
+            if (status >= 0) return status;
             t = t_in > t ? t_in : t;
             level = compact_climb(1, climb, ilo, jlo, i, j);
             continue;

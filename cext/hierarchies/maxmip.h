@@ -40,12 +40,11 @@ static inline int hf_mip_restart_level(const hf_mip_ray *r) {
     return r->floor_level + 1 < r->top ? r->floor_level + 1 : r->top;
 }
 
-static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_ray *r,
-                                hf_mip_walk *w) {
+/* The ray's constants that come from its clipped hf_hit alone (every field but top,
+ * floor_level and guard_max): what a floor tile's walk reads (hf_floor_walk). */
+HF_HOT void hf_mip_ray_of(const hf_hit *h, hf_mip_ray *r) {
     r->nx = h->cols - 1;
     r->ny = h->rows - 1;
-    r->top = b->mip_levels - 1;
-    r->floor_level = b->floor_level < r->top ? b->floor_level : r->top;
     r->descending = h->dz < 0;
     r->cull = h->cull_cells;
     r->has_x = h->dx != 0;
@@ -63,6 +62,13 @@ static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_r
     r->inv_x = h->inv_dx;
     r->inv_y = h->inv_dy;
     r->t1 = h->t1;
+}
+
+static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_ray *r,
+                                hf_mip_walk *w) {
+    hf_mip_ray_of(h, r);
+    r->top = b->mip_levels - 1;
+    r->floor_level = b->floor_level < r->top ? b->floor_level : r->top;
     r->guard_max = 4 * ((int64_t)r->nx + r->ny) + 64;
     w->t = h->t0;
     w->i = hf_cell_at(h->ox, h->dx, w->t, r->nx);
@@ -123,34 +129,34 @@ static inline double hf_mip_tile_max(const hf_hit_batch *b, int level, int32_t t
     return (double)b->mip[level][(int64_t)tile_j * b->mip_cols[level] + tile_i];
 }
 
-/* Walk the floor tile (tile_i, tile_j) cell by cell; mx, my: the exit faces of the
- * current cell, recomputed only on the axis that stepped. A cell is culled by z at its
- * exit face (descending) or at its entry (else): for a descending ray that is exactly the
- * exact test's cull, so only the cells it passes pay for the interval and the surface
- * test. Returns 1 on a hit, 0 when the ray ends or leaves the grid, -1 when it leaves the
- * tile (the walk goes on from the cell it entered). */
-static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w, int32_t tile_i,
-                                    int32_t tile_j) {
-    const int floor_level = r->floor_level;
+/* The floor-tile walk, the one home of the cell walk inside a tile that a hierarchy could
+ * not skip (dda_maxmip, packet_maxmip and dda_compact): from cell (*ci, *cj), entered at
+ * t_start, cell by cell through the tile of cells [ilo, ilo + iw] x [jlo, jlo + jw]; mx, my:
+ * the exit faces of the current cell, recomputed only on the axis that stepped. A cell is
+ * culled by z at its exit face (descending) or at its entry (else) against its maximum:
+ * for a descending ray that is exactly the exact test's cull, so only the cells it passes
+ * pay for the interval and the surface test. `maxima` holds the cell maxima: the
+ * row-major grid (leaf = 0) or, for the compact tree, the tile's leaf of 4 x 4 maxima in
+ * one line (leaf = 1; a constant at every call site, so the choice folds away). Returns 1
+ * on a hit, 0 when the ray ends or leaves the grid, -1 when it leaves the tile: then
+ * (*ci, *cj) is the cell it entered and *t_entered the parameter where it did. */
+HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jlo, uint32_t iw,
+                         uint32_t jw, const float *maxima, const int leaf, int32_t *ci, int32_t *cj,
+                         double t_start, double *t_entered) {
     const int32_t nx = r->nx, ny = r->ny, sx = r->sx, sy = r->sy, fx = r->fx, fy = r->fy;
     const double ox = r->ox, oy = r->oy, oz = r->oz, dz = r->dz, inv_x = r->inv_x;
     const double inv_y = r->inv_y, t1 = r->t1, inf = (double)INFINITY;
-    const int descending = r->descending;
-    const float *cellmax = h->cellmax;
-    const int32_t ilo = tile_i << floor_level, jlo = tile_j << floor_level;
-    const uint32_t iw =
-        (uint32_t)((((int64_t)tile_i + 1) << floor_level) < nx ? (1 << floor_level) : nx - ilo) - 1;
-    const uint32_t jw =
-        (uint32_t)((((int64_t)tile_j + 1) << floor_level) < ny ? (1 << floor_level) : ny - jlo) - 1;
-    int32_t i = w->i, j = w->j;
-    double t_in = w->t;
+    const int descending = r->descending, cull = r->cull;
+    int32_t i = *ci, j = *cj;
+    double t_in = t_start;
     double mx = r->has_x ? ((double)(i + fx) - ox) * inv_x : inf;
     double my = r->has_y ? ((double)(j + fy) - oy) * inv_y : inf;
     for (;;) {
         const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
         h->cells_visited += 1;
-        if (!r->cull ||
-            !(oz + (descending ? tb : t_in) * dz > (double)cellmax[(int64_t)j * nx + i])) {
+        if (!cull ||
+            !(oz + (descending ? tb : t_in) * dz >
+              (double)(leaf ? maxima[((j & 3) << 2) | (i & 3)] : maxima[(int64_t)j * nx + i]))) {
             if (hf_hit_cell_exact(h, i, j)) return 1;
         }
         if (!(tb < t1)) return 0;
@@ -172,8 +178,28 @@ static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk 
         if ((uint32_t)(i - ilo) > iw || (uint32_t)(j - jlo) > jw) break;
     }
     if ((uint32_t)i >= (uint32_t)nx || (uint32_t)j >= (uint32_t)ny) return 0;
-    w->i = i;
-    w->j = j;
+    *ci = i;
+    *cj = j;
+    *t_entered = t_in;
+    return -1;
+}
+
+/* Walk the floor tile (tile_i, tile_j) of the max mipmap (hf_floor_walk on the row-major
+ * cell maxima). Returns 1 on a hit, 0 when the ray ends or leaves the grid, -1 when it
+ * leaves the tile (the walk goes on from the cell it entered, one level above the floor). */
+static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w, int32_t tile_i,
+                                    int32_t tile_j) {
+    const int floor_level = r->floor_level;
+    const int32_t nx = r->nx, ny = r->ny;
+    const int32_t ilo = tile_i << floor_level, jlo = tile_j << floor_level;
+    const uint32_t iw =
+        (uint32_t)((((int64_t)tile_i + 1) << floor_level) < nx ? (1 << floor_level) : nx - ilo) - 1;
+    const uint32_t jw =
+        (uint32_t)((((int64_t)tile_j + 1) << floor_level) < ny ? (1 << floor_level) : ny - jlo) - 1;
+    double t_in;
+    const int status =
+        hf_floor_walk(h, r, ilo, jlo, iw, jw, h->cellmax, 0, &w->i, &w->j, w->t, &t_in);
+    if (status >= 0) return status;
     w->t = t_in > w->t ? t_in : w->t;
     w->level = hf_mip_restart_level(r);
     return -1;
