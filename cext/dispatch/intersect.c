@@ -29,17 +29,7 @@ static int clip_to_box(const double o[3], const double d[3], double tmin, double
             /* the same expressions as hf_cell_interval, so a face parameter computed here
              * equals the one computed there bit for bit */
             const double inv = 1.0 / d[k];
-            double a = (0 - o[k]) * inv, b = (hi[k] - o[k]) * inv;
-            if (a > b) {
-                const double s = a;
-                a = b;
-                b = s;
-            }
-            if (a > t0) {
-                t0 = a;
-                axis = k;
-            }
-            if (b < t1) t1 = b;
+            hf_slab_clip((0 - o[k]) * inv, (hi[k] - o[k]) * inv, k, &t0, &t1, &axis);
         } else if (!(o[k] >= 0 && o[k] <= hi[k])) {
             return 0;
         }

@@ -15,6 +15,15 @@
 #include "core/mipmap.h"
 #include "surfaces/surfaces.h"
 
+/* HF_COLD: out of line (a rare path kept out of a hot loop); HF_HOT: always inlined. */
+#if defined(__GNUC__) || defined(__clang__)
+#define HF_COLD static __attribute__((noinline))
+#define HF_HOT  static inline __attribute__((always_inline))
+#else
+#define HF_COLD static
+#define HF_HOT  static inline
+#endif
+
 enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 };
 
 /* Range maximum over one line (a row or a column) of cell maxima, answered in O(1) once
@@ -208,38 +217,33 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     }
 }
 
+/* Slab clipping, the one step every interval of the ray is built from (the field's box,
+ * a cell, a run): a and b are the ray's parameters at the slab's two faces, in either
+ * order; [*lo, *hi] narrows to the slab, and *axis becomes face_axis when the slab's
+ * entry face raises *lo. A NaN face parameter narrows nothing. */
+HF_HOT void hf_slab_clip(double a, double b, int face_axis, double *lo, double *hi, int *axis) {
+    if (a > b) {
+        const double s = a;
+        a = b;
+        b = s;
+    }
+    if (a > *lo) {
+        *lo = a;
+        *axis = face_axis;
+    }
+    if (b < *hi) *hi = b;
+}
+
 /* The parameter interval of the ray over cell (i, j), clipped to [t0, t1]; returns the
  * axis of the grid line crossed at ta (0, 1), or -1 when ta is t0 (then the box entry
  * face, if any, is h->entry_axis). Empty when *ta > *tb. */
 static inline int hf_cell_interval(const hf_hit *h, int32_t i, int32_t j, double *ta, double *tb) {
     double lo = h->t0, hi = h->t1;
     int axis = -1;
-    if (h->dx != 0) {
-        double a = (i - h->ox) * h->inv_dx, b = (i + 1 - h->ox) * h->inv_dx;
-        if (a > b) {
-            const double s = a;
-            a = b;
-            b = s;
-        }
-        if (a > lo) {
-            lo = a;
-            axis = 0;
-        }
-        if (b < hi) hi = b;
-    }
-    if (h->dy != 0) {
-        double a = (j - h->oy) * h->inv_dy, b = (j + 1 - h->oy) * h->inv_dy;
-        if (a > b) {
-            const double s = a;
-            a = b;
-            b = s;
-        }
-        if (a > lo) {
-            lo = a;
-            axis = 1;
-        }
-        if (b < hi) hi = b;
-    }
+    if (h->dx != 0)
+        hf_slab_clip((i - h->ox) * h->inv_dx, (i + 1 - h->ox) * h->inv_dx, 0, &lo, &hi, &axis);
+    if (h->dy != 0)
+        hf_slab_clip((j - h->oy) * h->inv_dy, (j + 1 - h->oy) * h->inv_dy, 1, &lo, &hi, &axis);
     *ta = lo;
     *tb = hi;
     return axis;
@@ -466,32 +470,11 @@ static inline hf_span hf_run_span(const hf_hit *h, int major_is_x, int32_t minor
     s.ta = h->t0;
     s.tb = h->t1;
     s.entry_axis = -1;
-    if (d_min != 0) {
-        double a = (minor - o_min) * inv_min, b = (minor + 1 - o_min) * inv_min;
-        if (a > b) {
-            const double x = a;
-            a = b;
-            b = x;
-        }
-        if (a > s.ta) {
-            s.ta = a;
-            s.entry_axis = major_is_x ? 1 : 0;
-        }
-        s.tb = b < s.tb ? b : s.tb;
-    }
-    {
-        double a = (lo - o_maj) * inv_maj, b = (hi + 1 - o_maj) * inv_maj;
-        if (a > b) {
-            const double x = a;
-            a = b;
-            b = x;
-        }
-        if (a > s.ta) {
-            s.ta = a;
-            s.entry_axis = major_is_x ? 0 : 1;
-        }
-        s.tb = b < s.tb ? b : s.tb;
-    }
+    if (d_min != 0)
+        hf_slab_clip((minor - o_min) * inv_min, (minor + 1 - o_min) * inv_min, major_is_x ? 1 : 0,
+                     &s.ta, &s.tb, &s.entry_axis);
+    hf_slab_clip((lo - o_maj) * inv_maj, (hi + 1 - o_maj) * inv_maj, major_is_x ? 0 : 1, &s.ta,
+                 &s.tb, &s.entry_axis);
     return s;
 }
 
@@ -581,13 +564,6 @@ static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t f
  * every run walk: the range-maximum cull of a long run (returns 1 when it rejects the run,
  * given the run's lowest z), and a cell that survived the bound (returns 1 on a
  * hit, -1 when the float ray misses the rounded walk's run, else 0). */
-#if defined(__GNUC__) || defined(__clang__)
-#define HF_COLD static __attribute__((noinline))
-#define HF_HOT  static inline __attribute__((always_inline))
-#else
-#define HF_COLD static
-#define HF_HOT  static inline
-#endif
 
 HF_COLD int hf_run_rmq_cull(hf_hit *h, const hf_rmq *q, int32_t minor, int32_t lo, int32_t hi,
                             double zlow) {
