@@ -4,10 +4,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include "terrain/horizon_fast.h"
+#include "terrain/ray_walk.h"
 #include "core/mipmap.h"
 #include "surfaces/surfaces.h"
-
-#define HF_INF HUGE_VAL
 
 /* ---- row-vectorised shared pattern ------------------------------------------------------ */
 
@@ -36,7 +35,7 @@ void hf_horizon_rows(const double *H, int64_t rows, int64_t cols, int64_t n, con
     for (int64_t j = row_start; j < row_stop; j++) {
         const double *row = H + j * cols;
         double *best = out + j * cols;
-        for (int64_t i = 0; i < cols; i++) best[i] = -HF_INF;
+        for (int64_t i = 0; i < cols; i++) best[i] = -HF_HZ_INF;
         /* breakpoint e serves the vertices whose reach rx[e], ry[e] along the direction's
          * signs stays inside; the reaches never decrease, so the served vertices of a row
          * shrink from one end, and the first breakpoint that serves none ends the row */
@@ -84,11 +83,8 @@ static double surface_point(const double *H, int64_t rows, int64_t cols, double 
     return hf_triangles_barycentric(h00, h10, h01, h11, x - (double)i, y - (double)j);
 }
 
-typedef struct {
-    double ox, oy, dx, dy, inv_dx, inv_dy;
-    int sx, sy;
-    int64_t nx, ny; /* cells: cols - 1, rows - 1 */
-} chain_ray;
+/* The ray from one vertex (terrain/ray_walk.h). */
+typedef hf_hz_ray chain_ray;
 
 /* The walk state of one vertex: its height, the best breakpoint ratio so far and where it
  * was, and the pruning bound (the best ratio or a borrowed lower bound, the larger). */
@@ -114,27 +110,6 @@ static int64_t chain_first_index(double o, int s, int64_t n) {
     return i;
 }
 
-/* floor(x) clamped to [lo, hi], by truncation: equal to clamping floor(x) whenever
- * lo >= 0 (truncation and floor differ only on (-1, 0) and below, all clamped to lo). */
-static inline int64_t clamped_floor(double x, int64_t lo, int64_t hi) {
-    return clamp_index((int64_t)x, lo, hi);
-}
-
-static double chain_exit_value(const double *H, int64_t rows, int64_t cols, const chain_ray *r,
-                               int64_t X, int64_t Y, double tX, double tY) {
-    if (tX < tY) { /* on the column x = X */
-        double y = r->oy + tX * r->dy;
-        int64_t j = clamped_floor(y, 0, rows - 2);
-        return hf_lerp_ends(H[j * cols + X], H[(j + 1) * cols + X], y - (double)j);
-    }
-    if (tY < tX) { /* on the row y = Y */
-        double x = r->ox + tY * r->dx;
-        int64_t i = clamped_floor(x, 0, cols - 2);
-        return hf_lerp_ends(H[Y * cols + i], H[Y * cols + i + 1], x - (double)i);
-    }
-    return H[Y * cols + X];
-}
-
 /* The horizon skip: every point of a tile with maximum m, crossed on [t_in, t_exit], has a
  * ratio at most (m - h) / t there, which is <= prune when this holds. */
 static inline int chain_can_skip(const chain_best *b, double m, double t_in, double t_exit) {
@@ -147,32 +122,14 @@ static int chain_try_skip(const double *H, int64_t rows, int64_t cols, const cha
                           const hf_hz_mip *mip, int *level_io, int64_t *ci, int64_t *cj,
                           double *t_in, double *s_in, double t_end, const chain_best *b,
                           int64_t *tests) {
-    int top = mip->n_levels - 1;
-    int level = *level_io + 1 < top ? *level_io + 1 : top;
-    for (; level >= 0; level--) {
-        int64_t tile_i = *ci >> level, tile_j = *cj >> level;
-        double m = mip->data[mip->offset[level] + tile_j * mip->cols[level] + tile_i];
-        int64_t X1 = hf_tile_face(tile_i, level, r->sx > 0);
-        int64_t Y1 = hf_tile_face(tile_j, level, r->sy > 0);
-        double t_exit_x, t_exit_y, t_exit;
-        if (X1 > r->nx) X1 = r->nx;
-        if (Y1 > r->ny) Y1 = r->ny;
-        t_exit_x = r->sx ? hf_face_t(X1, r->ox, r->inv_dx) : HF_INF;
-        t_exit_y = r->sy ? hf_face_t(Y1, r->oy, r->inv_dy) : HF_INF;
-        t_exit = t_exit_x < t_exit_y ? t_exit_x : t_exit_y;
-        if (t_exit > t_end) t_exit = t_end;
+    for (int level = hf_hz_skip_start(mip, *level_io); level >= 0; level--) {
+        const hf_hz_tile e = hf_hz_tile_at(r, mip, level, *ci, *cj, t_end);
         (*tests)++;
-        if (!chain_can_skip(b, m, *t_in, t_exit)) continue;
+        if (!chain_can_skip(b, e.max, *t_in, e.t_exit)) continue;
         *level_io = level;
-        *t_in = t_exit;
-        if (t_exit >= t_end) return 2;
-        *s_in = chain_exit_value(H, rows, cols, r, X1, Y1, t_exit_x, t_exit_y);
-        *ci = t_exit_x <= t_exit_y
-                  ? (r->sx > 0 ? X1 : X1 - 1)
-                  : hf_tile_next_cell(0, tile_i, level, r->nx, r->sx >= 0, r->ox + t_exit * r->dx);
-        *cj = t_exit_y <= t_exit_x
-                  ? (r->sy > 0 ? Y1 : Y1 - 1)
-                  : hf_tile_next_cell(0, tile_j, level, r->ny, r->sy >= 0, r->oy + t_exit * r->dy);
+        *t_in = e.t_exit;
+        if (e.t_exit >= t_end) return 2;
+        hf_hz_tile_leave(H, rows, cols, r, &e, level, ci, cj, s_in);
         return 1;
     }
     *level_io = 0;
@@ -189,9 +146,8 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
     int level = 0;
     if (!(t_end > 0.0)) return;
     while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
-        int64_t X = r->sx > 0 ? ci + 1 : ci, Y = r->sy > 0 ? cj + 1 : cj;
-        double tX, tY, t_out, td, sd = 0.0;
-        if (b->prune > -HF_INF) {
+        hf_hz_cell c;
+        if (b->prune > -HF_HZ_INF) {
             int moved = chain_try_skip(H, rows, cols, r, mip, &level, &ci, &cj, &t_in, &s_in, t_end,
                                        b, &st->tile_tests);
             if (moved) {
@@ -201,46 +157,19 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
             }
         }
         st->cells++;
-        tX = r->sx ? ((double)X - r->ox) * r->inv_dx : HF_INF;
-        tY = r->sy ? ((double)Y - r->oy) * r->inv_dy : HF_INF;
-        t_out = tX < tY ? tX : tY;
-        td = ddiag != 0.0 ? ((double)(ci - cj) - c0) / ddiag : -HF_INF;
-        if (td > t_in && td < t_out) {
-            double u = r->ox + td * r->dx - (double)ci;
-            const double *c = H + cj * cols + ci;
-            u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
-            sd = hf_lerp(c[0], c[cols + 1], u);
-            if (td < t_end) chain_visit(b, td, sd, 0.0);
-        } else {
-            td = -HF_INF;
-        }
-        if (t_out >= t_end) {
-            /* the end, interpolated on its piece from the nearer breakpoint (as terrain.c) */
-            double t0 = td > t_in && td <= t_end ? td : t_in, s0 = t0 == td ? sd : s_in;
-            double t1, s1;
-            if (td > t_end) {
-                t1 = td;
-                s1 = sd;
-            } else {
-                t1 = t_out;
-                s1 = chain_exit_value(H, rows, cols, r, X, Y, tX, tY);
-            }
-            if (t0 == 0.0)
-                chain_visit(b, t1, s1, 0.0);
-            else {
-                double f = t1 > t0 ? (t_end - t0) / (t1 - t0) : 0.0;
-                if (f <= 0.5)
-                    chain_visit(b, t_end, s0, (s1 - s0) * f);
-                else
-                    chain_visit(b, t_end, s1, (s0 - s1) * (1.0 - f));
-            }
+        c = hf_hz_cell_breakpoints(H, cols, r, ci, cj, t_in, ddiag, c0);
+        if (c.crossed && c.td < t_end) chain_visit(b, c.td, c.sd, 0.0);
+        if (c.t_out >= t_end) {
+            /* the end, interpolated on its piece from the nearer breakpoint (ray_walk.h) */
+            const hf_hz_point end = hf_hz_end_point(H, rows, cols, r, &c, t_in, s_in, t_end);
+            chain_visit(b, end.t, end.s, end.delta);
             break;
         }
-        s_in = chain_exit_value(H, rows, cols, r, X, Y, tX, tY);
-        chain_visit(b, t_out, s_in, 0.0);
-        if (tX <= tY) ci += r->sx;
-        if (tY <= tX) cj += r->sy;
-        t_in = t_out;
+        s_in = hf_hz_exit_value(H, rows, cols, r, c.X, c.Y, c.tX, c.tY);
+        chain_visit(b, c.t_out, s_in, 0.0);
+        if (c.tX <= c.tY) ci += r->sx;
+        if (c.tY <= c.tX) cj += r->sy;
+        t_in = c.t_out;
     }
 }
 
@@ -250,14 +179,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_m
                       int64_t block_start, int64_t block_stop, double *out, double *occ,
                       hf_chain_stats *stats) {
     chain_ray r;
-    r.dx = dx;
-    r.dy = dy;
-    r.sx = dx > 0 ? 1 : dx < 0 ? -1 : 0;
-    r.sy = dy > 0 ? 1 : dy < 0 ? -1 : 0;
-    r.inv_dx = r.sx ? 1.0 / dx : 0.0;
-    r.inv_dy = r.sy ? 1.0 / dy : 0.0;
-    r.nx = cols - 1;
-    r.ny = rows - 1;
+    hf_hz_ray_direction(&r, rows, cols, dx, dy);
     for (int64_t block = block_start; block < block_stop; block++) {
         int64_t rank_lo = block * block_rows;
         int64_t rank_hi = rank_lo + block_rows < rows ? rank_lo + block_rows : rows;
@@ -266,20 +188,14 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_m
             int64_t j = r.sy > 0 ? rows - 1 - rank : rank;
             for (int64_t step = 0; step < cols; step++) {
                 int64_t i = r.sx > 0 ? cols - 1 - step : step, v = j * cols + i;
-                double t_end, tx, ty;
+                double t_end;
                 chain_best b;
                 r.ox = (double)i;
                 r.oy = (double)j;
-                tx = r.sx > 0   ? ((double)r.nx - r.ox) * r.inv_dx
-                     : r.sx < 0 ? -r.ox * r.inv_dx
-                                : HF_INF;
-                ty = r.sy > 0   ? ((double)r.ny - r.oy) * r.inv_dy
-                     : r.sy < 0 ? -r.oy * r.inv_dy
-                                : HF_INF;
-                t_end = tx < ty ? tx : ty;
+                t_end = hf_hz_footprint_exit(&r);
                 if (max_distance < t_end) t_end = max_distance;
                 b.h = H[v];
-                b.best = b.prune = -HF_INF;
+                b.best = b.prune = -HF_HZ_INF;
                 b.t_best = NAN;
                 /* borrow: the neighbour's occluder, seen on v's own ray */
                 for (int64_t k = 0; k < n_nb; k++) {
@@ -301,7 +217,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_m
                     bound = (s - b.h - eps) / t;
                     if (bound > b.prune) b.prune = bound;
                 }
-                if (b.prune > -HF_INF) stats->bounded++;
+                if (b.prune > -HF_HZ_INF) stats->bounded++;
                 chain_walk(H, rows, cols, mip, &r, t_end, &b, stats);
                 out[v] = b.best;
                 occ[v] = b.t_best;

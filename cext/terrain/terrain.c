@@ -6,8 +6,7 @@
 #include "core/mipmap.h"
 #include "surfaces/surfaces.h"
 #include "terrain/terrain.h"
-
-#define HZ_INF HUGE_VAL
+#include "terrain/ray_walk.h"
 
 static int64_t clamp64(int64_t v, int64_t lo, int64_t hi) {
     return v < lo ? lo : v > hi ? hi : v;
@@ -22,20 +21,6 @@ static double surface_at(const double *H, int64_t rows, int64_t cols, double x, 
     double h00 = c[0], h10 = c[1], h01 = c[cols], h11 = c[cols + 1];
     /* barycentric: exact on the edges, where a clamped cell puts the footprint's border */
     return hf_triangles_barycentric(h00, h10, h01, h11, u, v);
-}
-
-/* The surface on the vertical grid line x = X (an integer) at height y. */
-static double on_column(const double *H, int64_t rows, int64_t cols, int64_t X, double y) {
-    int64_t j = clamp64((int64_t)floor(y), 0, rows - 2);
-    double w = y - (double)j;
-    return hf_lerp_ends(H[j * cols + X], H[(j + 1) * cols + X], w); /* w = 1 on the top border */
-}
-
-/* The surface on the horizontal grid line y = Y at x. */
-static double on_row(const double *H, int64_t cols, int64_t Y, double x) {
-    int64_t i = clamp64((int64_t)floor(x), 0, cols - 2);
-    double w = x - (double)i;
-    return hf_lerp_ends(H[Y * cols + i], H[Y * cols + i + 1], w);
 }
 
 /* ---- shared pattern ----------------------------------------------------------------- */
@@ -84,7 +69,7 @@ static void pattern_curved(const double *H, int64_t rows, int64_t cols, const hf
         int64_t ny = p->limit_y[rows - 1 - j];
         int64_t n_valid;
         const double *base = H + v;
-        double h = base[0], best = -HZ_INF, t_prev = 0.0, r_prev = 0.0;
+        double h = base[0], best = -HF_HZ_INF, t_prev = 0.0, r_prev = 0.0;
         if (ny < n) n = ny;
         n_valid = n;
         if (p->end_k >= 0 && n > p->end_k + 1) n = p->end_k + 1;
@@ -133,7 +118,7 @@ void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz
         int64_t ny = p->limit_y[rows - 1 - j];
         int64_t n_valid;
         const double *base = H + v;
-        double h = base[0], best = -HZ_INF;
+        double h = base[0], best = -HF_HZ_INF;
         if (ny < n) n = ny;
         n_valid = n;
         if (p->end_k >= 0 && n > p->end_k + 1) n = p->end_k + 1;
@@ -189,7 +174,7 @@ static void sweep_line(const double *H, int64_t rows, int64_t cols, int64_t q, i
                 top--;
             if (e == n_entries - 1) /* the next vertex on the line */
                 out[base + p * cols + q] =
-                    top ? (hs[top - 1] - sp) / (ht[top - 1] - tp) * inv_norm : -HZ_INF;
+                    top ? (hs[top - 1] - sp) / (ht[top - 1] - tp) * inv_norm : -HF_HZ_INF;
             ht[top] = tp;
             hs[top] = sp;
             top++;
@@ -200,7 +185,7 @@ static void sweep_line(const double *H, int64_t rows, int64_t cols, int64_t q, i
         while (top >= 2 &&
                (hs[top - 1] - sp) * (ht[top - 2] - tp) <= (hs[top - 2] - sp) * (ht[top - 1] - tp))
             top--;
-        out[j0 * cols + i0] = top ? (hs[top - 1] - sp) / (ht[top - 1] - tp) * inv_norm : -HZ_INF;
+        out[j0 * cols + i0] = top ? (hs[top - 1] - sp) / (ht[top - 1] - tp) * inv_norm : -HF_HZ_INF;
     }
 }
 
@@ -251,14 +236,8 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
 
 /* ---- per-vertex and line-of-sight walks --------------------------------------------- */
 
-/* A ray o + t d over the cells of the footprint, with a tile-skipping step. */
-typedef struct {
-    double ox, oy, dx, dy, inv_dx, inv_dy;
-    int sx, sy;
-    int64_t nx, ny;       /* cells: cols - 1, rows - 1 */
-    int visit_tile_exits; /* also visit where a skipped tile ends (a visitor that needs
-                           * every piece: curvature) */
-} walk_ray;
+/* The ray over the footprint, its breakpoints and the tile step: terrain/ray_walk.h. */
+typedef hf_hz_ray walk_ray;
 
 static int64_t first_index(double o, int s, int64_t n) {
     /* the cell holding the points just after o, moving with sign s (s = 0: [i, i+1)) */
@@ -271,72 +250,25 @@ static void walk_init(walk_ray *r, int64_t rows, int64_t cols, double ox, double
                       double dy) {
     r->ox = ox;
     r->oy = oy;
-    r->dx = dx;
-    r->dy = dy;
-    r->sx = dx > 0 ? 1 : dx < 0 ? -1 : 0;
-    r->sy = dy > 0 ? 1 : dy < 0 ? -1 : 0;
-    r->inv_dx = r->sx ? 1.0 / dx : 0.0;
-    r->inv_dy = r->sy ? 1.0 / dy : 0.0;
-    r->nx = cols - 1;
-    r->ny = rows - 1;
-    r->visit_tile_exits = 0;
-}
-
-/* Where the ray leaves the footprint [0, nx] x [0, ny]. */
-static double footprint_exit(const walk_ray *r) {
-    double tx = r->sx > 0   ? ((double)r->nx - r->ox) * r->inv_dx
-                : r->sx < 0 ? -r->ox * r->inv_dx
-                            : HZ_INF;
-    double ty = r->sy > 0   ? ((double)r->ny - r->oy) * r->inv_dy
-                : r->sy < 0 ? -r->oy * r->inv_dy
-                            : HZ_INF;
-    return tx < ty ? tx : ty;
-}
-
-/* The surface where the ray leaves its cell through the face X (tX <= tY) or Y. */
-static double exit_value(const double *H, int64_t rows, int64_t cols, const walk_ray *r, int64_t X,
-                         int64_t Y, double tX, double tY) {
-    if (tX < tY) return on_column(H, rows, cols, X, r->oy + tX * r->dy);
-    if (tY < tX) return on_row(H, cols, Y, r->ox + tY * r->dx);
-    return H[Y * cols + X];
+    hf_hz_ray_direction(r, rows, cols, dx, dy);
 }
 
 /* Skip the largest tile around cell (ci, cj) that `can_skip` allows. On success moves the
- * cell to the one after the tile, sets *t_in to the tile's exit and returns 1. */
+ * cell to the one after the tile, sets *t_in to the tile's exit and returns 1; returns 2
+ * when the tile covers the rest of the ray, 0 when no tile can be skipped. */
 typedef int (*skip_test)(const void *ctx, double tile_max, double t_in, double t_exit);
 
 static int try_skip(const double *H, int64_t rows, int64_t cols, const walk_ray *r,
                     const hf_hz_mip *mip, int *level_io, int64_t *ci, int64_t *cj, double *t_in,
                     double *s_in, double t_end, skip_test test, const void *ctx) {
-    int top = mip->n_levels - 1;
-    int level = *level_io + 1 < top ? *level_io + 1 : top;
-    for (; level >= 0; level--) {
-        int64_t tile_i = *ci >> level, tile_j = *cj >> level;
-        double m = mip->data[mip->offset[level] + tile_j * mip->cols[level] + tile_i];
-        /* the exit faces, on the footprint's border at the latest */
-        int64_t X1 = hf_tile_face(tile_i, level, r->sx > 0);
-        int64_t Y1 = hf_tile_face(tile_j, level, r->sy > 0);
-        double t_exit_x, t_exit_y, t_exit;
-        if (X1 > r->nx) X1 = r->nx;
-        if (Y1 > r->ny) Y1 = r->ny;
-        t_exit_x = r->sx ? hf_face_t(X1, r->ox, r->inv_dx) : HZ_INF;
-        t_exit_y = r->sy ? hf_face_t(Y1, r->oy, r->inv_dy) : HZ_INF;
-        t_exit = t_exit_x < t_exit_y ? t_exit_x : t_exit_y;
-        if (t_exit > t_end) t_exit = t_end;
-        if (!test(ctx, m, *t_in, t_exit)) continue;
+    for (int level = hf_hz_skip_start(mip, *level_io); level >= 0; level--) {
+        const hf_hz_tile e = hf_hz_tile_at(r, mip, level, *ci, *cj, t_end);
+        if (!test(ctx, e.max, *t_in, e.t_exit)) continue;
         *level_io = level;
-        *t_in = t_exit;
-        if (t_exit >= t_end) return 2; /* the rest of the ray is covered */
+        *t_in = e.t_exit;
+        if (e.t_exit >= t_end) return 2; /* the rest of the ray is covered */
         /* the surface where the ray leaves the tile: the next cell's entry */
-        *s_in = exit_value(H, rows, cols, r, X1, Y1, t_exit_x, t_exit_y);
-        /* (through the last tile's exit face the next index is the footprint's edge: the
-         * walk ends there) */
-        *ci = t_exit_x <= t_exit_y
-                  ? (r->sx > 0 ? X1 : X1 - 1)
-                  : hf_tile_next_cell(0, tile_i, level, r->nx, r->sx >= 0, r->ox + t_exit * r->dx);
-        *cj = t_exit_y <= t_exit_x
-                  ? (r->sy > 0 ? Y1 : Y1 - 1)
-                  : hf_tile_next_cell(0, tile_j, level, r->ny, r->sy >= 0, r->oy + t_exit * r->dy);
+        hf_hz_tile_leave(H, rows, cols, r, &e, level, ci, cj, s_in);
         return 1;
     }
     *level_io = 0;
@@ -346,20 +278,22 @@ static int try_skip(const double *H, int64_t rows, int64_t cols, const walk_ray 
 /* The breakpoints of one ray in [0, t_end]: every exit of a cell, every diagonal crossing
  * inside a cell and the end. The surface there is s + delta (delta is nonzero only at the
  * end, which is given relative to the breakpoint before it, so that a visitor can subtract
- * its reference height before adding a tiny delta). visit returns nonzero to stop. */
+ * its reference height before adding a tiny delta). visit returns nonzero to stop.
+ * visit_tile_exits: also visit where a skipped tile ends (a visitor that needs every
+ * piece: curvature). */
 typedef int (*visit_fn)(void *ctx, double t, double s, double delta);
 
 static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
                                  const walk_ray *r, double t_end, double s_origin, visit_fn visit,
-                                 skip_test test, void *ctx, hf_hz_stats *stats) {
+                                 skip_test test, void *ctx, int visit_tile_exits,
+                                 hf_hz_stats *stats) {
     int64_t ci = first_index(r->ox, r->sx, r->nx), cj = first_index(r->oy, r->sy, r->ny);
     double t_in = 0.0, s_in = s_origin, ddiag = r->dx - r->dy, c0 = r->ox - r->oy;
     int level = 0;
     int64_t cells = 0, skips = 0;
     if (!(t_end > 0.0)) return;
     while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
-        int64_t X = r->sx > 0 ? ci + 1 : ci, Y = r->sy > 0 ? cj + 1 : cj;
-        double tX, tY, t_out, td, sd = 0.0;
+        hf_hz_cell c;
         if (mip && test) {
             int moved =
                 try_skip(H, rows, cols, r, mip, &level, &ci, &cj, &t_in, &s_in, t_end, test, ctx);
@@ -367,56 +301,23 @@ static void walk_ray_breakpoints(const double *H, int64_t rows, int64_t cols, co
                 skips++;
                 if (moved == 2) break;
                 /* the tile's exit starts the next piece */
-                if (r->visit_tile_exits && visit(ctx, t_in, s_in, 0.0)) break;
+                if (visit_tile_exits && visit(ctx, t_in, s_in, 0.0)) break;
                 continue;
             }
         }
         cells++;
-        tX = r->sx ? ((double)X - r->ox) * r->inv_dx : HZ_INF;
-        tY = r->sy ? ((double)Y - r->oy) * r->inv_dy : HZ_INF;
-        t_out = tX < tY ? tX : tY;
-        td = ddiag != 0.0 ? ((double)(ci - cj) - c0) / ddiag /* divided: exact at vertices */
-                          : -HZ_INF;
-        if (td > t_in && td < t_out) {
-            double u = r->ox + td * r->dx - (double)ci;
-            const double *c = H + cj * cols + ci;
-            u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
-            sd = hf_lerp(c[0], c[cols + 1], u);
-            if (td < t_end && visit(ctx, td, sd, 0.0)) break;
-        } else {
-            td = -HZ_INF;
-        }
-        if (t_out >= t_end) {
-            /* The end lies on the linear piece from the last breakpoint before it (the
-             * diagonal crossing, the cell's entry, or the origin) to the first after it.
-             * Interpolating between them keeps the ratio exact however close the end is
-             * to the origin, where o + t d would round back onto o. */
-            double t0 = td > t_in && td <= t_end ? td : t_in, s0_ = t0 == td ? sd : s_in;
-            double t1, s1;
-            if (td > t_end) {
-                t1 = td;
-                s1 = sd;
-            } else {
-                t1 = t_out;
-                s1 = exit_value(H, rows, cols, r, X, Y, tX, tY);
-            }
-            if (t0 == 0.0) /* on the first piece the ratio to the origin is constant: use
-                            * its far end, exact however small t_end is */
-                visit(ctx, t1, s1, 0.0);
-            else { /* from the nearer end of the piece: no cancellation against the other */
-                double f = t1 > t0 ? (t_end - t0) / (t1 - t0) : 0.0;
-                if (f <= 0.5)
-                    visit(ctx, t_end, s0_, (s1 - s0_) * f);
-                else
-                    visit(ctx, t_end, s1, (s0_ - s1) * (1.0 - f));
-            }
+        c = hf_hz_cell_breakpoints(H, cols, r, ci, cj, t_in, ddiag, c0);
+        if (c.crossed && c.td < t_end && visit(ctx, c.td, c.sd, 0.0)) break;
+        if (c.t_out >= t_end) {
+            const hf_hz_point end = hf_hz_end_point(H, rows, cols, r, &c, t_in, s_in, t_end);
+            visit(ctx, end.t, end.s, end.delta);
             break;
         }
-        s_in = exit_value(H, rows, cols, r, X, Y, tX, tY); /* the next cell's entry */
-        if (visit(ctx, t_out, s_in, 0.0)) break;
-        if (tX <= tY) ci += r->sx;
-        if (tY <= tX) cj += r->sy;
-        t_in = t_out;
+        s_in = hf_hz_exit_value(H, rows, cols, r, c.X, c.Y, c.tX, c.tY); /* the next entry */
+        if (visit(ctx, c.t_out, s_in, 0.0)) break;
+        if (c.tX <= c.tY) ci += r->sx;
+        if (c.tY <= c.tX) cj += r->sy;
+        t_in = c.t_out;
     }
     if (stats) {
         stats->cells += cells;
@@ -451,7 +352,7 @@ static int horizon_visit_curved(void *vctx, double t, double s, double delta) {
 
 static int horizon_skip(const void *vctx, double tile_max, double t_in, double t_exit) {
     const horizon_ctx *c = vctx;
-    if (c->best == -HZ_INF) return 0;
+    if (c->best == -HF_HZ_INF) return 0;
     return tile_max - c->h <= c->best * (c->best >= 0 ? t_in : t_exit);
 }
 
@@ -466,16 +367,15 @@ void hf_horizon_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mi
         horizon_ctx c;
         double t_end;
         walk_init(&r, rows, cols, (double)i, (double)j, dx, dy);
-        t_end = footprint_exit(&r);
+        t_end = hf_hz_footprint_exit(&r);
         if (max_distance < t_end) t_end = max_distance;
         c.h = H[v];
-        c.best = -HZ_INF;
+        c.best = -HF_HZ_INF;
         c.kappa = kappa;
         c.t_prev = c.r_prev = 0.0;
-        r.visit_tile_exits = kappa != 0.0;
         walk_ray_breakpoints(H, rows, cols, mip, &r, t_end, c.h,
                              kappa != 0.0 ? horizon_visit_curved : horizon_visit, horizon_skip, &c,
-                             stats);
+                             kappa != 0.0, stats);
         out[v] = c.best;
     }
 }
@@ -527,7 +427,7 @@ void hf_viewshed(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *m
         c.eps = eps;
         c.uncertain = c.blocked = 0;
         /* t in [0, 1): the target vertex itself is never strictly above its own segment */
-        walk_ray_breakpoints(H, rows, cols, mip, &r, 1.0, s_observer, los_visit, los_skip, &c,
+        walk_ray_breakpoints(H, rows, cols, mip, &r, 1.0, s_observer, los_visit, los_skip, &c, 0,
                              stats);
         out[v] = c.blocked ? 1 : c.uncertain ? 2 : 0;
     }
@@ -559,7 +459,7 @@ static int threshold_visit(void *vctx, double t, double s, double delta) {
 static int threshold_skip(const void *vctx, double tile_max, double t_in, double t_exit) {
     const threshold_ctx *c = vctx;
     double slope, base, low;
-    if (c->best == -HZ_INF) return 0;
+    if (c->best == -HF_HZ_INF) return 0;
     if (c->kind == HF_VS_TARGET) {
         base = c->z0;
         slope = c->best;
@@ -581,7 +481,7 @@ void hf_viewshed_threshold(const double *H, int64_t rows, int64_t cols, const hf
         walk_ray r;
         threshold_ctx c;
         if (dx == 0.0 && dy == 0.0) { /* no breakpoint between eye and target */
-            out[v] = -HZ_INF;
+            out[v] = -HF_HZ_INF;
             continue;
         }
         walk_init(&r, rows, cols, ox, oy, dx, dy);
@@ -589,9 +489,9 @@ void hf_viewshed_threshold(const double *H, int64_t rows, int64_t cols, const hf
         c.z0 = z0;
         c.drop2 = drop * (dx * dx + dy * dy);
         c.z1 = H[v] - c.drop2 + target_height; /* the target sinks with the surface */
-        c.best = -HZ_INF;
+        c.best = -HF_HZ_INF;
         walk_ray_breakpoints(H, rows, cols, mip, &r, 1.0, s_observer, threshold_visit,
-                             threshold_skip, &c, stats);
+                             threshold_skip, &c, 0, stats);
         out[v] = c.best;
     }
 }
@@ -605,7 +505,7 @@ void hf_horizon_march(const double *H, int64_t rows, int64_t cols, double dx, do
     double xmax = (double)(cols - 1), ymax = (double)(rows - 1);
     for (int64_t v = start; v < stop; v++) {
         int64_t j = v / cols, i = v - j * cols;
-        double h = H[v], best = -HZ_INF;
+        double h = H[v], best = -HF_HZ_INF;
         for (int64_t k = 1;; k++) {
             double t = (double)k * step, x, y, s;
             if (t > max_distance) break;
