@@ -76,18 +76,103 @@ static PyObject *stats_tuple(const hf_hz_stats *s, long long elapsed_ns) {
     return Py_BuildValue("LLL", elapsed_ns, (long long)s->cells, (long long)s->skips);
 }
 
+/* What every terrain entry point reads first: the heights, the range of vertices it
+ * computes (vertex entry points), and the optional mipmap (the walks). */
+typedef struct {
+    const double *H;
+    int64_t rows, cols;
+    hf_hz_mip mip;
+    int has_mip;
+} terrain_field;
+
+/* The heights; with check_range, the vertex range [start, stop) inside them; with o_mip
+ * not NULL, the mipmap argument (None or its four arrays) over them. */
+static int get_field(PyObject *o_h, int check_range, long long start, long long stop,
+                     PyObject *o_mip, terrain_field *f) {
+    f->has_mip = 0;
+    if (!get_heights(o_h, &f->H, &f->rows, &f->cols)) return 0;
+    if (check_range && !vertex_range(start, stop, f->rows, f->cols)) return 0;
+    return o_mip == NULL || get_mip(o_mip, f->rows, f->cols, &f->mip, &f->has_mip);
+}
+
+/* The output: one writable element of `type` per vertex. */
+static int get_out(PyObject *o_out, const terrain_field *f, int type, void **out) {
+    return hf_arg_array(o_out, "out", type, f->rows * f->cols, 1, 0, out, NULL);
+}
+
+/* The mipmap for the kernel: NULL when the call passed None. */
+static const hf_hz_mip *mip_of(const terrain_field *f) {
+    return f->has_mip ? &f->mip : NULL;
+}
+
+static int check_kappa(double kappa) {
+    if (!isfinite(kappa)) {
+        PyErr_SetString(PyExc_ValueError, "kappa: expected a finite curvature");
+        return 0;
+    }
+    return 1;
+}
+
+/* A walk's horizontal direction and reach. */
+static int check_direction(double dx, double dy, double max_distance) {
+    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || isnan(max_distance)) {
+        PyErr_SetString(PyExc_ValueError, "direction: finite and nonzero; max_distance not NaN");
+        return 0;
+    }
+    return 1;
+}
+
+/* A viewshed's observer (ox, oy) on the footprint and its finite heights; `other_bad`: a
+ * further argument of the caller's is invalid (the same message). */
+static int check_observer(const terrain_field *f, double ox, double oy, double z0,
+                          double target_height, double drop, int other_bad) {
+    if (!(ox >= 0 && ox <= (double)(f->cols - 1) && oy >= 0 && oy <= (double)(f->rows - 1)) ||
+        !isfinite(z0) || !isfinite(target_height) || !isfinite(drop) || other_bad) {
+        PyErr_SetString(PyExc_ValueError, "observer: outside the footprint, or a non-finite value");
+        return 0;
+    }
+    return 1;
+}
+
 /* A pattern's interpolation arrays: dx_a, dy_a, dx_b, dy_b (int64) and w (float64), n
- * elements each. */
-static int get_lerp_arrays(PyObject *const objects[5], npy_intp n, const int64_t *ints[4],
-                           const double **w) {
+ * elements each: breakpoint e lies between the vertices at offsets (dx_a, dy_a) and
+ * (dx_b, dy_b) with weight w. */
+typedef struct {
+    const int64_t *dxa, *dya, *dxb, *dyb;
+    const double *w;
+} lerp_arrays;
+
+static int get_lerp_arrays(PyObject *o_dxa, PyObject *o_dya, PyObject *o_dxb, PyObject *o_dyb,
+                           PyObject *o_w, npy_intp n, lerp_arrays *l) {
+    PyObject *const objects[4] = {o_dxa, o_dya, o_dxb, o_dyb};
     static const char *const names[4] = {"dx_a", "dy_a", "dx_b", "dy_b"};
+    const int64_t **ints[4] = {&l->dxa, &l->dya, &l->dxb, &l->dyb};
     void *p;
     for (int k = 0; k < 4; k++) {
         if (!hf_arg_array(objects[k], names[k], NPY_INT64, n, 0, 0, &p, NULL)) return 0;
-        ints[k] = (const int64_t *)p;
+        *ints[k] = (const int64_t *)p;
     }
-    if (!hf_arg_array(objects[4], "w", NPY_FLOAT64, n, 0, 0, &p, NULL)) return 0;
-    *w = (const double *)p;
+    if (!hf_arg_array(o_w, "w", NPY_FLOAT64, n, 0, 0, &p, NULL)) return 0;
+    l->w = (const double *)p;
+    return 1;
+}
+
+/* The breakpoints' two vertices as offsets in the field (dy * cols + dx), newly allocated
+ * (the caller frees both); 0 with MemoryError set. */
+static int lerp_offsets(const lerp_arrays *l, npy_intp n, int64_t cols, int64_t **off_a,
+                        int64_t **off_b) {
+    *off_a = malloc((size_t)(n ? n : 1) * sizeof **off_a);
+    *off_b = malloc((size_t)(n ? n : 1) * sizeof **off_b);
+    if (!*off_a || !*off_b) {
+        free(*off_a);
+        free(*off_b);
+        PyErr_NoMemory();
+        return 0;
+    }
+    for (npy_intp e = 0; e < n; e++) {
+        (*off_a)[e] = l->dya[e] * cols + l->dxa[e];
+        (*off_b)[e] = l->dyb[e] * cols + l->dxb[e];
+    }
     return 1;
 }
 
@@ -101,9 +186,9 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_inv, *o_dxa, *o_dya, *o_dxb, *o_dyb, *o_w, *o_lx, *o_ly, *o_out;
     long long end_k, stop_every, start, stop;
     double end_f, end_inv_t, zmax, kappa = 0.0;
-    const double *H;
-    int64_t rows, cols, *off_a = NULL, *off_b = NULL;
-    const int64_t *dxa, *dya, *dxb, *dyb, *lx, *ly;
+    int64_t *off_a = NULL, *off_b = NULL;
+    const int64_t *lx, *ly;
+    lerp_arrays lerp;
     npy_intp n;
     void *p;
     hf_hz_pattern pat;
@@ -111,55 +196,47 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     hf_timed_section section;
     long long elapsed_ns;
     int64_t reach = 0;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOOOOOOOLdddLLLO|d", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb, &o_dyb,
                           &o_w, &o_lx, &o_ly, &end_k, &end_f, &end_inv_t, &zmax, &stop_every,
                           &start, &stop, &o_out, &kappa))
         return NULL;
-    if (!isfinite(kappa)) {
-        PyErr_SetString(PyExc_ValueError, "kappa: expected a finite curvature");
-        return NULL;
-    }
-    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
+    if (!check_kappa(kappa)) return NULL;
+    if (!get_field(o_h, 1, start, stop, NULL, &f)) return NULL;
     if (!hf_arg_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
     pat.inv_t = (const double *)p;
-    {
-        PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
-        const int64_t *ints[4];
-        if (!get_lerp_arrays(lerp, n, ints, &pat.w)) return NULL;
-        dxa = ints[0];
-        dya = ints[1];
-        dxb = ints[2];
-        dyb = ints[3];
-    }
-    if (!hf_arg_array(o_lx, "limit_x", NPY_INT64, cols, 0, 0, &p, NULL)) return NULL;
+    if (!get_lerp_arrays(o_dxa, o_dya, o_dxb, o_dyb, o_w, n, &lerp)) return NULL;
+    pat.w = lerp.w;
+    if (!hf_arg_array(o_lx, "limit_x", NPY_INT64, f.cols, 0, 0, &p, NULL)) return NULL;
     lx = (const int64_t *)p;
-    if (!hf_arg_array(o_ly, "limit_y", NPY_INT64, rows, 0, 0, &p, NULL)) return NULL;
+    if (!hf_arg_array(o_ly, "limit_y", NPY_INT64, f.rows, 0, 0, &p, NULL)) return NULL;
     ly = (const int64_t *)p;
-    if (!hf_arg_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &p, NULL)) return NULL;
+    if (!get_out(o_out, &f, NPY_FLOAT64, &p)) return NULL;
     if (end_k < -1 || end_k + 1 >= (long long)n + (end_k < 0)) {
         PyErr_SetString(PyExc_ValueError, "end_k: outside the pattern");
         return NULL;
     }
     /* memory safety: every breakpoint a limit admits reads inside the field */
-    for (int64_t k = 0; k < cols; k++)
+    for (int64_t k = 0; k < f.cols; k++)
         if (lx[k] < 0 || lx[k] > n || (k && lx[k] < lx[k - 1])) reach = -1;
-    for (int64_t k = 0; k < rows; k++)
+    for (int64_t k = 0; k < f.rows; k++)
         if (ly[k] < 0 || ly[k] > n || (k && ly[k] < ly[k - 1])) reach = -1;
     if (reach == 0) {
         int64_t e = 0, mxx = 0, myy = 0;
-        for (int64_t k = 0; k < cols && reach == 0; k++) {
+        for (int64_t k = 0; k < f.cols && reach == 0; k++) {
             for (; e < lx[k]; e++) {
-                int64_t ax = dxa[e] > dxb[e] ? dxa[e] : dxb[e];
-                if (dxa[e] < 0 || dxb[e] < 0 || dya[e] < 0 || dyb[e] < 0) reach = -1;
+                int64_t ax = lerp.dxa[e] > lerp.dxb[e] ? lerp.dxa[e] : lerp.dxb[e];
+                if (lerp.dxa[e] < 0 || lerp.dxb[e] < 0 || lerp.dya[e] < 0 || lerp.dyb[e] < 0)
+                    reach = -1;
                 if (ax > mxx) mxx = ax;
             }
             if (mxx > k) reach = -1;
         }
         e = 0;
-        for (int64_t k = 0; k < rows && reach == 0; k++) {
+        for (int64_t k = 0; k < f.rows && reach == 0; k++) {
             for (; e < ly[k]; e++) {
-                int64_t ay = dya[e] > dyb[e] ? dya[e] : dyb[e];
+                int64_t ay = lerp.dya[e] > lerp.dyb[e] ? lerp.dya[e] : lerp.dyb[e];
                 if (ay > myy) myy = ay;
             }
             if (myy > k) reach = -1;
@@ -169,17 +246,7 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "pattern: a limit admits a breakpoint outside the field");
         return NULL;
     }
-    off_a = malloc((size_t)(n ? n : 1) * sizeof *off_a);
-    off_b = malloc((size_t)(n ? n : 1) * sizeof *off_b);
-    if (!off_a || !off_b) {
-        free(off_a);
-        free(off_b);
-        return PyErr_NoMemory();
-    }
-    for (npy_intp e = 0; e < n; e++) {
-        off_a[e] = dya[e] * cols + dxa[e];
-        off_b[e] = dyb[e] * cols + dxb[e];
-    }
+    if (!lerp_offsets(&lerp, n, f.cols, &off_a, &off_b)) return NULL;
     pat.n = n;
     pat.off_a = off_a;
     pat.off_b = off_b;
@@ -189,7 +256,8 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     pat.end_f = end_f;
     pat.end_inv_t = end_inv_t;
     hf_timed_begin(&section);
-    hf_horizon_pattern(H, rows, cols, &pat, zmax, stop_every, kappa, start, stop, (double *)p);
+    hf_horizon_pattern(f.H, f.rows, f.cols, &pat, zmax, stop_every, kappa, start, stop,
+                       (double *)p);
     elapsed_ns = hf_timed_end(&section);
     free(off_a);
     free(off_b);
@@ -206,60 +274,54 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_tf, *o_dxa, *o_dya, *o_dxb, *o_dyb, *o_w, *o_mx, *o_my, *o_out;
     long long q, pp, k_lo, k_hi;
     double norm;
-    const double *H, *tf, *w;
-    const int64_t *dxa, *dya, *dxb, *dyb, *mx, *my;
-    int64_t rows, cols;
+    const double *tf;
+    const int64_t *mx, *my;
+    lerp_arrays lerp;
     npy_intp n;
     void *p, *out;
     int status;
     hf_hz_stats st = {0, 0};
     hf_timed_section section;
     long long elapsed_ns;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OLLOOOOOOOOdLLO", &o_h, &q, &pp, &o_tf, &o_dxa, &o_dya, &o_dxb,
                           &o_dyb, &o_w, &o_mx, &o_my, &norm, &k_lo, &k_hi, &o_out))
         return NULL;
-    if (!get_heights(o_h, &H, &rows, &cols)) return NULL;
+    if (!get_field(o_h, 0, 0, 0, NULL, &f)) return NULL;
     if (q < 1 || pp < 0 || pp > q || q > HF_MAX_GRID_SIDE) {
         PyErr_SetString(PyExc_ValueError, "direction: need q >= p >= 0 and 1 <= q <= 2^24");
         return NULL;
     }
-    if (k_lo < 0 || k_hi < k_lo || k_hi > q * (rows - 1) + pp * (cols - 1) + 1) {
+    if (k_lo < 0 || k_hi < k_lo || k_hi > q * (f.rows - 1) + pp * (f.cols - 1) + 1) {
         PyErr_SetString(PyExc_ValueError, "k_lo, k_hi: the line range is outside the field");
         return NULL;
     }
     if (!hf_arg_array(o_tf, "tfrac", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
     tf = (const double *)p;
-    {
-        PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
-        const int64_t *ints[4];
-        if (!get_lerp_arrays(lerp, n, ints, &w)) return NULL;
-        dxa = ints[0];
-        dya = ints[1];
-        dxb = ints[2];
-        dyb = ints[3];
-    }
+    if (!get_lerp_arrays(o_dxa, o_dya, o_dxb, o_dyb, o_w, n, &lerp)) return NULL;
     if (!hf_arg_array(o_mx, "mx", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     mx = (const int64_t *)p;
     if (!hf_arg_array(o_my, "my", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     my = (const int64_t *)p;
-    if (!hf_arg_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
-    if (n < 1 || mx[n - 1] != q || my[n - 1] != pp || dxa[n - 1] != q || dya[n - 1] != pp ||
-        dxb[n - 1] != q || dyb[n - 1] != pp) {
+    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
+    if (n < 1 || mx[n - 1] != q || my[n - 1] != pp || lerp.dxa[n - 1] != q ||
+        lerp.dya[n - 1] != pp || lerp.dxb[n - 1] != q || lerp.dyb[n - 1] != pp) {
         PyErr_SetString(PyExc_ValueError, "pattern: the last breakpoint must be the next vertex");
         return NULL;
     }
     for (npy_intp e = 0; e < n; e++) {
-        if (dxa[e] < 0 || dya[e] < 0 || dxb[e] < 0 || dyb[e] < 0 || dxa[e] > mx[e] ||
-            dxb[e] > mx[e] || dya[e] > my[e] || dyb[e] > my[e] || mx[e] > q || my[e] > pp ||
-            !(tf[e] > 0.0 && tf[e] <= 1.0) || (e && !(tf[e] > tf[e - 1]))) {
+        if (lerp.dxa[e] < 0 || lerp.dya[e] < 0 || lerp.dxb[e] < 0 || lerp.dyb[e] < 0 ||
+            lerp.dxa[e] > mx[e] || lerp.dxb[e] > mx[e] || lerp.dya[e] > my[e] ||
+            lerp.dyb[e] > my[e] || mx[e] > q || my[e] > pp || !(tf[e] > 0.0 && tf[e] <= 1.0) ||
+            (e && !(tf[e] > tf[e - 1]))) {
             PyErr_Format(PyExc_ValueError, "pattern: breakpoint %ld is inconsistent", (long)e);
             return NULL;
         }
     }
     hf_timed_begin(&section);
-    status = hf_horizon_sweep(H, rows, cols, q, pp, n, tf, dxa, dya, dxb, dyb, w, mx, my, norm,
-                              k_lo, k_hi, (double *)out);
+    status = hf_horizon_sweep(f.H, f.rows, f.cols, q, pp, n, tf, lerp.dxa, lerp.dya, lerp.dxb,
+                              lerp.dyb, lerp.w, mx, my, norm, k_lo, k_hi, (double *)out);
     elapsed_ns = hf_timed_end(&section);
     if (status) return PyErr_NoMemory();
     return stats_tuple(&st, elapsed_ns);
@@ -274,32 +336,21 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_mip, *o_out;
     double dx, dy, max_distance, kappa = 0.0;
     long long start, stop;
-    const double *H;
-    int64_t rows, cols;
-    hf_hz_mip mip;
-    int has_mip;
     void *out;
     hf_hz_stats st = {0, 0};
     hf_timed_section section;
     long long elapsed_ns;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOdddLLO|d", &o_h, &o_mip, &dx, &dy, &max_distance, &start, &stop,
                           &o_out, &kappa))
         return NULL;
-    if (!isfinite(kappa)) {
-        PyErr_SetString(PyExc_ValueError, "kappa: expected a finite curvature");
-        return NULL;
-    }
-    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
-        !get_mip(o_mip, rows, cols, &mip, &has_mip))
-        return NULL;
-    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || isnan(max_distance)) {
-        PyErr_SetString(PyExc_ValueError, "direction: finite and nonzero; max_distance not NaN");
-        return NULL;
-    }
-    if (!hf_arg_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (!check_kappa(kappa)) return NULL;
+    if (!get_field(o_h, 1, start, stop, o_mip, &f)) return NULL;
+    if (!check_direction(dx, dy, max_distance)) return NULL;
+    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
     hf_timed_begin(&section);
-    hf_horizon_walk(H, rows, cols, has_mip ? &mip : NULL, dx, dy, max_distance, kappa, start, stop,
+    hf_horizon_walk(f.H, f.rows, f.cols, mip_of(&f), dx, dy, max_distance, kappa, start, stop,
                     (double *)out, &st);
     elapsed_ns = hf_timed_end(&section);
     return stats_tuple(&st, elapsed_ns);
@@ -316,23 +367,25 @@ static PyObject *horizon_rows(PyObject *self, PyObject *args) {
     long long n_main, end_k, row_start, row_stop;
     int sx, sy;
     double end_f, end_inv_t;
-    const double *H, *inv_t, *w;
-    const int64_t *dxa, *dya, *dxb, *dyb, *rx, *ry;
-    int64_t rows, cols, *off_a = NULL, *off_b = NULL;
+    const double *inv_t;
+    const int64_t *rx, *ry;
+    lerp_arrays lerp;
+    int64_t *off_a = NULL, *off_b = NULL;
     npy_intp n;
     void *p, *out;
     hf_hz_stats st = {0, 0};
     hf_timed_section section;
     long long elapsed_ns;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOOOOOOOiiLLddLLO", &o_h, &o_inv, &o_dxa, &o_dya, &o_dxb, &o_dyb,
                           &o_w, &o_rx, &o_ry, &sx, &sy, &n_main, &end_k, &end_f, &end_inv_t,
                           &row_start, &row_stop, &o_out))
         return NULL;
-    if (!get_heights(o_h, &H, &rows, &cols)) return NULL;
-    if (row_start < 0 || row_stop < row_start || row_stop > (long long)rows) {
+    if (!get_field(o_h, 0, 0, 0, NULL, &f)) return NULL;
+    if (row_start < 0 || row_stop < row_start || row_stop > (long long)f.rows) {
         PyErr_Format(PyExc_ValueError, "row range [%lld, %lld) outside [0, %lld]", row_start,
-                     row_stop, (long long)rows);
+                     row_stop, (long long)f.rows);
         return NULL;
     }
     if ((sx != 1 && sx != -1) || (sy != 1 && sy != -1)) {
@@ -341,20 +394,12 @@ static PyObject *horizon_rows(PyObject *self, PyObject *args) {
     }
     if (!hf_arg_array(o_inv, "inv_t", NPY_FLOAT64, -1, 0, 0, &p, &n)) return NULL;
     inv_t = (const double *)p;
-    {
-        PyObject *const lerp[5] = {o_dxa, o_dya, o_dxb, o_dyb, o_w};
-        const int64_t *ints[4];
-        if (!get_lerp_arrays(lerp, n, ints, &w)) return NULL;
-        dxa = ints[0];
-        dya = ints[1];
-        dxb = ints[2];
-        dyb = ints[3];
-    }
+    if (!get_lerp_arrays(o_dxa, o_dya, o_dxb, o_dyb, o_w, n, &lerp)) return NULL;
     if (!hf_arg_array(o_rx, "rx", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     rx = (const int64_t *)p;
     if (!hf_arg_array(o_ry, "ry", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     ry = (const int64_t *)p;
-    if (!hf_arg_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
     if (n_main < 0 || n_main > (long long)n || end_k < -1 ||
         (end_k >= 0 && (n_main != end_k + 1 || end_k + 1 >= (long long)n))) {
         PyErr_SetString(PyExc_ValueError, "n_main, end_k: outside the pattern");
@@ -363,28 +408,19 @@ static PyObject *horizon_rows(PyObject *self, PyObject *args) {
     /* memory safety: each breakpoint reads within the reaches it is limited by, on the
      * direction's side */
     for (npy_intp e = 0; e < n; e++) {
-        if (sx * dxa[e] < 0 || sx * dxb[e] < 0 || sy * dya[e] < 0 || sy * dyb[e] < 0 ||
-            sx * dxa[e] > rx[e] || sx * dxb[e] > rx[e] || sy * dya[e] > ry[e] ||
-            sy * dyb[e] > ry[e] || (e && (rx[e] < rx[e - 1] || ry[e] < ry[e - 1]))) {
+        if (sx * lerp.dxa[e] < 0 || sx * lerp.dxb[e] < 0 || sy * lerp.dya[e] < 0 ||
+            sy * lerp.dyb[e] < 0 || sx * lerp.dxa[e] > rx[e] || sx * lerp.dxb[e] > rx[e] ||
+            sy * lerp.dya[e] > ry[e] || sy * lerp.dyb[e] > ry[e] ||
+            (e && (rx[e] < rx[e - 1] || ry[e] < ry[e - 1]))) {
             PyErr_Format(PyExc_ValueError, "pattern: breakpoint %ld reads outside its reach",
                          (long)e);
             return NULL;
         }
     }
-    off_a = malloc((size_t)(n ? n : 1) * sizeof *off_a);
-    off_b = malloc((size_t)(n ? n : 1) * sizeof *off_b);
-    if (!off_a || !off_b) {
-        free(off_a);
-        free(off_b);
-        return PyErr_NoMemory();
-    }
-    for (npy_intp e = 0; e < n; e++) {
-        off_a[e] = dya[e] * cols + dxa[e];
-        off_b[e] = dyb[e] * cols + dxb[e];
-    }
+    if (!lerp_offsets(&lerp, n, f.cols, &off_a, &off_b)) return NULL;
     hf_timed_begin(&section);
-    hf_horizon_rows(H, rows, cols, n, inv_t, off_a, off_b, w, rx, ry, sx, sy, n_main, end_k, end_f,
-                    end_inv_t, row_start, row_stop, (double *)out);
+    hf_horizon_rows(f.H, f.rows, f.cols, n, inv_t, off_a, off_b, lerp.w, rx, ry, sx, sy, n_main,
+                    end_k, end_f, end_inv_t, row_start, row_stop, (double *)out);
     elapsed_ns = hf_timed_end(&section);
     free(off_a);
     free(off_b);
@@ -402,35 +438,30 @@ static PyObject *horizon_chain(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_mip, *o_nx, *o_ny, *o_nd, *o_out, *o_occ;
     double dx, dy, max_distance;
     long long block_rows, block_start, block_stop;
-    const double *H, *nb_d;
+    const double *nb_d;
     const int64_t *nb_x, *nb_y;
-    int64_t rows, cols, n_blocks;
-    hf_hz_mip mip;
-    int has_mip;
+    int64_t n_blocks;
     npy_intp n_nb;
     void *p, *out, *occ;
     hf_chain_stats st = {0, 0, 0, 0};
     hf_timed_section section;
     long long elapsed_ns;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOdddOOOLLLOO", &o_h, &o_mip, &dx, &dy, &max_distance, &o_nx,
                           &o_ny, &o_nd, &block_rows, &block_start, &block_stop, &o_out, &o_occ))
         return NULL;
-    if (!get_heights(o_h, &H, &rows, &cols) || !get_mip(o_mip, rows, cols, &mip, &has_mip))
-        return NULL;
-    if (!has_mip) {
+    if (!get_field(o_h, 0, 0, 0, o_mip, &f)) return NULL;
+    if (!f.has_mip) {
         PyErr_SetString(PyExc_ValueError, "mip: the chain walk needs a mipmap");
         return NULL;
     }
-    if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || isnan(max_distance)) {
-        PyErr_SetString(PyExc_ValueError, "direction: finite and nonzero; max_distance not NaN");
-        return NULL;
-    }
+    if (!check_direction(dx, dy, max_distance)) return NULL;
     if (block_rows < 1) {
         PyErr_SetString(PyExc_ValueError, "block_rows: expected >= 1");
         return NULL;
     }
-    n_blocks = (rows + block_rows - 1) / block_rows;
+    n_blocks = (f.rows + block_rows - 1) / block_rows;
     if (block_start < 0 || block_stop < block_start || block_stop > n_blocks) {
         PyErr_Format(PyExc_ValueError, "block range [%lld, %lld) outside [0, %lld]", block_start,
                      block_stop, (long long)n_blocks);
@@ -450,11 +481,11 @@ static PyObject *horizon_chain(PyObject *self, PyObject *args) {
             return NULL;
         }
     }
-    if (!hf_arg_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
-    if (!hf_arg_array(o_occ, "occ", NPY_FLOAT64, rows * cols, 1, 0, &occ, NULL)) return NULL;
+    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
+    if (!hf_arg_array(o_occ, "occ", NPY_FLOAT64, f.rows * f.cols, 1, 0, &occ, NULL)) return NULL;
     hf_timed_begin(&section);
-    hf_horizon_chain(H, rows, cols, &mip, dx, dy, max_distance, n_nb, nb_x, nb_y, nb_d, block_rows,
-                     block_start, block_stop, (double *)out, (double *)occ, &st);
+    hf_horizon_chain(f.H, f.rows, f.cols, &f.mip, dx, dy, max_distance, n_nb, nb_x, nb_y, nb_d,
+                     block_rows, block_start, block_stop, (double *)out, (double *)occ, &st);
     elapsed_ns = hf_timed_end(&section);
     return Py_BuildValue("LLLLL", elapsed_ns, (long long)st.cells, (long long)st.skips,
                          (long long)st.tile_tests, (long long)st.bounded);
@@ -469,29 +500,20 @@ static PyObject *viewshed(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_mip, *o_out;
     double ox, oy, z0, th, drop, eps;
     long long start, stop;
-    const double *H;
-    int64_t rows, cols;
-    hf_hz_mip mip;
-    int has_mip;
     void *out;
     hf_hz_stats st = {0, 0};
     hf_timed_section section;
     long long elapsed_ns;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOddddddLLO", &o_h, &o_mip, &ox, &oy, &z0, &th, &drop, &eps,
                           &start, &stop, &o_out))
         return NULL;
-    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
-        !get_mip(o_mip, rows, cols, &mip, &has_mip))
-        return NULL;
-    if (!(ox >= 0 && ox <= (double)(cols - 1) && oy >= 0 && oy <= (double)(rows - 1)) ||
-        !isfinite(z0) || !isfinite(th) || !isfinite(drop) || !(eps >= 0) || !isfinite(eps)) {
-        PyErr_SetString(PyExc_ValueError, "observer: outside the footprint, or a non-finite value");
-        return NULL;
-    }
-    if (!hf_arg_array(o_out, "out", NPY_UINT8, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (!get_field(o_h, 1, start, stop, o_mip, &f)) return NULL;
+    if (!check_observer(&f, ox, oy, z0, th, drop, !(eps >= 0) || !isfinite(eps))) return NULL;
+    if (!get_out(o_out, &f, NPY_UINT8, &out)) return NULL;
     hf_timed_begin(&section);
-    hf_viewshed(H, rows, cols, has_mip ? &mip : NULL, ox, oy, z0, th, drop, eps, start, stop,
+    hf_viewshed(f.H, f.rows, f.cols, mip_of(&f), ox, oy, z0, th, drop, eps, start, stop,
                 (uint8_t *)out, &st);
     elapsed_ns = hf_timed_end(&section);
     return stats_tuple(&st, elapsed_ns);
@@ -509,34 +531,25 @@ static PyObject *viewshed_threshold(PyObject *self, PyObject *args) {
     double ox, oy, z0, th, drop;
     int kind;
     long long start, stop;
-    const double *H;
-    int64_t rows, cols;
-    hf_hz_mip mip;
-    int has_mip;
     void *out;
     hf_hz_stats st = {0, 0};
     hf_timed_section section;
     long long elapsed_ns;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOdddddiLLO", &o_h, &o_mip, &ox, &oy, &z0, &th, &drop, &kind,
                           &start, &stop, &o_out))
         return NULL;
-    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols) ||
-        !get_mip(o_mip, rows, cols, &mip, &has_mip))
-        return NULL;
-    if (!(ox >= 0 && ox <= (double)(cols - 1) && oy >= 0 && oy <= (double)(rows - 1)) ||
-        !isfinite(z0) || !isfinite(th) || !isfinite(drop)) {
-        PyErr_SetString(PyExc_ValueError, "observer: outside the footprint, or a non-finite value");
-        return NULL;
-    }
+    if (!get_field(o_h, 1, start, stop, o_mip, &f)) return NULL;
+    if (!check_observer(&f, ox, oy, z0, th, drop, 0)) return NULL;
     if (kind != HF_VS_TARGET && kind != HF_VS_OBSERVER) {
         PyErr_Format(PyExc_ValueError, "kind: expected 0 (target) or 1 (observer), got %d", kind);
         return NULL;
     }
-    if (!hf_arg_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
     hf_timed_begin(&section);
-    hf_viewshed_threshold(H, rows, cols, has_mip ? &mip : NULL, ox, oy, z0, th, drop, kind, start,
-                          stop, (double *)out, &st);
+    hf_viewshed_threshold(f.H, f.rows, f.cols, mip_of(&f), ox, oy, z0, th, drop, kind, start, stop,
+                          (double *)out, &st);
     elapsed_ns = hf_timed_end(&section);
     return stats_tuple(&st, elapsed_ns);
 }
@@ -550,29 +563,25 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_out;
     double dx, dy, step, max_distance, zmax, kappa = 0.0;
     long long start, stop;
-    const double *H;
-    int64_t rows, cols;
     void *out;
     hf_hz_stats st = {0, 0};
     hf_timed_section section;
     long long elapsed_ns;
+    terrain_field f;
     (void)self;
     if (!PyArg_ParseTuple(args, "OdddddLLO|d", &o_h, &dx, &dy, &step, &max_distance, &zmax, &start,
                           &stop, &o_out, &kappa))
         return NULL;
-    if (!isfinite(kappa)) {
-        PyErr_SetString(PyExc_ValueError, "kappa: expected a finite curvature");
-        return NULL;
-    }
-    if (!get_heights(o_h, &H, &rows, &cols) || !vertex_range(start, stop, rows, cols)) return NULL;
+    if (!check_kappa(kappa)) return NULL;
+    if (!get_field(o_h, 1, start, stop, NULL, &f)) return NULL;
     if (!isfinite(dx) || !isfinite(dy) || (dx == 0 && dy == 0) || !(step > 0) || !isfinite(step) ||
         isnan(max_distance) || isnan(zmax)) {
         PyErr_SetString(PyExc_ValueError, "direction, step or max_distance invalid");
         return NULL;
     }
-    if (!hf_arg_array(o_out, "out", NPY_FLOAT64, rows * cols, 1, 0, &out, NULL)) return NULL;
+    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
     hf_timed_begin(&section);
-    hf_horizon_march(H, rows, cols, dx, dy, step, max_distance, zmax, kappa, start, stop,
+    hf_horizon_march(f.H, f.rows, f.cols, dx, dy, step, max_distance, zmax, kappa, start, stop,
                      (double *)out, &st);
     elapsed_ns = hf_timed_end(&section);
     return stats_tuple(&st, elapsed_ns);

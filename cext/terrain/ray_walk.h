@@ -12,10 +12,18 @@
 #include <stdint.h>
 #include "core/mipmap.h"
 #include "surfaces/surfaces.h"
-#include "terrain/terrain.h"
 
 /* The one infinity of the terrain kernels (a ray parameter never reached). */
 #define HF_HZ_INF HUGE_VAL
+
+/* A max-mipmap of the cell maxima: level k holds tiles of 2^k x 2^k cells. */
+typedef struct {
+    int32_t n_levels;
+    const double *data;    /* every level, concatenated                           */
+    const int64_t *offset; /* (n_levels,) start of each level in data             */
+    const int64_t *rows;   /* (n_levels,) tile rows per level                     */
+    const int64_t *cols;   /* (n_levels,) tile columns per level                  */
+} hf_hz_mip;
 
 /* A ray o + t d over the cells of the footprint [0, nx] x [0, ny]. */
 typedef struct {

@@ -15,6 +15,7 @@
 #define HF_TERRAIN_H
 
 #include <stdint.h>
+#include "terrain/ray_walk.h"
 
 /* One breakpoint of a shared pattern, relative to the ray's start vertex. The surface
  * there is H[v + off_a] * (1 - w) + H[v + off_b] * w, where v is the start vertex's linear
@@ -63,15 +64,6 @@ int hf_horizon_sweep(const double *H, int64_t rows, int64_t cols, int64_t q, int
                      int64_t n_entries, const double *tfrac, const int64_t *dxa, const int64_t *dya,
                      const int64_t *dxb, const int64_t *dyb, const double *w, const int64_t *mx,
                      const int64_t *my, double norm, int64_t k_lo, int64_t k_hi, double *out);
-
-/* A max-mipmap of the cell maxima: level k holds tiles of 2^k x 2^k cells. */
-typedef struct {
-    int32_t n_levels;
-    const double *data;    /* every level, concatenated                           */
-    const int64_t *offset; /* (n_levels,) start of each level in data             */
-    const int64_t *rows;   /* (n_levels,) tile rows per level                     */
-    const int64_t *cols;   /* (n_levels,) tile columns per level                  */
-} hf_hz_mip;
 
 /* Walk statistics, summed over a batch. */
 typedef struct {
