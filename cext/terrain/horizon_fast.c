@@ -22,8 +22,7 @@ static void
 row_breakpoint(const double *restrict ha, const double *restrict hb, const double *restrict h,
                double w, double inv_t, int64_t n, double *restrict best) {
     for (int64_t i = 0; i < n; i++) {
-        double s = ha[i] + (hb[i] - ha[i]) * w;
-        double r = (s - h[i]) * inv_t;
+        double r = hf_hz_ratio(hf_lerp(ha[i], hb[i], w), h[i], inv_t);
         best[i] = r > best[i] ? r : best[i];
     }
 }
@@ -49,12 +48,9 @@ void hf_horizon_rows(const double *H, int64_t rows, int64_t cols, int64_t n, con
         if (end_k >= 0 && end_k + 1 < n &&
             (sy < 0 ? j >= ry[end_k + 1] : j <= rows - 1 - ry[end_k + 1])) {
             int64_t lo = sx < 0 ? rx[end_k + 1] : 0, hi = sx < 0 ? cols : cols - rx[end_k + 1];
-            const double *a0 = row + off_a[end_k], *b0 = row + off_b[end_k];
-            const double *a1 = row + off_a[end_k + 1], *b1 = row + off_b[end_k + 1];
-            double w0 = w[end_k], w1 = w[end_k + 1];
             for (int64_t i = lo; i < hi; i++) {
-                double sa = hf_lerp(a0[i], b0[i], w0), sb = hf_lerp(a1[i], b1[i], w1);
-                double r = (hf_lerp(sa, sb, end_f) - row[i]) * end_inv_t;
+                double r = hf_hz_ratio(hf_hz_pattern_end(row + i, off_a, off_b, w, end_k, end_f),
+                                       row[i], end_inv_t);
                 best[i] = r > best[i] ? r : best[i];
             }
         }

@@ -164,6 +164,32 @@ static inline hf_hz_point hf_hz_end_point(const double *H, int64_t rows, int64_t
     return p;
 }
 
+/* ---- breakpoints of a shared pattern --------------------------------------------------
+ * A shared pattern (hf_hz_pattern, horizon_rows) lists one direction's breakpoints once
+ * for every vertex: breakpoint e lies between the vertices at offsets off_a[e] and
+ * off_b[e] from the vertex, with weight w[e], at distance 1 / inv_t[e]. */
+
+/* The horizon ratio (rise over distance) of surface s seen from height h. */
+static inline double hf_hz_ratio(double s, double h, double inv_t) {
+    return (s - h) * inv_t;
+}
+
+/* The surface at breakpoint e, from the vertex at `base`. */
+static inline double hf_hz_breakpoint(const double *base, const int64_t *off_a,
+                                      const int64_t *off_b, const double *w, int64_t e) {
+    return hf_lerp(base[off_a[e]], base[off_b[e]], w[e]);
+}
+
+/* The surface at the pattern's end (max_distance), a fraction end_f of the way from
+ * breakpoint k to breakpoint k + 1. */
+static inline double hf_hz_pattern_end(const double *base, const int64_t *off_a,
+                                       const int64_t *off_b, const double *w, int64_t k,
+                                       double end_f) {
+    const double sa = hf_hz_breakpoint(base, off_a, off_b, w, k);
+    const double sb = hf_hz_breakpoint(base, off_a, off_b, w, k + 1);
+    return hf_lerp(sa, sb, end_f);
+}
+
 /* ---- the max-mipmap tile step --------------------------------------------------------- */
 /* The tile at `level` around cell (ci, cj): its maximum, its exit faces X1, Y1 (on the
  * footprint's border at the latest), the parameters there and t_exit, the smaller,

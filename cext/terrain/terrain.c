@@ -77,7 +77,7 @@ static void pattern_curved(const double *H, int64_t rows, int64_t cols, const hf
             int64_t e1 = e0 + chunk < n ? e0 + chunk : n;
             for (int64_t e = e0; e < e1; e++) {
                 double t = 1.0 / inv_t[e];
-                double rise = hf_lerp(base[off_a[e]], base[off_b[e]], w[e]) - h;
+                double rise = hf_hz_breakpoint(base, off_a, off_b, w, e) - h;
                 double r = rise * inv_t[e] - kappa * t;
                 best = r > best ? r : best;
                 best = piece_peak(best, kappa, t_prev, r_prev, t, rise);
@@ -90,10 +90,8 @@ static void pattern_curved(const double *H, int64_t rows, int64_t cols, const hf
             }
         }
         if (p->end_k >= 0 && n_valid > p->end_k + 1) {
-            int64_t k = p->end_k;
-            double sa = hf_lerp(base[off_a[k]], base[off_b[k]], w[k]);
-            double sb = hf_lerp(base[off_a[k + 1]], base[off_b[k + 1]], w[k + 1]);
-            double t = 1.0 / p->end_inv_t, rise = hf_lerp(sa, sb, p->end_f) - h;
+            double t = 1.0 / p->end_inv_t;
+            double rise = hf_hz_pattern_end(base, off_a, off_b, w, p->end_k, p->end_f) - h;
             double r = rise * p->end_inv_t - kappa * t;
             best = r > best ? r : best;
             best = piece_peak(best, kappa, t_prev, r_prev, t, rise);
@@ -125,8 +123,7 @@ void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz
         for (int64_t e0 = 0; e0 < n; e0 += chunk) {
             int64_t e1 = e0 + chunk < n ? e0 + chunk : n;
             for (int64_t e = e0; e < e1; e++) {
-                double s = hf_lerp(base[off_a[e]], base[off_b[e]], w[e]);
-                double r = (s - h) * inv_t[e];
+                double r = hf_hz_ratio(hf_hz_breakpoint(base, off_a, off_b, w, e), h, inv_t[e]);
                 best = r > best ? r : best;
             }
             if (stop_every > 0 && (zmax - h) * inv_t[e1 - 1] <= best) {
@@ -135,10 +132,8 @@ void hf_horizon_pattern(const double *H, int64_t rows, int64_t cols, const hf_hz
             }
         }
         if (p->end_k >= 0 && n_valid > p->end_k + 1) {
-            int64_t k = p->end_k;
-            double sa = hf_lerp(base[off_a[k]], base[off_b[k]], w[k]);
-            double sb = hf_lerp(base[off_a[k + 1]], base[off_b[k + 1]], w[k + 1]);
-            double r = (hf_lerp(sa, sb, p->end_f) - h) * p->end_inv_t;
+            double r = hf_hz_ratio(hf_hz_pattern_end(base, off_a, off_b, w, p->end_k, p->end_f), h,
+                                   p->end_inv_t);
             best = r > best ? r : best;
         }
         out[v] = best;
