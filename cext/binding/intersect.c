@@ -1,5 +1,6 @@
 /* The binding of the first-hit intersectors (dispatch/intersect.c) and of the structures
  * built in C for them: the cone slopes and the compact tree. */
+#include <stdarg.h>
 #include "binding/args.h"
 #include "hierarchies/compact.h"
 #include "hierarchies/cone.h"
@@ -36,11 +37,54 @@ static int get_rmq(PyObject *object, const char *name, npy_intp lines, npy_intp 
 }
 
 PyDoc_STRVAR(intersect_doc,
-             "intersect(kernel, surface, heights, cellmax, hmin, hmax, row_max, col_max, mip,\n"
-             "          origins, directions, tmin, tmax, cull_cells, max_denominator, pattern,\n"
-             "          march, fine_level, t, cell, normal, stats[, packet_width]) -> int\n\n"
+             "intersect(kernel, surface, field, rays, options, outputs) -> int\n\n"
              "First hits of a batch; returns the elapsed nanoseconds of the C loop.\n"
+             "field: (heights, cellmax, hmin, hmax, row_max, col_max, mip);\n"
+             "rays: (origins, directions, tmin, tmax);\n"
+             "options: (cull_cells, max_denominator, pattern, march, fine_level, packet_width);\n"
+             "outputs: (t, cell, normal, stats), each None when not wanted.\n"
              "Private: use algos.intersect.");
+
+/* The arguments of intersect(kernel, surface, field, rays, options, outputs): the kernel
+ * ids, then four small tuples (intersect_doc) rather than 23 positional arguments. */
+typedef struct {
+    int kernel, surface;
+    PyObject *heights, *cellmax, *row_max, *col_max, *mip; /* field */
+    double hmin, hmax;
+    PyObject *origins, *directions, *tmin, *tmax; /* rays */
+    int cull_cells, fine_level, packet_width;     /* options */
+    long long max_denominator;
+    PyObject *pattern, *march;
+    PyObject *t, *cell, *normal, *stats; /* outputs */
+} intersect_args;
+
+/* One group of arguments: a tuple of exactly `size` items, read by `format`. */
+static int read_group(PyObject *group, const char *name, Py_ssize_t size, const char *format, ...) {
+    va_list items;
+    int ok;
+    if (!PyTuple_Check(group) || PyTuple_GET_SIZE(group) != size) {
+        PyErr_Format(PyExc_TypeError, "%s: expected a tuple of %zd items, got %s", name, size,
+                     Py_TYPE(group)->tp_name);
+        return 0;
+    }
+    va_start(items, format);
+    ok = PyArg_VaParse(group, format, items);
+    va_end(items);
+    return ok;
+}
+
+static int read_intersect_args(PyObject *args, intersect_args *a) {
+    PyObject *field, *rays, *options, *outputs;
+    if (!PyArg_ParseTuple(args, "iiOOOO", &a->kernel, &a->surface, &field, &rays, &options,
+                          &outputs))
+        return 0;
+    return read_group(field, "field", 7, "OOddOOO", &a->heights, &a->cellmax, &a->hmin, &a->hmax,
+                      &a->row_max, &a->col_max, &a->mip) &&
+           read_group(rays, "rays", 4, "OOOO", &a->origins, &a->directions, &a->tmin, &a->tmax) &&
+           read_group(options, "options", 6, "iLOOii", &a->cull_cells, &a->max_denominator,
+                      &a->pattern, &a->march, &a->fine_level, &a->packet_width) &&
+           read_group(outputs, "outputs", 4, "OOOO", &a->t, &a->cell, &a->normal, &a->stats);
+}
 
 /* The compact maximum tree of an ny x nx cell grid (compact.h): a C-contiguous uint8
  * array of exactly its node count times 64 bytes, aligned to 64 (one node per line). */
@@ -77,11 +121,8 @@ static int get_compact(PyObject *object, int32_t nx, int32_t ny, int writable, v
  * cone, (rows - 1, cols - 1) for cone_relaxed; and the compact tree (NULL but for
  * intersect_compact). */
 static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact) {
-    int kernel, surface, cull_cells, fine_level, status, k, packet_width = 4;
-    double hmin, hmax;
-    long long max_denominator;
-    PyObject *o_heights, *o_cellmax, *o_row, *o_col, *o_mip, *o_origins, *o_directions, *o_tmin,
-        *o_tmax, *o_pattern, *o_march, *o_t, *o_cell, *o_normal, *o_stats;
+    int status, k;
+    intersect_args a;
     hf_hit_batch b;
     PyArrayObject *ha;
     hf_ray_arrays rays;
@@ -89,22 +130,17 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
     void *p;
     hf_timed_section section;
     long long elapsed_ns;
-    if (!PyArg_ParseTuple(args, "iiOOddOOOOOOOiLOOiOOOO|i", &kernel, &surface, &o_heights,
-                          &o_cellmax, &hmin, &hmax, &o_row, &o_col, &o_mip, &o_origins,
-                          &o_directions, &o_tmin, &o_tmax, &cull_cells, &max_denominator,
-                          &o_pattern, &o_march, &fine_level, &o_t, &o_cell, &o_normal, &o_stats,
-                          &packet_width))
-        return NULL;
+    if (!read_intersect_args(args, &a)) return NULL;
     memset(&b, 0, sizeof b);
-    if (kernel < 0 || kernel >= HF_N_HIT_KERNELS || surface < 0 || surface > HF_BILINEAR) {
+    if (a.kernel < 0 || a.kernel >= HF_N_HIT_KERNELS || a.surface < 0 || a.surface > HF_BILINEAR) {
         PyErr_SetString(PyExc_ValueError, "kernel or surface out of range");
         return NULL;
     }
-    if (!PyArray_Check(o_heights) || PyArray_NDIM((PyArrayObject *)o_heights) != 2) {
+    if (!PyArray_Check(a.heights) || PyArray_NDIM((PyArrayObject *)a.heights) != 2) {
         PyErr_SetString(PyExc_TypeError, "heights: expected a 2D numpy array");
         return NULL;
     }
-    ha = (PyArrayObject *)o_heights;
+    ha = (PyArrayObject *)a.heights;
     shape[0] = PyArray_DIM(ha, 0);
     shape[1] = PyArray_DIM(ha, 1);
     if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE ||
@@ -112,25 +148,25 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
         return NULL;
     }
-    if (!hf_arg_f32(o_heights, "heights", 2, shape, &b.heights)) return NULL;
+    if (!hf_arg_f32(a.heights, "heights", 2, shape, &b.heights)) return NULL;
     b.rows = (int32_t)shape[0];
     b.cols = (int32_t)shape[1];
     shape[0] -= 1;
     shape[1] -= 1;
-    if (o_cellmax == Py_None) {
+    if (a.cellmax == Py_None) {
         /* the lean layout (algos.Field(lean=True)): runs_maxmip without cell culling is
          * the one kernel that never reads the cell maxima */
-        if (kernel != HF_HIT_RUNS_MAXMIP || cull_cells || o_row != Py_None) {
+        if (a.kernel != HF_HIT_RUNS_MAXMIP || a.cull_cells || a.row_max != Py_None) {
             PyErr_SetString(
                 PyExc_ValueError,
                 "cellmax: only runs_maxmip without cell or run culling runs without it");
             return NULL;
         }
         b.cellmax = NULL;
-    } else if (!hf_arg_f32(o_cellmax, "cellmax", 2, shape, &b.cellmax)) {
+    } else if (!hf_arg_f32(a.cellmax, "cellmax", 2, shape, &b.cellmax)) {
         return NULL;
     }
-    if ((o_cone != NULL) != (kernel == HF_HIT_CONE || kernel == HF_HIT_CONE_RELAXED)) {
+    if ((o_cone != NULL) != (a.kernel == HF_HIT_CONE || a.kernel == HF_HIT_CONE_RELAXED)) {
         PyErr_SetString(
             PyExc_ValueError,
             "cone: only intersect_cone runs the cone kernels, and it runs nothing else");
@@ -142,10 +178,10 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         cone_shape[0] = shape[0];
         cone_shape[1] = shape[1];
         cone_shape[2] = 2;
-        if (!hf_arg_f32(o_cone, "cone", kernel == HF_HIT_CONE ? 3 : 2, cone_shape, &b.cone))
+        if (!hf_arg_f32(o_cone, "cone", a.kernel == HF_HIT_CONE ? 3 : 2, cone_shape, &b.cone))
             return NULL;
     }
-    if ((o_compact != NULL) != (kernel == HF_HIT_DDA_COMPACT)) {
+    if ((o_compact != NULL) != (a.kernel == HF_HIT_DDA_COMPACT)) {
         PyErr_SetString(
             PyExc_ValueError,
             "compact: only intersect_compact runs dda_compact, and it runs nothing else");
@@ -156,26 +192,26 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 0, &records)) return NULL;
         b.compact = records;
     }
-    b.hmin = hmin;
-    b.hmax = hmax;
-    b.surface = surface;
-    b.cull_cells = cull_cells;
-    if (o_row != Py_None || o_col != Py_None) {
-        if (o_row == Py_None || o_col == Py_None) {
+    b.hmin = a.hmin;
+    b.hmax = a.hmax;
+    b.surface = a.surface;
+    b.cull_cells = a.cull_cells;
+    if (a.row_max != Py_None || a.col_max != Py_None) {
+        if (a.row_max == Py_None || a.col_max == Py_None) {
             PyErr_SetString(PyExc_ValueError, "row_max and col_max come together");
             return NULL;
         }
-        if (!get_rmq(o_row, "row_max", shape[0], shape[1], &b.row_max)) return NULL;
-        if (!get_rmq(o_col, "col_max", shape[1], shape[0], &b.col_max)) return NULL;
+        if (!get_rmq(a.row_max, "row_max", shape[0], shape[1], &b.row_max)) return NULL;
+        if (!get_rmq(a.col_max, "col_max", shape[1], shape[0], &b.col_max)) return NULL;
         b.cull_runs = 1;
     }
-    if (o_mip != Py_None) {
+    if (a.mip != Py_None) {
         npy_intp levels;
-        if (!PyList_Check(o_mip)) {
+        if (!PyList_Check(a.mip)) {
             PyErr_SetString(PyExc_TypeError, "mip: expected a list of float32 arrays");
             return NULL;
         }
-        levels = PyList_GET_SIZE(o_mip);
+        levels = PyList_GET_SIZE(a.mip);
         if (levels < 1 || levels > HF_MAX_MIP_LEVELS) {
             PyErr_SetString(PyExc_ValueError, "mip: 1 to 32 levels");
             return NULL;
@@ -185,33 +221,33 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
             /* level k covers 2^k x 2^k cells: ceil division of the cell grid */
             ms[0] = (shape[0] + ((npy_intp)1 << k) - 1) >> k;
             ms[1] = (shape[1] + ((npy_intp)1 << k) - 1) >> k;
-            if (PyList_GET_ITEM(o_mip, k) == Py_None && k < fine_level) {
+            if (PyList_GET_ITEM(a.mip, k) == Py_None && k < a.fine_level) {
                 /* levels below the floor level are never read (the lean layout) */
                 b.mip[k] = NULL;
-            } else if (!hf_arg_f32(PyList_GET_ITEM(o_mip, k), "mip level", 2, ms, &b.mip[k])) {
+            } else if (!hf_arg_f32(PyList_GET_ITEM(a.mip, k), "mip level", 2, ms, &b.mip[k])) {
                 return NULL;
             }
             b.mip_cols[k] = (int32_t)ms[1];
         }
         b.mip_levels = (int)levels;
     }
-    if (!hf_arg_rays(o_origins, o_directions, o_tmin, o_tmax, 3, &rays)) return NULL;
+    if (!hf_arg_rays(a.origins, a.directions, a.tmin, a.tmax, 3, &rays)) return NULL;
     n = rays.n;
     b.n_rays = n;
     b.origins = rays.origins;
     b.directions = rays.directions;
     b.tmin = rays.tmin;
     b.tmax = rays.tmax;
-    b.max_denominator = max_denominator;
-    if (!hf_arg_array(o_pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return NULL;
+    b.max_denominator = a.max_denominator;
+    if (!hf_arg_array(a.pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return NULL;
     b.pattern = (int32_t *)p;
-    if (kernel == HF_RUNS_PERIODIC &&
-        (b.pattern == NULL || max_denominator < 1 || max_denominator > HF_MAX_DENOMINATOR ||
-         plen < max_denominator + 1)) {
+    if (a.kernel == HF_RUNS_PERIODIC &&
+        (b.pattern == NULL || a.max_denominator < 1 || a.max_denominator > HF_MAX_DENOMINATOR ||
+         plen < a.max_denominator + 1)) {
         PyErr_SetString(PyExc_ValueError, "runs_periodic needs a pattern of max_denominator + 1");
         return NULL;
     }
-    if (!PyArg_ParseTuple(o_march, "iiddd", &b.march_steps, &b.march_refinements, &b.march_growth,
+    if (!PyArg_ParseTuple(a.march, "iiddd", &b.march_steps, &b.march_refinements, &b.march_growth,
                           &b.march_first_fraction, &b.march_min_step))
         return NULL;
     if (b.march_steps < 1 || b.march_refinements < 0 || !(b.march_growth >= 1.0) ||
@@ -219,38 +255,38 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         PyErr_SetString(PyExc_ValueError, "march: invalid parameters");
         return NULL;
     }
-    if ((kernel == HF_HIT_DDA_MAXMIP || kernel == HF_HIT_RUNS_MAXMIP ||
-         kernel == HF_HIT_PACKET_MAXMIP) &&
+    if ((a.kernel == HF_HIT_DDA_MAXMIP || a.kernel == HF_HIT_RUNS_MAXMIP ||
+         a.kernel == HF_HIT_PACKET_MAXMIP) &&
         b.mip_levels < 1) {
         PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
         return NULL;
     }
-    if (fine_level < 0 || fine_level >= (b.mip_levels > 0 ? b.mip_levels : 1)) {
+    if (a.fine_level < 0 || a.fine_level >= (b.mip_levels > 0 ? b.mip_levels : 1)) {
         PyErr_SetString(PyExc_ValueError, "fine_level: outside the mipmap");
         return NULL;
     }
-    b.floor_level = fine_level;
-    if (packet_width < 1 || packet_width > HF_PACKET_MAX) {
+    b.floor_level = a.fine_level;
+    if (a.packet_width < 1 || a.packet_width > HF_PACKET_MAX) {
         PyErr_Format(PyExc_ValueError, "packet_width: expected 1 .. %d, got %d", HF_PACKET_MAX,
-                     packet_width);
+                     a.packet_width);
         return NULL;
     }
-    b.packet_width = packet_width;
-    if (!hf_arg_array(o_t, "t", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
+    b.packet_width = a.packet_width;
+    if (!hf_arg_array(a.t, "t", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
     b.t = (double *)p;
-    if (!hf_arg_array(o_cell, "cell", NPY_INT32, 2 * n, 1, 1, &p, NULL)) return NULL;
+    if (!hf_arg_array(a.cell, "cell", NPY_INT32, 2 * n, 1, 1, &p, NULL)) return NULL;
     b.cell = (int32_t *)p;
-    if (!hf_arg_array(o_normal, "normal", NPY_FLOAT64, 3 * n, 1, 1, &p, NULL)) return NULL;
+    if (!hf_arg_array(a.normal, "normal", NPY_FLOAT64, 3 * n, 1, 1, &p, NULL)) return NULL;
     b.normal = (double *)p;
-    if (!hf_arg_array(o_stats, "stats", NPY_INT64, 5 * n, 1, 1, &p, NULL)) return NULL;
+    if (!hf_arg_array(a.stats, "stats", NPY_INT64, 5 * n, 1, 1, &p, NULL)) return NULL;
     b.stats = (int64_t *)p;
 
     hf_timed_begin(&section);
-    status = hf_intersect_batch(kernel, &b);
+    status = hf_intersect_batch(a.kernel, &b);
     elapsed_ns = hf_timed_end(&section);
 
     if (status != HF_OK) {
-        PyErr_Format(PyExc_RuntimeError, "intersector %d failed on ray %lld: %s", kernel,
+        PyErr_Format(PyExc_RuntimeError, "intersector %d failed on ray %lld: %s", a.kernel,
                      (long long)b.bad_ray, hf_status_text(status));
         return NULL;
     }
