@@ -298,7 +298,7 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     return intersect_with(args, NULL, NULL);
 }
 
-/* ---- cone step mapping (issue 22) ----------------------------------------------------- */
+/* ---- cone step mapping ----------------------------------------------------------------- */
 
 PyDoc_STRVAR(intersect_cone_doc,
              "intersect_cone(cone, kernel, surface, heights, ...) -> int\n\n"
@@ -366,7 +366,7 @@ static PyObject *cone_relaxed_slopes(PyObject *self, PyObject *args) {
     return PyLong_FromLongLong(elapsed_ns);
 }
 
-/* ---- the compact maximum tree (issue 22) ---------------------------------------------- */
+/* ---- the compact maximum tree ----------------------------------------------------------- */
 
 PyDoc_STRVAR(intersect_compact_doc,
              "intersect_compact(compact, kernel, surface, heights, ...) -> int\n\n"

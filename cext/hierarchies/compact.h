@@ -1,4 +1,4 @@
-/* A cache-compact maximum hierarchy for first hits (issue 22, item 4): a 16-ary max tree
+/* A cache-compact maximum hierarchy for first hits: a 16-ary max tree
  * (4 x 4 children per node), each node one 64-byte cache line.
  *
  * Levels: a node of level L (L >= 1) covers a tile of 4^L x 4^L cells; its 16 children

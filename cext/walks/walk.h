@@ -66,7 +66,7 @@ typedef struct {
 int hf_line_exact(const double origin[2], const double direction[2], double tmin, double tmax,
                   int32_t nx, int32_t ny, int64_t max_denominator, hf_line *line);
 
-/* The exact line's per-direction share (issue 22, item 5): the lattice scale, octant and
+/* The exact line's per-direction share: the lattice scale, octant and
  * slope of one rounded direction (with runs_periodic's best rational for
  * max_denominator > 0), set up once and reused while consecutive rays of a batch share
  * the direction bit for bit (parallel rays: shadows, orthographic views). */
