@@ -1,6 +1,6 @@
 """``algos.intersect``: first hits of rays on a height field, every intersector.
 
-Validation and conversion live here; the C layer (``cext/hit.c``) trusts its inputs.
+Validation and conversion live here; the C layer (``cext/dispatch/intersect.c``) trusts its inputs.
 """
 from __future__ import annotations
 
