@@ -80,7 +80,7 @@ typedef struct {
     uint64_t *checksums;       /* VISIT, RUNFOLD: per ray                              */
     int64_t bad_ray;           /* on error: the ray that caused it                     */
     /* the exact kernels' per-direction set-up, kept across consecutive rays of one
-     * direction (internal.h); NULL: set up every ray afresh */
+     * direction (walks/walk.h); NULL: set up every ray afresh */
     struct hf_direction *direction_cache;
 } hf_batch;
 

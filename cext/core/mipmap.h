@@ -1,5 +1,5 @@
 /* The max-mipmap tile step (Tevs, Ihrke & Seidel 2008), shared by its three consumers:
- * the cell walk of dda_maxmip (hit.c), the run walk of runs_maxmip (runs.c) and the
+ * the cell walk of dda_maxmip (hierarchies/maxmip.h), the run walk of runs_maxmip (runs.c) and the
  * terrain products' skip (terrain.c). Each consumer keeps its own floor walk (cells, runs,
  * breakpoints); the tile geometry and the bound are written once, here.
  *

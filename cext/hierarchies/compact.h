@@ -18,10 +18,10 @@
  *   only when the ray is above a number at or above its true maximum.
  * Children outside the grid hold 0 and are never read.
  *
- * The walk (dda_compact, compact.c) is dda_maxmip's (hit.c) on this tree: the tile step
- * of mipmap.h with a tile of level L spanning 2^(2L) cells, a level-1 tile walked cell by
- * cell with the exact cell maxima of its leaf (dda_maxmip's floor cull, on one line), and
- * every surviving cell handed to the shared exact cell test (hf_hit_cell_exact, hit.h). */
+ * The walk (dda_compact, compact.c) is dda_maxmip's (dispatch/intersect.c) on this tree: the tile
+ * step of mipmap.h with a tile of level L spanning 2^(2L) cells, a level-1 tile walked cell by cell
+ * with the exact cell maxima of its leaf (dda_maxmip's floor cull, on one line), and every
+ * surviving cell handed to the shared exact cell test (hf_hit_cell_exact, cell_test.h). */
 #ifndef HFTRACE_COMPACT_H
 #define HFTRACE_COMPACT_H
 

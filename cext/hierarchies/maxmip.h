@@ -1,5 +1,5 @@
 /* The dda_maxmip walk (Tevs, Ihrke & Seidel 2008) as a resumable state machine, shared by
- * the per-ray kernel (hit.c) and the packet kernel (packet.c): a ray's walk is its
+ * the per-ray kernel (dispatch/intersect.c) and the packet kernel (packet.c): a ray's walk is its
  * constants (hf_mip_ray) and its state (hf_mip_walk: the current cell, parameter and
  * level), and one iteration tests the tile around the cell at the current level, then
  * skips it (and climbs), descends, or walks it cell by cell at the floor level.
@@ -8,7 +8,7 @@
  * its outputs (t, cell, normal and the statistics) are those of the per-ray kernel bit for
  * bit; it only shares between rays what does not depend on the ray (the tile's maximum,
  * the level's bookkeeping) and computes the per-ray exit parameters of a tile side by side.
- * Tile geometry: mipmap.h; the cell test: hit.h (hf_hit_cell_exact). */
+ * Tile geometry: mipmap.h; the cell test: cell_test.h (hf_hit_cell_exact). */
 #ifndef HFTRACE_MAXMIP_H
 #define HFTRACE_MAXMIP_H
 

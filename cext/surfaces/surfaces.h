@@ -1,6 +1,6 @@
 /* The cell surfaces and their root solvers, in one place for every consumer: the
- * per-cell first-hit tests (hit.h), the ray marchers (hit.c), the cone kernels (cone.c)
- * and the terrain products (terrain.c). Surfaces and names: docs/CONVENTIONS.md, "Cell
+ * per-cell first-hit tests (cell_test.h), the ray marchers (dispatch/intersect.c), the cone kernels
+ * (cone.c) and the terrain products (terrain.c). Surfaces and names: docs/CONVENTIONS.md, "Cell
  * surfaces"; corners h00 = H[j,i], h10 = H[j,i+1], h01 = H[j+1,i], h11 = H[j+1,i+1], local
  * coordinates u = x - i, v = y - j.
  *

@@ -222,11 +222,11 @@ HF_INLINE int hf_emit_cell(hf_sink *s, const int mode, int32_t i, int32_t j) {
 }
 
 /* ---- first hits: the cull in the walk's registers ------------------------------------
- * In HF_MODE_HIT a walk copies the per-ray invariants of the cheap bound (hit.h,
+ * In HF_MODE_HIT a walk copies the per-ray invariants of the cheap bound (cell_test.h,
  * "the tight path") into this local struct, so they stay in registers across the loop
  * (the out-of-line surface test would otherwise force every field to be reloaded per
  * cell), and counts visited cells here. Only cells that survive reach hf_hit. */
-/* In HF_MODE_HIT: the carried bound of hit.h starting at cell (i, j); runs: for a run
+/* In HF_MODE_HIT: the carried bound of cell_test.h starting at cell (i, j); runs: for a run
  * kernel (its tight path needs descending rays). Other modes: nothing. */
 HF_INLINE void hf_cull_begin(hf_cull *c, const hf_sink *s, const int mode, int32_t i, int32_t j,
                              int runs) {
