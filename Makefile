@@ -13,6 +13,7 @@
 #   make history    asv over the last N commits of main (N=5), published to .asv/html
 #   make validate-compare  the A/A and injected-slowdown validation of `hftrace compare`
 #                   (reports/regress/; tens of minutes, on a quiet machine only)
+#   make format-check  the C files against .clang-format (clang-format)
 #   make fuzz       fuzz the C entry points in the sanitized build (FUZZ_SECONDS, FUZZ_RUNS)
 #   make docs       the documentation site (Sphinx, warnings as errors) into build/docs/html
 #   make reports    regenerate the committed reference reports in reports/ (hours; the only
@@ -21,7 +22,9 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-SOURCES := pyproject.toml setup.py $(wildcard cext/*.c cext/*.h)
+# every C file of cext/, found in its folders (setup.py finds the same .c files)
+C_FILES := $(shell find cext -name '*.[ch]' | sort)
+SOURCES := pyproject.toml setup.py $(C_FILES)
 STAMP := $(VENV)/.hftrace-installed
 
 ASAN_TREE := build/asan
@@ -30,7 +33,7 @@ ASAN_LIB = $(shell $(CC) -print-file-name=libasan.so)
 # extension (matplotlib's) loads it later, and aborts on the first C++ exception
 STDCXX_LIB = $(shell $(CC) -print-file-name=libstdc++.so.6)
 
-.PHONY: all install test lint docs reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts compare history validate-compare sanitize fuzz clean
+.PHONY: all install test lint format-check docs reproduce reports terrain-bench bench-traverse bench-intersect targets bench-ci regress regress-counts compare history validate-compare sanitize fuzz clean
 
 all: test
 
@@ -66,6 +69,10 @@ $(DOCS_STAMP): $(STAMP) pyproject.toml
 docs: $(DOCS_STAMP)
 	$(BIN)/python -m sphinx -W --keep-going -b html -q docs build/docs/html
 	@echo "docs: build/docs/html/index.html"
+
+# the C layout: every C file of cext/ against .clang-format (needs clang-format)
+format-check:
+	clang-format --dry-run --Werror $(C_FILES)
 
 # the peers' optional extra (xarray-spatial) joins the figure and the viewshed comparison;
 # a machine where it cannot be installed still reproduces everything else. rvt-py (RVT's

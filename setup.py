@@ -12,23 +12,26 @@ Environment switches:
                       the coverage callbacks
 Otherwise: -O3, C99, no fast-math (the float kernels must round as IEEE 754 says).
 
-The optional C Embree 3 peer (cext/embree3_peer.c, algos._embree3) is added only where
+The optional C Embree 3 peer (cext/peers/embree3_peer.c, algos._embree3) is added only where
 embree3/rtcore.h is found (Debian: apt-get install libembree-dev; EMBREE_DIR=prefix for
 another install); it is an optional extension, so a failure to build it is a warning and
 never fails the build. Without it the peer's tests skip.
 """
+import glob
 import os
 import sys
 
 import numpy
 from setuptools import Extension, setup
 
-SOURCES = ["binding.c", "batch.c", "lattice.c", "dda.c", "midpoint.c", "runs.c", "hit.c",
-           "terrain.c", "horizon_fast.c", "raster.c", "cone.c", "packet.c", "compact.c",
-           "plane.c"]
-
-HEADERS = ["hftrace.h", "internal.h", "hit.h", "hitbatch.h", "raster.h", "surfaces.h", "mipmap.h",
-           "maxmip.h", "terrain.h", "horizon_fast.h", "compact.h"]
+# The C sources are found, never listed: every .c file under cext/ is part of
+# algos._kernels, except those of cext/peers/ (each peer is its own optional extension).
+# Folders, lowest layer first (tests/test_c_layers.py checks that no file calls up):
+# core, surfaces, walks, hierarchies, dispatch, terrain, raster, binding; peers apart.
+PEERS = os.path.join("cext", "peers")
+SOURCES = sorted(path for path in glob.glob(os.path.join("cext", "**", "*.c"), recursive=True)
+                 if not path.startswith(PEERS + os.sep))
+HEADERS = sorted(glob.glob(os.path.join("cext", "**", "*.h"), recursive=True))
 
 compile_args = ["-std=c99", "-Wall", "-Wextra", "-Wno-unused-function"]
 link_args = []
@@ -74,7 +77,7 @@ def _optional_extensions():
     if include is None:
         return []
     lib = os.path.join(os.path.dirname(include), "lib")
-    return [Extension("algos._embree3", sources=[os.path.join("cext", "embree3_peer.c")],
+    return [Extension("algos._embree3", sources=[os.path.join(PEERS, "embree3_peer.c")],
                       include_dirs=[include], library_dirs=[lib], libraries=["embree3"],
                       extra_compile_args=compile_args, extra_link_args=link_args,
                       optional=True)]
@@ -84,12 +87,12 @@ setup(
     ext_modules=[
         Extension(
             "algos._kernels",
-            sources=[os.path.join("cext", name) for name in SOURCES],
+            sources=SOURCES,
             include_dirs=["cext", numpy.get_include()],
             define_macros=macros,
             extra_compile_args=compile_args,
             extra_link_args=link_args,
-            depends=[os.path.join("cext", name) for name in HEADERS],
+            depends=HEADERS,
         )
     ] + _optional_extensions()
 )

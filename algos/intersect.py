@@ -1,6 +1,6 @@
 """``algos.intersect``: first hits of rays on a height field, every intersector.
 
-Validation and conversion live here; the C layer (``cext/hit.c``) trusts its inputs.
+Validation and conversion live here; the C layer (``cext/dispatch/intersect.c``) trusts its inputs.
 """
 from __future__ import annotations
 
@@ -260,26 +260,22 @@ class _Prepared:
                  float(opts.get("march_growth", 1.02)),
                  float(opts.get("march_first_fraction", 1 / 580)),
                  float(opts.get("march_min_step", 0.0)))
-        # (the positions of the per-ray arrays and the scratch are in _PER_RAY, _SCRATCH)
-        self.args = (algorithm.kernel_id, SURFACES.index(surface), fld.cell_heights, cellmax,
-                     hmin, hmax, row_max, col_max, mip, o, d, lo, hi,
-                     int(bool(opts.get("cull_cells", False))), q, pattern, march, fine_level,
-                     self.t, self.cell, self.normal, self.stats,
-                     int(opts.get("packet_width", 4)))
-
-    #: positions in ``args`` of the per-ray arrays (o, d, tmin, tmax, t, cell, normal,
-    #: stats) and of the run-pattern scratch: what each thread's range gets its own of
-    _PER_RAY = (9, 10, 11, 12, 18, 19, 20, 21)
-    _SCRATCH = 15
+        # the C call: kernel ids, then the field, the rays, the options and the outputs
+        # (cext/binding/intersect.c, intersect_args)
+        field = (fld.cell_heights, cellmax, hmin, hmax, row_max, col_max, mip)
+        options = (int(bool(opts.get("cull_cells", False))), q, pattern, march, fine_level,
+                   int(opts.get("packet_width", 4)))
+        self.args = (algorithm.kernel_id, SURFACES.index(surface), field, (o, d, lo, hi),
+                     options, (self.t, self.cell, self.normal, self.stats))
 
     def _part(self, a, b):
         """Rays [a, b) in C (views of every per-ray array; a private pattern scratch)."""
-        args = list(self.args)
-        for k in self._PER_RAY:
-            if args[k] is not None:
-                args[k] = args[k][a:b]
-        if args[self._SCRATCH] is not None:
-            args[self._SCRATCH] = np.zeros_like(args[self._SCRATCH])
+        kernel, surface, field, rays, options, outputs = self.args
+        rays, outputs = ([None if x is None else x[a:b] for x in group] for group in (rays, outputs))
+        pattern = options[2]
+        if pattern is not None:
+            options = options[:2] + (np.zeros_like(pattern),) + options[3:]
+        args = (kernel, surface, field, tuple(rays), options, tuple(outputs))
         try:
             return self._kernel(args)
         except RuntimeError as exc:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ._kernels import KERNEL_IDS as _C_ID  # the kernel ids, written once in C
+
 # TRAVERSALS and INTERSECTORS are served by the module's __getattr__ (bottom)
 __all__ = ["Traversal", "TRAVERSAL_REGISTRY", "TRAVERSALS", "get_traversal",  # noqa: F822
            "Intersector", "INTERSECTOR_REGISTRY", "INTERSECTORS", "get_intersector", "SURFACES"]
@@ -21,7 +23,8 @@ class Traversal:
     name : str
         Public name, used by the API, the CLI and every report.
     kernel_id : int
-        Index of the C kernel (``enum hf_kernel`` in ``cext/hftrace.h``).
+        Index of the C kernel (``enum hf_kernel`` in ``cext/core/hftrace.h``), read from
+        ``algos._kernels.KERNEL_IDS``.
     exact : bool
         True: equals ``reference_cells`` of the lattice-rounded ray (``algos.lattice``)
         on every input within the documented limits. False: a float kernel, measured.
@@ -54,32 +57,32 @@ TRAVERSAL_REGISTRY: dict[str, Traversal] = {
     t.name: t
     for t in (
         Traversal(
-            "dda", 0, False, "cell", "float64",
+            "dda", _C_ID["dda"], False, "cell", "float64",
             citation="Amanatides & Woo 1987",
             summary="cell DDA, float64, incremental tMax += tDelta (the baseline)",
         ),
         Traversal(
-            "dda_f32", 1, False, "cell", "float32",
+            "dda_f32", _C_ID["dda_f32"], False, "cell", "float32",
             citation="Amanatides & Woo 1987",
             summary="cell DDA in float32 (the stability baseline)",
         ),
         Traversal(
-            "midpoint", 2, True, "cell", "exact",
+            "midpoint", _C_ID["midpoint"], True, "cell", "exact",
             citation="Bresenham 1965; midpoint decision variable",
             summary="4-connected walk, exact integer decision variable",
         ),
         Traversal(
-            "runs", 3, True, "run", "exact",
+            "runs", _C_ID["runs"], True, "run", "exact",
             citation="Henning & Stephenson 2004",
             summary="run-based walk, exact integer run recurrence with start clipping",
         ),
         Traversal(
-            "runs_f64", 4, False, "run", "float64",
+            "runs_f64", _C_ID["runs_f64"], False, "run", "float64",
             citation="Henning & Stephenson 2004",
             summary="the run recurrence in float64 (the paper's float formulation)",
         ),
         Traversal(
-            "runs_periodic", 5, False, "run", "exact",
+            "runs_periodic", _C_ID["runs_periodic"], False, "run", "exact",
             shared_direction=True,
             exact_when="the reduced slope is p/q with q <= max_denominator",
             citation="Henning & Stephenson 2004",
@@ -131,7 +134,8 @@ class Intersector:
     Attributes
     ----------
     kernel_id : int or None
-        The C intersector (``cext/hitbatch.h``); None for a peer run from Python.
+        The C intersector (``cext/core/hftrace.h``, read from ``algos._kernels.KERNEL_IDS``);
+        None for a peer run from Python.
     kind : str
         ``"traversal"`` (a 2D traversal plus per-cell tests), ``"maxmip"``,
         ``"compact"`` (the compact maximum tree, ``algos.compact``),
@@ -179,19 +183,19 @@ for _t in TRAVERSAL_REGISTRY.values():
         citation=_t.citation)
 INTERSECTOR_REGISTRY.update({
     "dda_maxmip": Intersector(
-        "dda_maxmip", 6, "maxmip", "float64", "dda", ("cellmax", "mip"),
+        "dda_maxmip", _C_ID["dda_maxmip"], "maxmip", "float64", "dda", ("cellmax", "mip"),
         dict(cull_cells=True, fine_level=3),
         summary="maximum-mipmap tile skipping, a tight cell walk inside 2^fine_level tiles",
         citation="Tevs, Ihrke & Seidel 2008"),
     "packet_maxmip": Intersector(
-        "packet_maxmip", 13, "maxmip", "float64", "dda", ("cellmax", "mip"),
+        "packet_maxmip", _C_ID["packet_maxmip"], "maxmip", "float64", "dda", ("cellmax", "mip"),
         dict(cull_cells=True, fine_level=3, packet_width=4),
         summary="dda_maxmip's walk for packets of packet_width consecutive rays (camera or "
                 "parallel batches): one read of a tile's maximum per group of rays over it, "
                 "exit parameters side by side; bit-identical to dda_maxmip",
         citation="Wald et al. 2001; Tevs, Ihrke & Seidel 2008"),
     "plane_maxmip": Intersector(
-        "plane_maxmip", 15, "maxmip", "float64", "dda", ("cellmax", "mip"),
+        "plane_maxmip", _C_ID["plane_maxmip"], "maxmip", "float64", "dda", ("cellmax", "mip"),
         dict(cull_cells=True, fine_level=3),
         summary="dda_maxmip's walk with vertical-plane coherence: rays sharing an origin and "
                 "a horizontal direction (bit for bit) are traced bottom up, each resuming "
@@ -199,38 +203,38 @@ INTERSECTOR_REGISTRY.update({
                 "without a partner walk alone); bit-identical to dda_maxmip",
         citation="Cohen-Or & Shaked 1993; Lee & Shin 1995; Tevs, Ihrke & Seidel 2008"),
     "runs_maxmip": Intersector(
-        "runs_maxmip", 7, "maxmip", "exact", "runs",
+        "runs_maxmip", _C_ID["runs_maxmip"], "maxmip", "exact", "runs",
         ("cellmax", "mip"), dict(cull_cells=True, cull_runs=False, fine_level=3),
         summary="maximum-mipmap tile skipping, exact runs inside 2^fine_level tiles "
                 "(run culling off by default: the mipmap already rejects what it would)",
         citation="Tevs, Ihrke & Seidel 2008; Henning & Stephenson 2004"),
     "cone": Intersector(
-        "cone", 11, "cone", "float64", "dda", ("cellmax", "cone"), dict(cull_cells=True),
+        "cone", _C_ID["cone"], "cone", "float64", "dda", ("cellmax", "cone"), dict(cull_cells=True),
         summary="cone step mapping made exact: safe steps through per-cell cones over the "
                 "cell maxima, an exact cell walk where a cone is narrower than a cell",
         citation="Dummer 2006"),
     "dda_compact": Intersector(
-        "dda_compact", 14, "compact", "float64", "dda", ("cellmax", "compact"),
+        "dda_compact", _C_ID["dda_compact"], "compact", "float64", "dda", ("cellmax", "compact"),
         dict(cull_cells=True),
         summary="maximum-tree tile skipping on a cache-compact 4 x 4-ary tree (one 64-byte "
                 "node per line, uint16 maxima rounded up), a tight cell walk in 4 x 4 tiles",
         citation="Tevs, Ihrke & Seidel 2008"),
     "cone_relaxed": Intersector(
-        "cone_relaxed", 12, "march", "approximate", None, ("cellmax", "cone_relaxed"),
+        "cone_relaxed", _C_ID["cone_relaxed"], "march", "approximate", None, ("cellmax", "cone_relaxed"),
         dict(march_steps=256, march_refinements=16),
         summary="relaxed cone stepping: steps to the side of relaxed cones over the cell "
                 "maxima (at most march_steps), then march_refinements halvings; misses "
                 "ridges a step crosses whole",
         citation="Policarpo & Oliveira 2007"),
     "march_linear": Intersector(
-        "march_linear", 8, "march", "approximate", None, (), dict(_MARCH),
+        "march_linear", _C_ID["march_linear"], "march", "approximate", None, (), dict(_MARCH),
         summary="fixed-step ray marching: march_steps equal steps over the clipped span"),
     "march_growing": Intersector(
-        "march_growing", 9, "march", "approximate", None, (),
+        "march_growing", _C_ID["march_growing"], "march", "approximate", None, (),
         {"march_growth": 1.02, "march_first_fraction": 1 / 580, "march_min_step": 0.0},
         summary="ray marching whose step grows 2 % per step from 1/580 of the span"),
     "march_binary": Intersector(
-        "march_binary", 10, "march", "approximate", None, (),
+        "march_binary", _C_ID["march_binary"], "march", "approximate", None, (),
         dict(_MARCH, march_refinements=16),
         summary="the linear search followed by march_refinements halvings"),
     "embree": Intersector(

@@ -1,6 +1,6 @@
 """A pinhole image of a height field with any intersector: ``algos.render``.
 
-:func:`render` traces one primary ray per pixel (``datasets_gen.rays.pinhole``) through
+:func:`render` traces one primary ray per pixel (the camera of :mod:`algos.camera`) through
 ``algos.intersect`` and returns the image as arrays: the depth, the unit normal, the
 intersector's per-ray statistics and a shaded RGB preview. :func:`shade` makes that
 preview: terrain colour by height, a sun light (Lambert plus ambient) and, with
@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import plane_cameras
+from .camera import pinhole_frame, primary_directions
 from .field import Field
 from .intersect import intersect
 from .registry import get_intersector
@@ -97,15 +98,18 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         array is taken in cell units as it is.
     algorithm : str
         An intersector name (``algos.INTERSECTORS``), or a rasteriser of
-        ``algos.raster.RASTERISERS`` (``zbuffer``, ``painter``, ``floating_horizon``:
-        ``triangles`` only), which draws the same image from the same camera.
+        ``algos.raster.RASTERISERS`` (``zbuffer``, ``painter``, ``watkins``, ``warnock``,
+        ``floating_horizon``: ``triangles`` only), which draws the same image from the
+        same camera.
     surface : str
         One of ``algos.SURFACES``.
     width, height : int
         Image size in pixels.
     position, look_at : 3-vectors, optional
         Camera and target in grid coordinates (x = column, y = row, z = height, cell
-        units); default :func:`default_camera`.
+        units); default :func:`default_camera`. Any viewing direction works: a vertical
+        one (a nadir view) takes the frame of :mod:`algos.camera` (north, ``-y``, at the
+        top of the image).
     fov : float
         Horizontal field of view in degrees, in (0, 180).
     fog : float
@@ -150,12 +154,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         raise ValueError(f"projection: expected one of {', '.join(PROJECTIONS)}, "
                          f"got {projection!r}")
     if projection == "pinhole":
-        # the pinhole's primary rays: unit directions through the pixel centres, row 0 on top
-        frame, sx, sy = raster.pinhole_frame(position, look_at, fov, width, height)
-        forward, right, up = frame[3:6], frame[6:9], frame[9:12]
-        directions = (forward + sx[None, :, None] * right + sy[:, None, None] * up).reshape(-1, 3)
-        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-        origins = np.tile(position, (len(directions), 1))
+        frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
+        directions = primary_directions(frame, sx, sy)
+        origins = np.broadcast_to(frame[:3], directions.shape)
     elif projection == "level":
         origins, directions, _ = plane_cameras.level_camera_rays(position, look_at, fov,
                                                                  width, height)
@@ -185,8 +186,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         else:
             cells_visited = hits.stats["cells_visited"].reshape(shape)
             runs_visited = hits.stats["runs_visited"].reshape(shape)
-    # t is in units of each ray's |d| (the level camera's are not unit vectors)
-    depth = (t * np.linalg.norm(directions, axis=1)).reshape(shape)
+    # unit directions: t is a distance; the level camera's are not unit vectors, so its t
+    # is in units of each ray's |d|
+    depth = (t * np.linalg.norm(directions, axis=1) if projection == "level" else t).reshape(shape)
     normal = normal.reshape(height, width, 3)
     points = origins + np.where(np.isfinite(t), t, 0)[:, None] * directions
     points = points.reshape(height, width, 3)

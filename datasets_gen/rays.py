@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from algos.camera import pinhole_frame, primary_directions
+
 __all__ = ["RaySet", "by_run_length", "uniform", "isotropic", "lattice", "octant_directions",
            "mean_run_length", "pinhole", "level_camera", "orthographic", "parallel", "adversarial", "first_hit_hazards",
            "HAZARD_FAMILIES"]
@@ -221,32 +223,16 @@ def mean_run_length(run_starts_per_ray) -> float:
 def pinhole(position, look_at, fov, width, height, *, up=(0.0, 0.0, 1.0)):
     """Primary rays of a pinhole camera, one per pixel in row-major order (row 0 at the
     top of the image): origins all at ``position``, unit directions through the pixel
-    centres. ``fov`` is the horizontal field of view in degrees."""
-    position = np.asarray(position, dtype=np.float64)
-    forward = np.asarray(look_at, dtype=np.float64) - position
-    if position.shape != (3,) or forward.shape != (3,) or not np.all(np.isfinite(forward)):
-        raise ValueError("position, look_at: expected finite 3-vectors")
-    if not np.linalg.norm(forward) > 0:
-        raise ValueError("look_at: must differ from position")
-    if not 0 < fov < 180:
-        raise ValueError(f"fov: expected degrees in (0, 180), got {fov}")
-    if int(width) < 1 or int(height) < 1:
-        raise ValueError(f"width, height: expected positive sizes, got {width} x {height}")
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, np.asarray(up, dtype=np.float64))
-    if not np.linalg.norm(right) > 1e-12:
-        raise ValueError("up: must not be parallel to the viewing direction")
-    right /= np.linalg.norm(right)
-    true_up = np.cross(right, forward)
-    half_w = math.tan(math.radians(fov) / 2)
-    half_h = half_w * height / width
-    u = ((np.arange(width) + 0.5) / width * 2 - 1) * half_w
-    v = (1 - (np.arange(height) + 0.5) / height * 2) * half_h
-    d = (forward[None, None, :] + u[None, :, None] * right[None, None, :]
-         + v[:, None, None] * true_up[None, None, :]).reshape(-1, 3)
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    o = np.tile(position, (len(d), 1))
-    return RaySet(o, d, dict(kind="pinhole", position=position.tolist(),
+    centres. ``fov`` is the horizontal field of view in degrees. The camera is
+    :func:`algos.camera.pinhole_frame`'s (the rasterisers' too); a vertical view with the
+    default ``up`` takes its north-heading frame."""
+    default_up = up is None or np.array_equal(np.asarray(up, dtype=np.float64), [0.0, 0.0, 1.0])
+    frame, sx, sy = pinhole_frame(position, look_at, fov, int(width), int(height),
+                                  up=None if default_up else up)
+    d = primary_directions(frame, sx, sy)
+    o = np.tile(frame[:3], (len(d), 1))
+    up = (0.0, 0.0, 1.0) if up is None else up
+    return RaySet(o, d, dict(kind="pinhole", position=frame[:3].tolist(),
                              look_at=list(map(float, look_at)), fov=fov, width=int(width),
                              height=int(height), up=list(map(float, up))))
 

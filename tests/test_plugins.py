@@ -452,7 +452,8 @@ def test_import_algos_then_plugins_module():
 
 def test_no_import_circle_between_plugins_and_registry():
     """The layers run registry <- plugin_calls <- plugins: the registry imports neither,
-    the calls only the registry, the plugins module the two of them."""
+    the calls only the registry, the plugins module the two of them. The C extension
+    (`_kernels`, where the kernel ids are written once) sits below them all."""
     import ast
 
     def local_imports(path):
@@ -468,7 +469,7 @@ def test_no_import_circle_between_plugins_and_registry():
                 names |= {a.name for a in node.names if a.name.startswith("algos")}
         return names
 
-    assert local_imports("registry.py") == set()
+    assert local_imports("registry.py") == {"_kernels"}
     assert local_imports("plugin_calls.py") == {"registry"}
     assert local_imports("plugins.py") == {"registry", "plugin_calls"}
 

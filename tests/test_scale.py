@@ -199,9 +199,10 @@ def test_the_binding_refuses_a_missing_cellmax_where_it_would_be_read(field):
     d = np.array([[0.3, 0.4, -1.0]])
     t = np.empty(1)
     with pytest.raises(ValueError, match="cellmax"):
-        _kernels.intersect(args["kernel"], 2, field.heights, None, field.hmin, field.hmax, None,
-                           None, None, o, d, None, None, 0, 0, None, (1, 1, 1.0, 0.5, 0.0), 0,
-                           t, None, None, None)
+        _kernels.intersect(args["kernel"], 2,
+                           (field.heights, None, field.hmin, field.hmax, None, None, None),
+                           (o, d, None, None), (0, 0, None, (1, 1, 1.0, 0.5, 0.0), 0, 4),
+                           (t, None, None, None))
 
 
 # ---- generators ----------------------------------------------------------------------

@@ -13,8 +13,8 @@ Outputs (``OUT`` is the path prefix, default ``results/render/render``):
   (``algos.raster.diff_images``).
 
 ``--algorithm`` (and either side of ``--diff``) is any intersector or any rasteriser
-(``zbuffer``, ``painter``, ``floating_horizon``); a rasteriser writes zeros in
-``cellsVisited`` and ``runsVisited``.
+(``zbuffer``, ``painter``, ``watkins``, ``warnock``, ``floating_horizon``); a rasteriser
+writes zeros in ``cellsVisited`` and ``runsVisited``.
 A file is read by ``datasets_gen.load_file`` and that HeightField is rendered as it is,
 so the image is ``algos.render(datasets_gen.load_file(FILE), ...)`` exactly: heights in
 the pixel size's unit (a DEM's metres) are divided by the square pixel size, the camera
@@ -209,8 +209,8 @@ def register(sub):
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--param", type=param, action="append", metavar="NAME=VALUE")
     p.add_argument("--algorithm", default="runs",
-                   help="an intersector (hftrace list) or a rasteriser: zbuffer, painter, "
-                        "floating_horizon")
+                   help="an intersector (hftrace list) or a rasteriser: "
+                        f"{', '.join(algos.raster.RASTERISERS)}")
     p.add_argument("--surface", default="triangles", choices=algos.SURFACES)
     p.add_argument("--width", type=positive_int, default=640)
     p.add_argument("--height", type=positive_int, default=360)

@@ -232,8 +232,8 @@ def register(sub):
     p.set_defaults(func=stress)
 
     p = sub.add_parser("raster-vs-trace",
-                       help="rasterising the cells (z-buffer, painter, floating horizon) "
-                            "against tracing the pixels: the crossover")
+                       help="rasterising the cells (z-buffer, painter, Watkins, Warnock, "
+                            "floating horizon) against tracing the pixels: the crossover")
     p.add_argument("--full", action="store_true",
                    help="the full tier (images to 3840x2160, fields to 8192^2: hours)")
     p.add_argument("--threads", type=positive_int, default=None,

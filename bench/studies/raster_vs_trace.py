@@ -1,6 +1,6 @@
 """``hftrace raster-vs-trace``: when does rasterising the cells beat tracing the pixels?
 
-Issue 23. Rasterising costs grow with the cells in view, tracing costs with the pixels
+Rasterising costs grow with the cells in view, tracing costs with the pixels
 and their path lengths; the crossover is read over *image pixels per visible cell*.
 
 Axes (each a declared list; ``quick`` is the small tier, the default):
@@ -11,19 +11,22 @@ Axes (each a declared list; ``quick`` is the small tier, the default):
   ``hftrace render`` frames it) and ``grazing`` (a level camera near the ground at the
   south edge, looking north across the field).
 
-Renderers: the rasterisers of :mod:`algos.raster` and the best tracers (:data:`TRACERS`),
-each on one thread, plus ``runs_maxmip`` and ``zbuffer`` on every core as the threaded
-runs. Each case times every renderer interleaved
+Renderers: the rasterisers of :mod:`algos.raster` (the zbuffer, the reverse painter,
+Watkins' scanline, Warnock's area subdivision, the floating horizon) and the best tracers
+(:data:`TRACERS`), each on one thread, plus ``runs_maxmip`` and ``zbuffer`` on every core
+as the threaded runs. Each case times every renderer interleaved
 (:func:`bench.timing.interleaved`, caches flushed, the median of ``repeats``), on the
 C loop's own clock; the field's acceleration structures are built once per field, before
 timing, and not counted.
 
 Definitions: ``visible_cells`` is the number of distinct cells that own a pixel of the
 exact image (``zbuffer``); ``ratio`` is (median time of the best single-thread tracer) /
-(median time of the best exact single-thread rasteriser, ``zbuffer`` or ``painter``):
-above 1 rasterising wins. ``floating_horizon`` is approximate; its time and its
-disagreement with the exact image (fraction of pixels whose cell differs) are listed
-beside, its place on the accuracy Pareto.
+(median time of the best exact single-thread rasteriser, one of
+``algos.raster.EXACT_RASTERISERS``): above 1 rasterising wins; the table also lists
+``watkins`` and ``warnock`` on their own, and every row of the CSV carries
+``ns_per_pixel`` (median time over the image's pixels). ``floating_horizon`` is
+approximate; its time and its disagreement with the exact image (fraction of pixels whose
+cell differs) are listed beside, its place on the accuracy Pareto.
 
 The cost model sits next to the times: cells looked at, culled and rasterised,
 triangles, fragments and pixels written by the rasterisers; cells and runs visited and
@@ -72,7 +75,9 @@ TRACERS = ("dda", "runs", "dda_maxmip", "runs_maxmip")
 THREADED = "runs_maxmip"
 THREADED_RASTERISER = "zbuffer"
 VIEWS = ("overview", "grazing")
-EXACT_RASTERISERS = ("zbuffer", "painter")
+EXACT_RASTERISERS = raster.EXACT_RASTERISERS
+#: the visibility algorithms listed in their own columns of the table
+LISTED = ("watkins", "warnock")
 FOV = 60.0
 
 
@@ -140,6 +145,7 @@ def _case(field, view, width, height, repeats, threads):
             kind="rasteriser" if name.split("@")[0] in raster.RASTERISERS else "tracer",
             threads=(threads if name.endswith("@threads") else 1),
             median_ms=float(np.median(samples)) / 1e6,
+            ns_per_pixel=float(np.median(samples)) / (width * height),
             cell_differs=agreement["cell_differs"],
             counts=json.dumps(image.counts, sort_keys=True)))
     return rows
@@ -158,6 +164,7 @@ def _summaries(rows):
         best_r = min(rasters, key=lambda r: r["median_ms"])
         fh = next(r for r in group if r["renderer"] == "floating_horizon")
         threaded = {r["renderer"]: r["median_ms"] for r in group if r["renderer"].endswith("@threads")}
+        listed = {r["renderer"]: r["median_ms"] for r in group if r["renderer"] in LISTED}
         out.append(dict(
             field=size, view=view, width=width, height=height, pixels=width * height,
             visible_cells=group[0]["visible_cells"],
@@ -166,6 +173,7 @@ def _summaries(rows):
             best_rasteriser=best_r["renderer"], rasteriser_ms=best_r["median_ms"],
             ratio=best_t["median_ms"] / best_r["median_ms"],
             floating_horizon_ms=fh["median_ms"], floating_horizon_cell_differs=fh["cell_differs"],
+            **{f"{name}_ms": listed.get(name, float("nan")) for name in LISTED},
             threaded_tracer_ms=threaded.get(f"{THREADED}@threads", float("nan")),
             threaded_rasteriser_ms=threaded.get(f"{THREADED_RASTERISER}@threads", float("nan"))))
     return out
@@ -173,25 +181,26 @@ def _summaries(rows):
 
 def _write_table(path, summaries, env, tier, instructions):
     lines = [
-        "# Rasterising against tracing (issue 23)",
+        "# Rasterising against tracing",
         "",
         f"Tier `{tier}`; every renderer on one thread (the threaded columns: "
         f"`{THREADED}` and `{THREADED_RASTERISER}` on {env.get('threads_used')} threads); "
         "median of the C loop's time (of the pool's wall time when threaded). "
         "ratio = best tracer / best exact rasteriser: above 1 rasterising wins. "
         "`fh` = floating_horizon (approximate): time and fraction of pixels whose cell "
-        "differs from the exact image.",
+        "differs from the exact image. `watkins` and `warnock` (exact) are listed on their own.",
         "",
         "| field | view | image | visible cells | pixels / visible cell | best tracer | ms "
-        "| best rasteriser | ms | ratio | fh ms | fh cells differ | threaded tracer ms "
-        "| threaded zbuffer ms |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| best rasteriser | ms | ratio | watkins ms | warnock ms | fh ms | fh cells differ "
+        "| threaded tracer ms | threaded zbuffer ms |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in summaries:
         lines.append(
             f"| {s['field']}^2 | {s['view']} | {s['width']}x{s['height']} | {s['visible_cells']} "
             f"| {s['pixels_per_visible_cell']:.3g} | {s['best_tracer']} | {s['tracer_ms']:.1f} "
             f"| {s['best_rasteriser']} | {s['rasteriser_ms']:.1f} | {s['ratio']:.2f} "
+            f"| {s['watkins_ms']:.1f} | {s['warnock_ms']:.1f} "
             f"| {s['floating_horizon_ms']:.1f} | {s['floating_horizon_cell_differs']:.3f} "
             f"| {s['threaded_tracer_ms']:.1f} | {s['threaded_rasteriser_ms']:.1f} |")
     if instructions:

@@ -3,7 +3,8 @@
 Each input is a byte string that :func:`decode` turns into one call of the public API,
 ``algos.traverse``, ``algos.intersect``, (first byte >= 240) ``algos.horizon`` or
 ``algos.viewshed``, or (first byte 0xFE) a rasteriser (``algos.raster.fuzz_one``:
-``zbuffer``, ``painter`` or ``floating_horizon`` with arbitrary cameras and fields),
+``zbuffer``, ``painter``, ``floating_horizon``, ``watkins``, ``warnock`` or the hidden
+lines, with arbitrary cameras and fields),
 with arbitrary doubles (NaN, +-inf, +-0, subnormals, huge values, values on and next to
 grid lines), grid shapes up to and just past the documented limits, tmin/tmax, every
 output mode and option. :func:`check` runs it and asserts the invariants:

@@ -1,0 +1,237 @@
+/* The cache-compact maximum hierarchy (compact.h): its layout, its build, and the
+ * dda_compact first-hit walk. */
+#include <math.h>
+#include <string.h>
+#include "hierarchies/compact.h"
+#include "hierarchies/maxmip.h"
+#include "walks/walk.h"
+#include "core/mipmap.h"
+
+/* ---- layout ------------------------------------------------------------------------------ */
+int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {
+    int64_t total = 0;
+    int level = 0;
+    int64_t wx = nx, wy = ny; /* tiles per side at the current level */
+    c->nx = nx;
+    c->ny = ny;
+    c->records = NULL;
+    c->offset[0] = 0;
+    c->nodes_x[0] = nx;
+    c->nodes_y[0] = ny;
+    /* one level more until a single node covers the grid (at least level 1) */
+    do {
+        ++level;
+        wx = (wx + 3) >> 2;
+        wy = (wy + 3) >> 2;
+        c->offset[level] = total;
+        c->nodes_x[level] = (int32_t)wx;
+        c->nodes_y[level] = (int32_t)wy;
+        total += wx * wy;
+    } while ((wx > 1 || wy > 1) && level < HF_COMPACT_MAX_LEVELS);
+    c->n_levels = level;
+    return total;
+}
+
+/* ---- build ------------------------------------------------------------------------------- */
+/* Quantise one node's child maxima (`valid` of the 16 slots, bit k for slot k) to codes
+ * whose bound is at or above each maximum in the walk's own arithmetic. */
+static void quantize_node(hf_compact_node *node, const float value[16], uint32_t valid) {
+    float lo = INFINITY, hi = -INFINITY;
+    int k;
+    for (k = 0; k < 16; ++k) {
+        if (!(valid >> k & 1u)) continue;
+        lo = value[k] < lo ? value[k] : lo;
+        hi = value[k] > hi ? value[k] : hi;
+    }
+    node->base = lo;
+    node->max = hi;
+    node->used = valid;
+    node->scale = 0.0f;
+    if (hi > lo) {
+        /* the step that lets code 65535 reach the maximum, rounded up until it does */
+        float scale = (float)(((double)hi - (double)lo) / (double)HF_COMPACT_CODE_MAX);
+        node->scale = scale;
+        while (hf_compact_bound(node, 0) < (double)hi) {
+            node->q[0] = HF_COMPACT_CODE_MAX;
+            if (hf_compact_bound(node, 0) >= (double)hi) break;
+            scale = nextafterf(scale, INFINITY);
+            node->scale = scale;
+        }
+    }
+    for (k = 0; k < 16; ++k) {
+        double code = 0.0;
+        uint32_t q;
+        if ((valid >> k & 1u) && node->scale > 0)
+            code = ceil(((double)value[k] - (double)lo) / (double)node->scale);
+        q = code < 0 ? 0u : (code > HF_COMPACT_CODE_MAX ? HF_COMPACT_CODE_MAX : (uint32_t)code);
+        node->q[k] = (uint16_t)q;
+        /* rounding in the division: raise the code until the bound covers the maximum
+         * (code 65535 always does) */
+        while ((valid >> k & 1u) && hf_compact_bound(node, k) < (double)value[k] &&
+               node->q[k] < HF_COMPACT_CODE_MAX)
+            node->q[k] += 1;
+        HF_ASSERT(!(valid >> k & 1u) || hf_compact_bound(node, k) >= (double)value[k],
+                  "compact: code %u of slot %d bounds %.17g below %.17g", (unsigned)node->q[k], k,
+                  hf_compact_bound(node, k), (double)value[k]);
+    }
+}
+
+void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *records) {
+    hf_compact c;
+    int level;
+    hf_compact_leaf *leaves;
+    hf_compact_node *nodes = (hf_compact_node *)records;
+    int32_t ni, nj;
+    hf_compact_layout(nx, ny, &c);
+    leaves = (hf_compact_leaf *)records + c.offset[1];
+    /* the leaves: cell maxima in 4 x 4 tiles */
+    for (nj = 0; nj < c.nodes_y[1]; ++nj) {
+        for (ni = 0; ni < c.nodes_x[1]; ++ni) {
+            hf_compact_leaf *leaf = leaves + (int64_t)nj * c.nodes_x[1] + ni;
+            int a, b;
+            memset(leaf, 0, sizeof *leaf);
+            for (b = 0; b < 4; ++b) {
+                for (a = 0; a < 4; ++a) {
+                    const int64_t ci = 4 * (int64_t)ni + a, cj = 4 * (int64_t)nj + b;
+                    if (ci < nx && cj < ny) leaf->max[4 * b + a] = cellmax[cj * nx + ci];
+                }
+            }
+        }
+    }
+    for (level = 2; level <= c.n_levels; ++level) {
+        const int32_t child_x = c.nodes_x[level - 1], child_y = c.nodes_y[level - 1];
+        for (nj = 0; nj < c.nodes_y[level]; ++nj) {
+            for (ni = 0; ni < c.nodes_x[level]; ++ni) {
+                hf_compact_node *node =
+                    nodes + c.offset[level] + (int64_t)nj * c.nodes_x[level] + ni;
+                float value[16];
+                uint32_t valid = 0;
+                int a, b;
+                memset(node, 0, sizeof *node);
+                for (b = 0; b < 4; ++b) {
+                    for (a = 0; a < 4; ++a) {
+                        const int64_t ci = 4 * (int64_t)ni + a, cj = 4 * (int64_t)nj + b;
+                        const int slot = 4 * b + a;
+                        value[slot] = 0.0f;
+                        if (ci >= child_x || cj >= child_y) continue;
+                        valid |= 1u << slot;
+                        if (level == 2) {
+                            /* a leaf's maximum: over its cells inside the grid */
+                            const hf_compact_leaf *leaf = leaves + cj * child_x + ci;
+                            float m = -INFINITY;
+                            int k;
+                            for (k = 0; k < 16; ++k)
+                                if (4 * ci + (k & 3) < nx && 4 * cj + (k >> 2) < ny)
+                                    m = leaf->max[k] > m ? leaf->max[k] : m;
+                            value[slot] = m;
+                        } else {
+                            value[slot] = nodes[c.offset[level - 1] + cj * child_x + ci].max;
+                        }
+                    }
+                }
+                quantize_node(node, value, valid);
+            }
+        }
+    }
+}
+
+/* ---- the walk ---------------------------------------------------------------------------- */
+/* The level to test next after moving from cell (oi, oj) to (ni, nj) at `level`: up to the
+ * coarsest tile that changed (below the first common ancestor), at most `climb`. A tile
+ * the walk has not entered before is never one whose test already failed. */
+static inline int compact_climb(int level, int climb, int64_t oi, int64_t oj, int64_t ni,
+                                int64_t nj) {
+    while (level < climb &&
+           (((oi ^ ni) >> (2 * level + 2)) != 0 || ((oj ^ nj) >> (2 * level + 2)) != 0))
+        ++level;
+    return level;
+}
+
+static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
+    const int32_t nx = h->cols - 1, ny = h->rows - 1;
+    const int top = c->n_levels;
+    const int climb = top > 1 ? top - 1 : 1; /* the coarsest tile level ever tested */
+    const int descending = h->dz < 0;
+    const int32_t fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
+    const int has_x = h->dx != 0, has_y = h->dy != 0;
+    const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
+    const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
+    const double inf = (double)INFINITY;
+    hf_mip_ray ray; /* the constants of the floor tiles' walks */
+    double t = h->t0;
+    int32_t i = hf_cell_at(h->ox, h->dx, t, nx), j = hf_cell_at(h->oy, h->dy, t, ny);
+    int level = climb < 2 ? climb : 2;
+    int64_t guard;
+    hf_mip_ray_of(h, &ray);
+    ray.cull = cull; /* (h->cull_cells is off while the walk runs: see hf_compact_hit) */
+    /* every pass skips a tile, walks a floor tile or descends one level; descents are at
+     * most top per move */
+    for (guard = 0; guard <= (8 + 2 * (int64_t)top) * ((int64_t)nx + ny) + 64; ++guard) {
+        const int shift = 2 * level;
+        const int64_t tile_i = i >> shift, tile_j = j >> shift;
+        const double t_exit_x = has_x ? hf_face_t(hf_tile_face(tile_i, shift, fx), ox, inv_x) : inf;
+        const double t_exit_y = has_y ? hf_face_t(hf_tile_face(tile_j, shift, fy), oy, inv_y) : inf;
+        /* the tile's bound, from its parent's line (the root's tile has none) */
+        const double bound =
+            level < top
+                ? hf_compact_bound(hf_compact_node_at(c, level + 1, tile_i >> 2, tile_j >> 2),
+                                   hf_compact_slot(tile_i, tile_j))
+                : inf;
+        double t_exit = t1;
+        int axis = -1;
+        if (t_exit_x < t_exit) {
+            t_exit = t_exit_x;
+            axis = 0;
+        }
+        if (t_exit_y < t_exit) {
+            t_exit = t_exit_y;
+            axis = 1;
+        } else if (t_exit_y == t_exit && axis == 0)
+            axis = 2;
+        if (hf_tile_zlow(oz, dz, descending, t, t_exit) > bound) {
+            h->tiles_skipped += 1;
+        } else if (level > 1) {
+            --level;
+            continue;
+        } else {
+            /* walk the 4 x 4 floor tile cell by cell (maxmip.h), each cell culled by its
+             * maximum in the tile's leaf (one line) */
+            const float *leaf = hf_compact_leaf_at(c, tile_i, tile_j)->max;
+            const int32_t ilo = (int32_t)tile_i << 2, jlo = (int32_t)tile_j << 2;
+            const uint32_t iw = (uint32_t)(ilo + 4 < nx ? 4 : nx - ilo) - 1;
+            const uint32_t jw = (uint32_t)(jlo + 4 < ny ? 4 : ny - jlo) - 1;
+            double t_in;
+            const int status = hf_floor_walk(h, &ray, ilo, jlo, iw, jw, leaf, 1, &i, &j, t, &t_in);
+            if (status >= 0) return status;
+            t = t_in > t ? t_in : t;
+            level = compact_climb(1, climb, ilo, jlo, i, j);
+            continue;
+        }
+        if (!(t_exit < t1)) return 0;
+        {
+            /* into the next tile at this level, then up to the coarsest tile that changed */
+            const int64_t ni = hf_tile_next_cell(axis == 0 || axis == 2, tile_i, shift, nx,
+                                                 h->dx >= 0, ox + t_exit * h->dx);
+            const int64_t nj = hf_tile_next_cell(axis == 1 || axis == 2, tile_j, shift, ny,
+                                                 h->dy >= 0, oy + t_exit * h->dy);
+            if (axis < 0 || ni < 0 || ni >= nx || nj < 0 || nj >= ny) return 0;
+            level = compact_climb(level, climb, tile_i << shift, tile_j << shift, ni, nj);
+            i = (int32_t)ni;
+            j = (int32_t)nj;
+            t = t_exit > t ? t_exit : t;
+        }
+    }
+    HF_ASSERT(0, "dda_compact: the walk did not end within %lld passes", (long long)guard);
+    return 0;
+}
+
+int hf_compact_hit(hf_hit *h, const hf_compact *c) {
+    /* the floor cull is the exact test's own cull, on the leaf's copy of the maximum: the
+     * exact test runs without it, and never reads the row-major cell maxima */
+    const int cull = h->cull_cells;
+    int found;
+    h->cull_cells = 0;
+    found = compact_walk(h, c, cull);
+    h->cull_cells = cull;
+    return found;
+}

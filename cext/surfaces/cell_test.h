@@ -1,0 +1,645 @@
+/* First hits on a height field: the per-cell surface tests and per-run culling that the
+ * traversal walks call in HF_MODE_HIT (surfaces and rules: docs/CONVENTIONS.md).
+ *
+ * The traversal decides which cells are visited and in which order (each kernel its own
+ * way); every surface test runs in float64 on the caller's 3D ray over the parameter
+ * interval [ta, tb] in which that ray lies over the cell, clipped to [t0, t1]. The first
+ * cell that reports a hit ends the walk, and cells come in order of t, so it is the first
+ * hit. */
+#ifndef HFTRACE_CELL_TEST_H
+#define HFTRACE_CELL_TEST_H
+
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include "core/mipmap.h"
+#include "surfaces/surfaces.h"
+
+/* HF_COLD: out of line (a rare path kept out of a hot loop); HF_HOT: always inlined. */
+#if defined(__GNUC__) || defined(__clang__)
+#define HF_COLD static __attribute__((noinline))
+#define HF_HOT  static inline __attribute__((always_inline))
+#else
+#define HF_COLD static
+#define HF_HOT  static inline
+#endif
+
+enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 };
+
+/* Range maximum over one line (a row or a column) of cell maxima, answered in O(1) once
+ * the range spans two blocks of 2^block_shift cells: the suffix maximum of the first
+ * block, the prefix maximum of the last, and a sparse table over the whole blocks in
+ * between. Inside one block the few cells are scanned. */
+typedef struct {
+    int32_t n_lines, length, block_shift, n_blocks, n_levels;
+    const float *values; /* [line][length]                       */
+    const float *prefix; /* [line][length]: max from block start */
+    const float *suffix; /* [line][length]: max to block end     */
+    const float *sparse; /* [line][level][n_blocks]              */
+} hf_rmq;
+
+typedef struct {
+    /* the field: heights H[j * cols + i] and cell maxima M[j * (cols-1) + i] */
+    const float *heights;
+    const float *cellmax;
+    int32_t rows, cols;
+    const hf_rmq *row_max; /* runs along x; NULL: no run culling */
+    const hf_rmq *col_max; /* runs along y                      */
+    int surface;
+    int cull_cells;
+    /* the ray, clipped to [t0, t1]; entry_axis: the box face it entered by at t0 (0 x,
+     * 1 y, 2 z) or -1 when t0 is tmin */
+    double ox, oy, oz, dx, dy, dz, inv_dx, inv_dy, t0, t1;
+    int entry_axis;
+    /* The tight path (hf_hit_prepare): with cell culling on and no grid-line special
+     * case, a cell (or a run) is first rejected by a bound computed from its index along
+     * one axis alone; only the survivors pay for the exact interval. */
+    int fast;                  /* cell kernels: use the bound                               */
+    int cell_axis;             /* the axis whose slab bounds a cell of a cell kernel       */
+    int fast_runs;             /* run kernels: use it too (descending rays, dz < 0)         */
+    int bound_off[2];          /* per axis: 1 when the low-z end of cell k is boundary k+1 */
+    double bound_lo, bound_hi; /* clamp of that boundary's parameter to [t0, t1]       */
+    double o_axis[2], inv_axis[2];
+    /* the result */
+    int found;
+    double t;
+    int32_t i, j;
+    int wall_axis; /* -1: the surface; 0/1: a vertical wall facing -x/-y travel */
+    double su, sv; /* surface slope ds/du, ds/dv at the hit (for the normal)  */
+    int64_t cells_visited, cells_tested, runs_visited, runs_culled, tiles_skipped;
+} hf_hit;
+
+/* ---- range maximum --------------------------------------------------------------------- */
+static inline float hf_rmq_query(const hf_rmq *q, int32_t line, int32_t lo, int32_t hi) {
+    const int32_t shift = q->block_shift;
+    const int32_t blo = lo >> shift, bhi = hi >> shift;
+    const float *values = q->values + (int64_t)line * q->length;
+    float best;
+    if (blo == bhi) {
+        int32_t k;
+        best = values[lo];
+        for (k = lo + 1; k <= hi; ++k) best = values[k] > best ? values[k] : best;
+        return best;
+    }
+    {
+        const float a = q->suffix[(int64_t)line * q->length + lo];
+        const float b = q->prefix[(int64_t)line * q->length + hi];
+        best = a > b ? a : b;
+    }
+    if (bhi - blo >= 2) {
+        /* whole blocks blo+1 .. bhi-1: two overlapping power-of-two windows */
+        const int32_t first = blo + 1, count = bhi - blo - 1;
+        int32_t level = 0;
+        const float *table;
+        float c, d;
+        while ((2 << level) <= count) ++level;
+        table = q->sparse + ((int64_t)line * q->n_levels + level) * q->n_blocks;
+        c = table[first];
+        d = table[bhi - (1 << level)];
+        best = best > c ? best : c;
+        best = best > d ? best : d;
+    }
+    return best;
+}
+
+/* The cell index along one axis (n cells) holding the ray at parameter t, by the forward
+ * rule ([k, k+1) moving forward or along the axis, (k, k+1] moving back), clamped into
+ * the grid: where a walk starts, or lands after a skip. */
+static inline int32_t hf_cell_at(double o, double d, double t, int32_t n) {
+    const int64_t k = hf_index_of(o + t * d, d >= 0);
+    return (int32_t)(k < 0 ? 0 : (k > n - 1 ? n - 1 : k));
+}
+
+/* ---- the surface of one cell ----------------------------------------------------------- */
+static inline double hf_height(const hf_hit *h, int32_t i, int32_t j) {
+    return (double)h->heights[(int64_t)j * h->cols + i];
+}
+
+/* Record a hit at t in cell (i, j). */
+static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_axis, double su,
+                            double sv) {
+    h->found = 1;
+    h->t = t;
+    h->i = i;
+    h->j = j;
+    h->wall_axis = wall_axis;
+    h->su = su;
+    h->sv = sv;
+    return 1;
+}
+
+/* Test cell (i, j) on [ta, tb]. `wall` is the axis of the vertical wall the ray meets
+ * at ta if it is already below the surface there (0 x, 1 y), or -1 when that is not a
+ * wall (a start inside the solid). Returns 1 on a hit. */
+static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, double tb, int wall) {
+    const double h00 = hf_height(h, i, j), h10 = hf_height(h, i + 1, j);
+    const double h01 = hf_height(h, i, j + 1), h11 = hf_height(h, i + 1, j + 1);
+    const double ua = h->ox + ta * h->dx - i, va = h->oy + ta * h->dy - j;
+    const double ub = h->ox + tb * h->dx - i, vb = h->oy + tb * h->dy - j;
+    const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
+    h->cells_tested += 1;
+    switch (h->surface) {
+    case HF_FLAT: {
+        const double c = hf_flat_height(h00, h10, h01, h11);
+        if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
+        if (zb <= c) return hf_hit_at(h, hf_linear_root(ta, tb, za - c, zb - c), i, j, -1, 0, 0);
+        return 0;
+    }
+    case HF_PLANE3: {
+        double a, b;
+        hf_plane3_slopes(h00, h10, h01, &a, &b);
+        {
+            const double fa = za - hf_plane_height(h00, a, b, ua, va);
+            const double fb = zb - hf_plane_height(h00, a, b, ub, vb);
+            if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, a, b);
+            if (fb <= 0) return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, a, b);
+        }
+        return 0;
+    }
+    case HF_TRIANGLES: {
+        /* the first triangle the ray is over at ta (lower: u >= v), then the other one
+         * past the diagonal u = v */
+        const int lower_first = (ua - va) > 0 || ((ua - va) == 0 && (ub - vb) >= 0);
+        const double w = (h->dx - h->dy);
+        double su1, sv1, su2, sv2, t_split = tb, f_split, fa;
+        if (lower_first) {
+            hf_lower_triangle_slopes(h00, h10, h11, &su1, &sv1);
+            hf_upper_triangle_slopes(h00, h01, h11, &su2, &sv2);
+        } else {
+            hf_upper_triangle_slopes(h00, h01, h11, &su1, &sv1);
+            hf_lower_triangle_slopes(h00, h10, h11, &su2, &sv2);
+        }
+        /* where the ray crosses the diagonal u = v inside (ta, tb) */
+        if (w != 0) {
+            const double ts = ta - (ua - va) / w;
+            if (ts > ta && ts < tb) t_split = ts;
+        }
+        fa = za - hf_plane_height(h00, su1, sv1, ua, va);
+        if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, su1, sv1);
+        {
+            /* first piece [ta, t_split] on the first triangle; one shared value at the
+             * split so the diagonal is watertight */
+            const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
+            const double zs = h->oz + t_split * h->dz;
+            f_split = zs - hf_plane_height(h00, su1, sv1, us, vs);
+            if (f_split <= 0)
+                return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), i, j, -1, su1, sv1);
+        }
+        if (t_split < tb) {
+            /* second piece [t_split, tb] on the other triangle. Its own value at the split
+             * too: the two planes meet on the diagonal, and either one at or below the
+             * ray there is a hit at the split (a ray lying in the second plane, where the
+             * first plane's value may round a hair above it, is the case this catches). */
+            const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
+            const double zs = h->oz + t_split * h->dz;
+            const double f_split2 = zs - hf_plane_height(h00, su2, sv2, us, vs);
+            const double fb = zb - hf_plane_height(h00, su2, sv2, ub, vb);
+            if (f_split2 <= 0) return hf_hit_at(h, t_split, i, j, -1, su2, sv2);
+            if (fb <= 0)
+                return hf_hit_at(h, hf_linear_root(t_split, tb, f_split2, fb), i, j, -1, su2, sv2);
+        }
+        return 0;
+    }
+    default: { /* HF_BILINEAR: s = h00 + a u + b v + c u v, quadratic along the ray */
+        const hf_bilinear q = hf_bilinear_of(h00, h10, h01, h11);
+        const double fa = za - hf_bilinear_height(h00, &q, ua, va);
+        const double qa = -q.c * h->dx * h->dy;
+        const double qb = h->dz - q.a * h->dx - q.b * h->dy - q.c * (ua * h->dy + va * h->dx);
+        double tau, t, u, v;
+        if (fa <= 0) { return hf_hit_at(h, ta, i, j, wall, q.a + q.c * va, q.b + q.c * ua); }
+        tau = hf_quadratic_first(qa, qb, fa, tb - ta);
+        if (tau < 0) return 0;
+        t = ta + tau;
+        u = h->ox + t * h->dx - i;
+        v = h->oy + t * h->dy - j;
+        return hf_hit_at(h, t, i, j, -1, q.a + q.c * v, q.b + q.c * u);
+    }
+    }
+}
+
+/* Slab clipping, the one step every interval of the ray is built from (the field's box,
+ * a cell, a run): a and b are the ray's parameters at the slab's two faces, in either
+ * order; [*lo, *hi] narrows to the slab, and *axis becomes face_axis when the slab's
+ * entry face raises *lo. A NaN face parameter narrows nothing. */
+HF_HOT void hf_slab_clip(double a, double b, int face_axis, double *lo, double *hi, int *axis) {
+    if (a > b) {
+        const double s = a;
+        a = b;
+        b = s;
+    }
+    if (a > *lo) {
+        *lo = a;
+        *axis = face_axis;
+    }
+    if (b < *hi) *hi = b;
+}
+
+/* The parameter interval of the ray over cell (i, j), clipped to [t0, t1]; returns the
+ * axis of the grid line crossed at ta (0, 1), or -1 when ta is t0 (then the box entry
+ * face, if any, is h->entry_axis). Empty when *ta > *tb. */
+static inline int hf_cell_interval(const hf_hit *h, int32_t i, int32_t j, double *ta, double *tb) {
+    double lo = h->t0, hi = h->t1;
+    int axis = -1;
+    if (h->dx != 0)
+        hf_slab_clip((i - h->ox) * h->inv_dx, (i + 1 - h->ox) * h->inv_dx, 0, &lo, &hi, &axis);
+    if (h->dy != 0)
+        hf_slab_clip((j - h->oy) * h->inv_dy, (j + 1 - h->oy) * h->inv_dy, 1, &lo, &hi, &axis);
+    *ta = lo;
+    *tb = hi;
+    return axis;
+}
+
+/* A ray lying exactly on an interior grid line (dx = 0 at integer x, or dy = 0 at integer
+ * y) touches the closed footprints of the cells on both sides. Where the surface jumps
+ * there (flat, plane3) the solid is their union, so every such cell is tested on the same
+ * interval and the earliest hit wins. */
+static inline int hf_on_grid_line(const hf_hit *h) {
+    return (h->surface == HF_FLAT || h->surface == HF_PLANE3) &&
+           ((h->dx == 0 && h->ox == floor(h->ox)) || (h->dy == 0 && h->oy == floor(h->oy)));
+}
+
+static inline int hf_test_line_neighbours(hf_hit *h, int32_t i, int32_t j, double ta, double tb,
+                                          int wall) {
+    const int x_line = h->dx == 0 && h->ox == (double)i && i > 0;
+    const int y_line = h->dy == 0 && h->oy == (double)j && j > 0;
+    hf_hit best = *h, trial;
+    int k;
+    for (k = 0; k < 4; ++k) {
+        const int32_t ci = i - (k & 1), cj = j - (k >> 1);
+        if (((k & 1) && !x_line) || ((k >> 1) && !y_line)) continue;
+        trial = *h;
+        if (hf_surface_test(&trial, ci, cj, ta, tb, wall) && (!best.found || trial.t < best.t)) {
+            best = trial;
+        }
+        h->cells_tested = trial.cells_tested;
+        best.cells_tested = trial.cells_tested;
+    }
+    *h = best;
+    return h->found;
+}
+
+/* ---- the tight path -----------------------------------------------------------------
+ * The exact per-cell test works on [ta, tb] = [t0, t1] intersected with the cell's x and
+ * y slabs (hf_cell_interval), and culls when min(z(ta), z(tb)) > cellmax. The slab of
+ * one axis alone gives a wider interval, so z over it reaches at least as low: its
+ * parameter at the low-z end of cell k is ((k + off) - o) * inv, the very expression the
+ * exact interval computes for that face, clamped to [t0, t1]. Rounding is monotone, so
+ * the z computed from it is <= the z the exact test computes: a cell this bound rejects
+ * is one the exact cull rejects too, and outputs stay bit-identical. No division, no
+ * interval rebuild: a subtract, a multiply, a clamp and a multiply-add per cell. */
+static inline void hf_hit_prepare(hf_hit *h) {
+    const int descending = h->dz < 0;
+    int k;
+    h->o_axis[0] = h->ox;
+    h->o_axis[1] = h->oy;
+    h->inv_axis[0] = h->inv_dx;
+    h->inv_axis[1] = h->inv_dy;
+    for (k = 0; k < 2; ++k) {
+        const double d = k == 0 ? h->dx : h->dy;
+        h->bound_off[k] = descending == (d > 0);
+    }
+    /* descending: the exit face, clamped to t1; else the entry face, clamped to t0 */
+    h->bound_lo = descending ? -(double)INFINITY : h->t0;
+    h->bound_hi = descending ? h->t1 : (double)INFINITY;
+    h->fast = h->cull_cells && !hf_on_grid_line(h) && (h->dx != 0 || h->dy != 0);
+    h->fast_runs = h->fast && descending;
+    h->cell_axis = fabs(h->dx) >= fabs(h->dy) ? 0 : 1;
+}
+
+/* z at the low-end face of slab k along `axis`, unclamped; with the floor z(t1) or z(t0)
+ * it bounds z over the cell: max(z(T), z(t_end)) is z(clamp(T)) for monotone z. */
+static inline double hf_axis_zlow_unclamped(const hf_hit *h, int axis, int32_t k) {
+    const double t = ((double)(k + h->bound_off[axis]) - h->o_axis[axis]) * h->inv_axis[axis];
+    return h->oz + t * h->dz;
+}
+
+/* The lowest z the exact test can see in a cell whose index along `axis` is k. */
+static inline double hf_axis_zlow(const hf_hit *h, int axis, int32_t k) {
+    double t = ((double)(k + h->bound_off[axis]) - h->o_axis[axis]) * h->inv_axis[axis];
+    t = t > h->bound_lo ? t : h->bound_lo;
+    t = t < h->bound_hi ? t : h->bound_hi;
+    return h->oz + t * h->dz;
+}
+
+static inline float hf_cellmax(const hf_hit *h, int32_t i, int32_t j) {
+    return h->cellmax[(int64_t)j * (h->cols - 1) + i];
+}
+
+/* ---- the bound carried by a walk ------------------------------------------------------
+ * A walk keeps, in locals, z at the low end of the current slab of each axis and adds a
+ * constant per step instead of recomputing it: z[a] for index k along axis a is
+ * z(T) with T = ((k + off) - o) * inv, and one step in the travel direction adds
+ * dz |inv|. The sum drifts from the direct expression by rounding; `margin` bounds that
+ * drift over the longest walk (and the direct expression's own error), and is subtracted
+ * from every value, so the carried bound is never above the one hf_axis_zlow computes:
+ * the cull stays conservative and the outputs bit-identical. The margin is about
+ * 1e-12 of the z range on a 1024^2 grid, so it culls as well as the exact bound. */
+typedef struct {
+    const float *cellmax;
+    int64_t stride;
+    double z[2];    /* bound for the current index along x and y (-inf: no slab)   */
+    double step[2]; /* dz |inv| per step, 0 for an axis the ray does not cross     */
+    double zfloor;  /* z at t1 (descending) or t0, minus the margin                */
+    double margin;
+    int64_t cell;         /* offset of the current cell's maximum in cellmax              */
+    int64_t cell_step[2]; /* its change per step along x and y                      */
+    int32_t k[2];         /* the current index along x and y                             */
+    int32_t sign[2];      /* the direction of travel along x and y                       */
+    int fast;             /* the bound applies (else every cell takes hf_hit_cell)        */
+    int64_t visited;      /* cells that went through the bound                          */
+} hf_cull;
+
+/* The bound of index k along axis a, directly (for a start, or a jump). */
+static inline double hf_cull_direct(const hf_hit *h, const hf_cull *c, int a, int32_t k) {
+    return hf_axis_zlow_unclamped(h, a, k) - c->margin;
+}
+
+static inline void hf_cull_init(hf_cull *c, const hf_hit *h, int32_t i, int32_t j, int runs) {
+    const double n = (double)h->cols + (double)h->rows + 16.0;
+    double span = fabs(h->t0) > fabs(h->t1) ? fabs(h->t0) : fabs(h->t1);
+    int a;
+    c->fast = runs ? h->fast_runs : h->fast;
+    c->visited = 0;
+    c->cellmax = h->cellmax;
+    c->stride = h->cols - 1;
+    for (a = 0; a < 2; ++a)
+        if (h->inv_axis[a] != (double)INFINITY) span += 2.0 * fabs(h->inv_axis[a]);
+    /* |z| along the walk <= |oz| + |dz| span; each of <= n steps and the direct
+     * expression add at most a few units of 2^-53 of that */
+    c->margin = (fabs(h->oz) + fabs(h->dz) * span + 1.0) * n * 0x1p-46;
+    if (!(c->margin < (double)INFINITY)) c->fast = 0;
+    c->k[0] = i;
+    c->k[1] = j;
+    c->cell = (int64_t)j * c->stride + i;
+    for (a = 0; a < 2; ++a) {
+        const double d = a == 0 ? h->dx : h->dy;
+        c->sign[a] = d > 0 ? 1 : -1;
+        c->cell_step[a] = a == 0 ? c->sign[a] : c->sign[a] * c->stride;
+        if (d != 0 && h->inv_axis[a] != (double)INFINITY) {
+            c->step[a] = h->dz * fabs(h->inv_axis[a]);
+            c->z[a] = hf_cull_direct(h, c, a, a == 0 ? i : j);
+        } else {
+            c->step[a] = 0;
+            c->z[a] = -(double)INFINITY;
+        }
+    }
+    c->zfloor = h->oz + (h->dz < 0 ? h->t1 : h->t0) * h->dz - c->margin;
+    if (!c->fast) {
+        /* no bound: every cell goes on to the general path */
+        c->z[0] = c->z[1] = c->zfloor = -(double)INFINITY;
+        c->step[0] = c->step[1] = 0;
+    }
+}
+
+/* One step along axis a in the travel direction. */
+static inline void hf_cull_step(hf_cull *c, int a) {
+    c->k[a] += c->sign[a];
+    c->z[a] += c->step[a];
+    c->cell += c->cell_step[a];
+}
+
+/* Move axis a to index k: one step, or a direct start (never a long sum). */
+static inline void hf_cull_goto(hf_cull *c, const hf_hit *h, int a, int32_t k) {
+    if (k == c->k[a]) return;
+    if (k == c->k[a] + c->sign[a]) {
+        hf_cull_step(c, a);
+        return;
+    }
+    c->k[a] = k;
+    c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
+    if (c->step[a] != 0 || c->z[a] != -(double)INFINITY) c->z[a] = hf_cull_direct(h, c, a, k);
+}
+
+/* The bound of the current cell: z over it is at least this. */
+static inline double hf_cull_zlow(const hf_cull *c) {
+    const double z = c->z[0] > c->z[1] ? c->z[0] : c->z[1];
+    return z > c->zfloor ? z : c->zfloor;
+}
+
+/* One visited cell: the exact interval, cull, then test. Returns 1 on a hit. */
+static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
+    double ta, tb;
+    const int axis = hf_cell_interval(h, i, j, &ta, &tb);
+    int wall;
+    if (!(ta <= tb)) return 0; /* the float ray misses this cell of the rounded walk */
+    /* Walls: at t0 the box's side faces (every surface); inside the grid the cell borders,
+     * where flat and plane3 jump. Entering below a continuous surface (triangles,
+     * bilinear) at a border can only be rounding, and gets the surface's normal. */
+    if (ta == h->t0)
+        wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
+    else
+        wall = (h->surface == HF_FLAT || h->surface == HF_PLANE3) ? axis : -1;
+    if (hf_on_grid_line(h)) return hf_test_line_neighbours(h, i, j, ta, tb, wall);
+    if (h->cull_cells) {
+        /* the ray's lowest z over the cell is above every corner: no hit */
+        const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
+        if ((za < zb ? za : zb) > (double)h->cellmax[(int64_t)j * (h->cols - 1) + i]) return 0;
+    }
+    return hf_surface_test(h, i, j, ta, tb, wall);
+}
+
+/* One visited cell of a cell kernel: the cheap bound first (along the axis that crosses
+ * the ray travels fastest), then the exact path. */
+static inline int hf_hit_cell_uncounted(hf_hit *h, int32_t i, int32_t j) {
+    if (h->fast) {
+        const int axis = h->cell_axis;
+        if (hf_axis_zlow(h, axis, axis == 0 ? i : j) > (double)hf_cellmax(h, i, j)) return 0;
+    }
+    return hf_hit_cell_exact(h, i, j);
+}
+
+static inline int hf_hit_cell(hf_hit *h, int32_t i, int32_t j) {
+    h->cells_visited += 1;
+    return hf_hit_cell_uncounted(h, i, j);
+}
+
+/* ---- runs ------------------------------------------------------------------------------
+ * The parameter interval of a run: its minor strip and its span of major cells, within
+ * [t0, t1]; entry_axis: the axis whose face sets ta (-1: t0). Empty when ta > tb. */
+typedef struct {
+    double ta, tb;
+    int entry_axis;
+} hf_span;
+
+static inline hf_span hf_run_span(const hf_hit *h, int major_is_x, int32_t minor, int32_t lo,
+                                  int32_t hi) {
+    const double o_min = major_is_x ? h->oy : h->ox, inv_min = major_is_x ? h->inv_dy : h->inv_dx;
+    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
+    const double d_min = major_is_x ? h->dy : h->dx;
+    hf_span s;
+    s.ta = h->t0;
+    s.tb = h->t1;
+    s.entry_axis = -1;
+    if (d_min != 0)
+        hf_slab_clip((minor - o_min) * inv_min, (minor + 1 - o_min) * inv_min, major_is_x ? 1 : 0,
+                     &s.ta, &s.tb, &s.entry_axis);
+    hf_slab_clip((lo - o_maj) * inv_maj, (hi + 1 - o_maj) * inv_maj, major_is_x ? 0 : 1, &s.ta,
+                 &s.tb, &s.entry_axis);
+    return s;
+}
+
+/* Cell k of a run whose first cell is `first`, on the run's span: the cell's interval
+ * runs from the previous cell's exit (or the span's start) to its own exit, each clipped
+ * to the span; then the exact cull and the surface test. Cells are not split where the
+ * minor strip ends: the span's tb covers that. */
+static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t first, int32_t k,
+                              const hf_span *s) {
+    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
+    const double d_maj = major_is_x ? h->dx : h->dy;
+    const int32_t i = major_is_x ? k : minor, j = major_is_x ? minor : k;
+    double ta = s->ta, t_out = (double)(d_maj > 0 ? k + 1 : k);
+    int wall;
+    t_out = (t_out - o_maj) * inv_maj;
+    if (t_out > s->tb) t_out = s->tb;
+    if (k != first) {
+        /* the previous cell's exit; exits grow along the run, so it is the latest */
+        double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
+        if (t_prev > s->tb) t_prev = s->tb;
+        ta = t_prev > ta ? t_prev : ta;
+    }
+    if (!(ta <= t_out)) return 0;
+    if (h->cull_cells) {
+        const double za = h->oz + ta * h->dz, zb = h->oz + t_out * h->dz;
+        if ((za < zb ? za : zb) > (double)hf_cellmax(h, i, j)) return 0;
+    }
+    /* walls: the box face at t0, else the grid line crossed at ta (for the surfaces that
+     * jump there) */
+    if (ta == h->t0)
+        wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
+    else if (!(h->surface == HF_FLAT || h->surface == HF_PLANE3))
+        wall = -1;
+    else
+        wall = k == first ? s->entry_axis : (major_is_x ? 0 : 1);
+    return hf_surface_test(h, i, j, ta, t_out, wall);
+}
+
+/* Below this many cells a run is culled cell by cell: the range-maximum query reads up to
+ * four lines of three field-sized tables, which at r ~ 5 cost more than the cell bounds
+ * they save (measured: reports/METHOD.md, "The tight first-hit path"). */
+#ifndef HF_RUN_RMQ_MIN
+#define HF_RUN_RMQ_MIN 16
+#endif
+
+/* One run (minor, first, last) of a run kernel, first and last in travel order: the
+ * exact span, the run cull, every cell (hf_hit_run_tight is the fast path). */
+static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
+                             int32_t last) {
+    const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
+    const int32_t step = last >= first ? 1 : -1;
+    const double d_maj = major_is_x ? h->dx : h->dy;
+    const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
+    hf_span s;
+    int32_t k;
+    h->runs_visited += 1;
+    if (d_maj == 0 || hf_on_grid_line(h)) {
+        /* vertical rays and rays on grid lines: the general per-cell path */
+        for (k = first;; k += step) {
+            if (major_is_x ? hf_hit_cell(h, k, minor) : hf_hit_cell(h, minor, k)) return 1;
+            if (k == last) break;
+        }
+        return 0;
+    }
+    s = hf_run_span(h, major_is_x, minor, lo, hi);
+    if (!(s.ta <= s.tb)) {
+        h->cells_visited += hi - lo + 1; /* the float ray misses the rounded walk's run */
+        return 0;
+    }
+    if (q != NULL) {
+        const double za = h->oz + s.ta * h->dz, zb = h->oz + s.tb * h->dz;
+        if ((za < zb ? za : zb) > (double)hf_rmq_query(q, minor, lo, hi)) {
+            h->runs_culled += 1;
+            h->cells_visited += hi - lo + 1;
+            return 0;
+        }
+    }
+    for (k = first;; k += step) {
+        h->cells_visited += 1;
+        if (hf_run_cell(h, major_is_x, minor, first, k, &s)) return 1;
+        if (k == last) break;
+    }
+    return 0;
+}
+
+/* The cold parts of the tight run path, out of line so that the hot loop inlines into
+ * every run walk: the range-maximum cull of a long run (returns 1 when it rejects the run,
+ * given the run's lowest z), and a cell that survived the bound (returns 1 on a
+ * hit, -1 when the float ray misses the rounded walk's run, else 0). */
+
+HF_COLD int hf_run_rmq_cull(hf_hit *h, const hf_rmq *q, int32_t minor, int32_t lo, int32_t hi,
+                            double zlow) {
+    if (zlow > (double)hf_rmq_query(q, minor, lo, hi)) {
+        h->runs_culled += 1;
+        return 1;
+    }
+    return 0;
+}
+
+HF_COLD int hf_run_survivor(hf_hit *h, int major_is_x, int32_t minor, int32_t first, int32_t last,
+                            int32_t k, hf_span *s, int *ready) {
+    if (!*ready) {
+        const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
+        *s = hf_run_span(h, major_is_x, minor, lo, hi);
+        if (!(s->ta <= s->tb)) return -1;
+        *ready = 1;
+    }
+    return hf_run_cell(h, major_is_x, minor, first, k, s);
+}
+
+/* The tight path for a run (descending rays, cull on; c bounds along the run's major
+ * axis): the run is rejected whole when z at its exit face is above the maximum over its
+ * cells (a range-maximum query, for runs long enough to pay), else each cell by its own
+ * exit face; the run's exact span is computed only once a cell survives. The cells that
+ * reach hf_run_cell, and their intervals, are those of hf_hit_run. */
+HF_HOT int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_t minor, int32_t first,
+                            int32_t last) {
+    const int32_t step = last >= first ? 1 : -1;
+    const int am = major_is_x ? 0 : 1, an = 1 - am;
+    const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
+    const float *row = major_is_x ? c->cellmax + (int64_t)minor * c->stride : c->cellmax + minor;
+    const int64_t k_stride = major_is_x ? 1 : c->stride;
+    double zrun, zk, dzk;
+    hf_span s;
+    int ready = 0;
+    int32_t k;
+    h->runs_visited += 1;
+    hf_cull_goto(c, h, an, minor);
+    hf_cull_goto(c, h, am, first);
+    zrun = c->z[an] > c->zfloor ? c->z[an] : c->zfloor;
+    zk = c->z[am];
+    dzk = c->step[am];
+    if (q != NULL && (last - first) * step + 1 >= HF_RUN_RMQ_MIN) {
+        /* z at the run's exit face: the last cell's bound, directly */
+        const double zexit = hf_cull_direct(h, c, am, last);
+        if (hf_run_rmq_cull(h, q, minor, first < last ? first : last, first < last ? last : first,
+                            zexit > zrun ? zexit : zrun)) {
+            c->visited += (int64_t)(last - first) * step + 1;
+            c->k[am] = last;
+            c->z[am] = zexit;
+            c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
+            return 0;
+        }
+    }
+    for (k = first;; k += step) {
+        c->visited += 1;
+        if ((zk > zrun ? zk : zrun) <= (double)row[k * k_stride]) {
+            const int r = hf_run_survivor(h, major_is_x, minor, first, last, k, &s, &ready);
+            if (r > 0) return 1;
+            if (r < 0) {
+                /* the float ray misses the rounded walk's run */
+                c->visited += (int64_t)(last - k) * step;
+                break;
+            }
+        }
+        if (k == last) break;
+        zk += dzk;
+    }
+    /* the carried bound ends on the last cell (k - first steps were summed: within the
+     * margin, as for any walk) */
+    c->k[am] = last;
+    c->z[am] = zk;
+    c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
+    if (k != last) c->z[am] = hf_cull_direct(h, c, am, last);
+    return 0;
+}
+
+#endif

@@ -1,0 +1,54 @@
+/* The first-hit batch: one field, its acceleration structures, N rays, the outputs. */
+#ifndef HFTRACE_HITBATCH_H
+#define HFTRACE_HITBATCH_H
+
+#include <stdint.h>
+#include "surfaces/cell_test.h"
+
+#define HF_MAX_MIP_LEVELS 32
+
+/* packet_maxmip: the most rays in one packet */
+#define HF_PACKET_MAX 8
+
+typedef struct {
+    int64_t n_rays;
+    const double *origins, *directions; /* (n, 3) */
+    const double *tmin, *tmax;          /* (n,) or NULL for [0, inf) */
+    /* the field */
+    const float *heights, *cellmax;
+    int32_t rows, cols;
+    double hmin, hmax;
+    int surface;
+    /* culling and skipping */
+    int cull_cells, cull_runs;
+    hf_rmq row_max, col_max;
+    int mip_levels;
+    const float *mip[HF_MAX_MIP_LEVELS];
+    int32_t mip_cols[HF_MAX_MIP_LEVELS];
+    int floor_level;  /* the maxmip kernels: the level whose tiles are walked cell by cell or
+                         run by run (the public option fine_level) */
+    int packet_width; /* packet_maxmip: rays per packet, 1 .. HF_PACKET_MAX */
+    /* cone: (ny, nx, 2), each cell's cone top and slope side by side (one cache line holds
+     * both); cone_relaxed: (ny, nx) slopes (its apex is the cell maximum); NULL for the
+     * other kernels (cone.c) */
+    const float *cone;
+    /* dda_compact: the records of the compact maximum tree (compact.h), NULL for the others */
+    const void *compact;
+    /* runs_periodic */
+    int64_t max_denominator;
+    int32_t *pattern;
+    /* ray marching */
+    int32_t march_steps, march_refinements;
+    double march_growth, march_first_fraction, march_min_step;
+    /* outputs, NULL when not asked for */
+    double *t;      /* (n,)    */
+    int32_t *cell;  /* (n, 2)  */
+    double *normal; /* (n, 3)  */
+    int64_t *stats; /* (n, 5): cells visited, cells tested, runs visited, runs culled,
+                       tiles skipped */
+    int64_t bad_ray;
+} hf_hit_batch;
+
+int hf_intersect_batch(int kernel, hf_hit_batch *batch);
+
+#endif
