@@ -1,5 +1,5 @@
 """The compact maximum tree of ``dda_compact`` (issue 22, item 4): a cache-compact
-maximum hierarchy, built and walked in ``cext/compact.c`` (layout: ``cext/compact.h``).
+maximum hierarchy, built and walked in ``cext/hierarchies/compact.c`` (layout: ``cext/hierarchies/compact.h``).
 
 Each node is one 64-byte cache line and has 4 x 4 children. A node of level ``L >= 1``
 covers ``4^L x 4^L`` cells; its children are the level ``L - 1`` tiles, the cells
@@ -41,7 +41,7 @@ __all__ = ["NODE_BYTES", "NODE_DTYPE", "compact_layout", "build_compact", "compa
 #: bytes per node: one cache line
 NODE_BYTES = 64
 
-#: one node of level >= 2 as NumPy sees it (cext/compact.h, hf_compact_node)
+#: one node of level >= 2 as NumPy sees it (cext/hierarchies/compact.h, hf_compact_node)
 NODE_DTYPE = np.dtype([("base", "<f4"), ("scale", "<f4"), ("max", "<f4"), ("used", "<u4"),
                        ("q", "<u2", (16,)), ("spare", "u1", (16,))])
 assert NODE_DTYPE.itemsize == NODE_BYTES

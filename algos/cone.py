@@ -1,6 +1,6 @@
 """The cone structures: ``cone``, cone step mapping (Dummer 2006) made exact, and
 ``cone_relaxed``, relaxed cone stepping (Policarpo & Oliveira 2007), approximate by design
-(``cext/cone.c`` builds the relaxed one and walks the exact one; ``cext/hit.c`` marches
+(``cext/hierarchies/cone.c`` builds the relaxed one and walks the exact one; ``cext/dispatch/intersect.c`` marches
 the relaxed one).
 
 The exact cone.
@@ -114,7 +114,7 @@ def build_relaxed_cone(cellmax: np.ndarray, radius: int = RELAXED_RADIUS) -> np.
     ``cellmax[s]``; its slope (height per unit of horizontal Euclidean distance) is the
     smallest that keeps out every point where a ray from the field's top above ``s``,
     through the top of a cell within ``radius`` rings, comes back out of the solid
-    (followed in half-cell steps; ``cext/cone.c``). So a ray inside the cone crosses the
+    (followed in half-cell steps; ``cext/hierarchies/cone.c``). So a ray inside the cone crosses the
     surface at most once, up to that sampling and the window: the cone is a heuristic
     bound, and the kernel that steps by it is approximate.
 

@@ -2,7 +2,7 @@
 
 embreex (``algos.embree_peer``) reaches Embree's single-ray triangle queries only. This
 peer reaches the rest of Embree 3's API for the same height field through a small C file
-(``cext/embree3_peer.c``, built by setup.py as ``algos._embree3`` only where
+(``cext/peers/embree3_peer.c``, built by setup.py as ``algos._embree3`` only where
 ``embree3/rtcore.h`` is found: Debian's ``libembree-dev``, Embree 3.13) loaded with
 ctypes, which releases the GIL around each call:
 
@@ -39,7 +39,7 @@ from .parallel import run_ranges
 __all__ = ["available", "unavailable_reason", "native_widths", "embree3_scene", "embree3_hits",
            "embree3_timed", "GEOMETRIES", "PACKET_WIDTHS"]
 
-#: Geometry names and their codes in cext/embree3_peer.c (enum hfe3_geometry).
+#: Geometry names and their codes in cext/peers/embree3_peer.c (enum hfe3_geometry).
 GEOMETRIES = {"triangles": 0, "grid": 1, "grid_native": 2}
 #: Packet widths: 1 is rtcIntersect1, the others rtcIntersect4/8/16.
 PACKET_WIDTHS = (1, 4, 8, 16)

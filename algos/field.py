@@ -16,7 +16,7 @@ Structures (all float32; ``nx = cols - 1``, ``ny = rows - 1`` cells):
 * ``row_max`` / ``col_max``: range maxima of ``cellmax`` along rows (runs along x) and
   along columns (runs along y), answered in O(1) for a run spanning two blocks of
   ``2**RMQ_BLOCK_SHIFT`` (8) cells: per-cell prefix and suffix maxima within blocks plus a
-  sparse table over block maxima (``cext/hit.h``, ``hf_rmq_query``). About
+  sparse table over block maxima (``cext/surfaces/cell_test.h``, ``hf_rmq_query``). About
   ``(3 + log2(nx / 8) / 8) * 4 nx ny`` bytes per direction (the column one keeps a
   transposed copy of ``cellmax``).
 * ``mip``: the maximum mipmap (Tevs, Ihrke & Seidel 2008): level 0 is ``cellmax``, level

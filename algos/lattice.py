@@ -13,7 +13,7 @@ ray exactly (docs/CONVENTIONS.md, "Exactness"):
 So a ray whose components are multiples of ``2**-16`` with ``|o| <= 2**30`` and
 ``max |d| < 2**15`` is unchanged (directions are limited to ``|d| <= 2**1000``), and any
 other direction keeps 31 significant bits in its larger component. ``-0.0`` becomes
-``0.0``. :func:`quantize` is the NumPy twin of ``hf_quantize_ray`` in ``cext/lattice.c``;
+``0.0``. :func:`quantize` is the NumPy twin of ``hf_quantize_ray`` in ``cext/walks/lattice.c``;
 the tests check that they agree bit for bit.
 """
 from __future__ import annotations

@@ -34,7 +34,7 @@ def _one_line(exc) -> str:
 # ---- the checksum fold ------------------------------------------------------------------
 def fold_cells(cells) -> int:
     """The visit checksum of one ray's cells, as the C kernels compute it
-    (``hf_fold`` of ``cext/internal.h``, reproduced in ``cext/hftrace_plugin.h``):
+    (``hf_fold`` of ``cext/walks/walk.h``, reproduced in ``cext/hftrace_plugin.h``):
     ``hash = rotl(hash, 7) ^ ((i << 32) | j)`` over the cells in order, from 0."""
     h = 0
     for i, j in np.asarray(cells, dtype=np.int64).reshape(-1, 2).tolist():

@@ -1,8 +1,8 @@
 """Rasterisers of a height field, the seeds' other road, and image comparison.
 
 The tracers answer "what does this pixel's ray hit first?"; a rasteriser answers "which
-pixels does this cell cover?". Five rasterisers run in C (``cext/raster.c``,
-``cext/watkins.c``, ``cext/warnock.c``; docs/rendering.md explains each on a height field):
+pixels does this cell cover?". Five rasterisers run in C (``cext/raster/raster.c``,
+``cext/raster/watkins.c``, ``cext/raster/warnock.c``; docs/rendering.md explains each on a height field):
 
 ``zbuffer``
     Scan conversion of the field's two triangles per cell (the split of CONVENTIONS
@@ -67,12 +67,12 @@ __all__ = ["RASTERISERS", "EXACT_RASTERISERS", "Image", "pinhole_frame", "render
 RASTERISERS = ("zbuffer", "painter", "floating_horizon", "watkins", "warnock")
 #: the exact ones: the same pixels as an exact tracer (see :func:`render`)
 EXACT_RASTERISERS = ("zbuffer", "painter", "watkins", "warnock")
-#: their ids in C (cext/raster.h, enum hf_raster_algorithm)
+#: their ids in C (cext/raster/raster.h, enum hf_raster_algorithm)
 _C_ID = {"zbuffer": 0, "painter": 1, "floating_horizon": 2, "watkins": 4, "warnock": 5}
 #: the C id of the floating horizon's hidden-line drawing (:func:`hidden_lines`)
 _HIDDEN_LINES = 3
 
-#: the cost model's counts, in the C order (cext/raster.h, enum hf_raster_count). For
+#: the cost model's counts, in the C order (cext/raster/raster.h, enum hf_raster_count). For
 #: ``watkins``: ``cells`` looked at, ``cells_culled`` by the frustum, ``triangles`` in the
 #: edge table, ``samples`` the spans decided, ``fragments`` the depths compared to decide
 #: them. For ``warnock``: ``cells`` the tile bounds computed (a cell is a tile of level 0),

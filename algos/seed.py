@@ -1,5 +1,5 @@
 """The run recurrence of Henning & Stephenson (2004) as the seeds state it, in exact
-rationals: a readable twin of ``cext/runs.c`` for reading and for tests.
+rationals: a readable twin of ``cext/walks/runs.c`` for reading and for tests.
 
 The digital line ``Y(x) = floor(alpha x + beta)``, ``0 < alpha <= 1``, ``0 <= beta < 1``,
 sampled at ``x = 0, 1, 2, ...``, is a sequence of runs (maximal stretches with one ``Y``).

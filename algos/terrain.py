@@ -1729,7 +1729,7 @@ VIEWSHED_UINT8_NODATA = 255
 
 
 def _viewshed_threshold(h, ox, oy, z0, th, drop, kind, algorithm, threads, mip, stats):
-    """The C walk's bound per vertex (cext/terrain.h, hf_viewshed_threshold): kind 0 the
+    """The C walk's bound per vertex (cext/terrain/terrain.h, hf_viewshed_threshold): kind 0 the
     target top, 1 the eye; -inf where nothing lies between observer and vertex."""
     rows, cols = h.shape
     out = np.empty(rows * cols, dtype=np.float64)
@@ -1825,7 +1825,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     mode says visible, so the set is exactly [threshold, inf) for the normal mode's test
     (see ``exact``). One C walk per vertex finds M or N, skipping
     max-mipmap tiles that lie below the line the bound found so far defines
-    (``cext/terrain.c``, ``hf_viewshed_threshold``); ``algos.terrain_ref`` holds the
+    (``cext/terrain/terrain.c``, ``hf_viewshed_threshold``); ``algos.terrain_ref`` holds the
     rational-arithmetic reference and the tests check both against brute force.
 
     Parameters

@@ -73,20 +73,3 @@ def first_hit_fields(shape):
 
 #: The surfaces that jump at cell borders, where which cell holds a border point matters.
 JUMPING_SURFACES = ("flat", "plane3")
-
-
-def on_interior_grid_line(origins, directions, heights_shape, surface):
-    """Rays (bool per ray) that lie exactly on an interior grid line, a zero x (y)
-    component at an integer x (y) strictly inside the grid, on a surface that jumps
-    there. The C kernels still test the cells on both sides of such a line (the union
-    of their solids), where docs/CONVENTIONS.md ("Points on a cell border") reads the
-    one cell on the + side, as the brute force does: tests comparing the two leave these
-    rays out, and tests/test_conventions.py pins the difference."""
-    o = np.asarray(origins, dtype=np.float64)
-    d = np.asarray(directions, dtype=np.float64)
-    rows, cols = heights_shape
-    if surface not in JUMPING_SURFACES:
-        return np.zeros(len(o), bool)
-    on_x = (d[:, 0] == 0) & (o[:, 0] == np.floor(o[:, 0])) & (o[:, 0] > 0) & (o[:, 0] < cols - 1)
-    on_y = (d[:, 1] == 0) & (o[:, 1] == np.floor(o[:, 1])) & (o[:, 1] > 0) & (o[:, 1] < rows - 1)
-    return on_x | on_y

@@ -1,4 +1,4 @@
-"""The compact maximum tree and dda_compact (``algos.compact``, ``cext/compact.c``): the
+"""The compact maximum tree and dda_compact (``algos.compact``, ``cext/hierarchies/compact.c``): the
 tree's layout and its conservative, tight bounds checked against NumPy tile maxima; the
 hits equal to dda_maxmip's bit for bit (t, cell, normal) and to the brute force; bad
 input.

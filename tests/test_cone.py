@@ -1,4 +1,4 @@
-"""The cone intersector (cone step mapping made exact, ``algos.cone`` and ``cext/cone.c``):
+"""The cone intersector (cone step mapping made exact, ``algos.cone`` and ``cext/hierarchies/cone.c``):
 the structure's guarantee checked cell pair by cell pair, the hits against the cell walk
 and the brute force (grazing rays, where cones collapse, included), and bad input.
 
@@ -192,7 +192,7 @@ def test_fuzz_hook_holds_on_the_corpus_and_random_inputs():
 
 def _relaxed_reference(cellmax, radius):
     """The relaxed cone slopes by the definition in algos.cone.build_relaxed_cone, in plain
-    Python: the readable twin of cext/cone.c's build."""
+    Python: the readable twin of cext/hierarchies/cone.c's build."""
     ny, nx = cellmax.shape
     m = cellmax.astype(float)
     top = m.max()

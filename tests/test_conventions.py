@@ -11,7 +11,7 @@ import pytest
 import algos
 from algos.registry import INTERSECTOR_REGISTRY
 
-from .helpers import JUMPING_SURFACES, on_interior_grid_line
+from .helpers import JUMPING_SURFACES
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHARED = os.path.join(ROOT, "..", "shared", "spec", "CONVENTIONS.md")
@@ -225,12 +225,11 @@ def test_exact_kernels_follow_the_border_rule(name, border_cases):
     as (13 - 16) * (1 / -3).)"""
     for (fname, surface), (H, o, d, ref) in border_cases.items():
         got = algos.intersect(name, algos.Field(H), o, d, surface=surface).t
-        keep = ~on_interior_grid_line(o, d, H.shape, surface)
         hit_ref, hit_got = np.isfinite(ref), np.isfinite(got)
         both = hit_ref & hit_got
         err = np.zeros_like(ref)
         err[both] = np.abs(got[both] - ref[both]) / (1 + np.abs(ref[both]))
-        bad = np.nonzero(keep & ((hit_ref != hit_got) | (err > 1e-9)))[0]
+        bad = np.nonzero((hit_ref != hit_got) | (err > 1e-9))[0]
         if len(bad):
             k = bad[0]
             raise AssertionError(
@@ -239,10 +238,6 @@ def test_exact_kernels_follow_the_border_rule(name, border_cases):
                 f"brute t={ref[k]!r} got t={got[k]!r}")
 
 
-@pytest.mark.xfail(strict=True, reason="the C kernels still test both neighbours of an "
-                   "interior grid line on flat and plane3 (the union of their solids), where "
-                   "the conventions read the one cell on the + side; when they follow the "
-                   "rule this passes: drop this marker and on_interior_grid_line")
 @pytest.mark.parametrize("surface", JUMPING_SURFACES)
 def test_kernels_on_an_interior_grid_line_read_one_column(surface):
     """The conventions' example on the kernels: along x = 25 with dx = 0, column 25 only.

@@ -9,7 +9,7 @@ from algos.render import default_camera
 from datasets_gen import fields
 from datasets_gen import rays as raysets
 
-from .helpers import first_hit_fields, on_interior_grid_line
+from .helpers import first_hit_fields
 
 WIDTHS = (1, 2, 4, 8)
 OUTPUTS = ("t", "cell", "normal", "stats")
@@ -53,9 +53,6 @@ def _check_against_brute(H, fld, o, d, what, surfaces=algos.SURFACES):
         far = np.zeros(len(got), bool)
         far[both] = np.abs(got[both] - ref_t[both]) > 1e-9 * (1 + np.abs(ref_t[both]))
         bad = np.union1d(bad, np.nonzero(far)[0])
-        # (rays on an interior grid line of flat/plane3: the kernels' known difference,
-        # pinned in tests/test_conventions.py)
-        bad = bad[~on_interior_grid_line(o[bad], d[bad], H.shape, surface)]
         if len(bad):
             k = bad[0]
             raise AssertionError(

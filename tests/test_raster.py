@@ -1,4 +1,4 @@
-"""The rasterisers (algos.raster, cext/raster.c) against the exact tracers.
+"""The rasterisers (algos.raster, cext/raster/raster.c) against the exact tracers.
 
 - zbuffer, painter, watkins and warnock draw the triangles surface; an exact intersector
   (``dda``, whose triangle test is exact up to float64 rounding) on the same primary rays
@@ -45,7 +45,7 @@ def _camera(position, look_at, fov, width, height):
 
 
 def _project(frame, width, height, points):
-    """Pixel coordinates (X, Y) of world points (..., 3), as cext/raster.c projects."""
+    """Pixel coordinates (X, Y) of world points (..., 3), as cext/raster/raster.c projects."""
     p, f, r, u = frame[:3], frame[3:6], frame[6:9], frame[9:12]
     q = points - p
     a, b, w = q @ r, q @ u, q @ f

@@ -1,5 +1,5 @@
-"""Watkins' scanline and Warnock's area-subdivision renderers (cext/watkins.c,
-cext/warnock.c) against the zbuffer and the exact tracer ``dda``.
+"""Watkins' scanline and Warnock's area-subdivision renderers (cext/raster/watkins.c,
+cext/raster/warnock.c) against the zbuffer and the exact tracer ``dda``.
 
 Both decide the same pixel centres by the zbuffer's top-left rule and break exact depth
 ties in its drawing order, so the rule is the raster tests': the same hit cell on every

@@ -438,7 +438,7 @@ def _write(paths, rows, tier) -> None:
                   f, indent=2, sort_keys=True, default=str)
         f.write("\n")
     lines = ["# The cache-compact maximum tree against the maximum mipmap", "",
-             f"`dda_compact` (`algos.compact`, `cext/compact.c`) against `dda_maxmip`: {DATASET} "
+             f"`dda_compact` (`algos.compact`, `cext/hierarchies/compact.c`) against `dda_maxmip`: {DATASET} "
              f"fields seed 1, {tier['rays']} first-hit rays per side at random azimuths "
              f"(`bench.sweep.first_hit_rays`, seed {SEED}), {SURFACE}, one thread. Both "
              "kernels give the same t bit for bit on these rays (checked while measuring).", "",

@@ -249,33 +249,15 @@ static inline int hf_cell_interval(const hf_hit *h, int32_t i, int32_t j, double
     return axis;
 }
 
-/* A ray lying exactly on an interior grid line (dx = 0 at integer x, or dy = 0 at integer
- * y) touches the closed footprints of the cells on both sides. Where the surface jumps
- * there (flat, plane3) the solid is their union, so every such cell is tested on the same
- * interval and the earliest hit wins. */
+/* A ray lying exactly on a grid line (dx = 0 at integer x, or dy = 0 at integer y) of a
+ * surface that jumps at cell borders (flat, plane3). By the conventions' border rule it
+ * reads only the cells that the half-open rule gives (for a zero component, the cell on
+ * the + side): a taller neighbour that it touches along the line is not hit. Such a ray
+ * takes the general per-cell path: the tight path's slab bound would multiply a zero
+ * offset by an infinite inverse direction, and the hierarchies walk their base kernel. */
 static inline int hf_on_grid_line(const hf_hit *h) {
     return (h->surface == HF_FLAT || h->surface == HF_PLANE3) &&
            ((h->dx == 0 && h->ox == floor(h->ox)) || (h->dy == 0 && h->oy == floor(h->oy)));
-}
-
-static inline int hf_test_line_neighbours(hf_hit *h, int32_t i, int32_t j, double ta, double tb,
-                                          int wall) {
-    const int x_line = h->dx == 0 && h->ox == (double)i && i > 0;
-    const int y_line = h->dy == 0 && h->oy == (double)j && j > 0;
-    hf_hit best = *h, trial;
-    int k;
-    for (k = 0; k < 4; ++k) {
-        const int32_t ci = i - (k & 1), cj = j - (k >> 1);
-        if (((k & 1) && !x_line) || ((k >> 1) && !y_line)) continue;
-        trial = *h;
-        if (hf_surface_test(&trial, ci, cj, ta, tb, wall) && (!best.found || trial.t < best.t)) {
-            best = trial;
-        }
-        h->cells_tested = trial.cells_tested;
-        best.cells_tested = trial.cells_tested;
-    }
-    *h = best;
-    return h->found;
 }
 
 /* ---- the tight path -----------------------------------------------------------------
@@ -429,7 +411,6 @@ static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
         wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
     else
         wall = (h->surface == HF_FLAT || h->surface == HF_PLANE3) ? axis : -1;
-    if (hf_on_grid_line(h)) return hf_test_line_neighbours(h, i, j, ta, tb, wall);
     if (h->cull_cells) {
         /* the ray's lowest z over the cell is above every corner: no hit */
         const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
