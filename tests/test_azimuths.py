@@ -8,7 +8,7 @@ import pytest
 
 import algos.terrain as T
 from algos import _kernels
-from algos.terrain_ref import horizon_reference
+from algos.terrain.reference import horizon_reference
 
 #: RVT's default: 16 equally spaced azimuths; the odd ones (22.5 + k 45) are irrational
 SIXTEEN = [22.5 * k for k in range(16)]

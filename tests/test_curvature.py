@@ -1,5 +1,5 @@
 """Curvature and refraction on the horizon family (issue 21): horizon, shadows and the
-sky-view factor against the curvature-aware exact reference (algos.terrain_ref), the
+sky-view factor against the curvature-aware exact reference (algos.terrain.reference), the
 issue's worked example, a closed-form peak inside a linear piece, routing and validation.
 """
 import math
@@ -9,7 +9,7 @@ import pytest
 
 import algos
 import algos.terrain as T
-from algos.terrain_ref import horizon_reference
+from algos.terrain.reference import horizon_reference
 
 #: The exact paths that take curvature (the sweep and the Embree peer refuse it).
 CURVED = ["pattern", "dda", "dda_maxmip"]
@@ -283,7 +283,7 @@ def _curved_angle(metres_per_unit, spacing=100.0):
     """The view angle from (0, 0) to (63, 63) over flat ground, in closed form: the target
     drops (1 - k) d^2 / (2 R) with R the earth's radius in the field's unit."""
     d = 63 * math.sqrt(2) * spacing
-    radius = T.WGS84_SEMI_MAJOR_AXIS_M / metres_per_unit
+    radius = algos.WGS84_SEMI_MAJOR_AXIS_M / metres_per_unit
     return math.atan2(-(1 - T.DEFAULT_REFRACTION) * d * d / (2 * radius), d)
 
 

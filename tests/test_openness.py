@@ -8,7 +8,7 @@ import pytest
 
 import algos
 import algos.terrain as T
-from algos.terrain_ref import horizon_reference
+from algos.terrain.reference import horizon_reference
 
 YY, XX = np.mgrid[0:15, 0:17].astype(float)
 

@@ -1,5 +1,5 @@
 """Terrain products (issue 11): every algorithm against the exact references of
-algos.terrain_ref, the conventions (azimuth, ties, units), and bad input."""
+algos.terrain.reference, the conventions (azimuth, ties, units), and bad input."""
 import math
 
 import numpy as np
@@ -8,7 +8,7 @@ import pytest
 import algos
 import algos.terrain as T
 from algos import _kernels
-from algos.terrain_ref import horizon_reference, viewshed_reference
+from algos.terrain.reference import horizon_reference, viewshed_reference
 from datasets_gen.loaders import HeightField
 
 EXACT = [name for name, a in T.HORIZON_ALGORITHMS.items() if a.exact]

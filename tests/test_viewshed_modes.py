@@ -3,7 +3,7 @@ modes (-om NORMAL|DEM|GROUND), xarray-spatial's minimum observable height and vi
 observers and targets below the ground, one-row and one-column rasters.
 
 The thresholds are checked three ways: against the rational-arithmetic bound of
-``algos.terrain_ref.viewshed_threshold_exact``, by brute force with the exact line of sight
+``algos.terrain.reference.viewshed_threshold_exact``, by brute force with the exact line of sight
 (``line_of_sight_exact``) just above and just below the threshold, and against the
 visibility mode. The peers' own test cases are translated with the values this project's
 surface gives (derivations beside each)."""
@@ -13,8 +13,9 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
+import algos
 import algos.terrain as T
-from algos.terrain_ref import line_of_sight_exact, surface_exact, viewshed_threshold_exact
+from algos.terrain.reference import line_of_sight_exact, surface_exact, viewshed_threshold_exact
 
 SEEDS = range(24)
 
@@ -546,7 +547,7 @@ def round_trip_case(seed):
     spacing = (1.0, 30.0, 0.5)[seed % 3]
     oh = (1.5, -0.7, 0.0, 6.0)[seed % 4]
     md = None if seed % 4 == 3 else spacing * float(rng.integers(4, 9))
-    return T.HeightField(h, spacing=spacing, unit="m"), (ox, oy), oh, md
+    return algos.HeightField(h, spacing=spacing, unit="m"), (ox, oy), oh, md
 
 
 @pytest.mark.parametrize("mode", ["ground", "dem", "observer"])
@@ -597,7 +598,7 @@ def test_exact_thresholds_round_trip_through_the_normal_mode(seed, mode):
 def test_exact_thresholds_fix_the_reported_wall():
     h = np.zeros((3, 64))
     h[:, 30] = 30
-    f = T.HeightField(h, spacing=30, unit="m")
+    f = algos.HeightField(h, spacing=30, unit="m")
     g = T.viewshed(f, (10, 1), mode="ground", observer_height=1.5, exact=True)[1, 50]
     assert abs(g - 58.5) < 1e-9
     assert T.viewshed(f, (10, 1), observer_height=1.5, target_height=g)[1, 50]

@@ -2,7 +2,7 @@
 tile on a Dask cluster, for fields larger than the memory of any one worker.
 
 The source is read lazily (``datasets_gen.open_lazy``: each task reads its own window
-through rasterio), the products run with a halo of ``max_distance`` (``algos.tiled``),
+through rasterio), the products run with a halo of ``max_distance`` (``algos.terrain.tiled``),
 and every finished tile is written straight into the output GeoTIFF by the worker that
 computed it (``datasets_gen.raster.create_product`` and ``write_window``, one
 ``distributed.Lock`` per file, since GDAL rewrites whole compressed tiles); nothing of
