@@ -87,8 +87,8 @@ w = z - kappa s^2, the lowered ratio from O to T at distance d is (w_T - w_O) / 
 2 kappa s_O, so the horizon is a tangent to the upper hull of w, but w is piecewise
 concave (not piecewise linear) and its hull is no longer the hull of the breakpoints.
 ``algorithm=None`` therefore routes curvature to "pattern" (max_distance <= 384 cells) or
-"dda_maxmip", and an explicit "sweep" (or the "embree" peer) raises; ``LAST_STATS``
-names the path that ran. A negative kappa raises the surface instead (the mirror of a
+"dda_maxmip", and an explicit "sweep" (or the "embree" peer) raises; the statistics
+(``return_stats=True``) name the path that ran. A negative kappa raises the surface instead (the mirror of a
 lowered surface, for negative openness): there is no interior peak (g is convex on every
 piece), and the early stop and tile skips are turned off.
 
@@ -123,6 +123,14 @@ Orientation: a field whose rows run north (a south-up raster, the embedded DEM) 
 flipped to north-up by :meth:`HeightField.to_north_up`, the one place that does it, and
 every result is flipped back: outputs are on the input's grid and orientation.
 
+Statistics
+----------
+Every product takes ``return_stats=True`` and then returns ``(result, stats)``, where
+``stats`` is a :class:`~algos.terrain.stats.TerrainStats`: the algorithm of each azimuth
+(``paths``), the C time, cells, tile skips and the snapping of that one call. Nothing is
+kept in module state, so calls on several threads (dask tiles) never mix their figures.
+A DataArray result also records ``algorithm``, ``paths`` and the snapping in its attrs.
+
 Voids
 -----
 A void vertex (NaN in a raw array, ``nodata_mask`` in a HeightField) is nodata in every
@@ -153,7 +161,7 @@ from .patterns import PATTERN_STOP_EVERY  # noqa: F401
 from .reference import horizon_reference, line_of_sight_exact, surface_exact, viewshed_reference  # noqa: F401
 from .shadows import shadows
 from .sky_view import _sin_of_positive_atan, sky_view_factor  # noqa: F401
-from .stats import LAST_STATS, TerrainStats  # noqa: F401
+from .stats import TerrainStats
 from .tiled import halo_depth, tiled_product, tiled_viewshed, viewshed_window  # noqa: F401
 from .viewshed import viewshed
 from .walks import CHAIN_BLOCK_ROWS, CHAIN_MAX_DENOMINATOR, CHAIN_MAX_OFFSET, chain_neighbours, prepare_horizon_timed  # noqa: F401

@@ -4,44 +4,36 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..field import HeightField, is_dask
+from ..field import HeightField
 from .observers import VIEWSHED_UINT8_NODATA
-from .stats import LAST_STATS
 
 
-def _path_attrs(snap):
-    """The attributes a product's DataArray or file records about how it was computed:
-    ``algorithm`` and ``paths`` (one per azimuth, comma-separated) from
-    :data:`LAST_STATS`, and with snapping (``snap``: (snapped azimuths, largest change)),
-    ``snapped_azimuths`` and ``snap_max_change_deg``."""
-    attrs = dict(algorithm=LAST_STATS.algorithm, paths=",".join(LAST_STATS.paths))
-    if snap is None and LAST_STATS.snapped_azimuths:
-        snap = (LAST_STATS.snapped_azimuths, LAST_STATS.snap_max_change_deg)
-    if snap is not None:
-        attrs.update(snapped_azimuths=[float(a) for a in snap[0]],
-                     snap_max_change_deg=float(snap[1]))
+def _path_attrs(stats):
+    """The attributes a product's DataArray or file records about how it was computed,
+    from its :class:`~algos.terrain.stats.TerrainStats`: ``algorithm`` and ``paths`` (one
+    per azimuth, comma-separated), and with snapping ``snapped_azimuths`` and
+    ``snap_max_change_deg``."""
+    attrs = dict(algorithm=stats.algorithm, paths=",".join(stats.paths))
+    if stats.snapped_azimuths:
+        attrs.update(_snap_attrs((stats.snapped_azimuths, stats.snap_max_change_deg)))
     return attrs
 
 
-def _record_snap(snap):
-    """Put the snapping of the call just made into :data:`LAST_STATS`."""
-    if snap is not None:
-        LAST_STATS.snapped_azimuths = tuple(float(a) for a in snap[0])
-        LAST_STATS.snap_max_change_deg = float(snap[1])
+def _snap_attrs(snap):
+    """The snapping ``snap`` = (azimuths used, largest change) as attributes."""
+    return dict(snapped_azimuths=[float(a) for a in snap[0]], snap_max_change_deg=float(snap[1]))
 
 
-def _with_path_attrs(out, snap):
-    """``out`` (a DataArray) with :func:`_path_attrs`; a lazy one records only the
-    snapping (its algorithms are chosen when it is computed, tile by tile)."""
-    if not is_dask(out.data):
-        _record_snap(snap)
-    if is_dask(out.data):
+def _with_path_attrs(out, stats, snap):
+    """``out`` (a DataArray) with :func:`_path_attrs` of ``stats`` (the in-memory call's)
+    and the snapping ``snap``; a lazy one (``stats`` None) records only the snapping (its
+    algorithms are chosen when it is computed, tile by tile). Returns ``(out, stats)``."""
+    if stats is None:
         if snap is not None:
-            out.attrs.update({k: v for k, v in _path_attrs(snap).items()
-                              if k.startswith("snap")})
-        return out
-    out.attrs.update(_path_attrs(snap))
-    return out
+            out.attrs.update(_snap_attrs(snap))
+        return out, None
+    out.attrs.update(_path_attrs(stats.with_snap(snap)))
+    return out, stats
 
 
 def _attr(value):
@@ -50,13 +42,14 @@ def _attr(value):
 
 
 def _to_dataarray(template, compute, product, attrs, extra_dim=None):
-    """Run ``compute(HeightField)`` on a DataArray's field and wrap the result like the
-    input: same dims, coords, attrs and CRS (rioxarray), plus ``attrs`` (units and the
-    product's parameters). A dask-backed input gives a dask-backed (lazy) output."""
+    """Run ``compute(HeightField)``, which returns ``(values, stats)``, on a DataArray's
+    field and wrap the values like the input: same dims, coords, attrs and CRS
+    (rioxarray), plus ``attrs`` (units and the product's parameters). A dask-backed input
+    gives a dask-backed (lazy) output. Returns ``(DataArray, stats)``."""
     import xarray as xr
 
     field = HeightField.from_dataarray(template)
-    values = compute(field)
+    values, stats = compute(field)
     dims, coords = template.dims, dict(template.coords)
     if extra_dim is not None:
         dims = (extra_dim[0],) + tuple(dims)
@@ -78,4 +71,4 @@ def _to_dataarray(template, compute, product, attrs, extra_dim=None):
             out = out.rio.write_nodata(VIEWSHED_UINT8_NODATA, encoded=False)
         else:
             out.attrs["_FillValue"] = VIEWSHED_UINT8_NODATA
-    return out
+    return out, stats

@@ -12,10 +12,10 @@ from ..validate import check_length
 from .algorithms import _auto_path, _pick_horizon_algorithm
 from .azimuths import _azimuth_list, snap_azimuths
 from .curvature import DEFAULT_REFRACTION, _curvature_attrs, _curvature_kappa
-from .dataarray import _attr, _record_snap, _to_dataarray, _with_path_attrs
+from .dataarray import _attr, _to_dataarray, _with_path_attrs
 from .directions import azimuth_direction
 from .grid import Grid, _check_surface, _field_spacing, _mipmap, _prepare
-from .stats import LAST_STATS, TerrainStats
+from .stats import TerrainStats, check_return_stats, returned, with_stats
 from .tiled import tiled_product
 from .walks import _horizon_one
 
@@ -35,8 +35,8 @@ def _horizon_angles(grid: Grid, azimuths, max_distance, kappa, *, algorithm, thr
                     march_step, embree_tolerance, progress, tangents=False):
     """The horizon angles (radians, north-up, (len(azimuths), rows, cols)) of a prepared
     grid with curvature kappa (cell units; negative raises the surface, for
-    :func:`openness`), voids not yet set; also returns the algorithms that ran ("+"
-    joined, :class:`TerrainStats`). ``tangents``: the map tangents, not their angles."""
+    :func:`openness`), voids not yet set, and the call's :class:`TerrainStats`.
+    ``tangents``: the map tangents, not their angles."""
     h = grid.h
     directions = []
     for k, a in enumerate(_azimuth_list(azimuths)):
@@ -72,14 +72,14 @@ def _horizon_angles(grid: Grid, azimuths, max_distance, kappa, *, algorithm, thr
             progress(k + 1, len(directions))
     if not tangents:
         np.arctan(out, out=out)
-    LAST_STATS.__dict__.update(stats.__dict__)
-    return out, stats.algorithm
+    return out, stats
 
 
 def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="triangles",
             spacing=None, units="radians", curvature=False, refraction=DEFAULT_REFRACTION,
             earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, march_step=1.0,
-            embree_tolerance=1e-4, progress=None, snap_denominator=None, _tangents=False):
+            embree_tolerance=1e-4, progress=None, snap_denominator=None, return_stats=False,
+            _tangents=False):
     """Horizon elevation angles (radians by default) seen from every vertex.
 
     For each azimuth, the horizon of vertex v is the supremum, over the surface points p on
@@ -110,8 +110,8 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         measurement): "sweep" for a direction rational in cell space at unlimited
         distance, "rows" for max_distance <= 384 cells, "chain" otherwise; with curvature,
         "pattern" up to 384 cells and "dda_maxmip" beyond. The path of each azimuth is
-        recorded in :data:`LAST_STATS` (``algorithm``, ``paths``) and in a DataArray's
-        attrs ``algorithm`` and ``paths``. With curvature, the algorithms of
+        recorded in the statistics (``return_stats``: ``algorithm``, ``paths``) and in a
+        DataArray's attrs ``algorithm`` and ``paths``. With curvature, the algorithms of
         :data:`CURVATURE_REFUSED` raise.
     spacing : float or (dx, dy), optional
         The pixel size of a raw array, in the unit of its heights; None means cell units.
@@ -141,8 +141,12 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         Snap each azimuth to the nearest direction whose slope in cell space is p/q with
         q <= snap_denominator (:func:`snap_azimuths`), so that the rational sweep applies.
         Default None: no snapping, the horizons are exact at the azimuths given. The
-        azimuths used and the largest change are recorded (``LAST_STATS``; DataArray
-        attrs ``snapped_azimuths``, ``snap_max_change_deg``).
+        azimuths used and the largest change are recorded (the statistics'
+        ``snapped_azimuths``, ``snap_max_change_deg``, and DataArray attrs of those names).
+    return_stats : bool
+        Also return the call's :class:`~algos.terrain.stats.TerrainStats` (the paths that
+        ran, C time, cells, tile skips, snapping): ``(result, stats)``. Default False.
+        Refused (ValueError) for a lazy (dask) input, whose statistics are per tile.
 
     Returns
     -------
@@ -151,6 +155,7 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         orientation; -pi/2 (-90) where the ray has no point; NaN at void vertices. A
         DataArray gives a DataArray with an ``azimuth`` dimension, the input's coords, CRS
         and attrs, ``units`` (the unit), ``curvature`` (0 or 1) and ``refraction``.
+        With ``return_stats``, the pair ``(that, TerrainStats)``.
 
     Raises
     ------
@@ -164,6 +169,7 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     :mod:`algos.terrain.tiled`.
     """
     _check_units(units)
+    check_return_stats(return_stats, heights)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     snap = None
     if snap_denominator is not None:
@@ -171,21 +177,19 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
                              name="snap_denominator")
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
-        out = _to_dataarray(heights, lambda f: horizon(
-            f, az if snap is None else snap[0], max_distance, algorithm=algorithm,
+        out, stats = _to_dataarray(heights, lambda f: with_stats(
+            horizon, f, az if snap is None else snap[0], max_distance, algorithm=algorithm,
             surface=surface, threads=threads, march_step=march_step,
             embree_tolerance=embree_tolerance, units=units, **curve),
             "horizon", dict(units=units, max_distance=_attr(max_distance),
                             **_curvature_attrs(curvature, refraction)), ("azimuth", az))
-        return _with_path_attrs(out, snap)
+        return returned(*_with_path_attrs(out, stats, snap), return_stats)
     if snap is not None:
-        out = horizon(heights, snap[0], max_distance, algorithm=algorithm, surface=surface,
-                      spacing=spacing, units=units, threads=threads, march_step=march_step,
-                      embree_tolerance=embree_tolerance, progress=progress,
-                      _tangents=_tangents, **curve)
-        if not is_dask(out):
-            _record_snap(snap)
-        return out
+        out, stats = with_stats(horizon, heights, snap[0], max_distance, algorithm=algorithm,
+                                surface=surface, spacing=spacing, units=units, threads=threads,
+                                march_step=march_step, embree_tolerance=embree_tolerance,
+                                progress=progress, _tangents=_tangents, **curve)
+        return out if stats is None else returned(out, stats.with_snap(snap), return_stats)
     if is_dask(heights):
         return _tiled_horizon(heights, azimuths, max_distance, spacing, dict(
             algorithm=algorithm, surface=surface, threads=threads, march_step=march_step,
@@ -193,14 +197,14 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
     _check_surface(surface)
     grid = _prepare(heights, spacing)
     kappa = _curvature_kappa(grid, curvature, refraction, earth_radius)
-    out, _ = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
-                             threads=threads, march_step=march_step,
-                             embree_tolerance=embree_tolerance, progress=progress,
-                             tangents=_tangents)
+    out, stats = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
+                                 threads=threads, march_step=march_step,
+                                 embree_tolerance=embree_tolerance, progress=progress,
+                                 tangents=_tangents)
     if units == "degrees" and not _tangents:
         np.degrees(out, out=out)
     grid.voids_to(out, np.nan)
-    return np.ascontiguousarray(grid.to_north_up(out))
+    return returned(np.ascontiguousarray(grid.to_north_up(out)), stats, return_stats)
 
 
 def _tiled_horizon(heights, azimuths, max_distance, spacing, options):

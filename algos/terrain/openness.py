@@ -9,9 +9,10 @@ from ..field import is_dask, is_dataarray
 from ..georef import WGS84_SEMI_MAJOR_AXIS_M
 from .azimuths import _azimuth_list, _rational_map_azimuths, snap_azimuths
 from .curvature import DEFAULT_REFRACTION, _curvature_attrs, _curvature_kappa
-from .dataarray import _attr, _record_snap, _to_dataarray, _with_path_attrs
+from .dataarray import _attr, _to_dataarray, _with_path_attrs
 from .grid import VOID_HEIGHT, Grid, _check_surface, _field_spacing, _prepare
 from .horizon import _check_units, _horizon_angles
+from .stats import check_return_stats, returned, with_stats
 from .tiled import tiled_product
 
 __all__ = ["openness", "OPENNESS_KINDS"]
@@ -24,7 +25,7 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
              rational=False, units="degrees", algorithm=None, surface="triangles",
              spacing=None, curvature=False, refraction=DEFAULT_REFRACTION,
              earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None,
-             snap_denominator=None):
+             snap_denominator=None, return_stats=False):
     """Topographic openness (Yokoyama, Shirasawa & Pike 2002), positive or negative.
 
     Positive openness is the mean over the azimuths of 90 deg minus the horizon angle
@@ -59,14 +60,17 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
         surface.
     snap_denominator : int, optional
         As in :func:`horizon`: every azimuth snapped to a rational cell direction with
-        q <= snap_denominator, recorded (``LAST_STATS``, DataArray attrs). Default None.
+        q <= snap_denominator, recorded (statistics, DataArray attrs). Default None.
+    return_stats : bool
+        As in :func:`horizon`: also return the call's
+        :class:`~algos.terrain.stats.TerrainStats`, as ``(result, stats)``.
 
     Returns
     -------
     float64 array (rows, cols)
         In [0, 180] degrees ([0, pi] radians); NaN at void vertices; the input's
         orientation. A DataArray gives a DataArray with ``units``, ``kind`` and the
-        parameters as attrs.
+        parameters as attrs. With ``return_stats``, the pair ``(that, TerrainStats)``.
 
     Raises
     ------
@@ -76,6 +80,7 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
     if kind not in OPENNESS_KINDS:
         raise ValueError(f"kind: expected one of {OPENNESS_KINDS}, got {kind!r}")
     _check_units(units)
+    check_return_stats(return_stats, heights)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     if azimuths is None:
         if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
@@ -92,11 +97,11 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
                    threads=threads, **curve)
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
-        out = _to_dataarray(heights, lambda f: openness(
-            f, azimuths=az, max_distance=max_distance, **options), "openness",
+        out, stats = _to_dataarray(heights, lambda f: with_stats(
+            openness, f, azimuths=az, max_distance=max_distance, **options), "openness",
             dict(units=units, kind=kind, n_azimuths=len(az), max_distance=_attr(max_distance),
                  **_curvature_attrs(curvature, refraction)))
-        return _with_path_attrs(out, snap)
+        return returned(*_with_path_attrs(out, stats, snap), return_stats)
     if is_dask(heights):
         return tiled_product(lambda b, **kw: openness(b, azimuths=azimuths, **kw), heights,
                              max_distance, spacing, np.float64, **options)
@@ -109,10 +114,9 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
         grid = Grid(np.ascontiguousarray(mirrored), grid.dx, grid.dy, grid.z_scale,
                     grid.has_unit, grid.void, grid.field, grid.unit_metres)
         kappa = -kappa
-    angles, _ = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
-                                threads=threads, march_step=1.0, embree_tolerance=1e-4,
-                                progress=progress)
-    _record_snap(snap)
+    angles, stats = _horizon_angles(grid, azimuths, max_distance, kappa, algorithm=algorithm,
+                                    threads=threads, march_step=1.0, embree_tolerance=1e-4,
+                                    progress=progress)
     seen = angles > -math.pi / 2  # an azimuth with a surface point
     count = seen.sum(axis=0)
     mean = np.where(seen, angles, 0.0).sum(axis=0) / np.maximum(count, 1)
@@ -120,4 +124,5 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
     out = 90.0 - np.degrees(mean) if units == "degrees" else math.pi / 2 - mean
     out[count == 0] = np.nan
     grid.voids_to(out, np.nan)
-    return np.ascontiguousarray(grid.to_north_up(out))
+    return returned(np.ascontiguousarray(grid.to_north_up(out)), stats.with_snap(snap),
+                    return_stats)

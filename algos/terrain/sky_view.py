@@ -7,9 +7,10 @@ from ..field import is_dask, is_dataarray
 from ..georef import WGS84_SEMI_MAJOR_AXIS_M
 from .azimuths import _azimuth_list, _rational_map_azimuths, snap_azimuths
 from .curvature import DEFAULT_REFRACTION, _curvature_attrs
-from .dataarray import _attr, _record_snap, _to_dataarray, _with_path_attrs
+from .dataarray import _attr, _to_dataarray, _with_path_attrs
 from .grid import _field_spacing
 from .horizon import horizon
+from .stats import check_return_stats, returned, with_stats
 from .tiled import tiled_product
 
 __all__ = ["sky_view_factor"]
@@ -19,7 +20,7 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
                     azimuths=None, algorithm=None, surface="triangles", spacing=None,
                     curvature=False, refraction=DEFAULT_REFRACTION,
                     earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None,
-                    snap_denominator=None):
+                    snap_denominator=None, return_stats=False):
     """Sky-view factor (Zaksek et al. 2011, as in RVT): 1 - mean_k sin(max(horizon_k, 0)).
 
     Parameters
@@ -42,17 +43,22 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
         Called as ``progress(done, total)`` after each azimuth (in memory only).
     snap_denominator : int, optional
         As in :func:`horizon`: every azimuth snapped to a rational cell direction with
-        q <= snap_denominator, recorded (``LAST_STATS``, DataArray attrs). Default None:
+        q <= snap_denominator, recorded (statistics, DataArray attrs). Default None:
         no snapping (``rational=True`` is the older spelling of snap_denominator=5 for
         the equally spaced azimuths).
+    return_stats : bool
+        As in :func:`horizon`: also return the call's
+        :class:`~algos.terrain.stats.TerrainStats`, as ``(result, stats)``.
 
     Returns
     -------
     float64 array (rows, cols)
         Dimensionless, in [0, 1]; NaN at void vertices; the input's orientation. A
         DataArray gives a DataArray (input's coords, CRS and attrs, and the algorithm of
-        each azimuth: attrs ``algorithm`` and ``paths``).
+        each azimuth: attrs ``algorithm`` and ``paths``). With ``return_stats``, the pair
+        ``(that, TerrainStats)``.
     """
+    check_return_stats(return_stats, heights)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     if azimuths is None:
         if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
@@ -67,27 +73,26 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
         azimuths = snap[0]
     if is_dataarray(heights):
         az = _azimuth_list(azimuths)
-        out = _to_dataarray(heights, lambda f: sky_view_factor(
-            f, azimuths=az, max_distance=max_distance, algorithm=algorithm, surface=surface,
+        out, stats = _to_dataarray(heights, lambda f: with_stats(
+            sky_view_factor, f, azimuths=az, max_distance=max_distance, algorithm=algorithm, surface=surface,
             threads=threads, **curve), "sky_view_factor",
             dict(units="1", n_azimuths=len(az), max_distance=_attr(max_distance),
                  **_curvature_attrs(curvature, refraction)))
-        return _with_path_attrs(out, snap)
+        return returned(*_with_path_attrs(out, stats, snap), return_stats)
     if is_dask(heights):
         return tiled_product(lambda b, **kw: sky_view_factor(b, azimuths=azimuths, **kw),
                              heights, max_distance, spacing, np.float64, algorithm=algorithm,
                              surface=surface, threads=threads, **curve)
-    tangents = horizon(heights, azimuths, max_distance, algorithm=algorithm, surface=surface,
-                       spacing=spacing, threads=threads, progress=progress, _tangents=True,
-                       **curve)
-    _record_snap(snap)
+    tangents, stats = horizon(heights, azimuths, max_distance, algorithm=algorithm,
+                              surface=surface, spacing=spacing, threads=threads,
+                              progress=progress, return_stats=True, _tangents=True, **curve)
     # one azimuth at a time, so each pass stays in the cache (the layers summed in order,
     # as np.mean over the first axis does)
     total = _sin_of_positive_atan(tangents[0])
     for k in range(1, len(tangents)):
         total += _sin_of_positive_atan(tangents[k])
     total /= len(tangents)
-    return 1.0 - total
+    return returned(1.0 - total, stats.with_snap(snap), return_stats)
 
 
 def _sin_of_positive_atan(x):

@@ -28,7 +28,7 @@ from .observers import (
     _touches_void,
 )
 from .reference import line_of_sight_exact, surface_exact
-from .stats import LAST_STATS, TerrainStats
+from .stats import TerrainStats, check_return_stats, returned, with_stats
 from .tiled import tiled_viewshed
 
 __all__ = ["viewshed"]
@@ -176,7 +176,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
              curvature=False, refraction=DEFAULT_REFRACTION, *, algorithm=None,
              surface="triangles", spacing=None, earth_radius=WGS84_SEMI_MAJOR_AXIS_M,
              threads=None, progress=None, mode="normal", visible_value=None,
-             invisible_value=None, out_of_range_value=None, exact=False):
+             invisible_value=None, out_of_range_value=None, exact=False, return_stats=False):
     """Which vertices an observer sees, or what it would take to see them.
 
     Vertex v is visible when the segment from the eye E = (ox, oy, s(ox, oy) +
@@ -279,6 +279,10 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         arithmetic, so this costs several rational walks per vertex with a positive
         threshold (milliseconds each in Python): meant for small fields or windows.
         Ignored by the other modes.
+    return_stats : bool
+        Also return the call's :class:`~algos.terrain.stats.TerrainStats` (the algorithm,
+        C time, cells walked, tiles skipped, vertices settled exactly): ``(result,
+        stats)``. Default False. Refused (ValueError) for a dask input.
 
     Returns
     -------
@@ -293,6 +297,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         * other modes: float64, voids NaN, out of range ``out_of_range_value``.
 
         A DataArray gives a DataArray, with the mode, unit and values as attributes.
+        With ``return_stats``, the pair ``(that, TerrainStats)``.
 
     Raises
     ------
@@ -309,6 +314,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     """
     if mode not in VIEWSHED_MODES:
         raise ValueError(f"mode: expected one of {', '.join(VIEWSHED_MODES)}, got {mode!r}")
+    check_return_stats(return_stats, heights)
     if mode == "observer" and observer_height is not None:
         raise ValueError(f"observer_height: mode='observer' computes the observer height; "
                          f"leave observer_height out (None), got {observer_height!r}")
@@ -342,11 +348,12 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
                             ("out_of_range_value", out_of_range_value)):
             if value is not None:
                 attrs[name] = value
-        return _to_dataarray(heights, lambda f: viewshed(
-            f, observer, observer_height, target_height, max_distance, curvature, refraction,
+        out, stats = _to_dataarray(heights, lambda f: with_stats(
+            viewshed, f, observer, observer_height, target_height, max_distance, curvature, refraction,
             algorithm=algorithm, surface=surface, earth_radius=earth_radius, threads=threads,
             mode=mode, visible_value=visible_value, invisible_value=invisible_value,
             out_of_range_value=out_of_range_value, exact=exact), "viewshed", attrs)
+        return returned(out, stats, return_stats)
     if is_dask(heights) or (isinstance(heights, HeightField) and is_dask(heights.heights)):
         if mode != "normal" or values_given:
             raise ValueError(f"mode: the tiled (dask) viewshed gives visibility only (mode "
@@ -464,9 +471,9 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         grid.voids_to(out, math.nan)
         if progress is not None:
             progress(1, 1)
-        LAST_STATS.__dict__.update(stats.__dict__)
         result = np.ascontiguousarray(grid.to_north_up(out))
-        return result if crop is None else np.ascontiguousarray(result[crop])
+        return returned(result if crop is None else np.ascontiguousarray(result[crop]), stats,
+                        return_stats)
     count = np.zeros(h.shape, dtype=np.uint16)
     valid = h if grid.void is None else np.where(grid.void, h[~grid.void].min(), h)
     scale = _rounding_scale(valid)
@@ -481,7 +488,6 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         if progress is not None:
             progress(k + 1, len(obs))
     grid.voids_to(count, 0)
-    LAST_STATS.__dict__.update(stats.__dict__)
     if values_given:
         small = all(v == int(v) and 0 <= v < VIEWSHED_UINT8_NODATA for v in (vv, iv, ov))
         result = values.astype(np.uint8) if small else values
@@ -489,4 +495,5 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     else:
         result = count.astype(bool) if single else count
     result = np.ascontiguousarray(grid.to_north_up(result))
-    return result if crop is None else np.ascontiguousarray(result[crop])
+    return returned(result if crop is None else np.ascontiguousarray(result[crop]), stats,
+                    return_stats)

@@ -260,16 +260,14 @@ def product_options(args, field):
     return options
 
 
-def _path_tags():
-    """What the product call just made records (``algos.terrain.LAST_STATS``): the
-    algorithm of each azimuth, and with ``--snap-denominator`` the azimuths used and the
-    largest change in degrees."""
-    from algos.terrain import LAST_STATS
-
-    tags = dict(paths=",".join(LAST_STATS.paths))
-    if LAST_STATS.snapped_azimuths:
-        tags.update(snapped_azimuths=[round(a, 12) for a in LAST_STATS.snapped_azimuths],
-                    snap_max_change_deg=LAST_STATS.snap_max_change_deg)
+def _path_tags(stats):
+    """What a product call records in its statistics (``return_stats=True``, an
+    ``algos.terrain.TerrainStats``): the algorithm of each azimuth, and with
+    ``--snap-denominator`` the azimuths used and the largest change in degrees."""
+    tags = dict(paths=",".join(stats.paths))
+    if stats.snapped_azimuths:
+        tags.update(snapped_azimuths=[round(a, 12) for a in stats.snapped_azimuths],
+                    snap_max_change_deg=stats.snap_max_change_deg)
     return tags
 
 
@@ -335,6 +333,8 @@ def terrain_product(args):
     common = dict(algorithm=args.algorithm, threads=args.threads)
     if kind != "viewshed" and args.snap_denominator is not None:
         common["snap_denominator"] = args.snap_denominator
+    # the horizon products' statistics: which path each azimuth took, and any snapping
+    ran = {} if kind == "viewshed" else dict(return_stats=True)
     md = args.max_distance
     params = product_options(args, field)
     band_names, marks, border, cmap = None, None, None, "viridis"
@@ -347,26 +347,28 @@ def terrain_product(args):
         with bar:
             if kind == "svf":
                 result = algos.sky_view_factor(field, args.n_azimuths, md, rational=args.rational,
-                                               azimuths=az, progress=progress, **curve, **common)
+                                               azimuths=az, progress=progress, **curve, **common,
+                                               **ran)
                 product, units, cmap = "sky_view_factor", "1", "cividis"
             elif kind == "openness":
                 result = algos.openness(field, args.kind, args.n_azimuths, md, azimuths=az,
                                         rational=args.rational, units=args.units,
-                                        progress=progress, **curve, **common)
+                                        progress=progress, **curve, **common, **ran)
                 product, units, cmap = f"openness_{args.kind}", args.units, "cividis"
             else:
                 az = az or [0.0]
                 result = algos.horizon(field, az, md, units=args.units, progress=progress,
-                                       **curve, **common)
+                                       **curve, **common, **ran)
                 product, units, cmap = "horizon", args.units, "magma"
                 border = -90.0 if args.units == "degrees" else -math.pi / 2
                 band_names = [f"azimuth {a:g}" for a in az]
     elif kind == "shadows":
         result = algos.shadows(field, args.azimuth, args.elevation, max_distance=md, **curve,
-                               **common)
+                               **common, **ran)
         product, units, cmap = "shadows", "1 = in shadow", "gray_r"
     if kind != "viewshed":  # which path each azimuth took, and any snapping, as tags
-        params.update(_path_tags())
+        result, stats = result
+        params.update(_path_tags(stats))
     else:
         obs = observers(args, field)
         bar, progress = _bar(args, len(obs), f"viewshed {field.name}", "observer")
