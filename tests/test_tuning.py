@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import algos
-from algos.embree_peer import embree_timed, far_bounds
 from algos.intersect import prepare_timed_intersect
+from algos.peers.embree import embree_timed, far_bounds
 from bench.sweep import first_hit_rays
 from datasets_gen import fields
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _kernels
-from ..field import HeightField, is_dataarray, max_mipmap
+from ..field import HeightField, is_dataarray
 from ..parallel import run_ranges
 from ..validate import check_spacing
 
@@ -178,14 +178,3 @@ def _field_spacing(heights, spacing):
     if field is not None:
         return field.dx, field.dy
     return check_spacing(spacing) if spacing is not None else (1.0, 1.0)
-
-
-def _mipmap(h: np.ndarray):
-    """(data, offset, rows, cols): the max-mipmap of the cell maxima in float64 (the
-    levels of :func:`algos.field.max_mipmap`, concatenated for the C walks)."""
-    cell = np.maximum(np.maximum(h[:-1, :-1], h[:-1, 1:]), np.maximum(h[1:, :-1], h[1:, 1:]))
-    levels = max_mipmap(cell)
-    offset = np.cumsum([0] + [lv.size for lv in levels[:-1]]).astype(np.int64)
-    return (np.ascontiguousarray(np.concatenate([lv.ravel() for lv in levels])), offset,
-            np.array([lv.shape[0] for lv in levels], dtype=np.int64),
-            np.array([lv.shape[1] for lv in levels], dtype=np.int64))

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 
+from ..accel.mipmap import terrain_mipmap
 from ..field import is_dask, is_dataarray
 from ..georef import WGS84_SEMI_MAJOR_AXIS_M
 from ..parallel import resolve_threads
@@ -14,7 +15,7 @@ from .azimuths import _azimuth_list, snap_azimuths
 from .curvature import DEFAULT_REFRACTION, _curvature_attrs, _curvature_kappa
 from .dataarray import _attr, _to_dataarray, _with_path_attrs
 from .directions import azimuth_direction
-from .grid import Grid, _check_surface, _field_spacing, _mipmap, _prepare
+from .grid import Grid, _check_surface, _field_spacing, _prepare
 from .stats import TerrainStats, check_return_stats, returned, with_stats
 from .tiled import tiled_product
 from .walks import _horizon_one
@@ -61,7 +62,7 @@ def _horizon_angles(grid: Grid, azimuths, max_distance, kappa, *, algorithm, thr
         paths = [name] * len(directions)
     nthreads = resolve_threads(threads)
     stats = TerrainStats("+".join(dict.fromkeys(paths)), paths=tuple(paths))
-    mip = _mipmap(h) if {"dda_maxmip", "chain"} & set(paths) else None
+    mip = terrain_mipmap(h) if {"dda_maxmip", "chain"} & set(paths) else None
     out = np.empty((len(directions),) + h.shape)
     for k, d in enumerate(directions):
         out[k] = _horizon_one(h, d, paths[k], limits[k], nthreads, mip, stats, step,

@@ -8,6 +8,7 @@ from fractions import Fraction
 import numpy as np
 
 from .. import _kernels
+from ..accel.mipmap import terrain_mipmap
 from ..field import HeightField, is_dask, is_dataarray
 from ..georef import WGS84_SEMI_MAJOR_AXIS_M
 from ..parallel import resolve_threads
@@ -15,7 +16,7 @@ from ..validate import check_length
 from .algorithms import VIEWSHED_ALGORITHMS
 from .curvature import _NO_UNIT_CURVATURE, DEFAULT_REFRACTION
 from .dataarray import _attr, _to_dataarray
-from .grid import _check_surface, _mipmap, _prepare, _run_ranges
+from .grid import _check_surface, _prepare, _run_ranges
 from .observers import (
     DEFAULT_OBSERVER_HEIGHT,
     VIEWSHED_MODES,
@@ -424,7 +425,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
                          f"got {algorithm!r}")
     nthreads = resolve_threads(threads)
     stats = TerrainStats(algorithm)
-    mip = _mipmap(h) if algorithm == "dda_maxmip" and mode not in ("angle",) else None
+    mip = terrain_mipmap(h) if algorithm == "dda_maxmip" and mode not in ("angle",) else None
     jj, ii = np.mgrid[0:h.shape[0], 0:h.shape[1]]
 
     def in_range(ox, oy):

@@ -9,10 +9,11 @@ import time
 import numpy as np
 
 from .. import _kernels
+from ..accel.mipmap import terrain_mipmap
 from ..parallel import run_ranges
 from .algorithms import _pick_horizon_algorithm
 from .directions import Direction, _from_frame, _to_frame, azimuth_direction
-from .grid import _mipmap, _prepare, _run_ranges
+from .grid import _prepare, _run_ranges
 from .patterns import PATTERN_STOP_EVERY, _pattern_arrays, _period_pattern, _shared_pattern
 from .stats import TerrainStats
 
@@ -171,7 +172,7 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
             return _kernels.horizon_march(h, d.dx, d.dy, march_step, md, zmax, start, stop, out,
                                           kappa)
     elif algorithm == "embree":
-        from ..embree_peer import embree_horizon_tangents
+        from ..peers.embree import embree_horizon_tangents
 
         t0 = time.perf_counter_ns()
         out[:] = embree_horizon_tangents(h, d.dx, d.dy, md, tolerance=embree_tolerance,
@@ -203,7 +204,7 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
     rows, cols = h.shape
     n_all = rows * cols
     if name in ("rows", "chain"):
-        mip = _mipmap(h) if name == "chain" else None
+        mip = terrain_mipmap(h) if name == "chain" else None
         latest = [np.full((rows, cols), np.nan)]
 
         def run():
@@ -246,7 +247,7 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
             return res
         return run, values, n_vertices
     if name in ("dda", "dda_maxmip", "march"):
-        mip = _mipmap(h) if name == "dda_maxmip" else None
+        mip = terrain_mipmap(h) if name == "dda_maxmip" else None
         zmax = float(h.max())
 
         def run():
@@ -258,7 +259,7 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
                     total += _kernels.horizon_walk(h, mip, d.dx, d.dy, md, a, b, out)[0]
             return total
         return run, (lambda: out.copy()), n_vertices
-    from ..embree_peer import embree_horizon
+    from ..peers.embree import embree_horizon
 
     peer = embree_horizon(h)  # built once per field, outside the timed call
     vertices = np.concatenate([np.arange(a, b) for a, b in ranges])

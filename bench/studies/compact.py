@@ -37,7 +37,7 @@ import tempfile
 import numpy as np
 
 import algos
-import algos.compact
+import algos.accel.compact
 import datasets_gen
 
 __all__ = ["KERNELS", "STRUCTURES", "CACHE", "QUICK", "FULL", "callgrind_cache_counts",
@@ -87,7 +87,7 @@ def _save_case(size, rays, seed, directory) -> None:
     o, d = first_hit_rays(field, RUN_LENGTH, rays, seed)
     mip = field.mip_for()
     arrays = dict(heights=field.cell_heights, cellmax=field.cellmax_for(), compact=
-                  algos.compact.compact_for(field), origins=o, directions=d,
+                  algos.accel.compact.compact_for(field), origins=o, directions=d,
                   **{f"mip{k}": level for k, level in enumerate(mip) if k > 0})
     for name, a in arrays.items():
         np.save(os.path.join(directory, f"{name}.npy"), a)
@@ -438,7 +438,7 @@ def _write(paths, rows, tier) -> None:
                   f, indent=2, sort_keys=True, default=str)
         f.write("\n")
     lines = ["# The cache-compact maximum tree against the maximum mipmap", "",
-             f"`dda_compact` (`algos.compact`, `cext/compact.c`) against `dda_maxmip`: {DATASET} "
+             f"`dda_compact` (`algos.accel.compact`, `cext/compact.c`) against `dda_maxmip`: {DATASET} "
              f"fields seed 1, {tier['rays']} first-hit rays per side at random azimuths "
              f"(`bench.sweep.first_hit_rays`, seed {SEED}), {SURFACE}, one thread. Both "
              "kernels give the same t bit for bit on these rays (checked while measuring).", "",
