@@ -11,8 +11,8 @@ import pytest
 import algos
 from algos import _kernels
 from algos.accel.compact import NODE_BYTES, build_compact, compact_bounds, compact_layout, compact_leaves, compact_nodes
-from bench.sweep import first_hit_rays
 from datasets_gen import fields
+from datasets_gen.rays import first_hit_rays
 
 
 def _tile_max(cellmax, level):

@@ -77,7 +77,7 @@ def test_cone_equals_the_cell_walk_bit_for_bit(surface, field_name):
     H = fields.generate(field_name, (97, 130), seed=5, amplitude=30.0, scale=40.0) \
         if field_name != "spike" else fields.generate("spike", (97, 130), height=30.0, radius=20.0)
     fld = algos.Field(H)
-    from bench.sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays
 
     groups = [first_hit_rays(fld, r, 200, seed=3 + r) for r in (1, 5, 100)]
     groups.append(_grazing_rays(fld, 300, 9))
@@ -237,7 +237,7 @@ def test_relaxed_slopes_equal_the_definition(seed):
 def test_relaxed_error_is_small_and_shrinks_with_halvings():
     """Approximate by design: measured against the brute force on bench-like rays, where
     nearly every ray agrees on hit or miss and more halvings give smaller errors."""
-    from bench.sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays
 
     H = fields.generate("fbm", (97, 130), seed=5, amplitude=30.0, scale=40.0)
     fld = algos.Field(H)

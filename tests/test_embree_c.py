@@ -10,8 +10,8 @@ import datasets_gen
 from algos.intersect import prepare_timed_intersect
 from algos.peers import embree3 as embree3_peer
 from algos.render import default_camera
-from bench.sweep import first_hit_rays
 from datasets_gen import rays as raysets
+from datasets_gen.rays import first_hit_rays
 
 pytestmark = pytest.mark.skipif(not embree3_peer.available(),
                                 reason=f"C Embree 3 peer: {embree3_peer.unavailable_reason()}")

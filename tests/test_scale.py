@@ -19,7 +19,7 @@ from algos.accel import maxima
 from algos.accel.mipmap import max_mipmap as _mipmap
 from algos.accel.mipmap import tile_max_rows as _tile_max_rows
 from bench import sweep
-from bench.sweep import first_hit_rays
+from datasets_gen.rays import first_hit_rays
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: AddressSanitizer's shadow memory inflates every worker's resident memory: no limits there

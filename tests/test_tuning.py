@@ -9,8 +9,8 @@ import pytest
 import algos
 from algos.intersect import prepare_timed_intersect
 from algos.peers.embree import embree_timed, far_bounds
-from bench.sweep import first_hit_rays
 from datasets_gen import fields
+from datasets_gen.rays import first_hit_rays
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,8 @@ import numpy as np
 
 import algos
 
-from .terrain import _azimuths, check_options, load_terrain, observers, output_prefix, product_options
+from .terrain_field import load_terrain
+from .terrain_options import azimuths_option, check_options, observers, output_prefix, product_options
 
 __all__ = ["GeoTiffTarget", "run_product", "terrain_product_dask"]
 
@@ -166,13 +167,13 @@ def terrain_product_dask(args):
     if kind in ("horizon", "openness"):
         options["units"] = args.units
     if kind == "horizon":
-        options["azimuths"] = _azimuths(args) or [0.0]
+        options["azimuths"] = azimuths_option(args) or [0.0]
     elif kind == "svf":
-        if _azimuths(args):
+        if azimuths_option(args):
             raise ValueError("--azimuths: not available with --dask for svf; use --n-azimuths")
         options.update(n_azimuths=args.n_azimuths, rational=args.rational)
     elif kind == "openness":
-        if _azimuths(args):
+        if azimuths_option(args):
             raise ValueError("--azimuths: not available with --dask for openness; use "
                              "--n-azimuths")
         options.update(n_azimuths=args.n_azimuths, rational=args.rational,

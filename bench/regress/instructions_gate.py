@@ -36,7 +36,7 @@ import json, sys
 import numpy as np
 import algos
 from algos.intersect import prepare_timed_intersect
-from bench.sweep import first_hit_rays, traversal_rays
+from datasets_gen.rays import first_hit_rays, traversal_rays
 spec = json.loads(sys.argv[1])
 heights = np.load(spec["heights"])
 field = algos.Field(heights)

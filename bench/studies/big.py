@@ -19,7 +19,7 @@ from algos.intersect import prepare_timed_intersect
 from datasets_gen import fields
 
 from ..timing import resident_bytes
-from .scaling import growth_rays
+from .scaling_workload import growth_rays
 
 __all__ = ["run_big", "big_item", "BIG_ITEMS"]
 

@@ -41,8 +41,9 @@ import numpy as np
 import algos
 import datasets_gen
 from algos.intersect import prepare_timed_intersect
+from datasets_gen.rays import first_hit_rays
 
-from ..sweep import first_hit_rays, hit_agreement
+from ..sweep import hit_agreement
 from ..timing import REGIMES, environment, pin_to_one_cpu, timed_in_regime, write_json
 
 __all__ = ["run", "TIERS", "PACKET_KERNEL", "COMPACT_KERNEL", "PER_RAY_KERNEL", "COLUMNS"]
@@ -249,7 +250,7 @@ def run(out_dir="results/targets", tier="quick", regime="warm", seed=2008, count
         del field
 
     # 4. runs_periodic vs runs, parallel first hits
-    from .terrain import orthographic_rays
+    from datasets_gen.rays import orthographic_rays
 
     name, side = cfg["parallel"]
     field = _load_field(name, side)
