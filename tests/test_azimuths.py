@@ -1,4 +1,4 @@
-"""Every azimuth fast (issue 21): the chain walk and the row-vectorised pattern against the
+"""Every azimuth fast: the chain walk and the row-vectorised pattern against the
 exact reference and the other exact methods, the paths each azimuth takes, and explicit
 snapping to rational directions."""
 import math

@@ -1,4 +1,4 @@
-"""Curvature and refraction on the horizon family (issue 21): horizon, shadows and the
+"""Curvature and refraction on the horizon family: horizon, shadows and the
 sky-view factor against the curvature-aware exact reference (algos.terrain.reference), the
 issue's worked example, a closed-form peak inside a linear piece, routing and validation.
 """

@@ -1,4 +1,4 @@
-"""Topographic openness (Yokoyama, Shirasawa & Pike 2002; issue 21): closed-form terrains,
+"""Topographic openness (Yokoyama, Shirasawa & Pike 2002): closed-form terrains,
 the exact horizons it comes from, voids, curvature, units, and RVT where rvt-py installs."""
 import math
 import warnings

@@ -1,4 +1,4 @@
-"""Terrain products (issue 11): every algorithm against the exact references of
+"""Terrain products: every algorithm against the exact references of
 algos.terrain.reference, the conventions (azimuth, ties, units), and bad input."""
 import math
 
@@ -244,7 +244,7 @@ def test_threads_bit_identical():
 def test_heightfield_units_and_north():
     """A HeightField's spacing makes heights and lengths metres; fields whose rows run
     north (north='+y', as jacksboro) are flipped so that azimuths stay geographic.
-    (Updated with issue 19: heights are now in the unit of the spacing; heights in cells
+    (Heights are in the unit of the spacing; heights in cells
     say so with height_unit='cell'.)"""
     rng = np.random.default_rng(5)
     h = rng.integers(0, 5, size=(8, 9)).astype(np.float32)

@@ -1,4 +1,4 @@
-"""Viewshed modes and options (issue 21): GDAL's output values (-vv/-iv/-ov) and output
+"""Viewshed modes and options: GDAL's output values (-vv/-iv/-ov) and output
 modes (-om NORMAL|DEM|GROUND), xarray-spatial's minimum observable height and view angle,
 observers and targets below the ground, one-row and one-column rasters.
 

@@ -1,4 +1,4 @@
-"""``hftrace terrain-bench``, part "every azimuth fast" (issue 21): the horizon at RVT's 16
+"""``hftrace terrain-bench``, part "every azimuth fast": the horizon at RVT's 16
 equally spaced azimuths on Jacksboro (unlimited distance, one thread), per azimuth class
 and path, with the walk's counts; and the sky-view factor at short and long radii against
 RVT (rvt-py's own vectorised code when it imports) and against a NumPy baseline of RVT's
@@ -178,7 +178,7 @@ def run_azimuths(size=2048, svf_size=512, radii=RADII, repeats=3, baseline=True,
 
     echo(f"  every azimuth fast: jacksboro {size}, svf {svf_size}^2")
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
-    lines = ["# Every azimuth fast (issue 21)", "",
+    lines = ["# Every azimuth fast", "",
              f"Load average at the start: {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} "
              "(timings on a loaded machine are indicative only). Command: "
              "`hftrace terrain-bench` (or `--quick` for the small tier).", ""]
