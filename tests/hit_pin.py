@@ -18,9 +18,9 @@ import os
 import numpy as np
 
 import algos
-from bench.sweep import first_hit_rays
 from datasets_gen import fields
 from datasets_gen import rays as raysets
+from datasets_gen.rays import first_hit_rays
 
 from .helpers import first_hit_fields
 
