@@ -57,6 +57,8 @@ from dataclasses import field as dc_field
 import numpy as np
 
 from . import hugepages
+from .accel.maxima import BAND_SAMPLES, RMQ_BLOCK_SHIFT, band_rows, cellmax_rows, range_max
+from .accel.mipmap import max_mipmap, tile_max_rows
 from .decode import decode
 from .georef import (
     LINEAR_UNITS,
@@ -72,98 +74,6 @@ from .validate import as_float_array, check_heights, check_spacing
 
 __all__ = ["HeightField", "Field", "RMQ_BLOCK_SHIFT", "as_field", "bound_kind", "max_mipmap",
            "is_dask", "is_dataarray", "BAND_SAMPLES"]
-
-RMQ_BLOCK_SHIFT = 3
-
-
-#: samples per band of the streaming passes (their temporaries stay this small)
-BAND_SAMPLES = 1 << 20
-
-
-def _band_rows(cols: int) -> int:
-    return max(1, BAND_SAMPLES // max(cols, 1))
-
-
-def _cellmax_rows(h: np.ndarray, kind: str, r0: int, r1: int) -> np.ndarray:
-    """Rows ``r0:r1`` of the cell maxima (see the module docstring), from heights rows
-    ``r0:r1 + 1`` only."""
-    a = h[r0:r1 + 1]
-    top = np.maximum(np.maximum(a[:-1, :-1], a[:-1, 1:]), np.maximum(a[1:, :-1], a[1:, 1:]))
-    if kind == "plane3":
-        # float64, rounded up to float32: the bound must not fall below the value
-        fourth = a[:-1, 1:].astype(np.float64) + a[1:, :-1] - a[:-1, :-1]
-        fourth32 = fourth.astype(np.float32)
-        fourth32 = np.where(fourth32 < fourth, np.nextafter(fourth32, np.float32(np.inf)), fourth32)
-        top = np.maximum(top, fourth32)
-    return np.ascontiguousarray(top, dtype=np.float32)
-
-
-def _tile_max_rows(h: np.ndarray, kind: str, level: int) -> np.ndarray:
-    """Mipmap level ``level`` (maxima over 2^level x 2^level cells) straight from the
-    heights, one band of tile rows at a time: no full-size cellmax."""
-    size = 1 << level
-    ny, nx = h.shape[0] - 1, h.shape[1] - 1
-    out_rows, out_cols = -(-ny // size), -(-nx // size)
-    out = hugepages.empty((out_rows, out_cols), np.float32)
-    tiles_per_band = max(1, _band_rows(h.shape[1]) // size)
-    for t0 in range(0, out_rows, tiles_per_band):
-        t1 = min(out_rows, t0 + tiles_per_band)
-        cm = _cellmax_rows(h, kind, t0 * size, min(ny, t1 * size))
-        padded = np.full(((t1 - t0) * size, out_cols * size), -np.inf, dtype=np.float32)
-        padded[:cm.shape[0], :nx] = cm
-        out[t0:t1] = padded.reshape(t1 - t0, size, out_cols, size).max(axis=(1, 3))
-    return out
-
-
-def _range_max(lines: np.ndarray, shift: int):
-    """(values, prefix, suffix, sparse, shift) for range maxima along axis 1."""
-    values = np.ascontiguousarray(lines, dtype=np.float32)
-    n_lines, length = values.shape
-    block = 1 << shift
-    n_blocks = -(-length // block)
-    padded = np.full((n_lines, n_blocks * block), -np.inf, dtype=np.float32)
-    padded[:, :length] = values
-    blocks = padded.reshape(n_lines, n_blocks, block)
-    prefix = np.maximum.accumulate(blocks, axis=2).reshape(n_lines, -1)[:, :length]
-    suffix = np.maximum.accumulate(blocks[:, :, ::-1], axis=2)[:, :, ::-1].reshape(n_lines, -1)[:, :length]
-    n_levels = 1
-    while (2 << (n_levels - 1)) <= n_blocks:
-        n_levels += 1
-    sparse = np.empty((n_lines, n_levels, n_blocks), dtype=np.float32)
-    sparse[:, 0] = blocks.max(axis=2)
-    for level in range(1, n_levels):
-        half = 1 << (level - 1)
-        prev = sparse[:, level - 1]
-        sparse[:, level] = prev
-        sparse[:, level, : n_blocks - half] = np.maximum(prev[:, : n_blocks - half], prev[:, half:])
-    return (values, np.ascontiguousarray(prefix), np.ascontiguousarray(suffix), sparse, shift)
-
-
-def _halve(a: np.ndarray) -> np.ndarray:
-    """Maxima over 2 x 2 blocks (a side of odd length padded with -inf), in bands of
-    rows: the extra memory is a band, not a copy of ``a``."""
-    r, c = a.shape
-    rows_out, cols_out = -(-r // 2), -(-c // 2)
-    out = hugepages.empty((rows_out, cols_out), a.dtype)
-    step = max(1, _band_rows(c) // 2)
-    for o0 in range(0, rows_out, step):
-        o1 = min(rows_out, o0 + step)
-        block = a[2 * o0:min(r, 2 * o1)]
-        padded = np.full((2 * (o1 - o0), 2 * cols_out), -np.inf, dtype=a.dtype)
-        padded[:block.shape[0], :c] = block
-        out[o0:o1] = padded.reshape(o1 - o0, 2, cols_out, 2).max(axis=(1, 3))
-    return out
-
-
-def max_mipmap(cellmax: np.ndarray) -> list[np.ndarray]:
-    """The levels of the maximum mipmap of ``cellmax``: level 0 is ``cellmax``, level k+1
-    the maxima over 2 x 2 blocks of level k (odd sides padded with -inf), down to 1 x 1."""
-    levels = [cellmax]
-    while max(levels[-1].shape) > 1:
-        levels.append(_halve(levels[-1]))
-    return levels
-
-
 
 
 def is_dask(x) -> bool:
@@ -383,7 +293,7 @@ class HeightField:
             return mask if mask.any() else None
         if is_dask(self.heights):
             return None
-        step = _band_rows(self.cols)
+        step = band_rows(self.cols)
         bands = [(r0, ~np.isfinite(self.heights[r0:r0 + step]))
                  for r0 in range(0, self.rows, step)]
         if not any(b.any() for _, b in bands):
@@ -636,10 +546,10 @@ class HeightField:
 
         def make():  # in bands: the only full-size array is the result
             out = hugepages.empty((self.rows - 1, self.cols - 1), np.float32)
-            step = _band_rows(self.cols)
+            step = band_rows(self.cols)
             for r0 in range(0, self.rows - 1, step):
                 r1 = min(self.rows - 1, r0 + step)
-                out[r0:r1] = _cellmax_rows(h, kind, r0, r1)
+                out[r0:r1] = cellmax_rows(h, kind, r0, r1)
             return out
 
         return self._build(self._key("cellmax", kind), make)
@@ -654,11 +564,11 @@ class HeightField:
 
     def row_max_for(self, kind="corners"):
         return self._build(self._key("row_max", kind),
-                           lambda: _range_max(self.cellmax_for(kind), RMQ_BLOCK_SHIFT))
+                           lambda: range_max(self.cellmax_for(kind), RMQ_BLOCK_SHIFT))
 
     def col_max_for(self, kind="corners"):
         return self._build(self._key("col_max", kind),
-                           lambda: _range_max(self.cellmax_for(kind).T, RMQ_BLOCK_SHIFT))
+                           lambda: range_max(self.cellmax_for(kind).T, RMQ_BLOCK_SHIFT))
 
     def mip_for(self, kind="corners", from_level=0) -> list:
         """The maximum mipmap; with ``from_level`` > 0 (the lean layout) the levels below
@@ -669,7 +579,7 @@ class HeightField:
 
         def make():
             return [None] * from_level + max_mipmap(
-                _tile_max_rows(self.cell_heights, kind, from_level))
+                tile_max_rows(self.cell_heights, kind, from_level))
 
         return self._build(self._key(f"mip{from_level}", kind), make)
 

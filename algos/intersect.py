@@ -12,8 +12,9 @@ from dataclasses import field as dc_field
 import numpy as np
 
 from . import _kernels, plugin_calls
-from .compact import compact_for
-from .cone import cone_for, relaxed_cone_for
+from .accel.compact import compact_for
+from .accel.cone import cone_for, relaxed_cone_for
+from .accel.mipmap import mip_levels
 from .field import HeightField, as_field, bound_kind
 from .parallel import resolve_threads, run_ranges, split
 from .registry import SURFACES, get_intersector
@@ -189,11 +190,11 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         return _plugin_hits(hits, algorithm, fld, o, d, lo, hi, outputs)
 
     if algorithm.name == "embree3":
-        from .embree3_peer import embree3_hits
+        from .peers.embree3 import embree3_hits
 
         t, cell, normal, elapsed = embree3_hits(fld, o, d, lo, hi, threads=nthreads, **opts)
     elif algorithm.kind == "peer":
-        from .embree_peer import embree_hits
+        from .peers.embree import embree_hits
 
         t, cell, normal, elapsed = embree_hits(fld, o, d, lo, hi, threads=nthreads)
     if algorithm.kind == "peer":
@@ -239,20 +240,20 @@ class _Prepared:
         col_max = fld.col_max_for(kind) if run_culling else None
         fine_level = int(opts.get("fine_level", 0))
         if "mip" in uses:
-            levels = _mip_levels(fld.rows - 1, fld.cols - 1)
+            levels = mip_levels(fld.rows - 1, fld.cols - 1)
             fine_level = min(fine_level, levels - 1)
             mip = fld.mip_for(kind, from_level=fine_level if lean else 0)
         else:
             mip = None
         cellmax = None if lean else fld.cellmax_for(kind)
-        # the cone kernel's structure (algos.cone), passed before the common arguments
+        # the cone kernel's structure (algos.accel.cone), passed before the common arguments
         if "cone" in uses:
             self.cone = cone_for(fld, kind)
         elif "cone_relaxed" in uses:
             self.cone = relaxed_cone_for(fld, kind)
         else:
             self.cone = None
-        # dda_compact's tree (algos.compact), passed before the common arguments
+        # dda_compact's tree (algos.accel.compact), passed before the common arguments
         self.compact = compact_for(fld, kind) if "compact" in uses else None
         q = int(opts.get("max_denominator") or 0)
         pattern = np.zeros(q + 1, np.int32) if q else None
@@ -302,14 +303,6 @@ class _Prepared:
         return self.t, self.cell, self.normal, self.stats
 
 
-def _mip_levels(ny: int, nx: int) -> int:
-    """Levels of the maximum mipmap of an ny x nx cell grid (down to 1 x 1)."""
-    levels, r, c = 1, ny, nx
-    while max(r, c) > 1:
-        r, c, levels = -(-r // 2), -(-c // 2), levels + 1
-    return levels
-
-
 def prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts, threads=1):
     return _Prepared(algorithm, fld, surface, o, d, lo, hi, outputs, opts, threads)
 
@@ -324,14 +317,14 @@ def prepare_timed_intersect(name, heights, origins, directions, surface="triangl
     fld = as_field(heights)
     o, d = check_rays3(origins, directions)
     if algorithm.name == "embree3":
-        from .embree3_peer import embree3_timed
+        from .peers.embree3 import embree3_timed
 
         return embree3_timed(fld, o, d, threads=resolve_threads(threads),
                              **_options(algorithm, options))
     if algorithm.kind == "peer":
-        from .embree_peer import embree_timed
+        from .peers.embree import embree_timed
 
-        # the peer's fastest documented configuration (embree_peer.embree_timed)
+        # the peer's fastest documented configuration (algos.peers.embree.embree_timed)
         return embree_timed(fld, o, d, threads=resolve_threads(threads))
     if algorithm.plugin is not None:
         _options(algorithm, options)  # a plugin takes none: an option given is refused

@@ -138,8 +138,8 @@ class Intersector:
         None for a peer run from Python.
     kind : str
         ``"traversal"`` (a 2D traversal plus per-cell tests), ``"maxmip"``,
-        ``"compact"`` (the compact maximum tree, ``algos.compact``),
-        ``"cone"`` (cone step mapping, ``algos.cone``), ``"march"`` (ray marching),
+        ``"compact"`` (the compact maximum tree, ``algos.accel.compact``),
+        ``"cone"`` (cone step mapping, ``algos.accel.cone``), ``"march"`` (ray marching),
         ``"peer"`` or ``"plugin"`` (registered through ``algos.plugins``).
     accuracy : str
         ``"exact"``: exact traversal, float64 surface tests; equals the brute force up
@@ -245,7 +245,7 @@ INTERSECTOR_REGISTRY.update({
 
 
 def _register_embree3():
-    """The C Embree 3 peer (``algos.embree3_peer``), registered next to ``embree`` only
+    """The C Embree 3 peer (``algos.peers.embree3``), registered next to ``embree`` only
     where it is built (setup.py finds embree3/rtcore.h); elsewhere it is absent."""
     from importlib.util import find_spec
 

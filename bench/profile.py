@@ -94,11 +94,9 @@ def _first_hit_rays(field, spec):
     """The spec's first-hit rays: the sweep's random-origin rays at run length r, or with
     ``parallel`` one batch of parallel rays of slope 1/r (orthographic, falling at 10
     degrees), the workload runs_periodic is built for."""
-    from bench.studies.terrain import orthographic_rays
-    from bench.sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays, orthographic_rays
 
     if spec.get("parallel"):
-
         h = field.heights
         return orthographic_rays((h.shape[1] - 1, h.shape[0] - 1), int(spec["r"]),
                                  spec["rays"], spec["seed"], top=field.hmax)
@@ -111,7 +109,7 @@ def prepared_batch(spec: dict):
     import algos
     import datasets_gen
     from algos.intersect import prepare_timed_intersect
-    from bench.sweep import traversal_rays
+    from datasets_gen.rays import traversal_rays
 
     heights = datasets_gen.load(spec["dataset"], size=spec["size"], seed=1).heights
     workload = spec["workload"]
@@ -133,7 +131,7 @@ def _visited(spec: dict) -> tuple[float, float]:
     """Total cells and runs the batch visits (a native run of the same rays)."""
     import algos
     import datasets_gen
-    from bench.sweep import traversal_rays
+    from datasets_gen.rays import traversal_rays
 
     heights = datasets_gen.load(spec["dataset"], size=spec["size"], seed=1).heights
     if spec["workload"] == "first_hit":

@@ -47,7 +47,7 @@ import numpy as np
 import algos
 import datasets_gen
 from algos.intersect import prepare_timed_intersect
-from datasets_gen import rays as raysets
+from datasets_gen.rays import coherent_rays, traversal_rays
 
 from . import load as machine_load
 from .report import RowWriter, results_row_check, scan_csv
@@ -66,7 +66,7 @@ from .timing import (
 
 __all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "run_sweep_dask", "COLUMNS",
            "RUN_COLUMNS", "config_hash", "new_run", "scan_results", "row_key", "WORKLOADS",
-           "first_hit_rays", "traversal_rays", "measure_group", "dask_client"]
+           "measure_group", "dask_client"]
 
 WORKLOADS = ("visit", "runs", "first_hit")
 BASELINE = "dda"
@@ -85,14 +85,6 @@ COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "r
 RUN_COLUMNS = ("run_id", "machine", "config_hash", "started")
 #: Columns a whole sweep row never leaves empty (``bench.report.scan_csv``)
 REQUIRED = ("algorithm", "workload", "dataset", "run_length", "rays", "repeats", "seed")
-#: Ray batches of a first-hit group, from incoherent to coherent (docs/METHOD.md, "Cache
-#: regimes and coherence"): "random" origins over the field at azimuth atan(1/r) in all
-#: octants; "parallel" rays of one direction, slope 1/r (orthographic, sun shadows);
-#: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels);
-#: "level" and "orthographic" that view with ``render``'s level and orthographic
-#: projections, whose image columns are vertical planes (the batches ``plane_maxmip``
-#: traces a plane at a time).
-COHERENCE = ("random", "parallel", "camera", "level", "orthographic")
 _KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
          "run_lengths", "datasets", "plugins", "precision", "group_budget", "call_ms", "flush"}
 _DATASET_KEYS = {"name", "size", "seed", "params"}
@@ -273,24 +265,6 @@ def groups(cfg):
     return out
 
 
-def traversal_rays(shape, r, n, seed):
-    """The 2D rays of a traversal group: ``datasets_gen.rays.by_run_length`` with origins
-    inside ``shape`` (nx, ny) and parallel rays consecutive; (origins, directions)."""
-    rs = raysets.by_run_length(r, n, shape, seed, origins="inside", order="octant")
-    return rs.origins, rs.directions
-
-
-def first_hit_rays(field, r, n, seed):
-    """First-hit rays: the traversal rays of ``field``'s grid, each falling at an elevation
-    drawn from 5 to 20 degrees, from one cell above the field's highest point;
-    (origins, directions) of shape (n, 3), unit directions."""
-    rows, cols = field.heights.shape
-    rs = raysets.by_run_length(r, n, (cols - 1, rows - 1), seed, origins="inside",
-                               order="octant", elevation=(5.0, 20.0),
-                               height=float(field.heights.max()) + 1.0)
-    return rs.origins, rs.directions
-
-
 def hit_agreement(t, reference, tolerance) -> float:
     """Fraction of rays with the reference's hit/miss and, where both hit,
     |t - t_ref| <= tolerance (1 + |t_ref|)."""
@@ -327,34 +301,6 @@ def _time_limits(names, workload):
 #: The current field's rays by (kind, r, n, seed) and references by (workload, surface,
 #: r, n, seed): groups of other surfaces or workloads reuse them instead of drawing again.
 _RAYS: dict = {"field": None, "rays": {}, "refs": {}}
-
-
-def coherent_rays(field, coherence, r, n, seed):
-    """First-hit rays (origins, directions), (N, 3), of one :data:`COHERENCE` kind:
-    "random" is :func:`first_hit_rays`; "parallel" n orthographic rays of slope 1/r
-    falling at 10 degrees; "camera" the pinhole rays of ``render``'s default camera, 16:9
-    with about n pixels (``r`` unused); "level" and "orthographic" the same view and size
-    through ``datasets_gen.rays.level_camera`` and ``orthographic``."""
-    if coherence == "random":
-        return first_hit_rays(field, r, n, seed)
-    rows_, cols_ = field.heights.shape
-    if coherence == "parallel":
-        if r == "random":
-            raise ValueError("coherence: parallel rays need a numeric run length, got 'random'")
-        rs = raysets.parallel(n, (cols_ - 1, rows_ - 1), seed, rational=(1, int(round(float(r)))),
-                              height=float(field.hmax) + 1.0, elevation=10.0)
-        return rs.origins, rs.directions
-    if coherence in ("camera", "level", "orthographic"):
-        from algos.render import default_camera
-
-        width = max(2, int(round(math.sqrt(n * 16 / 9))))
-        height = max(2, int(round(width * 9 / 16)))
-        position, look_at = default_camera(field.heights)
-        camera = {"camera": raysets.pinhole, "level": raysets.level_camera,
-                  "orthographic": raysets.orthographic}[coherence]
-        rs = camera(position, look_at, 60.0, width, height)
-        return rs.origins, rs.directions
-    raise ValueError(f"coherence: expected one of {', '.join(COHERENCE)}, got {coherence!r}")
 
 
 def _group_rays(field, workload, surface, r, rays, seed, coherence="random"):
@@ -395,7 +341,7 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
     """Rows for one group: every algorithm on the same rays, interleaved. With
     ``keep_samples`` each row also holds ``ratio_samples``, the per-round paired ratios
     time(baseline) / time(algorithm). ``regime`` is the cache regime
-    (``bench.timing.REGIMES``) and ``coherence`` the ray batch (:data:`COHERENCE`; first
+    (``bench.timing.REGIMES``) and ``coherence`` the ray batch (``datasets_gen.rays.COHERENCE``; first
     hits only); both are recorded in every row.
 
     Two designs (docs/METHOD.md, "Paired rounds"):

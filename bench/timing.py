@@ -520,7 +520,7 @@ def _embree_info() -> dict:
     try:
         import importlib.metadata
 
-        from algos.embree_peer import ROBUST, embree_version
+        from algos.peers.embree import ROBUST, embree_version
 
         return {"embreex": importlib.metadata.version("embreex"), "embree": embree_version(),
                 "embree_robust": ROBUST,

@@ -18,8 +18,9 @@ import numpy as np
 from algos.camera import pinhole_frame, primary_directions
 
 __all__ = ["RaySet", "by_run_length", "uniform", "isotropic", "lattice", "octant_directions",
-           "mean_run_length", "pinhole", "level_camera", "orthographic", "parallel", "adversarial", "first_hit_hazards",
-           "HAZARD_FAMILIES"]
+           "mean_run_length", "pinhole", "level_camera", "orthographic_camera", "parallel",
+           "adversarial", "first_hit_hazards", "HAZARD_FAMILIES", "traversal_rays",
+           "first_hit_rays", "coherent_rays", "orthographic_rays", "COHERENCE"]
 
 
 @dataclass(frozen=True)
@@ -114,7 +115,7 @@ def by_run_length(r, n, shape, seed, *, jitter=0.0, origins="inside", order="ind
         Degrees below the horizon, for 3D rays. A float: every ray at that elevation,
         unit ``(x, y)`` and ``z = -tan(elevation)``. A pair: each ray at an elevation
         drawn uniformly from ``[low, high]`` by a second stream seeded ``seed + 1``, with
-        unit 3D directions (the first-hit rays of ``bench.sweep.first_hit_rays``).
+        unit 3D directions (the first-hit rays of :func:`first_hit_rays`).
     height : float
         Origin height of 3D rays (``z``, in cell units).
 
@@ -250,7 +251,7 @@ def level_camera(position, look_at, fov, width, height):
                              height=int(height), shift=shift))
 
 
-def orthographic(position, look_at, fov, width, height):
+def orthographic_camera(position, look_at, fov, width, height):
     """Primary rays of an orthographic camera without roll
     (``algos.plane_cameras.orthographic_rays``: unit directions from ``position`` to
     ``look_at``, origins on the vertical film through ``position``, so every image
@@ -424,3 +425,71 @@ def first_hit_hazards(shape, seed, per_family=40, families=HAZARD_FAMILIES[:5]):
     return RaySet(np.concatenate([o[f] for f in chosen]), np.concatenate([d[f] for f in chosen]),
                   dict(kind="first_hit_hazards", shape=tuple(shape), seed=seed, per_family=k,
                        families=tuple(chosen), family=np.repeat(chosen, k)))
+
+
+# ---- the ray sets of the benchmark groups -----------------------------------------------
+# what a sweep group, a study or a test traces: every measurement of one (run length,
+# count, seed) traces the same rays, whichever module draws them
+
+#: Ray batches of a first-hit group, from incoherent to coherent (docs/METHOD.md, "Cache
+#: regimes and coherence"): "random" origins over the field at azimuth atan(1/r) in all
+#: octants; "parallel" rays of one direction, slope 1/r (orthographic, sun shadows);
+#: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels);
+#: "level" and "orthographic" that view with ``render``'s level and orthographic
+#: projections, whose image columns are vertical planes (the batches ``plane_maxmip``
+#: traces a plane at a time).
+COHERENCE = ("random", "parallel", "camera", "level", "orthographic")
+
+
+def traversal_rays(shape, r, n, seed):
+    """The 2D rays of a traversal group: :func:`by_run_length` with origins
+    inside ``shape`` (nx, ny) and parallel rays consecutive; (origins, directions)."""
+    rs = by_run_length(r, n, shape, seed, origins="inside", order="octant")
+    return rs.origins, rs.directions
+
+
+def first_hit_rays(field, r, n, seed):
+    """First-hit rays: the traversal rays of ``field``'s grid, each falling at an elevation
+    drawn from 5 to 20 degrees, from one cell above the field's highest point;
+    (origins, directions) of shape (n, 3), unit directions."""
+    rows, cols = field.heights.shape
+    rs = by_run_length(r, n, (cols - 1, rows - 1), seed, origins="inside",
+                               order="octant", elevation=(5.0, 20.0),
+                               height=float(field.heights.max()) + 1.0)
+    return rs.origins, rs.directions
+
+
+def orthographic_rays(shape, r, n, seed, elevation_deg=10.0, top=None):
+    """n parallel rays of octant slope 1/r (direction (r, 1) scaled), falling at
+    elevation_deg, origins spread over the field one cell above ``top``:
+    :func:`parallel`; (origins, directions) of shape (n, 3)."""
+    rs = parallel(n, shape, seed, rational=(1, r), height=float(top) + 1.0,
+                  elevation=elevation_deg)
+    return rs.origins, rs.directions
+
+
+def coherent_rays(field, coherence, r, n, seed):
+    """First-hit rays (origins, directions), (N, 3), of one :data:`COHERENCE` kind:
+    "random" is :func:`first_hit_rays`; "parallel" n orthographic rays of slope 1/r
+    falling at 10 degrees; "camera" the pinhole rays of ``render``'s default camera, 16:9
+    with about n pixels (``r`` unused); "level" and "orthographic" the same view and size
+    through :func:`level_camera` and :func:`orthographic_camera`."""
+    if coherence == "random":
+        return first_hit_rays(field, r, n, seed)
+    rows_, cols_ = field.heights.shape
+    if coherence == "parallel":
+        if r == "random":
+            raise ValueError("coherence: parallel rays need a numeric run length, got 'random'")
+        return orthographic_rays((cols_ - 1, rows_ - 1), int(round(float(r))), n, seed,
+                                 top=field.hmax)
+    if coherence in ("camera", "level", "orthographic"):
+        from algos.render import default_camera
+
+        width = max(2, int(round(math.sqrt(n * 16 / 9))))
+        height = max(2, int(round(width * 9 / 16)))
+        position, look_at = default_camera(field.heights)
+        camera = {"camera": pinhole, "level": level_camera,
+                  "orthographic": orthographic_camera}[coherence]
+        rs = camera(position, look_at, 60.0, width, height)
+        return rs.origins, rs.directions
+    raise ValueError(f"coherence: expected one of {', '.join(COHERENCE)}, got {coherence!r}")

@@ -21,9 +21,9 @@ import os
 import numpy as np
 
 import algos
-from bench.sweep import first_hit_rays
 from datasets_gen import fields
 from datasets_gen import rays as raysets
+from datasets_gen.rays import first_hit_rays
 
 from .helpers import first_hit_fields
 
@@ -50,7 +50,7 @@ def cases():
         out.append((f"fbm257-r{r}", H, o, d))
     # vertical planes: image columns of a level and an orthographic camera, low over fBm
     position, look_at = (12.5, 20.25, float(H.max()) * 0.7), (200.0, 150.0, float(H.mean()))
-    for camera in (raysets.level_camera, raysets.orthographic):
+    for camera in (raysets.level_camera, raysets.orthographic_camera):
         rs = camera(position, look_at, 60.0, 32, 18)
         out.append((f"fbm257-{rs.params['kind']}", H, rs.origins, rs.directions))
     return out

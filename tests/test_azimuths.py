@@ -1,4 +1,4 @@
-"""Every azimuth fast (issue 21): the chain walk and the row-vectorised pattern against the
+"""Every azimuth fast: the chain walk and the row-vectorised pattern against the
 exact reference and the other exact methods, the paths each azimuth takes, and explicit
 snapping to rational directions."""
 import math
@@ -8,7 +8,7 @@ import pytest
 
 import algos.terrain as T
 from algos import _kernels
-from algos.terrain_ref import horizon_reference
+from algos.terrain.reference import horizon_reference
 
 #: RVT's default: 16 equally spaced azimuths; the odd ones (22.5 + k 45) are irrational
 SIXTEEN = [22.5 * k for k in range(16)]
@@ -48,8 +48,8 @@ def test_chain_matches_dda_on_long_horizons(seed):
     h = _field(seed, (57, 64), kind="peaks")
     for az in SIXTEEN + [3.3]:
         want = T.horizon(h, az, algorithm="dda")
-        got = T.horizon(h, az, algorithm="chain")
-        assert T.LAST_STATS.bounded > 0.5 * h.size, (az, T.LAST_STATS)
+        got, stats = T.horizon(h, az, algorithm="chain", return_stats=True)
+        assert stats.bounded > 0.5 * h.size, (az, stats)
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-12, err_msg=f"seed={seed} az={az!r}")
 
 
@@ -91,15 +91,15 @@ def test_default_paths_per_azimuth():
     walk for the others, and the row-vectorised pattern for short radii; the result says
     which, per azimuth."""
     h = _field(9, (12, 15))
-    T.horizon(h, SIXTEEN)
-    assert T.LAST_STATS.paths == tuple("sweep" if k % 2 == 0 else "chain" for k in range(16))
-    assert T.LAST_STATS.algorithm == "sweep+chain"
-    T.horizon(h, SIXTEEN, max_distance=10.0)
-    assert set(T.LAST_STATS.paths) == {"rows"}
-    T.horizon(h, SIXTEEN, max_distance=1000.0)
-    assert set(T.LAST_STATS.paths) == {"chain"}
-    T.horizon(h, SIXTEEN, algorithm="dda")
-    assert T.LAST_STATS.paths == ("dda",) * 16 and T.LAST_STATS.algorithm == "dda"
+    stats = T.horizon(h, SIXTEEN, return_stats=True)[1]
+    assert stats.paths == tuple("sweep" if k % 2 == 0 else "chain" for k in range(16))
+    assert stats.algorithm == "sweep+chain"
+    stats = T.horizon(h, SIXTEEN, max_distance=10.0, return_stats=True)[1]
+    assert set(stats.paths) == {"rows"}
+    stats = T.horizon(h, SIXTEEN, max_distance=1000.0, return_stats=True)[1]
+    assert set(stats.paths) == {"chain"}
+    stats = T.horizon(h, SIXTEEN, algorithm="dda", return_stats=True)[1]
+    assert stats.paths == ("dda",) * 16 and stats.algorithm == "dda"
 
 
 def test_chain_neighbours_are_convergents_near_the_ray():
@@ -133,20 +133,20 @@ def test_snap_azimuths():
 
 def test_snapping_is_explicit_and_recorded():
     h = _field(10, (12, 13))
-    plain = T.horizon(h, SIXTEEN)
-    assert T.LAST_STATS.snapped_azimuths == () and T.LAST_STATS.snap_max_change_deg == 0.0
-    snapped = T.horizon(h, SIXTEEN, snap_denominator=5)
-    assert T.LAST_STATS.algorithm == "sweep"
+    plain, stats = T.horizon(h, SIXTEEN, return_stats=True)
+    assert stats.snapped_azimuths == () and stats.snap_max_change_deg == 0.0
+    snapped, stats = T.horizon(h, SIXTEEN, snap_denominator=5, return_stats=True)
+    assert stats.algorithm == "sweep"
     want, change = T.snap_azimuths(SIXTEEN, 5)
-    assert T.LAST_STATS.snapped_azimuths == tuple(want)
-    assert T.LAST_STATS.snap_max_change_deg == change
+    assert stats.snapped_azimuths == tuple(want)
+    assert stats.snap_max_change_deg == change
     np.testing.assert_array_equal(snapped, T.horizon(h, want))
     assert not np.array_equal(snapped, plain)
-    svf = T.sky_view_factor(h, 16, snap_denominator=5)
-    assert T.LAST_STATS.snapped_azimuths == tuple(want)
+    svf, stats = T.sky_view_factor(h, 16, snap_denominator=5, return_stats=True)
+    assert stats.snapped_azimuths == tuple(want)
     np.testing.assert_array_equal(svf, T.sky_view_factor(h, azimuths=want))
-    T.shadows(h, 22.5, 10.0, snap_denominator=5)
-    assert T.LAST_STATS.snapped_azimuths == (want[1],)
+    stats = T.shadows(h, 22.5, 10.0, snap_denominator=5, return_stats=True)[1]
+    assert stats.snapped_azimuths == (want[1],)
 
 
 def test_dataarray_records_paths_and_snapping():

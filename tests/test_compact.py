@@ -1,4 +1,4 @@
-"""The compact maximum tree and dda_compact (``algos.compact``, ``cext/hierarchies/compact.c``): the
+"""The compact maximum tree and dda_compact (``algos.accel.compact``, ``cext/hierarchies/compact.c``): the
 tree's layout and its conservative, tight bounds checked against NumPy tile maxima; the
 hits equal to dda_maxmip's bit for bit (t, cell, normal) and to the brute force; bad
 input.
@@ -10,9 +10,9 @@ import pytest
 
 import algos
 from algos import _kernels
-from algos.compact import NODE_BYTES, build_compact, compact_bounds, compact_layout, compact_leaves, compact_nodes
-from bench.sweep import first_hit_rays
+from algos.accel.compact import NODE_BYTES, build_compact, compact_bounds, compact_layout, compact_leaves, compact_nodes
 from datasets_gen import fields
+from datasets_gen.rays import first_hit_rays
 
 
 def _tile_max(cellmax, level):

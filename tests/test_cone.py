@@ -1,4 +1,4 @@
-"""The cone intersector (cone step mapping made exact, ``algos.cone`` and ``cext/hierarchies/cone.c``):
+"""The cone intersector (cone step mapping made exact, ``algos.accel.cone`` and ``cext/hierarchies/cone.c``):
 the structure's guarantee checked cell pair by cell pair, the hits against the cell walk
 and the brute force (grazing rays, where cones collapse, included), and bad input.
 
@@ -8,7 +8,7 @@ import pytest
 
 import algos
 from algos import _kernels
-from algos.cone import build_cone, cone_for
+from algos.accel.cone import build_cone, cone_for
 from datasets_gen import fields
 
 
@@ -23,7 +23,7 @@ def _ring_distance(shape):
 @pytest.mark.parametrize("radius", [2, 3, 32])
 def test_every_cell_maximum_lies_below_every_cone(seed, radius):
     """For cells c and a at ring n: cellmax[a] <= top[c] + slope[c] * max(0, n - 1), in
-    float64: the guarantee the kernel's steps rely on (module docstring of algos.cone),
+    float64: the guarantee the kernel's steps rely on (module docstring of algos.accel.cone),
     including rings beyond the searched radius."""
     rng = np.random.Generator(np.random.PCG64(seed))
     shape = (int(rng.integers(1, 14)), int(rng.integers(1, 14)))
@@ -77,7 +77,7 @@ def test_cone_equals_the_cell_walk_bit_for_bit(surface, field_name):
     H = fields.generate(field_name, (97, 130), seed=5, amplitude=30.0, scale=40.0) \
         if field_name != "spike" else fields.generate("spike", (97, 130), height=30.0, radius=20.0)
     fld = algos.Field(H)
-    from bench.sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays
 
     groups = [first_hit_rays(fld, r, 200, seed=3 + r) for r in (1, 5, 100)]
     groups.append(_grazing_rays(fld, 300, 9))
@@ -191,7 +191,7 @@ def test_fuzz_hook_holds_on_the_corpus_and_random_inputs():
 # ---- cone_relaxed (Policarpo & Oliveira 2007): approximate by design ----------------------
 
 def _relaxed_reference(cellmax, radius):
-    """The relaxed cone slopes by the definition in algos.cone.build_relaxed_cone, in plain
+    """The relaxed cone slopes by the definition in algos.accel.cone.build_relaxed_cone, in plain
     Python: the readable twin of cext/hierarchies/cone.c's build."""
     ny, nx = cellmax.shape
     m = cellmax.astype(float)
@@ -222,7 +222,7 @@ def _relaxed_reference(cellmax, radius):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_relaxed_slopes_equal_the_definition(seed):
-    from algos.cone import build_relaxed_cone
+    from algos.accel.cone import build_relaxed_cone
 
     rng = np.random.Generator(np.random.PCG64(seed))
     cellmax = (rng.standard_normal((9, 11)) * 3).astype(np.float32)
@@ -237,7 +237,7 @@ def test_relaxed_slopes_equal_the_definition(seed):
 def test_relaxed_error_is_small_and_shrinks_with_halvings():
     """Approximate by design: measured against the brute force on bench-like rays, where
     nearly every ray agrees on hit or miss and more halvings give smaller errors."""
-    from bench.sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays
 
     H = fields.generate("fbm", (97, 130), seed=5, amplitude=30.0, scale=40.0)
     fld = algos.Field(H)
@@ -254,7 +254,7 @@ def test_relaxed_error_is_small_and_shrinks_with_halvings():
 
 
 def test_the_binding_checks_the_relaxed_structure():
-    from algos.cone import build_relaxed_cone, relaxed_cone_for
+    from algos.accel.cone import build_relaxed_cone, relaxed_cone_for
     from algos.intersect import _Prepared
     from algos.registry import get_intersector
 

@@ -1,5 +1,5 @@
-"""Curvature and refraction on the horizon family (issue 21): horizon, shadows and the
-sky-view factor against the curvature-aware exact reference (algos.terrain_ref), the
+"""Curvature and refraction on the horizon family: horizon, shadows and the
+sky-view factor against the curvature-aware exact reference (algos.terrain.reference), the
 issue's worked example, a closed-form peak inside a linear piece, routing and validation.
 """
 import math
@@ -9,7 +9,7 @@ import pytest
 
 import algos
 import algos.terrain as T
-from algos.terrain_ref import horizon_reference
+from algos.terrain.reference import horizon_reference
 
 #: The exact paths that take curvature (the sweep and the Embree peer refuse it).
 CURVED = ["pattern", "dda", "dda_maxmip"]
@@ -40,10 +40,10 @@ def test_issue_example_peak_across_a_plain():
     expected = math.degrees(math.atan((600 - drop) / 60000))
     assert round(expected, 3) == 0.342
     for name in CURVED + [None]:
-        got = algos.horizon(h, 90.0, spacing=100.0, units="degrees", curvature=True,
-                            algorithm=name)[0, 1, 0]
-        assert got == pytest.approx(expected, abs=1e-12), name
-    assert T.LAST_STATS.algorithm == "dda_maxmip"  # unlimited, curved: not the sweep
+        got, stats = algos.horizon(h, 90.0, spacing=100.0, units="degrees", curvature=True,
+                                   algorithm=name, return_stats=True)
+        assert got[0, 1, 0] == pytest.approx(expected, abs=1e-12), name
+    assert stats.algorithm == "dda_maxmip"  # unlimited, curved: not the sweep
 
 
 def test_peak_inside_a_piece_closed_form():
@@ -155,20 +155,17 @@ def test_curvature_off_is_unchanged():
 
 def test_auto_routes_curvature_away_from_the_sweep():
     h = _random_field(1)
-    algos.horizon(h, 90.0, spacing=1.0)
-    assert T.LAST_STATS.algorithm == "sweep"
-    algos.horizon(h, 90.0, spacing=1.0, curvature=True)
-    assert T.LAST_STATS.algorithm == "dda_maxmip"
-    algos.horizon(h, 90.0, 5.0, spacing=1.0, curvature=True)
-    assert T.LAST_STATS.algorithm == "pattern"
+    def ran(*args, **kwargs):
+        return algos.horizon(h, *args, return_stats=True, **kwargs)[1]
+
+    assert ran(90.0, spacing=1.0).algorithm == "sweep"
+    assert ran(90.0, spacing=1.0, curvature=True).algorithm == "dda_maxmip"
+    assert ran(90.0, 5.0, spacing=1.0, curvature=True).algorithm == "pattern"
     # every azimuth class: the irrational ones too, which without curvature take the
     # chain walk or the rows, neither of which lowers the surface
-    algos.horizon(h, [90.0, 22.5], spacing=1.0)
-    assert T.LAST_STATS.paths == ("sweep", "chain")
-    algos.horizon(h, [90.0, 22.5], spacing=1.0, curvature=True)
-    assert T.LAST_STATS.paths == ("dda_maxmip", "dda_maxmip")
-    algos.horizon(h, [90.0, 22.5], 5.0, spacing=1.0, curvature=True)
-    assert T.LAST_STATS.paths == ("pattern", "pattern")
+    assert ran([90.0, 22.5], spacing=1.0).paths == ("sweep", "chain")
+    assert ran([90.0, 22.5], spacing=1.0, curvature=True).paths == ("dda_maxmip", "dda_maxmip")
+    assert ran([90.0, 22.5], 5.0, spacing=1.0, curvature=True).paths == ("pattern", "pattern")
     for name in ("rows", "chain", "sweep"):
         with pytest.raises(ValueError, match=f"curvature: algorithm='{name}' does not apply"):
             algos.horizon(h, 90.0, spacing=1.0, curvature=True, algorithm=name)
@@ -283,7 +280,7 @@ def _curved_angle(metres_per_unit, spacing=100.0):
     """The view angle from (0, 0) to (63, 63) over flat ground, in closed form: the target
     drops (1 - k) d^2 / (2 R) with R the earth's radius in the field's unit."""
     d = 63 * math.sqrt(2) * spacing
-    radius = T.WGS84_SEMI_MAJOR_AXIS_M / metres_per_unit
+    radius = algos.WGS84_SEMI_MAJOR_AXIS_M / metres_per_unit
     return math.atan2(-(1 - T.DEFAULT_REFRACTION) * d * d / (2 * radius), d)
 
 

@@ -1,4 +1,4 @@
-"""The viewshed of a dask array (``algos.tiled.tiled_viewshed``): equal to the in-memory
+"""The viewshed of a dask array (``algos.terrain.tiled.tiled_viewshed``): equal to the in-memory
 ``algos.viewshed`` on every sample, and a graph of O(chunks) tasks (one per chunk, one per
 observer, one per piece of a window spanning several chunks) built without reading the
 input."""

@@ -1,4 +1,4 @@
-"""The optional C Embree 3 peer (algos.embree3_peer): the same first hits as our exact
+"""The optional C Embree 3 peer (algos.peers.embree3): the same first hits as our exact
 `triangles` kernel to float32 tolerance, on the grid and the triangle geometry, single
 rays and every native packet width. Skips where libembree-dev was not there at build time.
 """
@@ -7,11 +7,11 @@ import pytest
 
 import algos
 import datasets_gen
-from algos import embree3_peer
 from algos.intersect import prepare_timed_intersect
+from algos.peers import embree3 as embree3_peer
 from algos.render import default_camera
-from bench.sweep import first_hit_rays
 from datasets_gen import rays as raysets
+from datasets_gen.rays import first_hit_rays
 
 pytestmark = pytest.mark.skipif(not embree3_peer.available(),
                                 reason=f"C Embree 3 peer: {embree3_peer.unavailable_reason()}")

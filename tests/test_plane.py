@@ -160,7 +160,7 @@ def test_orthographic_columns():
     H = fields.generate("fbm", (65, 80), seed=9, amplitude=12.0, scale=24.0)
     fld = algos.Field(H)
     position, look_at = default_camera(H)
-    rs = raysets.orthographic(position, look_at, 50.0, 48, 27)
+    rs = raysets.orthographic_camera(position, look_at, 50.0, 48, 27)
     _check(fld, rs.origins, rs.directions, "orthographic")
     order = np.random.default_rng(3).permutation(len(rs.origins))
     _check(fld, rs.origins[order], rs.directions[order], "orthographic, shuffled")
@@ -225,14 +225,14 @@ def test_camera_rays_shapes_and_errors():
     assert (np.diff(cols[:, 0, 2]) < 0).all()  # rows top down
     centre_slope = (1.0 - 5.0) / np.hypot(10.0, 3.0)
     assert np.isclose(cols[:, :, 2].mean(), centre_slope)
-    ortho = raysets.orthographic((0.0, 0.0, 5.0), (10.0, 3.0, 1.0), 60.0, 8, 5)
+    ortho = raysets.orthographic_camera((0.0, 0.0, 5.0), (10.0, 3.0, 1.0), 60.0, 8, 5)
     o = ortho.origins.reshape(5, 8, 3)
     assert (o[:, :, :2] == o[:1, :, :2]).all() and (np.diff(o[:, 0, 2]) < 0).all()
     assert np.allclose(np.linalg.norm(ortho.directions, axis=1), 1.0)
     with pytest.raises(ValueError, match="look_at"):
         raysets.level_camera((1.0, 1.0, 5.0), (1.0, 1.0, 0.0), 60.0, 8, 5)
     with pytest.raises(ValueError, match="fov"):
-        raysets.orthographic((0.0, 0.0, 5.0), (10.0, 3.0, 1.0), 180.0, 8, 5)
+        raysets.orthographic_camera((0.0, 0.0, 5.0), (10.0, 3.0, 1.0), 180.0, 8, 5)
 
 
 def test_hit_cell_entered_at_t1_is_not_resumed():

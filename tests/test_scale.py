@@ -15,10 +15,11 @@ import pytest
 import algos
 import datasets_gen
 from algos import parallel
-from algos.field import _tile_max_rows
-from algos.field import max_mipmap as _mipmap
+from algos.accel import maxima
+from algos.accel.mipmap import max_mipmap as _mipmap
+from algos.accel.mipmap import tile_max_rows as _tile_max_rows
 from bench import sweep
-from bench.sweep import first_hit_rays
+from datasets_gen.rays import first_hit_rays
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: AddressSanitizer's shadow memory inflates every worker's resident memory: no limits there
@@ -169,9 +170,7 @@ def test_streaming_structures_equal_the_whole_field_ones(field):
 
 def test_band_edges_of_the_streaming_passes(monkeypatch, field):
     """Bands of a few rows (every band edge exercised) give the same structures."""
-    from algos import field as field_module
-
-    monkeypatch.setattr(field_module, "BAND_SAMPLES", 3 * field.cols + 5)
+    monkeypatch.setattr(maxima, "BAND_SAMPLES", 3 * field.cols + 5)
     small = algos.Field(field.heights.copy())
     assert np.array_equal(small.cellmax, field.cellmax)
     assert np.array_equal(_tile_max_rows(field.heights, "corners", 3), _mipmap(field.cellmax)[3])
@@ -419,9 +418,7 @@ def test_dask_sweep_survives_a_killed_worker(tmp_path, monkeypatch):
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (5, 9), (300, 517), (1025, 3)])
 @pytest.mark.parametrize("band_samples", [7, 64, 1 << 20])
 def test_banded_mipmap_equals_the_whole_array_reduction(shape, band_samples, monkeypatch):
-    from algos import field as field_module
-
-    monkeypatch.setattr(field_module, "BAND_SAMPLES", band_samples)
+    monkeypatch.setattr(maxima, "BAND_SAMPLES", band_samples)
     a = np.random.default_rng(1).random(shape)
     level = a
     for got in _mipmap(a)[1:]:

@@ -56,7 +56,7 @@ def test_every_row_runs_and_absent_kernels_say_not_available(tmp_path, tiny):
 
 
 def test_embree_configurations_listed(tmp_path, tiny):
-    from algos import embree3_peer
+    from algos.peers import embree3 as embree3_peer
 
     rows = targets.run(out_dir=str(tmp_path), tier=tiny, regime="flushed", counts=False,
                        echo=lambda *_: None)

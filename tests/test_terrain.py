@@ -1,5 +1,5 @@
-"""Terrain products (issue 11): every algorithm against the exact references of
-algos.terrain_ref, the conventions (azimuth, ties, units), and bad input."""
+"""Terrain products: every algorithm against the exact references of
+algos.terrain.reference, the conventions (azimuth, ties, units), and bad input."""
 import math
 
 import numpy as np
@@ -8,7 +8,7 @@ import pytest
 import algos
 import algos.terrain as T
 from algos import _kernels
-from algos.terrain_ref import horizon_reference, viewshed_reference
+from algos.terrain.reference import horizon_reference, viewshed_reference
 from datasets_gen.loaders import HeightField
 
 EXACT = [name for name, a in T.HORIZON_ALGORITHMS.items() if a.exact]
@@ -78,12 +78,57 @@ def test_embree_peer_close_to_exact():
 
 def test_default_algorithm_choice():
     h = FIELDS["noise"]
-    T.horizon(h, T.rational_azimuths(8))
-    assert T.LAST_STATS.algorithm == "sweep"
-    T.horizon(h, [10.0])
-    assert T.LAST_STATS.algorithm == "chain"  # was dda_maxmip before issue 21
-    T.horizon(h, [10.0], max_distance=5)
-    assert T.LAST_STATS.algorithm == "rows"  # was pattern before issue 21
+    assert T.horizon(h, T.rational_azimuths(8), return_stats=True)[1].algorithm == "sweep"
+    assert T.horizon(h, [10.0], return_stats=True)[1].algorithm == "chain"
+    assert T.horizon(h, [10.0], max_distance=5, return_stats=True)[1].algorithm == "rows"
+
+
+def test_statistics_come_with_the_result():
+    """``return_stats=True`` returns ``(result, TerrainStats)`` with the same result as
+    without; the module keeps no statistics of its own."""
+    h = FIELDS["noise"]
+    plain = T.horizon(h, [10.0, 90.0], max_distance=6.0)
+    got, stats = T.horizon(h, [10.0, 90.0], max_distance=6.0, return_stats=True)
+    np.testing.assert_array_equal(got, plain)
+    assert isinstance(stats, T.TerrainStats) and stats.paths == ("rows", "rows")
+    for product, args in ((T.shadows, (45.0, 10.0)), (T.sky_view_factor, (8,)),
+                          (T.openness, ()), (T.viewshed, ((2.5, 3.0),))):
+        alone = product(h, *args)
+        got, stats = product(h, *args, return_stats=True)
+        np.testing.assert_array_equal(got, alone, err_msg=product.__name__)
+        assert isinstance(stats, T.TerrainStats) and stats.algorithm, product.__name__
+    assert not hasattr(T, "LAST_STATS")
+    with pytest.raises(TypeError, match="return_stats"):
+        T.horizon(h, 10.0, return_stats="yes")
+
+
+def test_statistics_of_concurrent_calls_do_not_mix():
+    """Calls on several threads (as dask runs tiles) each get their own statistics."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    h = FIELDS["noise"]
+    names = ["dda", "dda_maxmip", "pattern", "chain", "rows", "march"] * 4
+
+    def one(name):
+        return name, T.horizon(h, [10.0, 33.0], max_distance=8.0, algorithm=name,
+                               return_stats=True)[1]
+
+    with ThreadPoolExecutor(4) as pool:
+        for name, stats in pool.map(one, names):
+            assert stats.algorithm == name and stats.paths == (name, name), (name, stats)
+
+
+def test_statistics_of_a_lazy_result_are_refused():
+    """A dask input's statistics are per tile: asking for them raises, naming the flag."""
+    da = pytest.importorskip("dask.array")
+    h = da.from_array(FIELDS["noise"], chunks=8)
+    with pytest.raises(ValueError, match="return_stats"):
+        T.horizon(h, 10.0, max_distance=3.0, return_stats=True)
+    with pytest.raises(ValueError, match="return_stats"):
+        T.viewshed(h, (2.0, 2.0), return_stats=True)
+    lazy = T.sky_view_factor(h, 4, max_distance=3.0)
+    np.testing.assert_allclose(lazy.compute(), T.sky_view_factor(FIELDS["noise"], 4,
+                                                                 max_distance=3.0), atol=1e-12)
 
 
 def test_sweep_refuses_what_it_cannot_do():
@@ -147,8 +192,8 @@ def test_sky_view_factor():
     expected = 1 - np.mean(np.sin(np.maximum(T.horizon(h, az), 0)), axis=0)
     np.testing.assert_allclose(T.sky_view_factor(h, 8), expected, atol=1e-15)
     assert T.sky_view_factor(h, 8)[4, 5] < 0.9  # the bottom of the pit sees less sky
-    rat = T.sky_view_factor(h, 16, rational=True)
-    assert T.LAST_STATS.algorithm == "sweep"
+    rat, stats = T.sky_view_factor(h, 16, rational=True, return_stats=True)
+    assert stats.algorithm == "sweep"
     assert np.all((rat > 0) & (rat <= 1))
 
 
@@ -199,7 +244,7 @@ def test_threads_bit_identical():
 def test_heightfield_units_and_north():
     """A HeightField's spacing makes heights and lengths metres; fields whose rows run
     north (north='+y', as jacksboro) are flipped so that azimuths stay geographic.
-    (Updated with issue 19: heights are now in the unit of the spacing; heights in cells
+    (Heights are in the unit of the spacing; heights in cells
     say so with height_unit='cell'.)"""
     rng = np.random.default_rng(5)
     h = rng.integers(0, 5, size=(8, 9)).astype(np.float32)

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import algos
-from algos.embree_peer import embree_timed, far_bounds
 from algos.intersect import prepare_timed_intersect
-from bench.sweep import first_hit_rays
+from algos.peers.embree import embree_timed, far_bounds
 from datasets_gen import fields
+from datasets_gen.rays import first_hit_rays
 
 
 @pytest.fixture(scope="module")

@@ -29,7 +29,7 @@ def rays2():
 
 @pytest.fixture(scope="module")
 def rays3(field):
-    from bench.sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays
 
     return first_hit_rays(field, R, N_RAYS, 3)
 
@@ -53,7 +53,7 @@ def test_first_hit_triangles(benchmark, name, field, rays3):
 @pytest.mark.parametrize("name", ["runs", "runs_maxmip", "embree"])
 def test_first_hit_threads(benchmark, name, threads, field):
     """One thread against every core, on 16x the rays (ranges of 1024 rays or more)."""
-    from bench.sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays
 
     o, d = first_hit_rays(field, R, 16 * N_RAYS, 5)
     run, _ = prepare_timed_intersect(name, field, o, d, surface="triangles", threads=threads)

@@ -32,24 +32,10 @@ import algos
 from algos.render import PROJECTIONS
 
 from .args import add_plugin, load_plugins, param, positive_int, results_dir, vector
+from .files import save_png, write_exr
+from .terrain_field import fill_policy
 
-__all__ = ["render_files", "load_render_field", "write_exr", "register"]
-
-
-def write_exr(path, channels: dict) -> None:
-    """An OpenEXR file (ZIP-compressed scanlines) of float32 ``channels`` (name -> 2D)."""
-    import OpenEXR
-
-    data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, data) as f:
-        f.write(str(path))
-
-
-def _save_png(path, rgb):
-    from PIL import Image
-
-    Image.fromarray(np.round(rgb * 255).astype(np.uint8), mode="RGB").save(path)
+__all__ = ["render_files", "load_render_field", "register"]
 
 
 def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
@@ -63,7 +49,6 @@ def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
     (resample to square ones, e.g. ``gdalwarp -tr D D``), ``fill`` for a dataset."""
     import datasets_gen
 
-    from .terrain import _fill_policy
 
     path = str(dataset)
     if not os.path.exists(path):
@@ -71,7 +56,7 @@ def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
             raise ValueError(f"--fill: fills the voids of a file; {path} is a generated or "
                              "embedded dataset")
         return datasets_gen.load(dataset, size=size, seed=seed, **(params or {}))
-    policy, fill_value = _fill_policy(None if fill is None else str(fill))
+    policy, fill_value = fill_policy(None if fill is None else str(fill))
     field = datasets_gen.load_file(path, nodata_policy=policy, fill_value=fill_value)
     if field.dx != field.dy:
         d = min(field.dx, field.dy)
@@ -115,7 +100,7 @@ def render_files(dataset="fbm", size=None, seed=1, algorithm="runs", surface="tr
                              "N.y": image.normal[..., 1], "N.z": image.normal[..., 2],
                              "cellsVisited": image.cells_visited.astype(np.float32),
                              "runsVisited": image.runs_visited.astype(np.float32)})
-    _save_png(f"{out}.png", image.rgb)
+    save_png(f"{out}.png", image.rgb)
     paths = dict(exr=f"{out}.exr", png=f"{out}.png")
     echo(f"{algorithm} on {dataset} {heights.shape}: {width}x{height} rays in "
          f"{image.elapsed_ns / 1e6:.1f} ms, {np.isfinite(image.depth).mean():.1%} hit; "

@@ -30,246 +30,43 @@ What a user's file gets (docs/CONVENTIONS.md, "Terrain products"):
   value of the others (default nodata). The mode, unit and values are recorded as tags.
 
 ``--dask`` computes the products tile by tile on a cluster (``bench/cli/terrain_dask.py``).
+The field is loaded by ``bench/cli/terrain_field.py`` and the options are checked by
+``bench/cli/terrain_options.py``, which both commands share.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 
 import numpy as np
 
 import algos
-from algos.georef import LINEAR_UNITS, UNIT_ALIASES
 
 from .args import param, positive_int, results_dir
+from .files import write_exr
+from .terrain_field import load_terrain
+from .terrain_options import (
+    PRODUCTS,
+    UNIT_CHOICES,
+    azimuths_option,
+    check_options,
+    observers,
+    output_prefix,
+    product_options,
+    spacing_arg,
+    viewshed_values,
+)
 
-__all__ = ["register", "terrain_product", "load_terrain", "spacing_arg", "product_options"]
+__all__ = ["register", "terrain_product"]
 
-#: The products: command -> help text
-PRODUCTS = (("horizon", "horizon angles (degrees) along azimuths"),
-            ("shadows", "cast shadows for a sun azimuth and elevation"),
-            ("svf", "sky-view factor (Zaksek et al. 2011)"),
-            ("openness", "positive or negative openness (Yokoyama et al. 2002), degrees"),
-            ("viewshed", "what one or more observers see"))
-
-#: What --unit accepts: the linear units of algos.georef (aliases included)
-UNIT_CHOICES = tuple(LINEAR_UNITS) + tuple(a for a in UNIT_ALIASES if a not in LINEAR_UNITS)
-
-#: Options that describe a file, meaningless for a generated dataset
-_FILE_OPTIONS = (("band", 1), ("spacing", None), ("unit", None), ("reproject", None), ("fill", None),
-                 ("vertical_scale", 1.0))
-
-
-def spacing_arg(text):
-    """``D`` or ``DX,DY``: a pixel size (positive lengths), as argparse type."""
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected D or DX,DY (lengths), got {text!r}") from None
-    if len(values) not in (1, 2) or not all(math.isfinite(v) and v > 0 for v in values):
-        raise argparse.ArgumentTypeError(f"expected D or DX,DY (positive lengths), got {text!r}")
-    return values[0] if len(values) == 1 else values
-
-
-def _fill_policy(text):
-    """(nodata_policy, fill_value) of ``--fill``: None keeps the voids."""
-    if text is None:
-        return "void", None
-    if text == "min":
-        return "fill-min", None
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"--fill: expected 'min' or a height, got {text!r}") from None
-    return "fill", value
-
-
-def _is_file_name(source):
-    """Whether ``source`` names a file rather than a dataset (a path or an extension)."""
-    return os.sep in source or (os.altsep is not None and os.altsep in source) \
-        or os.path.splitext(source)[1] != ""
-
-
-def load_terrain(args, lazy_chunks=None):
-    """The HeightField of ``args.source``: a file (any raster GDAL reads, ``.npy``, PNG,
-    EXR) or a dataset name. With ``lazy_chunks``, a lazy (dask) field read window by
-    window. Raises ValueError naming the source or the option."""
-    import datasets_gen
-
-    source = args.source
-    if os.path.exists(source) or _is_file_name(source):
-        if not os.path.isfile(source):
-            raise ValueError(f"source: {source} does not exist or is not a file")
-        policy, fill_value = _fill_policy(args.fill)
-        if lazy_chunks is not None:
-            for option in ("reproject", "fill"):
-                if getattr(args, option) is not None:
-                    raise ValueError(f"--{option}: not available with --dask (prepare the file "
-                                     "first, e.g. with gdalwarp, and give it as it is)")
-            return datasets_gen.open_lazy(source, chunks=lazy_chunks, band=args.band,
-                                          spacing=args.spacing, unit=args.unit,
-                                          vertical_scale=args.vertical_scale)
-        field = datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
-                                       unit=args.unit,
-                                       vertical_scale=args.vertical_scale,
-                                       reproject=args.reproject, nodata_policy=policy,
-                                       fill_value=fill_value)
-        if field.unit == "cell":
-            import sys
-
-            print(f"hftrace: note: {source} has no georeferencing and no --spacing: its "
-                  "heights are taken in multiples of the pixel size (cell units)",
-                  file=sys.stderr)
-        return field
-    for option, default in (("size", None), ("seed", 1), ("param", None)):
-        if getattr(args, option) != default and os.path.isfile(source):
-            raise ValueError(f"--{option}: describes a generated dataset, not the file {source}")
-    known = [row["name"] for row in datasets_gen.catalogue()]
-    if source not in known:
-        raise ValueError(f"source: {source!r} is neither a file nor a dataset; datasets are "
-                         f"{', '.join(known)}")
-    for option, default in _FILE_OPTIONS:
-        if getattr(args, option) != default:
-            raise ValueError(f"--{option.replace('_', '-')}: describes a file; {source} is a "
-                             "generated or embedded dataset")
-    field = datasets_gen.load(source, size=args.size, seed=args.seed, **dict(args.param or []))
-    if lazy_chunks is not None:
-        import dask.array as da
-
-        field = algos.HeightField(
-            da.from_array(np.asarray(field.heights), chunks=lazy_chunks), field.name,
-            spacing=field.spacing, unit=field.unit, height_unit=field.height_unit,
-            crs=field.crs, transform=field.transform, north=field.north, params=field.params)
-    return field
-
-
-def _viewshed_values(args):
-    """The viewshed's output values given on the command line, by API keyword."""
-    return {name: getattr(args, name) for name in ("visible_value", "invisible_value",
-                                                    "out_of_range_value")
-            if getattr(args, name) is not None}
-
-
-def check_options(args):
-    """Options that contradict each other are refused; defaults that depend on others are
-    filled in (``--n-azimuths`` 16 unless ``--azimuths`` names them; the observer height
-    1.75 unless ``--mode observer`` computes it)."""
-    if args.command == "viewshed":
-        values = _viewshed_values(args)
-        if args.observer_height is not None and not math.isfinite(args.observer_height):
-            raise ValueError(f"--observer-height: the observer height is not finite, got "
-                             f"{args.observer_height!r}")
-        if args.mode == "observer":
-            if args.observer_height is not None:
-                raise ValueError("--observer-height: --mode observer computes the observer "
-                                 "height; leave it out")
-        elif args.observer_height is None:
-            args.observer_height = algos.terrain.DEFAULT_OBSERVER_HEIGHT
-        if args.mode != "normal":
-            for name in ("visible_value", "invisible_value"):
-                if name in values:
-                    raise ValueError(f"--{name.replace('_', '-')}: applies to --mode normal "
-                                     f"only (--mode {args.mode} gives a number per vertex)")
-        if args.dask and (args.mode != "normal" or values):
-            raise ValueError(f"--mode: --dask gives visibility only (--mode normal without "
-                             f"output values), got --mode {args.mode}"
-                             f"{' with output values' if values else ''}")
-    if not getattr(args, "curvature", False) and \
-            getattr(args, "refraction", algos.DEFAULT_REFRACTION) != algos.DEFAULT_REFRACTION:
-        raise ValueError(f"--refraction: applies with --curvature only (got --refraction "
-                         f"{args.refraction:g} without it)")
-    if args.command in ("svf", "openness"):
-        if args.azimuths is not None and args.n_azimuths is not None:
-            raise ValueError("--n-azimuths: --azimuths already names the azimuths; give one "
-                             "of the two")
-        if args.n_azimuths is None:
-            args.n_azimuths = 16
-
-
-def output_prefix(args):
-    """``--out`` as a path prefix: a trailing product extension (``.tif``, ``.png``,
-    ``.exr``) is dropped, and a folder (an existing one, or a path ending in a separator)
-    gets the command's name inside it. Raises ValueError when an output would overwrite
-    the input file."""
-    out = args.out
-    if out.endswith(os.sep) or os.path.isdir(out):
-        out = os.path.join(out, args.command)
-    stem, ext = os.path.splitext(out)
-    if ext.lower() in (".tif", ".tiff", ".png", ".exr"):
-        out = stem
-    source = os.path.abspath(args.source) if os.path.exists(args.source) else None
-    for ext in (".tif", ".png", ".exr"):
-        if source is not None and os.path.abspath(out + ext) == source:
-            raise ValueError(f"--out: {out + ext} is the input file; choose another name")
-    return out
-
-
-def observers(args, field):
-    """``[(col, row, height or None)]`` in grid coordinates of the stored array, from
-    ``--observer`` (map coordinates), ``--observer-pixel`` and ``--observers`` (a CSV);
-    default one observer at the centre."""
-    from datasets_gen.observers import parse_observer, read_observers_csv
-
-    out = [parse_observer(text, field) for text in args.observer]
-    out += [parse_observer(text, field, pixel=True) for text in args.observer_pixel]
-    if args.observers:
-        out += read_observers_csv(args.observers, field, pixel=args.observers_pixel)
-    if not out:
-        raise ValueError("--observer: give at least one observer (--observer X,Y in map "
-                         "coordinates, --observer-pixel COL,ROW, or --observers FILE.csv)")
-    return out
-
-
-def _azimuths(args):
-    if args.azimuths is None:
-        return None
-    try:
-        return [float(v) for v in args.azimuths.split(",")]
-    except ValueError:
-        raise ValueError(f"--azimuths: expected comma-separated degrees, got "
-                         f"{args.azimuths!r}") from None
-
-
-def product_options(args, field):
-    """The product's parameters as the user gave them (recorded in the files' tags)."""
-    kind = args.command
-    options = dict(max_distance=args.max_distance, algorithm=args.algorithm or "auto",
-                   unit=field.unit)
-    if kind == "horizon":
-        options["azimuths"] = _azimuths(args) or [0.0]
-    elif kind == "svf":
-        az = _azimuths(args)
-        options.update(azimuths=az) if az else options.update(n_azimuths=args.n_azimuths,
-                                                               rational=args.rational)
-    elif kind == "openness":
-        az = _azimuths(args)
-        options.update(kind=args.kind)
-        options.update(azimuths=az) if az else options.update(n_azimuths=args.n_azimuths,
-                                                               rational=args.rational)
-    elif kind == "shadows":
-        options.update(azimuth=args.azimuth, elevation=args.elevation)
-    else:
-        options.update(observer_height=args.observer_height, target_height=args.target_height,
-                       curvature=args.curvature, refraction=args.refraction,
-                       mode=getattr(args, "mode", "normal"), **_viewshed_values(args))
-    if kind != "viewshed":
-        options.update(curvature=args.curvature)
-        if args.curvature:
-            options.update(refraction=args.refraction)
-    return options
-
-
-def _path_tags():
-    """What the product call just made records (``algos.terrain.LAST_STATS``): the
-    algorithm of each azimuth, and with ``--snap-denominator`` the azimuths used and the
-    largest change in degrees."""
-    from algos.terrain import LAST_STATS
-
-    tags = dict(paths=",".join(LAST_STATS.paths))
-    if LAST_STATS.snapped_azimuths:
-        tags.update(snapped_azimuths=[round(a, 12) for a in LAST_STATS.snapped_azimuths],
-                    snap_max_change_deg=LAST_STATS.snap_max_change_deg)
+def _path_tags(stats):
+    """What a product call records in its statistics (``return_stats=True``, an
+    ``algos.terrain.TerrainStats``): the algorithm of each azimuth, and with
+    ``--snap-denominator`` the azimuths used and the largest change in degrees."""
+    tags = dict(paths=",".join(stats.paths))
+    if stats.snapped_azimuths:
+        tags.update(snapped_azimuths=[round(a, 12) for a in stats.snapped_azimuths],
+                    snap_max_change_deg=stats.snap_max_change_deg)
     return tags
 
 
@@ -288,7 +85,7 @@ def _viewshed(args, field, obs, common, progress):
     """The viewshed of the observers ``obs`` (a bool map for one, else a count), observers
     of one height in one ``algos.viewshed`` call; with ``--mode`` other than normal, or
     output values, the one observer's map."""
-    values = _viewshed_values(args)
+    values = viewshed_values(args)
     if args.mode != "normal" or values:
         if len(obs) != 1:
             raise ValueError(f"--observer: --mode {args.mode}"
@@ -326,8 +123,6 @@ def terrain_product(args):
 
     from datasets_gen.raster import save_product
 
-    from .render import write_exr
-
     check_options(args)
     args.out = output_prefix(args)
     field = load_terrain(args)
@@ -335,38 +130,42 @@ def terrain_product(args):
     common = dict(algorithm=args.algorithm, threads=args.threads)
     if kind != "viewshed" and args.snap_denominator is not None:
         common["snap_denominator"] = args.snap_denominator
+    # the horizon products' statistics: which path each azimuth took, and any snapping
+    ran = {} if kind == "viewshed" else dict(return_stats=True)
     md = args.max_distance
     params = product_options(args, field)
     band_names, marks, border, cmap = None, None, None, "viridis"
     curve = {} if kind == "viewshed" else dict(curvature=args.curvature,
                                                  refraction=args.refraction)
     if kind in ("horizon", "svf", "openness"):
-        az = _azimuths(args)
+        az = azimuths_option(args)
         n = len(az) if az else (1 if kind == "horizon" else args.n_azimuths)
         bar, progress = _bar(args, n, f"{kind} {field.name}", "azimuth")
         with bar:
             if kind == "svf":
                 result = algos.sky_view_factor(field, args.n_azimuths, md, rational=args.rational,
-                                               azimuths=az, progress=progress, **curve, **common)
+                                               azimuths=az, progress=progress, **curve, **common,
+                                               **ran)
                 product, units, cmap = "sky_view_factor", "1", "cividis"
             elif kind == "openness":
                 result = algos.openness(field, args.kind, args.n_azimuths, md, azimuths=az,
                                         rational=args.rational, units=args.units,
-                                        progress=progress, **curve, **common)
+                                        progress=progress, **curve, **common, **ran)
                 product, units, cmap = f"openness_{args.kind}", args.units, "cividis"
             else:
                 az = az or [0.0]
                 result = algos.horizon(field, az, md, units=args.units, progress=progress,
-                                       **curve, **common)
+                                       **curve, **common, **ran)
                 product, units, cmap = "horizon", args.units, "magma"
                 border = -90.0 if args.units == "degrees" else -math.pi / 2
                 band_names = [f"azimuth {a:g}" for a in az]
     elif kind == "shadows":
         result = algos.shadows(field, args.azimuth, args.elevation, max_distance=md, **curve,
-                               **common)
+                               **common, **ran)
         product, units, cmap = "shadows", "1 = in shadow", "gray_r"
     if kind != "viewshed":  # which path each azimuth took, and any snapping, as tags
-        params.update(_path_tags())
+        result, stats = result
+        params.update(_path_tags(stats))
     else:
         obs = observers(args, field)
         bar, progress = _bar(args, len(obs), f"viewshed {field.name}", "observer")
@@ -383,7 +182,7 @@ def terrain_product(args):
             units, cmap = "degrees", "magma"
         elif args.mode != "normal":
             units, cmap = field.unit, "viridis"
-        elif _viewshed_values(args):
+        elif viewshed_values(args):
             units = "output values (see the tags visible_value, invisible_value, " \
                     "out_of_range_value)"
     os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)

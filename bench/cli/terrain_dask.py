@@ -2,7 +2,7 @@
 tile on a Dask cluster, for fields larger than the memory of any one worker.
 
 The source is read lazily (``datasets_gen.open_lazy``: each task reads its own window
-through rasterio), the products run with a halo of ``max_distance`` (``algos.tiled``),
+through rasterio), the products run with a halo of ``max_distance`` (``algos.terrain.tiled``),
 and every finished tile is written straight into the output GeoTIFF by the worker that
 computed it (``datasets_gen.raster.create_product`` and ``write_window``, one
 ``distributed.Lock`` per file, since GDAL rewrites whole compressed tiles); nothing of
@@ -19,7 +19,8 @@ import numpy as np
 
 import algos
 
-from .terrain import _azimuths, check_options, load_terrain, observers, output_prefix, product_options
+from .terrain_field import load_terrain
+from .terrain_options import azimuths_option, check_options, observers, output_prefix, product_options
 
 __all__ = ["GeoTiffTarget", "run_product", "terrain_product_dask"]
 
@@ -166,13 +167,13 @@ def terrain_product_dask(args):
     if kind in ("horizon", "openness"):
         options["units"] = args.units
     if kind == "horizon":
-        options["azimuths"] = _azimuths(args) or [0.0]
+        options["azimuths"] = azimuths_option(args) or [0.0]
     elif kind == "svf":
-        if _azimuths(args):
+        if azimuths_option(args):
             raise ValueError("--azimuths: not available with --dask for svf; use --n-azimuths")
         options.update(n_azimuths=args.n_azimuths, rational=args.rational)
     elif kind == "openness":
-        if _azimuths(args):
+        if azimuths_option(args):
             raise ValueError("--azimuths: not available with --dask for openness; use "
                              "--n-azimuths")
         options.update(n_azimuths=args.n_azimuths, rational=args.rational,

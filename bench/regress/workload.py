@@ -58,16 +58,15 @@ def array_hash(*arrays) -> str:
 
 def make_inputs(size=256, first_hit_rays=200, traversal_rays=400, r=25, seed=2008) -> Inputs:
     """fBm ``size``^2 (seed 1) and rays of mean run length ``r`` (seed ``seed``), as the
-    sweeps draw them (``bench.sweep.first_hit_rays`` and ``traversal_rays``)."""
+    sweeps draw them (``datasets_gen.rays.first_hit_rays`` and ``traversal_rays``)."""
     import algos
     import datasets_gen
-
-    from .. import sweep
+    from datasets_gen import rays as raysets
 
     heights = np.ascontiguousarray(datasets_gen.load("fbm", size=size, seed=1).heights,
                                    dtype=np.float64)
-    o3, d3 = sweep.first_hit_rays(algos.Field(heights), r, first_hit_rays, seed)
-    o2, d2 = sweep.traversal_rays((heights.shape[1] - 1, heights.shape[0] - 1), r, traversal_rays, seed)
+    o3, d3 = raysets.first_hit_rays(algos.Field(heights), r, first_hit_rays, seed)
+    o2, d2 = raysets.traversal_rays((heights.shape[1] - 1, heights.shape[0] - 1), r, traversal_rays, seed)
     spec = dict(dataset="fbm", size=size, field_seed=1, r=r, seed=seed,
                 first_hit_rays=first_hit_rays, traversal_rays=traversal_rays)
     return Inputs(heights, *(np.ascontiguousarray(a, dtype=np.float64) for a in (o3, d3, o2, d2)),

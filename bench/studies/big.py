@@ -19,7 +19,7 @@ from algos.intersect import prepare_timed_intersect
 from datasets_gen import fields
 
 from ..timing import resident_bytes
-from .scaling import growth_rays
+from .scaling_workload import growth_rays
 
 __all__ = ["run_big", "big_item", "BIG_ITEMS"]
 
@@ -86,12 +86,10 @@ def big_item(item, side, path):
             os.remove(prefix + ".tif")  # 1 GiB; the preview stays
         elif item == "horizon":
             az = algos.rational_azimuths(1)
-            angles = algos.horizon(heights, az, None)
+            angles, stats = algos.horizon(heights, az, None, return_stats=True)
             out["azimuths"] = [float(a) for a in az]
             out["mean_degrees"] = float(np.degrees(angles).mean())
-            from algos import terrain
-
-            out["algorithm"] = terrain.LAST_STATS.algorithm
+            out["algorithm"] = stats.algorithm
         out["seconds"] = time.perf_counter() - start
     out["peak_rss_bytes"] = _peak_rss_bytes()
     out["rss_growth_bytes"] = out["peak_rss_bytes"] - out["rss_before_bytes"]

@@ -2,7 +2,7 @@
 maximum mipmap (``dda_maxmip``), by the cache lines a ray touches (issue 22, item 4).
 
 For each field side (fBm, the growth curve from 256^2 up), on the same random-azimuth
-first-hit rays as bench-intersect (``bench.sweep.first_hit_rays``, r = "random"), two-triangle
+first-hit rays as bench-intersect (``datasets_gen.rays.first_hit_rays``, r = "random"), two-triangle
 surface, one thread:
 
 * **callgrind's cache simulation** (``valgrind --tool=callgrind --cache-sim=yes``, counted
@@ -37,7 +37,7 @@ import tempfile
 import numpy as np
 
 import algos
-import algos.compact
+import algos.accel.compact
 import datasets_gen
 
 __all__ = ["KERNELS", "STRUCTURES", "CACHE", "QUICK", "FULL", "callgrind_cache_counts",
@@ -81,13 +81,13 @@ def _save_case(size, rays, seed, directory) -> None:
     """Build the field's structures and the rays natively and save them as .npy files in
     ``directory``: the child under valgrind maps them instead of building them (which
     would take it most of an hour at 8192^2)."""
-    from ..sweep import first_hit_rays
+    from datasets_gen.rays import first_hit_rays
 
     field = _field(size)
     o, d = first_hit_rays(field, RUN_LENGTH, rays, seed)
     mip = field.mip_for()
     arrays = dict(heights=field.cell_heights, cellmax=field.cellmax_for(), compact=
-                  algos.compact.compact_for(field), origins=o, directions=d,
+                  algos.accel.compact.compact_for(field), origins=o, directions=d,
                   **{f"mip{k}": level for k, level in enumerate(mip) if k > 0})
     for name, a in arrays.items():
         np.save(os.path.join(directory, f"{name}.npy"), a)
@@ -247,8 +247,8 @@ def native_counts(size, rays, repeats, seed=SEED, kernels=KERNELS, timing=True) 
     """kernel -> per-ray walk statistics, ns per ray (None without ``timing``), and the
     structures' build seconds and bytes per height sample, on fBm ``size``^2."""
     from algos.intersect import prepare_timed_intersect
+    from datasets_gen.rays import first_hit_rays
 
-    from ..sweep import first_hit_rays
     from ..timing import interleaved
 
     field = _field(size)
@@ -438,9 +438,9 @@ def _write(paths, rows, tier) -> None:
                   f, indent=2, sort_keys=True, default=str)
         f.write("\n")
     lines = ["# The cache-compact maximum tree against the maximum mipmap", "",
-             f"`dda_compact` (`algos.compact`, `cext/hierarchies/compact.c`) against `dda_maxmip`: {DATASET} "
+             f"`dda_compact` (`algos.accel.compact`, `cext/hierarchies/compact.c`) against `dda_maxmip`: {DATASET} "
              f"fields seed 1, {tier['rays']} first-hit rays per side at random azimuths "
-             f"(`bench.sweep.first_hit_rays`, seed {SEED}), {SURFACE}, one thread. Both "
+             f"(`datasets_gen.rays.first_hit_rays`, seed {SEED}), {SURFACE}, one thread. Both "
              "kernels give the same t bit for bit on these rays (checked while measuring).", "",
              "Counts: callgrind's cache simulation inside `hf_intersect_batch`, independent "
              "of the machine's load (instructions and data accesses exact; misses move by "

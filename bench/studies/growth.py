@@ -16,7 +16,7 @@ from algos.intersect import prepare_timed_intersect
 from ..report import RowWriter
 from ..sweep import read_rows
 from ..timing import cache_sizes, interleaved, median_ci, pin_to_one_cpu
-from .scaling import EMBREE_MAX_SIDE, GROWTH_ELEVATION, GROWTH_R, SIDES, fbm_field, growth_rays
+from .scaling_workload import EMBREE_MAX_SIDE, GROWTH_ELEVATION, GROWTH_R, SIDES, fbm_field, growth_rays
 
 __all__ = ["run_growth"]
 

@@ -22,8 +22,8 @@ import numpy as np
 import algos
 import datasets_gen
 from algos.intersect import prepare_timed_intersect
+from datasets_gen.rays import first_hit_rays
 
-from ..sweep import first_hit_rays
 from ..timing import interleaved, pin_to_one_cpu
 
 FLOORS = range(6)

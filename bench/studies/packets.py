@@ -2,7 +2,7 @@
 
 The coherence axis (:data:`COHERENCE`), one seeded batch each:
 
-* ``random``: the sweep's first-hit rays (``bench.sweep.first_hit_rays``, r = 25):
+* ``random``: the sweep's first-hit rays (``datasets_gen.rays.first_hit_rays``, r = 25):
   origins uniform over the field, neighbours in the batch unrelated;
 * ``camera``: ``algos.render``'s primary rays (``datasets_gen.rays.pinhole``, default
   camera, row-major: neighbours in a packet are neighbouring pixels of one row);
@@ -94,7 +94,7 @@ def batch(field, coherence, seed=2008, image=IMAGE):
                     (ii.size, 1))
         return np.column_stack([ii.ravel(), jj.ravel(), z.ravel()]), d, width
     if coherence == "random":
-        from ..sweep import first_hit_rays
+        from datasets_gen.rays import first_hit_rays
 
         o, d = first_hit_rays(field, 25, width * height, seed)
         return o, d, width

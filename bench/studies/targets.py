@@ -17,8 +17,8 @@ loop, Embree's builder and the C Embree 3 peer), in one cache regime
 "Exact" kernels are the registry's strict intersectors (accuracy ``exact`` or ``float64``:
 equal to the brute force to 1e-9 relative) other than peers; the best is the fastest in
 the group. Embree is every configuration we can reach: embreex (single-ray triangle
-queries only: its fastest configuration, ``algos.embree_peer.embree_timed``) and, where
-built, the C Embree 3 peer (``algos.embree3_peer``: grid and triangle geometry, single
+queries only: its fastest configuration, ``algos.peers.embree.embree_timed``) and, where
+built, the C Embree 3 peer (``algos.peers.embree3``: grid and triangle geometry, single
 rays and every native packet width, coherent flag on camera and parallel batches); the
 ratio is against the fastest of them, and every one is listed. A triangle mesh of a
 field larger than ``embree_mesh_max_side`` is timed in its own interleaved pair with the
@@ -41,8 +41,9 @@ import numpy as np
 import algos
 import datasets_gen
 from algos.intersect import prepare_timed_intersect
+from datasets_gen.rays import first_hit_rays
 
-from ..sweep import first_hit_rays, hit_agreement
+from ..sweep import hit_agreement
 from ..timing import REGIMES, environment, pin_to_one_cpu, timed_in_regime, write_json
 
 __all__ = ["run", "TIERS", "PACKET_KERNEL", "COMPACT_KERNEL", "PER_RAY_KERNEL", "COLUMNS"]
@@ -94,8 +95,8 @@ def embree_configs(coherent: bool):
     """(label, prepare(field, o, d) -> (run, t), is_mesh) of every Embree configuration
     this machine reaches: embreex (single ray, triangles) and the C peer's geometries and
     native packet widths."""
-    from algos import embree3_peer
-    from algos.embree_peer import embree_timed
+    from algos.peers import embree3 as embree3_peer
+    from algos.peers.embree import embree_timed
 
     out = [("embreex triangles x1", lambda f, o, d: embree_timed(f, o, d, threads=1), True)]
     if embree3_peer.available():
@@ -266,7 +267,7 @@ def run(out_dir="results/targets", tier="quick", regime="warm", seed=2008, count
         del field
 
     # 4. runs_periodic vs runs, parallel first hits
-    from .terrain import orthographic_rays
+    from datasets_gen.rays import orthographic_rays
 
     name, side = cfg["parallel"]
     field = _load_field(name, side)

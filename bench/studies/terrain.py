@@ -18,12 +18,12 @@ import numpy as np
 
 import algos.terrain as T
 from algos.intersect import prepare_timed_intersect
-from datasets_gen import rays as raysets
+from datasets_gen.rays import orthographic_rays
 
 from ..timing import interleaved
 
 __all__ = ["RUN_LENGTHS", "HORIZON_METHODS", "HIT_METHODS", "PARALLEL_COLUMNS",
-           "azimuth_for_run_length", "sample_ranges", "horizon_group", "orthographic_rays",
+           "azimuth_for_run_length", "sample_ranges", "horizon_group",
            "hit_group", "observer_up", "xrspatial_viewshed", "gdal_viewshed", "los_margins"]
 
 RUN_LENGTHS = (1, 2, 5, 25, 100)
@@ -99,15 +99,6 @@ def horizon_group(h, azimuth, methods, sample, repeats, embree_sample=2048):
                         max_err_deg=err, p99_err_deg=p99, agree_1e9=agree,
                         ns_samples=_samples(times[name] / counts[name])))
     return out
-
-
-def orthographic_rays(shape, r, n, seed, elevation_deg=10.0, top=None):
-    """n parallel rays of octant slope 1/r (direction (r, 1) scaled), falling at
-    elevation_deg, origins spread over the field one cell above ``top``:
-    ``datasets_gen.rays.parallel``; (origins, directions) of shape (n, 3)."""
-    rs = raysets.parallel(n, shape, seed, rational=(1, r), height=float(top) + 1.0,
-                          elevation=elevation_deg)
-    return rs.origins, rs.directions
 
 
 def hit_group(field, r, methods, n, repeats, seed):

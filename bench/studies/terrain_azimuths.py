@@ -1,4 +1,4 @@
-"""``hftrace terrain-bench``, part "every azimuth fast" (issue 21): the horizon at RVT's 16
+"""``hftrace terrain-bench``, part "every azimuth fast": the horizon at RVT's 16
 equally spaced azimuths on Jacksboro (unlimited distance, one thread), per azimuth class
 and path, with the walk's counts; and the sky-view factor at short and long radii against
 RVT (rvt-py's own vectorised code when it imports) and against a NumPy baseline of RVT's
@@ -95,8 +95,7 @@ def _horizon_section(size, repeats, baseline, echo):
              "|---|---|---|---|---|---|---|---|"]
     by_class = {"rational": 0.0, "irrational": 0.0}
     for az in SIXTEEN:
-        seconds, _ = _timed(lambda: T.horizon(hf, az, threads=1))
-        s = T.LAST_STATS
+        seconds, (_, s) = _timed(lambda: T.horizon(hf, az, threads=1, return_stats=True))
         cls = "rational" if T.azimuth_direction(az).rational is not None else "irrational"
         by_class[cls] += seconds
         lines.append(f"| {az:g} | `{s.algorithm}` | {seconds:.2f} | {1e9 * seconds / n:.0f} | "
@@ -110,8 +109,8 @@ def _horizon_section(size, repeats, baseline, echo):
               f"{by_class['rational']:.2f} s; irrational (22.5 + k 45: the chain walk) "
               f"{by_class['irrational']:.2f} s.", ""]
     if baseline:  # the path the irrational azimuths took before: one of them
-        seconds, _ = _timed(lambda: T.horizon(hf, 22.5, algorithm="dda_maxmip", threads=1))
-        s = T.LAST_STATS
+        seconds, (_, s) = _timed(lambda: T.horizon(hf, 22.5, algorithm="dda_maxmip", threads=1,
+                                                   return_stats=True))
         lines += [f"Before (`dda_maxmip`, the previous default for irrational azimuths) at 22.5: "
                   f"{seconds:.2f} s, {s.cells / n:.1f} cells and {s.skips / n:.1f} skipped tiles "
                   "per vertex.", ""]
@@ -123,10 +122,11 @@ def _horizon_section(size, repeats, baseline, echo):
               "direction, the sweep for all 16.", "",
               "| snap_denominator | seconds | largest change (deg) |", "|---|---|---|"]
     for q in (5, 12):
-        seconds, _ = _timed(lambda: T.horizon(hf, SIXTEEN, threads=1, snap_denominator=q))
-        lines.append(f"| {q} | {seconds:.2f} | {T.LAST_STATS.snap_max_change_deg:.3f} |")
+        seconds, (_, s) = _timed(lambda: T.horizon(hf, SIXTEEN, threads=1, snap_denominator=q,
+                                                   return_stats=True))
+        lines.append(f"| {q} | {seconds:.2f} | {s.snap_max_change_deg:.3f} |")
         csv_rows.append(dict(workload="horizon16_snapped", dataset=f"jacksboro{size}",
-                             algorithm=T.LAST_STATS.algorithm, azimuth=f"snap{q}",
+                             algorithm=s.algorithm, azimuth=f"snap{q}",
                              field_seconds=seconds, vertices=n))
     return lines + [""], csv_rows
 
@@ -135,7 +135,7 @@ def _svf_section(svf_size, radii, repeats, echo):
     """hftrace's SVF against RVT and the NumPy baseline at each radius: lines, CSV rows."""
     h = np.ascontiguousarray(datasets_gen.load("fbm", size=svf_size, seed=1).heights,
                              dtype=np.float64)
-    peers = {"hftrace": lambda r: T.sky_view_factor(h, 16, float(r), threads=1)}
+    peers = {"hftrace": lambda r: T.sky_view_factor(h, 16, float(r), threads=1, return_stats=True)}
     rvt = rvt_svf()
     if rvt is not None:
         peers["rvt-py"] = lambda r: rvt(h, 16, r)
@@ -154,9 +154,10 @@ def _svf_section(svf_size, radii, repeats, echo):
         times = {p: [] for p in peers}
         for _ in range(repeats):  # interleaved
             for p, call in peers.items():
-                times[p].append(_timed(lambda: call(r))[0])
+                seconds, value = _timed(lambda: call(r))
+                times[p].append(seconds)
                 if p == "hftrace":
-                    path = T.LAST_STATS.algorithm
+                    path = value[1].algorithm
         med = {p: float(np.median(v)) for p, v in times.items()}
         peer = "rvt-py" if "rvt-py" in med else "numpy (RVT's method)"
         ratio = med[peer] / med["hftrace"]
@@ -177,7 +178,7 @@ def run_azimuths(size=2048, svf_size=512, radii=RADII, repeats=3, baseline=True,
 
     echo(f"  every azimuth fast: jacksboro {size}, svf {svf_size}^2")
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
-    lines = ["# Every azimuth fast (issue 21)", "",
+    lines = ["# Every azimuth fast", "",
              f"Load average at the start: {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} "
              "(timings on a loaded machine are indicative only). Command: "
              "`hftrace terrain-bench` (or `--quick` for the small tier).", ""]

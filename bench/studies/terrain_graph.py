@@ -1,6 +1,6 @@
 """The dask viewshed's graph size: tasks and build time of ``algos.viewshed`` on a lazy
 array, against the number of chunks (``hftrace terrain-bench`` calls
-:func:`dask_graph_sizes`; the graph is built by ``algos.tiled.tiled_viewshed``).
+:func:`dask_graph_sizes`; the graph is built by ``algos.terrain.tiled.tiled_viewshed``).
 
 Method: the input is ``dask.array.zeros`` (float64) with square chunks, nothing is
 computed. "Build" is the ``algos.viewshed`` call; "graph" is materialising the low-level

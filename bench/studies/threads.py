@@ -18,11 +18,12 @@ from algos.intersect import prepare_timed_intersect
 from algos.render import default_camera
 from datasets_gen import fields
 from datasets_gen import rays as raysets
+from datasets_gen.rays import first_hit_rays, traversal_rays
 
 from ..report import RowWriter
-from ..sweep import first_hit_rays, read_rows, traversal_rays
+from ..sweep import read_rows
 from ..timing import environment, interleaved, ratio_ci
-from .scaling import EMBREE_MAX_SIDE, GROWTH_R, fbm_field
+from .scaling_workload import EMBREE_MAX_SIDE, GROWTH_R, fbm_field
 
 __all__ = ["run_threads", "run_split"]
 

@@ -18,9 +18,9 @@ import time
 import numpy as np
 
 import algos
+from datasets_gen.rays import traversal_rays
 
 from ..report import RowWriter, speedup_table
-from ..sweep import traversal_rays
 from ..timing import environment, interleaved, median_ci, ratio_ci, write_json
 
 RUN_LENGTHS = (1, 2, 5, 25, 100)

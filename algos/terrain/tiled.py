@@ -30,8 +30,8 @@ from functools import partial
 
 import numpy as np
 
-from .field import HeightField, is_dask
-from .validate import check_length, check_spacing
+from ..field import HeightField, is_dask
+from ..validate import check_length, check_spacing
 
 __all__ = ["is_dask", "tiled_product", "halo_depth", "tiled_viewshed", "viewshed_window"]
 
@@ -184,7 +184,7 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
     from dask.base import tokenize
     from dask.highlevelgraph import HighLevelGraph
 
-    from .terrain import _observers  # terrain imports this module
+    from .observers import _observers
 
     arr, wrap, pixel, _, extra = _unwrap(heights, spacing, north_up=False)
     if arr.ndim != 2:

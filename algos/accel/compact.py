@@ -1,4 +1,4 @@
-"""The compact maximum tree of ``dda_compact`` (issue 22, item 4): a cache-compact
+"""The compact maximum tree of ``dda_compact``: a cache-compact
 maximum hierarchy, built and walked in ``cext/hierarchies/compact.c`` (layout: ``cext/hierarchies/compact.h``).
 
 Each node is one 64-byte cache line and has 4 x 4 children. A node of level ``L >= 1``
@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _kernels, hugepages
+from .. import _kernels, hugepages
 
 __all__ = ["NODE_BYTES", "NODE_DTYPE", "compact_layout", "build_compact", "compact_leaves",
            "compact_nodes", "compact_bounds", "compact_for"]

@@ -1,6 +1,6 @@
 """The optional C peer against the system Embree 3: grids, triangles, single rays and packets.
 
-embreex (``algos.embree_peer``) reaches Embree's single-ray triangle queries only. This
+embreex (``algos.peers.embree``) reaches Embree's single-ray triangle queries only. This
 peer reaches the rest of Embree 3's API for the same height field through a small C file
 (``cext/peers/embree3_peer.c``, built by setup.py as ``algos._embree3`` only where
 ``embree3/rtcore.h`` is found: Debian's ``libembree-dev``, Embree 3.13) loaded with
@@ -13,7 +13,7 @@ ctypes, which releases the GIL around each call:
   on the conventions' u = v: the surface is the ``triangles`` surface (shown by
   ``tests/test_embree_c.py``; ``geometry="grid_native"`` keeps Embree's order, the other
   surface, for that test only).
-- ``geometry="triangles"``: the triangles of ``algos.embree_peer.triangles``.
+- ``geometry="triangles"``: the triangles of ``algos.peers.embree.triangles``.
 - ``packet``: 1 (``rtcIntersect1``) or 4, 8, 16 (``rtcIntersect4/8/16``) where the CPU
   runs that width natively (:func:`native_widths`); ``coherent`` sets Embree's
   ``RTC_INTERSECT_CONTEXT_FLAG_COHERENT`` (camera and parallel batches).
@@ -21,7 +21,7 @@ ctypes, which releases the GIL around each call:
 Embree's fastest configuration, as its documentation gives it: no robust mode
 (``RTC_SCENE_FLAG_NONE``), ``RTC_BUILD_QUALITY_HIGH`` for scene and geometry (the
 highest-quality BVH, spatial splits for triangles; the slowest build), every ray's far
-bound passed as its ``tfar`` (``algos.embree_peer.far_bounds``) and float32 rays prepared
+bound passed as its ``tfar`` (``algos.peers.embree.far_bounds``) and float32 rays prepared
 outside the timed call, as for embreex. Embree computes in float32. The build time and
 Embree's own bytes (its memory monitor callback) are in ``field.build_stats``.
 """
@@ -33,8 +33,8 @@ import time
 
 import numpy as np
 
-from .embree_peer import far_bounds
-from .parallel import run_ranges
+from ..parallel import run_ranges
+from .embree import far_bounds
 
 __all__ = ["available", "unavailable_reason", "native_widths", "embree3_scene", "embree3_hits",
            "embree3_timed", "GEOMETRIES", "PACKET_WIDTHS"]
@@ -228,7 +228,7 @@ def embree3_hits(field, origins, directions, tmin, tmax, geometry="grid", packet
 
 def embree3_timed(field, origins, directions, geometry="grid", packet=1, coherent=False,
                   threads=1):
-    """(run, t) for benchmarks, as ``algos.embree_peer.embree_timed``: each ``run()``
+    """(run, t) for benchmarks, as ``algos.peers.embree.embree_timed``: each ``run()``
     traces every ray once and returns the elapsed ns of the C loop (with ``threads`` > 1,
     the pool's wall time); ``t()`` gives the latest first-hit parameters (inf on a miss).
     The scene, the float32 rays and the far bounds are made before, untimed."""

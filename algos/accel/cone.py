@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _kernels
+from .. import _kernels
 
 __all__ = ["CONE_RADIUS", "RELAXED_RADIUS", "cone_for", "build_cone", "relaxed_cone_for",
            "build_relaxed_cone"]

@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from .parallel import run_ranges
+from ..parallel import run_ranges
 
 __all__ = ["triangles", "embree_scene", "embree_hits"]
 
