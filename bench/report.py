@@ -7,6 +7,8 @@ import io
 import math
 import os
 
+from .findings import DEFAULT_PRECISION, ratio_text
+
 #: Measured columns of a results.csv that hold a number when not empty ("nan" allowed):
 #: a speedup, a time or an agreement that is text or negative was edited or corrupted.
 MEASURED_COLUMNS = ("ns_per_ray", "ns_per_ray_ci_low", "ns_per_ray_ci_high", "speedup",
@@ -215,10 +217,9 @@ def axes_caption(regime="flushed", coherence="random") -> str:
 
 def speedup_table(rows, column_key="run_length", column_label="r", footer=None) -> str:
     """A Markdown table: one row per algorithm, one column per value of ``column_key``;
-    each cell ``speedup ±half-width %`` labelled by ``bench.analysis.finding`` (the
+    each cell ``speedup ±half-width %`` labelled by ``bench.findings.finding`` (the
     rows' ``precision``, ``contended`` and ``stop`` where they record them), then ns/ray,
     plus the agreement when below 100 %."""
-    from .analysis import DEFAULT_PRECISION, ratio_text
 
     columns = list(dict.fromkeys(row[column_key] for row in rows))
     names = list(dict.fromkeys(row["algorithm"] for row in rows))

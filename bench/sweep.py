@@ -8,39 +8,16 @@ so a killed sweep loses at most the group it was measuring; ``resume=True`` skip
 row already in the file (the missing ones of a partly written group are measured again,
 with their baseline, and only they are appended).
 
-Config (TOML or dict), every key checked before any work starts:
-
-    name = "my-sweep"                 # output directory name under reports/
-    rays = 2000                       # rays per group
-    repeats = 7                       # interleaved repeats (>= 3); with precision, the fewest rounds
-    precision = 0.02                  # optional: sequential paired rounds to +-2 % (docs/METHOD.md)
-    group_budget = 3.0                # with precision: seconds a group may spend measuring
-    call_ms = 8.0                     # with precision: the baseline's call is at least this long
-    flush = "round"                   # with precision: flush the caches per "call", "round" or "none"
-    seed = 2004
-    algorithms = ["dda", "runs"]      # default: every algorithm of each workload
-    workloads = ["visit", "runs", "first_hit"]
-    surfaces = ["triangles"]          # for first_hit
-    run_lengths = [1, 2, 25, "random"]
-    [[datasets]]
-    name = "fbm"                      # a generator or an embedded field
-    size = 1024
-    seed = 1
-    params = { octaves = 6 }          # generator parameters
-
-Every key, its type, default and meaning: ``docs/sweeps.md``; examples in ``examples/``.
-An unknown key is an error naming it and the closest valid key.
+The config (TOML or dict) is read and checked by ``bench.sweep_config``.
 """
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import hashlib
 import json
 import math
 import os
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -51,8 +28,8 @@ from datasets_gen.rays import coherent_rays, traversal_rays
 
 from . import load as machine_load
 from .report import RowWriter, results_row_check, scan_csv
+from .sweep_config import WORKLOADS, ConfigError, SweepConfig, load_config
 from .timing import (
-    FLUSH_MODES,
     call_rays,
     environment,
     log_ratio_interval,
@@ -68,7 +45,6 @@ __all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "run_sweep_
            "RUN_COLUMNS", "config_hash", "new_run", "scan_results", "row_key", "WORKLOADS",
            "measure_group", "dask_client"]
 
-WORKLOADS = ("visit", "runs", "first_hit")
 BASELINE = "dda"
 COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "run_length",
            "rays", "cells_per_ray", "runs_per_ray", "ns_per_ray", "ns_per_ray_ci_low",
@@ -85,146 +61,6 @@ COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "r
 RUN_COLUMNS = ("run_id", "machine", "config_hash", "started")
 #: Columns a whole sweep row never leaves empty (``bench.report.scan_csv``)
 REQUIRED = ("algorithm", "workload", "dataset", "run_length", "rays", "repeats", "seed")
-_KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
-         "run_lengths", "datasets", "plugins", "precision", "group_budget", "call_ms", "flush"}
-_DATASET_KEYS = {"name", "size", "seed", "params"}
-
-
-class ConfigError(ValueError):
-    """A sweep configuration that cannot run; the message names the key."""
-
-
-def _unknown_key(where, key, valid):
-    """The error for an unknown config key: names it and the closest valid key."""
-    close = difflib.get_close_matches(str(key), sorted(valid), n=1, cutoff=0.5)
-    hint = f"did you mean {close[0]!r}? " if close else ""
-    return ConfigError(f"{where}{key}: unknown key; {hint}valid keys are {', '.join(sorted(valid))}")
-
-
-@dataclass
-class SweepConfig:
-    """A sweep: the grid of groups (datasets x workloads x surfaces x run lengths) and how
-    each is measured (rays, interleaved repeats, seed, algorithms). Build it with
-    :func:`load_config`, which checks every key (module docstring)."""
-
-    name: str = "sweep"
-    rays: int = 2000
-    repeats: int = 7
-    seed: int = 2004
-    algorithms: list | None = None
-    workloads: list = field(default_factory=lambda: list(WORKLOADS))
-    surfaces: list = field(default_factory=lambda: ["triangles"])
-    run_lengths: list = field(default_factory=lambda: [1, 2, 5, 25, 100, "random"])
-    datasets: list = field(default_factory=lambda: [{"name": "fbm", "size": 1024, "seed": 1}])
-    plugins: list = field(default_factory=list)
-    precision: float | None = None
-    group_budget: float = 3.0
-    call_ms: float = 8.0
-    flush: str = "round"
-
-
-def _check_int(key, value, low):
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ConfigError(f"{key}: expected an integer >= {low}, got {value!r}")
-
-
-def load_config(source) -> SweepConfig:
-    """A validated SweepConfig from a TOML path or a dict."""
-    if isinstance(source, (str, os.PathLike)):
-        try:
-            import tomllib
-        except ModuleNotFoundError:  # Python 3.10
-            import tomli as tomllib
-        path = os.fspath(source)
-        if not os.path.isfile(path):
-            raise ConfigError(f"config: {path} does not exist")
-        try:
-            with open(path, "rb") as f:
-                data = tomllib.load(f)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"config: {path} is not valid TOML ({exc})") from None
-    else:
-        data = dict(source)
-    unknown = set(data) - _KEYS
-    if unknown:
-        raise _unknown_key("", sorted(unknown)[0], _KEYS)
-    cfg = SweepConfig(**{k: v for k, v in data.items()})
-    if not isinstance(cfg.plugins, list) or not all(isinstance(p, str) for p in cfg.plugins):
-        raise ConfigError("plugins: expected a list of strings (library paths or module:callable)")
-    if cfg.plugins:
-        from algos.plugins import PluginError, load_plugin_spec
-
-        # library paths and modules resolve from the config's folder (then the current
-        # directory), so a documented config runs as written from any directory
-        base = os.path.dirname(os.path.abspath(os.fspath(source))) \
-            if isinstance(source, (str, os.PathLike)) else os.getcwd()
-        for k, spec in enumerate(cfg.plugins):
-            try:
-                load_plugin_spec(spec, base=base)
-            except (ValueError, PluginError) as exc:
-                raise ConfigError(f"plugins[{k}]: {exc}") from None
-    if not isinstance(cfg.name, str) or not cfg.name or "/" in cfg.name:
-        raise ConfigError(f"name: expected a plain directory name, got {cfg.name!r}")
-    _check_int("rays", cfg.rays, 8)
-    _check_int("repeats", cfg.repeats, 3)
-    _check_int("seed", cfg.seed, 0)
-    if cfg.precision is not None and (isinstance(cfg.precision, bool) or not isinstance(
-            cfg.precision, (int, float)) or not 0 < cfg.precision < 1):
-        raise ConfigError(f"precision: expected a fraction in (0, 1) (0.02 is ±2 %), got "
-                          f"{cfg.precision!r}")
-    if cfg.flush not in FLUSH_MODES:
-        raise ConfigError(f"flush: expected one of {', '.join(FLUSH_MODES)}, got {cfg.flush!r}")
-    for key in ("group_budget", "call_ms"):
-        value = getattr(cfg, key)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-            raise ConfigError(f"{key}: expected a positive number, got {value!r}")
-    for key in ("workloads", "surfaces", "run_lengths", "datasets"):
-        if not isinstance(getattr(cfg, key), list) or not getattr(cfg, key):
-            raise ConfigError(f"{key}: expected a non-empty list")
-    for w in cfg.workloads:
-        if w not in WORKLOADS:
-            raise ConfigError(f"workloads: unknown workload {w!r}; valid: {', '.join(WORKLOADS)}")
-    for s in cfg.surfaces:
-        if s not in algos.SURFACES:
-            raise ConfigError(f"surfaces: unknown surface {s!r}; valid: {', '.join(algos.SURFACES)}")
-    for r in cfg.run_lengths:
-        if r != "random" and (isinstance(r, bool) or not isinstance(r, (int, float)) or not r >= 1):
-            raise ConfigError(f"run_lengths: {r!r} is neither a number >= 1 nor \"random\"")
-    if cfg.algorithms is not None:
-        if not isinstance(cfg.algorithms, list) or not cfg.algorithms:
-            raise ConfigError("algorithms: expected a non-empty list of names")
-        valid = set(algos.TRAVERSALS) | set(algos.INTERSECTORS)
-        for a in cfg.algorithms:
-            if a not in valid:
-                raise ConfigError(f"algorithms: unknown algorithm {a!r}; valid: {', '.join(sorted(valid))}")
-    for k, ds in enumerate(cfg.datasets):
-        where = f"datasets[{k}]"
-        if not isinstance(ds, dict):
-            raise ConfigError(f"{where}: expected a table with name, size, seed, params")
-        extra = set(ds) - _DATASET_KEYS
-        if extra:
-            raise _unknown_key(f"{where}.", sorted(extra)[0], _DATASET_KEYS)
-        name = ds.get("name")
-        if name not in datasets_gen.GENERATORS and name not in datasets_gen.EMBEDDED:
-            raise ConfigError(f"{where}.name: unknown dataset {name!r}")
-        if "size" in ds:
-            _check_int(f"{where}.size", ds["size"], 2)
-        if "seed" in ds:
-            _check_int(f"{where}.seed", ds["seed"], 0)
-        params = ds.get("params", {})
-        if not isinstance(params, dict):
-            raise ConfigError(f"{where}.params: expected a table")
-        allowed = (datasets_gen.GENERATORS[name].defaults if name in datasets_gen.GENERATORS
-                   else datasets_gen.EMBEDDED[name][1])
-        for p in params:
-            if p not in allowed:
-                close = difflib.get_close_matches(str(p), list(allowed), n=1, cutoff=0.5)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                raise ConfigError(f"{where}.params.{p}: not a parameter of {name}{hint}; it "
-                                  f"takes {', '.join(allowed) or 'none'}")
-    return cfg
-
-
 # ---- the groups ----------------------------------------------------------------------
 def dataset_label(ds) -> str:
     """The dataset column of a config entry: name, size and sorted parameters, e.g.

@@ -1,13 +1,13 @@
 """Fixed first-hit cases whose outputs are pinned bit for bit (tests/data/hit_pin.npz).
 
 The pin was written by the kernels as they stood before the tight first-hit loops
-(issue "Every kernel at its best"): tuning may make a kernel faster, never change its t or
+(the tuning round): tuning may make a kernel faster, never change its t or
 its cell. Exact kernels must keep them forever; a float kernel may change only by a
 deliberate, documented change, which regenerates the pin:
 
     python -m tests.hit_pin --write      # then say why in the commit
 
-``packet_maxmip`` (issue 22) was added to the pin with ``dda_maxmip``'s pinned arrays,
+``packet_maxmip`` was added to the pin with ``dda_maxmip``'s pinned arrays,
 copied, not recomputed: it must equal them bit for bit. ``plane_maxmip`` joined the same
 way, with two groups of vertical planes added for every kernel (a level camera and an
 orthographic camera over the fBm field), whose ``dda_maxmip`` arrays it was given too;

@@ -154,7 +154,7 @@ def terrain():
 def test_npy_npz_round_trip(tmp_path, terrain):
     np.save(tmp_path / "a.npy", terrain)
     f = loaders.load_file(tmp_path / "a.npy", spacing=2.0, vertical_scale=3.0)
-    # heights stay in the unit of the spacing (issue 19; they used to become cells)
+    # heights stay in the unit of the spacing (they used to become cells)
     assert np.allclose(f.heights, terrain * 3.0, rtol=1e-6) and f.spacing == 2.0
     np.savez(tmp_path / "b.npz", other=terrain[:2], heights=terrain)
     assert np.allclose(loaders.load_file(tmp_path / "b.npz").heights, terrain, rtol=1e-6)
@@ -165,7 +165,7 @@ def test_npy_npz_round_trip(tmp_path, terrain):
 
 
 def test_geotiff_round_trip_with_tags(tmp_path, terrain):
-    """(Updated with issue 19: written with rasterio; voids are the default policy and
+    """(Since the GIS round: written with rasterio; voids are the default policy and
     heights stay in metres.)"""
     import rasterio
     from affine import Affine
@@ -250,7 +250,7 @@ def test_bad_files(tmp_path):
     np.save(tmp_path / "nan.npy", bad)
     with pytest.raises(ValueError, match=r"nan.npy: .*\(row 2, col 1\)"):
         loaders.load_file(tmp_path / "nan.npy", nodata_policy="error")
-    # the default keeps it as a void (issue 19)
+    # the default keeps it as a void
     assert loaders.load_file(tmp_path / "nan.npy").nodata_mask[2, 1]
     np.save(tmp_path / "ok.npy", np.ones((4, 4)))
     with pytest.raises(ValueError, match="spacing"):

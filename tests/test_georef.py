@@ -1,4 +1,4 @@
-"""Terrain products a GIS user can trust (issue 19): each row of the issue's table, a
+"""Terrain products a GIS user can trust: each row of the GIS round's table of failures, a
 GeoTIFF round trip, rectangular pixels against a brute-force reference, voids, observers
 in map coordinates, xarray in and out, pictures, and a peer on a projected DEM.
 
@@ -36,7 +36,7 @@ def deg(x):
     return float(np.degrees(x))
 
 
-# ---- the table of issue 19 ---------------------------------------------------------------
+# ---- the GIS round's table ----------------------------------------------------------------
 
 def test_metres_with_spacing_give_45_degrees():
     H = np.zeros((5, 5))

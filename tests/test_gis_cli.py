@@ -1,4 +1,4 @@
-"""The terrain commands on a user's own files (issue 19): ``hftrace svf their_dem.tif``
+"""The terrain commands on a user's own files: ``hftrace svf their_dem.tif``
 gives a georeferenced, nodata-aware result equal to the API's on the same file, or a
 one-line refusal that says how to fix the input. Every GeoTIFF is made here with rasterio.
 """

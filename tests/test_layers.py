@@ -25,12 +25,6 @@ LAYERS = ("bench", "datasets_gen", "algos")
 #: Known exceptions, (importer, imported), each with the change that removes it; the same
 #: as the ``ignore_imports`` of pyproject.toml's contracts.
 KNOWN_IMPORTS = {
-    # the CRS rules and the camera's ray set, until they move to algos/georef.py and
-    # algos/render.py
-    ("algos.field", "datasets_gen.raster"): "CRS rules",
-    ("algos.render", "datasets_gen.rays"): "camera rays",
-    # the registry loads the plugins, which register into it
-    ("algos.registry", "algos.plugins"): "plugin loading",
     ("algos.plugins", "algos"): "plugin loading",
 }
 #: Largest module, in lines.

@@ -135,7 +135,7 @@ def test_memory_mapped_npy_is_used_in_place(tmp_path, field):
     assert np.shares_memory(f.heights, hf.heights)  # no copy
     o, d = first_hit_rays(field, 5, 2000, 2)
     assert np.array_equal(algos.intersect("runs", f, o, d).t, algos.intersect("runs", field, o, d).t)
-    # a spacing converts nothing (heights are in its unit): still mapped (issue 19)
+    # a spacing converts nothing (heights are in its unit): still mapped
     assert isinstance(datasets_gen.load_file(path, spacing=2.0).heights, np.memmap)
     # a file that needs converting (a vertical scale) takes the general path, in memory
     converted = datasets_gen.load_file(path, vertical_scale=0.5)
@@ -149,7 +149,7 @@ def test_memory_mapped_file_with_nan_names_the_sample(tmp_path):
     np.save(tmp_path / "bad.npy", h)
     with pytest.raises(ValueError, match=r"row 3, col 4"):
         datasets_gen.load_file(tmp_path / "bad.npy", nodata_policy="error")
-    # the default policy keeps the void, and the map (issue 19)
+    # the default policy keeps the void, and the map
     voids = datasets_gen.load_file(tmp_path / "bad.npy")
     assert isinstance(voids.heights, np.memmap) and voids.nodata_mask[3, 4]
 
@@ -432,7 +432,7 @@ def test_banded_mipmap_equals_the_whole_array_reduction(shape, band_samples, mon
 
 def test_geotiff_is_read_through_rasterio(tmp_path, field):
     """GeoTIFF goes through rasterio (GDAL), which decodes blocks into memory: the
-    memory-mapped path of earlier versions is kept for .npy only (issue 19)."""
+    memory-mapped path of earlier versions is kept for .npy only."""
     import tifffile
 
     tifffile.imwrite(tmp_path / "f.tif", field.heights)

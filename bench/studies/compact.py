@@ -1,5 +1,5 @@
 """``hftrace compact``: the cache-compact maximum tree (``dda_compact``) against today's
-maximum mipmap (``dda_maxmip``), by the cache lines a ray touches (issue 22, item 4).
+maximum mipmap (``dda_maxmip``), by the cache lines a ray touches.
 
 For each field side (fBm, the growth curve from 256^2 up), on the same random-azimuth
 first-hit rays as bench-intersect (``datasets_gen.rays.first_hit_rays``, r = "random"), two-triangle

@@ -204,7 +204,7 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
         run_parallel(out_dir=out_dir, resume=resume, echo=echo,
                      repeats=7 if name == "full" else 5, sample=40000 if name == "full" else 20000)
     if name == "full":
-        # the other road: rasterising the cells against tracing the pixels (issue 23), its
+        # the other road: rasterising the cells against tracing the pixels, its
         # quick tier (`hftrace raster-vs-trace --full` is the full one, hours)
         from . import raster_vs_trace
 

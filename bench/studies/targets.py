@@ -1,4 +1,4 @@
-"""``hftrace targets``: the targets table of issue 22, every ratio from one run.
+"""``hftrace targets``: the table of the kernels' targets against their peers, every ratio from one run.
 
 One process, pinned to one CPU (every contender single-threaded: our kernels, embreex's
 loop, Embree's builder and the C Embree 3 peer), in one cache regime
@@ -340,7 +340,7 @@ def _misses_row(cfg, compact_kernel, seed, counts, common):
 
 
 def _table(rows, env, tier, regime, load_before, load_after, counts=True) -> str:
-    lines = [f"# Targets (issue 22), {tier} tier", "",
+    lines = [f"# Targets, {tier} tier", "",
              f"One process, one thread pinned to CPU {env.get('pinned_cpu')}, cache regime "
              f"**{regime}** (docs/METHOD.md, \"Cache regimes\"); machine {env.get('cpu')}, "
              f"commit {env.get('git_commit')}; load averages (1, 5, 15 min) {load_before} "

@@ -1,4 +1,4 @@
-"""The dda_compact kernel's invariant for the fuzz harness (issue 22, item 4), as a
+"""The dda_compact kernel's invariant for the fuzz harness, as a
 function the harness calls on every decoded first-hit case.
 
 The harness reaches ``dda_compact`` by itself (its decoder picks intersectors from

@@ -1,4 +1,4 @@
-"""The cone kernel's invariants for the fuzz harness (issue 22), as a function the harness
+"""The cone kernel's invariants for the fuzz harness, as a function the harness
 calls on every decoded first-hit case.
 
 The harness reaches the cone kernel by itself (its decoder picks intersectors from
