@@ -56,6 +56,7 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
+from . import hugepages
 from .accel.maxima import BAND_SAMPLES, RMQ_BLOCK_SHIFT, band_rows, cellmax_rows, range_max
 from .accel.mipmap import max_mipmap, tile_max_rows
 from .decode import decode
@@ -460,7 +461,8 @@ class HeightField:
                 raise ValueError(f"heights: {self.name} has rectangular pixels "
                                  f"({self.dx:g} x {self.dy:g} {self.unit}); first hits and "
                                  "renders work in cell units and need square pixels")
-            self._cache["cell_heights"] = h
+            # a copy made here goes on huge pages; the caller's array stays where it is
+            self._cache["cell_heights"] = hugepages.adopt(h, owner=self.heights)
         return self._cache["cell_heights"]
 
     @property
@@ -543,7 +545,7 @@ class HeightField:
         h = self.cell_heights
 
         def make():  # in bands: the only full-size array is the result
-            out = np.empty((self.rows - 1, self.cols - 1), dtype=np.float32)
+            out = hugepages.empty((self.rows - 1, self.cols - 1), np.float32)
             step = band_rows(self.cols)
             for r0 in range(0, self.rows - 1, step):
                 r1 = min(self.rows - 1, r0 + step)

@@ -194,6 +194,14 @@ INTERSECTOR_REGISTRY.update({
                 "parallel batches): one read of a tile's maximum per group of rays over it, "
                 "exit parameters side by side; bit-identical to dda_maxmip",
         citation="Wald et al. 2001; Tevs, Ihrke & Seidel 2008"),
+    "plane_maxmip": Intersector(
+        "plane_maxmip", _C_ID["plane_maxmip"], "maxmip", "float64", "dda", ("cellmax", "mip"),
+        dict(cull_cells=True, fine_level=3),
+        summary="dda_maxmip's walk with vertical-plane coherence: rays sharing an origin and "
+                "a horizontal direction (bit for bit) are traced bottom up, each resuming "
+                "where the ray below hit (flat, plane3, triangles; bilinear rays and rays "
+                "without a partner walk alone); bit-identical to dda_maxmip",
+        citation="Cohen-Or & Shaked 1993; Lee & Shin 1995; Tevs, Ihrke & Seidel 2008"),
     "runs_maxmip": Intersector(
         "runs_maxmip", _C_ID["runs_maxmip"], "maxmip", "exact", "runs",
         ("cellmax", "mip"), dict(cull_cells=True, cull_runs=False, fine_level=3),

@@ -19,12 +19,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import plane_cameras
 from .camera import pinhole_frame, primary_directions
 from .field import Field
 from .intersect import intersect
 from .registry import get_intersector
 
-__all__ = ["Rendering", "default_camera", "render", "shade"]
+__all__ = ["Rendering", "default_camera", "render", "shade", "PROJECTIONS"]
+
+
+#: The cameras of :func:`render`: the pinhole, and the two whose image columns are
+#: vertical planes (``algos.plane_cameras``).
+PROJECTIONS = ("pinhole", "level", "orthographic")
 
 
 @dataclass(frozen=True)
@@ -78,7 +84,8 @@ def default_camera(heights):
 
 
 def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640, height=360,
-           position=None, look_at=None, fov=60.0, fog=0.0, threads=None) -> Rendering:
+           position=None, look_at=None, fov=60.0, fog=0.0, threads=None,
+           projection="pinhole") -> Rendering:
     """Trace a pinhole image of a height field with one intersector.
 
     Parameters
@@ -110,6 +117,14 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     threads : int, optional
         As in ``algos.intersect`` (default every core); the image is bit-identical for
         every value.
+    projection : str
+        One of :data:`PROJECTIONS`: ``"pinhole"``, ``"level"`` (a level pinhole with a
+        vertical lens shift that centres ``look_at``: every image column one vertical
+        plane, ``algos.plane_cameras.level_camera_rays``) or ``"orthographic"`` (parallel
+        rays from ``position`` to ``look_at``, the film ``2 |look_at - position|
+        tan(fov / 2)`` cells wide, ``algos.plane_cameras.orthographic_rays``;
+        ``depth`` is then measured from the vertical film through ``position``). The last
+        two are the batches ``plane_maxmip`` traces a column at a time.
 
     Returns
     -------
@@ -118,8 +133,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     Raises
     ------
     ValueError
-        An unknown algorithm or surface, bad heights, or a degenerate camera (the
-        message names the argument). A field with rectangular pixels or with voids
+        An unknown algorithm, surface or projection, bad heights, or a degenerate camera
+        (the message names the argument); a rasteriser with a projection other than
+        ``"pinhole"``. A field with rectangular pixels or with voids
         (nodata) is refused before any camera is computed, the message naming the pixel
         size or the first void sample (fill voids with ``HeightField.filled``).
     TypeError
@@ -134,11 +150,24 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)
     from . import raster
 
-    frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
-    directions = primary_directions(frame, sx, sy)
-    origins = np.broadcast_to(frame[:3], directions.shape)
+    if projection not in PROJECTIONS:
+        raise ValueError(f"projection: expected one of {', '.join(PROJECTIONS)}, "
+                         f"got {projection!r}")
+    if projection == "pinhole":
+        frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
+        directions = primary_directions(frame, sx, sy)
+        origins = np.broadcast_to(frame[:3], directions.shape)
+    elif projection == "level":
+        origins, directions, _ = plane_cameras.level_camera_rays(position, look_at, fov,
+                                                                 width, height)
+    else:
+        origins, directions = plane_cameras.orthographic_rays(position, look_at, fov, width,
+                                                              height)
     shape = (height, width)
     if algorithm in raster.RASTERISERS:
+        if projection != "pinhole":
+            raise ValueError(f"projection: the rasterisers draw 'pinhole' only, got "
+                             f"{projection!r}")
         if surface != "triangles":
             raise ValueError(f"surface: the rasterisers draw 'triangles' only, got {surface!r}")
         image = raster.render(algorithm, field, position, look_at, fov, width, height,
@@ -157,7 +186,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         else:
             cells_visited = hits.stats["cells_visited"].reshape(shape)
             runs_visited = hits.stats["runs_visited"].reshape(shape)
-    depth = t.reshape(shape)  # unit directions: t is a distance
+    # unit directions: t is a distance; the level camera's are not unit vectors, so its t
+    # is in units of each ray's |d|
+    depth = (t * np.linalg.norm(directions, axis=1) if projection == "level" else t).reshape(shape)
     normal = normal.reshape(height, width, 3)
     points = origins + np.where(np.isfinite(t), t, 0)[:, None] * directions
     points = points.reshape(height, width, 3)

@@ -200,7 +200,9 @@ REGIME_TEXT = {"flushed": "caches flushed before every timed run",
                "warm": "each kernel warmed on its own rays (an untimed run right before)"}
 COHERENCE_TEXT = {"random": "random rays (origins over the field, azimuth atan(1/r), all octants)",
                   "parallel": "parallel rays (one direction of slope 1/r per batch)",
-                  "camera": "camera rays (render's pinhole batch)"}
+                  "camera": "camera rays (render's pinhole batch)",
+                  "level": "camera rays (render's level projection, one plane per column)",
+                  "orthographic": "camera rays (render's orthographic projection)"}
 #: Said next to every Embree figure.
 EMBREE_NOTE = ("`embree` is embreex, which reaches Embree's single-ray triangle queries only; "
                "`embree3`, where built (libembree-dev), is the C peer with Embree 3's grid "

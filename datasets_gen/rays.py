@@ -18,9 +18,9 @@ import numpy as np
 from algos.camera import pinhole_frame, primary_directions
 
 __all__ = ["RaySet", "by_run_length", "uniform", "isotropic", "lattice", "octant_directions",
-           "mean_run_length", "pinhole", "parallel", "adversarial", "first_hit_hazards",
-           "HAZARD_FAMILIES", "traversal_rays", "first_hit_rays", "coherent_rays", "orthographic_rays",
-           "COHERENCE"]
+           "mean_run_length", "pinhole", "level_camera", "orthographic_camera", "parallel",
+           "adversarial", "first_hit_hazards", "HAZARD_FAMILIES", "traversal_rays",
+           "first_hit_rays", "coherent_rays", "orthographic_rays", "COHERENCE"]
 
 
 @dataclass(frozen=True)
@@ -238,6 +238,33 @@ def pinhole(position, look_at, fov, width, height, *, up=(0.0, 0.0, 1.0)):
                              height=int(height), up=list(map(float, up))))
 
 
+def level_camera(position, look_at, fov, width, height):
+    """Primary rays of a level pinhole camera with a vertical lens shift that centres
+    ``look_at`` (``algos.plane_cameras.level_camera_rays``: every image column one
+    vertical plane, directions not normalised), one per pixel in row-major order (row 0
+    at the top), as a :class:`RaySet`. Raises ``ValueError`` as that function does."""
+    from algos.plane_cameras import level_camera_rays
+
+    o, d, shift = level_camera_rays(position, look_at, fov, width, height)
+    return RaySet(o, d, dict(kind="level", position=list(map(float, position)),
+                             look_at=list(map(float, look_at)), fov=fov, width=int(width),
+                             height=int(height), shift=shift))
+
+
+def orthographic_camera(position, look_at, fov, width, height):
+    """Primary rays of an orthographic camera without roll
+    (``algos.plane_cameras.orthographic_rays``: unit directions from ``position`` to
+    ``look_at``, origins on the vertical film through ``position``, so every image
+    column is one vertical plane), one per pixel in row-major order, as a
+    :class:`RaySet`. Raises ``ValueError`` as that function does."""
+    from algos.plane_cameras import orthographic_rays
+
+    o, d = orthographic_rays(position, look_at, fov, width, height)
+    return RaySet(o, d, dict(kind="orthographic", position=list(map(float, position)),
+                             look_at=list(map(float, look_at)), fov=fov, width=int(width),
+                             height=int(height)))
+
+
 def parallel(n, shape, seed, *, direction=None, rational=None, octant=0, origins="inside",
              height=None, elevation=None):
     """``n`` parallel rays: one direction, many origins (orthographic cameras, sun and
@@ -407,8 +434,11 @@ def first_hit_hazards(shape, seed, per_family=40, families=HAZARD_FAMILIES[:5]):
 #: Ray batches of a first-hit group, from incoherent to coherent (docs/METHOD.md, "Cache
 #: regimes and coherence"): "random" origins over the field at azimuth atan(1/r) in all
 #: octants; "parallel" rays of one direction, slope 1/r (orthographic, sun shadows);
-#: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels).
-COHERENCE = ("random", "parallel", "camera")
+#: "camera" the pinhole rays of ``render``'s default camera (16:9, about ``rays`` pixels);
+#: "level" and "orthographic" that view with ``render``'s level and orthographic
+#: projections, whose image columns are vertical planes (the batches ``plane_maxmip``
+#: traces a plane at a time).
+COHERENCE = ("random", "parallel", "camera", "level", "orthographic")
 
 
 def traversal_rays(shape, r, n, seed):
@@ -442,7 +472,8 @@ def coherent_rays(field, coherence, r, n, seed):
     """First-hit rays (origins, directions), (N, 3), of one :data:`COHERENCE` kind:
     "random" is :func:`first_hit_rays`; "parallel" n orthographic rays of slope 1/r
     falling at 10 degrees; "camera" the pinhole rays of ``render``'s default camera, 16:9
-    with about n pixels (``r`` unused)."""
+    with about n pixels (``r`` unused); "level" and "orthographic" the same view and size
+    through :func:`level_camera` and :func:`orthographic_camera`."""
     if coherence == "random":
         return first_hit_rays(field, r, n, seed)
     rows_, cols_ = field.heights.shape
@@ -451,12 +482,14 @@ def coherent_rays(field, coherence, r, n, seed):
             raise ValueError("coherence: parallel rays need a numeric run length, got 'random'")
         return orthographic_rays((cols_ - 1, rows_ - 1), int(round(float(r))), n, seed,
                                  top=field.hmax)
-    if coherence == "camera":
+    if coherence in ("camera", "level", "orthographic"):
         from algos.render import default_camera
 
         width = max(2, int(round(math.sqrt(n * 16 / 9))))
         height = max(2, int(round(width * 9 / 16)))
         position, look_at = default_camera(field.heights)
-        rs = pinhole(position, look_at, 60.0, width, height)
+        camera = {"camera": pinhole, "level": level_camera,
+                  "orthographic": orthographic_camera}[coherence]
+        rs = camera(position, look_at, 60.0, width, height)
         return rs.origins, rs.directions
     raise ValueError(f"coherence: expected one of {', '.join(COHERENCE)}, got {coherence!r}")

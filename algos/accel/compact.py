@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import _kernels
+from .. import _kernels, hugepages
 
 __all__ = ["NODE_BYTES", "NODE_DTYPE", "compact_layout", "build_compact", "compact_leaves",
            "compact_nodes", "compact_bounds", "compact_for"]
@@ -92,7 +92,7 @@ def build_compact(cellmax: np.ndarray) -> np.ndarray:
         raise ValueError(f"cellmax: NaN at cell (i={i}, j={j})")
     levels = compact_layout(*m.shape)
     n_bytes = (levels[-1][0] + 1) * NODE_BYTES
-    raw = np.zeros(n_bytes + NODE_BYTES, dtype=np.uint8)
+    raw = hugepages.empty(n_bytes + NODE_BYTES, np.uint8, zero=True)  # 2 MiB-aligned if large
     start = (-raw.ctypes.data) % NODE_BYTES
     tree = raw[start:start + n_bytes]
     _kernels.compact_build(m, tree)

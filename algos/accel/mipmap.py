@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import hugepages
 from .maxima import band_rows, cellmax_rows
 
 __all__ = ["max_mipmap", "tile_max_rows", "mip_levels", "terrain_mipmap"]
@@ -19,7 +20,7 @@ def tile_max_rows(h: np.ndarray, kind: str, level: int) -> np.ndarray:
     size = 1 << level
     ny, nx = h.shape[0] - 1, h.shape[1] - 1
     out_rows, out_cols = -(-ny // size), -(-nx // size)
-    out = np.empty((out_rows, out_cols), dtype=np.float32)
+    out = hugepages.empty((out_rows, out_cols), np.float32)
     tiles_per_band = max(1, band_rows(h.shape[1]) // size)
     for t0 in range(0, out_rows, tiles_per_band):
         t1 = min(out_rows, t0 + tiles_per_band)
@@ -35,7 +36,7 @@ def halve(a: np.ndarray) -> np.ndarray:
     rows: the extra memory is a band, not a copy of ``a``."""
     r, c = a.shape
     rows_out, cols_out = -(-r // 2), -(-c // 2)
-    out = np.empty((rows_out, cols_out), dtype=a.dtype)
+    out = hugepages.empty((rows_out, cols_out), a.dtype)
     step = max(1, band_rows(c) // 2)
     for o0 in range(0, rows_out, step):
         o1 = min(rows_out, o0 + step)

@@ -29,6 +29,7 @@ import os
 import numpy as np
 
 import algos
+from algos.render import PROJECTIONS
 
 from .args import add_plugin, load_plugins, param, positive_int, results_dir, vector
 from .files import save_png, write_exr
@@ -74,7 +75,8 @@ def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
 
 def render_files(dataset="fbm", size=None, seed=1, algorithm="runs", surface="triangles",
                  width=640, height=360, position=None, look_at=None, fov=60.0, fog=0.0,
-                 out="render", diff=None, params=None, echo=print, threads=None, fill=None):
+                 out="render", diff=None, params=None, echo=print, threads=None, fill=None,
+                 projection="pinhole"):
     """Render with ``algos.render``, write the files (module docstring), return their paths
     (keys exr, png, and with ``diff`` diff_exr, diff_png).
 
@@ -85,14 +87,14 @@ def render_files(dataset="fbm", size=None, seed=1, algorithm="runs", surface="tr
     are divided by the (square) pixel size, and ``position``, ``look_at`` and ``fog``
     are in cell units. ``fill`` as in :func:`load_render_field`; ``threads`` as in
     ``algos.intersect`` (default: every core), the image is bit-identical for every
-    value."""
+    value. ``projection`` is ``algos.render``'s (pinhole, level or orthographic)."""
     field = load_render_field(dataset, size=size, seed=seed, params=params, fill=fill)
     if os.path.exists(str(dataset)):
         dataset = os.path.basename(str(dataset))
     heights = field.heights
     os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
     view = dict(surface=surface, width=width, height=height, position=position,
-                look_at=look_at, fov=fov, threads=threads)
+                look_at=look_at, fov=fov, threads=threads, projection=projection)
     image = algos.render(field, algorithm, fog=fog, **view)
     write_exr(f"{out}.exr", {"Z": image.depth, "N.x": image.normal[..., 0],
                              "N.y": image.normal[..., 1], "N.z": image.normal[..., 2],
@@ -175,7 +177,7 @@ def render_command(args):
                  surface=args.surface, width=args.width, height=args.height,
                  position=args.camera, look_at=args.look_at, fov=args.fov, fog=args.fog,
                  out=args.out, diff=args.diff, params=dict(args.param or []),
-                 threads=args.threads, fill=args.fill)
+                 threads=args.threads, fill=args.fill, projection=args.projection)
     return 0
 
 
@@ -199,6 +201,9 @@ def register(sub):
     p.add_argument("--height", type=positive_int, default=360)
     p.add_argument("--camera", type=vector, default=None, help="x,y,z (default: above a corner)")
     p.add_argument("--look-at", type=vector, default=None, help="x,y,z (default: the centre)")
+    p.add_argument("--projection", default="pinhole", choices=PROJECTIONS,
+                   help="pinhole; level (no pitch, a vertical lens shift centres --look-at: "
+                        "each image column one vertical plane); orthographic")
     p.add_argument("--fov", type=float, default=60.0, help="horizontal field of view, degrees")
     p.add_argument("--fog", type=float, default=0.0,
                    help="height-fog density sigma0 per cell at the lowest point (0: none)")

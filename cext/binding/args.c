@@ -21,7 +21,7 @@ const char *hf_status_text(int status) {
     case HF_ERR_CAPACITY: return "an output buffer does not match the counting pass";
     case HF_ERR_INTERNAL: return "an exact walk missed its computed last cell";
     case HF_ERR_ARGUMENT: return "unknown kernel or mode";
-    case HF_ERR_MEMORY: return "out of memory for the renderer's table";
+    case HF_ERR_MEMORY: return "out of memory for a kernel's or renderer's scratch";
     default: return "unknown error";
     }
 }

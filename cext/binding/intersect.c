@@ -256,7 +256,7 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         return NULL;
     }
     if ((a.kernel == HF_HIT_DDA_MAXMIP || a.kernel == HF_HIT_RUNS_MAXMIP ||
-         a.kernel == HF_HIT_PACKET_MAXMIP) &&
+         a.kernel == HF_HIT_PACKET_MAXMIP || a.kernel == HF_HIT_PLANE_MAXMIP) &&
         b.mip_levels < 1) {
         PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
         return NULL;

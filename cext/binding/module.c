@@ -28,6 +28,7 @@ static const struct {
     {"cone_relaxed", HF_HIT_CONE_RELAXED},
     {"packet_maxmip", HF_HIT_PACKET_MAXMIP},
     {"dda_compact", HF_HIT_DDA_COMPACT},
+    {"plane_maxmip", HF_HIT_PLANE_MAXMIP},
 };
 
 /* KERNEL_IDS: {name: id} of every kernel above. */

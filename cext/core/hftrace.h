@@ -44,7 +44,8 @@ enum hf_hit_kernel {
     HF_HIT_CONE_RELAXED = 12,
     HF_HIT_PACKET_MAXMIP = 13,
     HF_HIT_DDA_COMPACT = 14,
-    HF_N_HIT_KERNELS = 15
+    HF_HIT_PLANE_MAXMIP = 15,
+    HF_N_HIT_KERNELS = 16
 };
 
 enum hf_mode {
@@ -61,7 +62,7 @@ enum hf_status {
     HF_ERR_CAPACITY = -1, /* an output buffer was too small (a bug in the caller)      */
     HF_ERR_INTERNAL = -2, /* an exact walk did not reach its computed last cell        */
     HF_ERR_ARGUMENT = -3, /* unknown kernel or mode                                    */
-    HF_ERR_MEMORY = -4    /* a renderer could not allocate its table                   */
+    HF_ERR_MEMORY = -4    /* a kernel or renderer could not allocate its scratch       */
 };
 
 /* One batch of rays and the buffers its mode writes to. Unused pointers may be NULL. */

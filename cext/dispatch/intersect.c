@@ -10,6 +10,7 @@
 #include "hierarchies/compact.h"
 #include "hierarchies/cone.h"
 #include "hierarchies/packet.h"
+#include "dispatch/plane.h"
 #include "surfaces/hitbatch.h"
 #include "walks/walk.h"
 #include "hierarchies/maxmip.h"
@@ -444,6 +445,25 @@ static int packet_batch(hf_hit_batch *b) {
     return HF_OK;
 }
 
+/* The three steps of one ray with dda_maxmip's walk, for plane_maxmip (plane.c). */
+static int maxmip_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0, double *t1,
+                        int *entry_axis) {
+    return ray_begin(b, ray, h, t0, t1, entry_axis);
+}
+
+static int maxmip_solve(hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
+                        int entry_axis) {
+    hf_pattern pattern; /* (unused by the cell walk) */
+    pattern.p = pattern.q = pattern.position_step = 0;
+    pattern.lengths = b->pattern;
+    return ray_solve(HF_HIT_DDA_MAXMIP, b, ray, h, t0, t1, entry_axis, hf_batch_dda_hit, 0, NULL,
+                     &pattern, NULL);
+}
+
+static void maxmip_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) {
+    ray_end(b, ray, h);
+}
+
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_pattern pattern;
     hf_direction direction_cache; /* the exact walks' per-direction set-up, across rays */
@@ -457,6 +477,10 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_compact compact; /* dda_compact: the tree's geometry (compact.h) */
     int64_t ray;
     if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b);
+    if (kernel == HF_HIT_PLANE_MAXMIP) {
+        static const hf_ray_steps steps = {maxmip_begin, maxmip_solve, maxmip_end};
+        return hf_plane_batch(b, &steps);
+    }
     if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;

@@ -138,7 +138,8 @@ static inline double hf_mip_tile_max(const hf_hit_batch *b, int level, int32_t t
  * pay for the interval and the surface test. `maxima` holds the cell maxima: the
  * row-major grid (leaf = 0) or, for the compact tree, the tile's leaf of 4 x 4 maxima in
  * one line (leaf = 1; a constant at every call site, so the choice folds away). Returns 1
- * on a hit, 0 when the ray ends or leaves the grid, -1 when it leaves the tile: then
+ * on a hit (then (*ci, *cj) is the hit cell and *t_entered the parameter the walk
+ * entered it at), 0 when the ray ends or leaves the grid, -1 when it leaves the tile: then
  * (*ci, *cj) is the cell it entered and *t_entered the parameter where it did. */
 HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jlo, uint32_t iw,
                          uint32_t jw, const float *maxima, const int leaf, int32_t *ci, int32_t *cj,
@@ -157,7 +158,14 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
         if (!cull ||
             !(oz + (descending ? tb : t_in) * dz >
               (double)(leaf ? maxima[((j & 3) << 2) | (i & 3)] : maxima[(int64_t)j * nx + i]))) {
-            if (hf_hit_cell_exact(h, i, j)) return 1;
+            if (hf_hit_cell_exact(h, i, j)) {
+                /* the hit cell and the parameter the walk entered it at: where
+                 * plane_maxmip resumes the ray above (dispatch/plane.c) */
+                *ci = i;
+                *cj = j;
+                *t_entered = t_in;
+                return 1;
+            }
         }
         if (!(tb < t1)) return 0;
         if (mx < my) {
@@ -199,8 +207,9 @@ static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk 
     double t_in;
     const int status =
         hf_floor_walk(h, r, ilo, jlo, iw, jw, h->cellmax, 0, &w->i, &w->j, w->t, &t_in);
-    if (status >= 0) return status;
-    w->t = t_in > w->t ? t_in : w->t;
+    if (status == 0) return 0;
+    w->t = t_in > w->t ? t_in : w->t; /* on a hit too: the state plane_maxmip resumes from */
+    if (status > 0) return 1;
     w->level = hf_mip_restart_level(r);
     return -1;
 }
