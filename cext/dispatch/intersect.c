@@ -230,7 +230,7 @@ static int maxmip_tight(hf_hit *h, const hf_hit_batch *b) {
     hf_mip_ray r;
     hf_mip_walk w;
     hf_mip_setup(h, b, &r, &w);
-    return hf_mip_walk_alone(h, b, &r, &w);
+    return hf_mip_walk_alone(h, b, &r, &w, 0);
 }
 
 /* ---- the batch ------------------------------------------------------------------------ */

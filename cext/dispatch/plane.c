@@ -137,7 +137,7 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray, pl
             }
         }
     }
-    if (!status && walked) status = hf_mip_walk_alone(&h, b, &r, &w);
+    if (!status && walked) status = hf_mip_walk_alone(&h, b, &r, &w, 0);
     if (status > 0) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;

@@ -136,7 +136,7 @@ void hf_packet_maxmip(hf_hit *hits, unsigned members, const hf_hit_batch *b) {
         }
         if (group == 1u << lead) {
             /* alone: the ray leaves the packet and ends its walk on its own */
-            (void)hf_mip_walk_alone(&hits[lead], b, &r[lead], &w[lead]);
+            (void)hf_mip_walk_alone(&hits[lead], b, &r[lead], &w[lead], 1);
             active &= ~group;
             continue;
         }
@@ -165,7 +165,7 @@ void hf_packet_maxmip(hf_hit *hits, unsigned members, const hf_hit_batch *b) {
                         hf_mip_tile_of(rk, tile_i, tile_j, t_exit_x[k], t_exit_y[k]);
                     const int skip =
                         hf_tile_zlow(rk->oz, rk->dz, rk->descending, wk->t, e.t_exit) > tile_max;
-                    if (hf_mip_iterate(&hits[k], rk, wk, &e, skip) >= 0) active &= ~(1u << k);
+                    if (hf_mip_iterate(&hits[k], rk, wk, &e, skip, 1) >= 0) active &= ~(1u << k);
                 }
             }
         }
