@@ -452,9 +452,15 @@ def noise_floor(job: Callable[[], int], seconds: float = 1.0, rounds_affordable:
     # at least ten pairs for a usable standard deviation, unless that takes thrice the time
     while (time.perf_counter() - start < seconds or len(logs) < 10) and \
             (len(logs) < 4 or time.perf_counter() - start < 3 * seconds):
-        if flush == "round":
+        # both copies in the same cache state: flushed before each call unless the design
+        # never flushes (a flush per round would leave the second call warm, and the A/A
+        # ratio would measure the flush, not the noise)
+        if flush != "none":
             flush_caches()
-        a, b = float(job()), float(job())
+        a = float(job())
+        if flush != "none":
+            flush_caches()
+        b = float(job())
         if len(logs) % 2:  # alternate which copy goes first
             a, b = b, a
         logs.append(math.log(a) - math.log(b))
