@@ -442,3 +442,16 @@ def test_geotiff_is_read_through_rasterio(tmp_path, field):
     tifffile.imwrite(tmp_path / "z.tif", field.heights, compression="zlib")
     z = datasets_gen.load_file(tmp_path / "z.tif")
     np.testing.assert_array_equal(z.heights, field.heights)
+
+
+def test_big_study_runs_its_items_in_children_through_the_command_entry(tmp_path):
+    """``scale --part big`` at a tiny side: each item runs in its own process through
+    ``python -m bench.cli.big_item`` (which hands the render command to the study), writes
+    its files and reports a peak RSS, with no error."""
+    from bench.studies.big import run_big
+
+    results = run_big(str(tmp_path), side=64, echo=lambda *a: None, items=("generate", "render"))
+    assert set(results) == {"generate", "render"}
+    assert all("error" not in r and r["peak_rss_bytes"] > 0 for r in results.values())
+    assert (tmp_path / "render64.png").exists() and (tmp_path / "render64.exr").exists()
+    assert (tmp_path / "big.md").exists()

@@ -33,8 +33,15 @@ def _peak_rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def big_item(item, side, path):
-    """One item of the big-field study, in this process; returns a dict (JSON)."""
+def big_item(item, side, path, commands=None):
+    """One item of the big-field study, in this process; returns a dict (JSON).
+
+    ``commands``: the two commands the "render" and "dask_horizon" items measure,
+    ``{"render_files": bench.cli.render.render_files, "run_product":
+    bench.cli.terrain_dask.run_product}``, handed in by the child's entry point
+    (``python -m bench.cli.big_item``), so this study imports nothing of the CLI above it.
+    """
+    commands = commands or {}
     out = dict(item=item, side=side, rss_before_bytes=resident_bytes())
     start = time.perf_counter()
     if item == "generate_4096":  # the generator target at 4096^2
@@ -65,8 +72,7 @@ def big_item(item, side, path):
             out["ns_per_ray"] = min(out["ns_per_ray"], run() / len(o))
             out["kernel"] = name
         elif item == "render":
-            from ..cli.render import render_files
-
+            render_files = commands["render_files"]
             prefix = os.path.join(os.path.dirname(path), f"render{side}")
             render_files(str(path), algorithm="runs_maxmip", width=960, height=540, out=prefix,
                    echo=lambda *a: None)
@@ -75,8 +81,7 @@ def big_item(item, side, path):
             # the file (1 GiB) is bigger than the 2 x 480 MiB the workers may use
             import datasets_gen
 
-            from ..cli.terrain_dask import run_product
-
+            run_product = commands["run_product"]
             prefix = os.path.join(os.path.dirname(path), f"dask{side}")
             hf = datasets_gen.open_lazy(path, chunks=1536)
             run_product("horizon", hf, prefix, "local:2", max_distance=500.0, azimuths=[135.0],
@@ -109,10 +114,10 @@ def run_big(out_dir, side=16384, echo=print, resume=False, items=BIG_ITEMS):
         if item in results and "error" not in results[item] and (
                 item != "generate" or os.path.exists(path)):
             continue
-        code = ("import json, sys; from bench.studies.big import big_item; "
-                f"print(json.dumps(big_item({item!r}, {side}, {path!r}), default=str))")
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                              cwd=ROOT)
+        # the child is the command-line entry of one item (bench/cli/big_item.py), which
+        # hands the measured commands to big_item
+        done = subprocess.run([sys.executable, "-m", "bench.cli.big_item", item, str(side), path],
+                              capture_output=True, text=True, cwd=ROOT)
         if done.returncode != 0:
             results[item] = {"item": item, "error": done.stderr[-2000:]}
         else:
