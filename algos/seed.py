@@ -16,7 +16,7 @@ With the short length ``r = floor(1/alpha)`` and ``v = 1 - alpha r``:
     beta_j >= v  ->  short (r),      beta_{j+1} = beta_j - v
 
 The slides print the comparison the other way round ("beta_j >= v -> long"); the
-derivation above, and ``tests/test_runs_math.py``, show which one holds.
+derivation above, and ``tests/walks/test_runs_math.py``, show which one holds.
 
 Start clipping (the ray enters its first row ``beta`` above the row's floor): the first
 run has ``r_0 = ceil((1 - beta)/alpha) = r - floor((beta - v)/alpha)`` samples, it is

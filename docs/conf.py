@@ -42,7 +42,7 @@ myst_enable_extensions = ["dollarmath"]
 
 # The Markdown pages also read well on a repository browser, so they link to source files,
 # reports and the README by relative path; those targets are not pages of this site (their
-# existence is checked by tests/test_docs.py instead).
+# existence is checked by tests/project/test_docs.py instead).
 suppress_warnings = ["myst.xref_missing"]
 
 autosummary_generate = True

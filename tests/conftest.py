@@ -2,7 +2,7 @@
 import os
 
 # Tests check correctness, not speed: no cache flushing between timed runs (bench/timing.py);
-# tests/test_bench.py::test_flush_caches_evicts covers the flush itself.
+# tests/bench/test_bench.py::test_flush_caches_evicts covers the flush itself.
 os.environ.setdefault("HFTRACE_FLUSH_MB", "0")
 
 from hypothesis import HealthCheck, settings

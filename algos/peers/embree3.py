@@ -11,7 +11,7 @@ ctypes, which releases the GIL around each call:
   diagonal than docs/CONVENTIONS.md (its triangles are v0 v1 v3 and v2 v3 v1, the
   diagonal u + v = 1), so the grid is laid out mirrored in x, which puts Embree's diagonal
   on the conventions' u = v: the surface is the ``triangles`` surface (shown by
-  ``tests/test_embree_c.py``; ``geometry="grid_native"`` keeps Embree's order, the other
+  ``tests/first_hits/test_embree_c.py``; ``geometry="grid_native"`` keeps Embree's order, the other
   surface, for that test only).
 - ``geometry="triangles"``: the triangles of ``algos.peers.embree.triangles``.
 - ``packet``: 1 (``rtcIntersect1``) or 4, 8, 16 (``rtcIntersect4/8/16``) where the CPU

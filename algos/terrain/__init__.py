@@ -116,7 +116,7 @@ cell-space one (z(p) - z(v)) / t times dx / m, the same constant for every point
 ray: the supremum is attained at the same breakpoint, and every exact method stays exact
 (max_distance D becomes D / m cells). A line of sight is unchanged by scaling x, y and z,
 so the viewshed needs only the heights in cells; curvature, which depends on the map
-distance, needs square pixels. ``tests/test_georef.py`` checks rectangular pixels against
+distance, needs square pixels. ``tests/gis/test_georef.py`` checks rectangular pixels against
 a brute-force horizon written in map space.
 
 Orientation: a field whose rows run north (a south-up raster, the embedded DEM) is

@@ -76,6 +76,7 @@ def count(kernel: str, size=2048, width=640, height=360) -> dict:
 
 
 def main(argv=None) -> int:
+    """Count plane_maxmip and dda_maxmip on a level camera under callgrind; print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=2048)
     parser.add_argument("--width", type=int, default=640)

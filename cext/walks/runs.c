@@ -13,7 +13,7 @@
  * floor(A/B) W + rem, so the run is long exactly when R + rem >= W, i.e. when the
  * fractional crossing position R/W is at least 1 - frac(A/B). In the seeds' notation
  * (beta = alpha * (1 - R/W), v = 1 - alpha floor(1/alpha)) this is "beta <= v -> long":
- * the slides print the inequality the other way round; tests/test_runs_math.py checks the
+ * the slides print the inequality the other way round; tests/walks/test_runs_math.py checks the
  * derivation on the slides' own example y = 17/41 x.
  *
  * Start clipping: the first run starts at the clipped start cell and ends at the first

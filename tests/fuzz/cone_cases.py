@@ -6,7 +6,7 @@ The harness reaches the cone kernel by itself (its decoder picks intersectors fr
 ``_kernels.intersect_cone``); what it cannot know is what the cone must agree with. The
 cone kernel skips only where its cones prove the ray clear of the solid and finishes
 with the cell walk, so on every input it must give dda's hits: the same rays hit, at the
-same t to the brute-force tolerance of tests/test_intersect.py, in the same cell when t
+same t to the brute-force tolerance of tests/first_hits/test_intersect.py, in the same cell when t
 is equal.
 
 The harness (``tests/fuzz/harness.py``) calls it after the generic invariants of every

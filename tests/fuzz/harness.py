@@ -28,7 +28,7 @@ output mode and option. :func:`check` runs it and asserts the invariants:
 * ``plane_maxmip`` gives ``dda_maxmip``'s t, cell and normal bit for bit, on the case's
   rays and on vertical planes grown from them (tests/fuzz/plane_cases.py).
 
-The decoder needs no fuzzer, so ``tests/test_fuzz.py`` replays the committed corpus
+The decoder needs no fuzzer, so ``tests/fuzz/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
 
     python -m tests.fuzz.harness [--seconds 60] [--runs N] [--crashes DIR] [CORPUS_DIR ...]

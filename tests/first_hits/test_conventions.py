@@ -1,0 +1,253 @@
+"""The conventions themselves: this repository's copy agrees with the shared reference, and
+the brute force follows its rule for points on a cell border ("The first hit", "Points on
+a cell border"), against hand-worked cases and against every strict kernel on rays along
+grid lines, through vertices and starting on them, on all four surfaces."""
+import os
+import re
+
+import numpy as np
+import pytest
+
+import algos
+from algos.registry import INTERSECTOR_REGISTRY
+
+from ..helpers import JUMPING_SURFACES
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+SHARED = os.path.join(ROOT, "..", "shared", "spec", "CONVENTIONS.md")
+OURS = os.path.join(ROOT, "docs", "CONVENTIONS.md")
+#: The heading after which this copy states its own readings; above it, word for word.
+OWN_PART = "\n## How this repository reads the conventions"
+EXACT = [n for n, a in INTERSECTOR_REGISTRY.items() if a.accuracy == "exact"]
+
+
+@pytest.mark.skipif(not os.path.isfile(SHARED), reason="no shared reference beside the repository")
+def test_shared_part_equals_the_shared_reference():
+    with open(SHARED, encoding="utf-8") as f:
+        shared = f.read()
+    with open(OURS, encoding="utf-8") as f:
+        ours = f.read()
+    assert OWN_PART in ours, f"docs/CONVENTIONS.md lost its heading {OWN_PART.strip()!r}"
+    common = ours[:ours.index(OWN_PART)]
+    if common.rstrip("\n") != shared.rstrip("\n"):
+        ours_lines, shared_lines = common.splitlines(), shared.splitlines()
+        k = next((i for i, (a, b) in enumerate(zip(ours_lines, shared_lines)) if a != b),
+                 min(len(ours_lines), len(shared_lines)))
+        raise AssertionError(
+            f"docs/CONVENTIONS.md differs from ../shared/spec/CONVENTIONS.md at line {k + 1}:\n"
+            f"  ours:   {ours_lines[k] if k < len(ours_lines) else '<end>'!r}\n"
+            f"  shared: {shared_lines[k] if k < len(shared_lines) else '<end>'!r}")
+
+
+def test_the_border_rule_is_in_the_conventions():
+    with open(OURS, encoding="utf-8") as f:
+        text = f.read()
+    assert re.search(r"\*\*Points on a cell border\*\* belong to one cell", text)
+
+
+# ---- the brute force on hand-worked cases -------------------------------------------------
+
+def _brute(H, o, d, surface="flat", **kw):
+    t, cell = algos.brute_force_hits(H, [o], [d], surface, **kw)
+    return float(t[0]), tuple(int(v) for v in cell[0])
+
+
+def _cells_around_a_vertex():
+    """Samples chosen so that the four flat cells around the vertex (5, 5) stand at
+    distinct heights: (4, 4) 8, (5, 4) 6, (4, 5) 4, (5, 5) 1 (every other cell their own
+    mean of the same samples)."""
+    H = np.zeros((11, 11), np.float32)
+    H[:6, :6] = 8.0  # rows 0..5, columns 0..5
+    H[:6, 6:] = 4.0
+    H[6:, :6] = 0.0
+    H[6:, 6:] = -4.0
+    # cell (i, j) mean: (4, 4): 8; (5, 4): (8 + 4 + 8 + 4) / 4 = 6; (4, 5): (8 + 8 + 0 + 0) / 4
+    # = 4; (5, 5): (8 + 4 + 0 - 4) / 4 = 2
+    return H
+
+
+@pytest.mark.parametrize("direction,cell,height", [
+    ((1.0, 1.0), (5, 5), 2.0),     # the diagonal cell ahead; (5, 4) and (4, 5) only touch
+    ((-1.0, -1.0), (4, 4), 8.0),
+    ((1.0, -1.0), (5, 4), 6.0),
+    ((-1.0, 1.0), (4, 5), 4.0),
+    ((1.0, 0.0), (5, 5), 2.0),     # dy = 0 takes the row on the + side
+    ((0.0, -1.0), (5, 4), 6.0),    # dx = 0 takes the column on the + side
+    ((-0.0, -1.0), (5, 4), 6.0),   # -0.0 counts as 0
+    ((-1.0, 0.0), (4, 5), 4.0),
+    ((0.0, 0.0), (5, 5), 2.0),     # vertical: the cell on the + side of both lines
+])
+def test_flat_ray_starting_on_a_vertex_reads_only_the_cell_it_enters(direction, cell, height):
+    """The developers' pinned case: ``flat``, a ray starting on a vertex between cells of
+    different heights. Started just above the cell it enters, it is not inside the solid,
+    whatever its three taller neighbours; started just below, it hits at t = 0 in it."""
+    H = _cells_around_a_vertex()
+    dz = -1.0 if direction == (0.0, 0.0) else 0.0
+    above = _brute(H, (5.0, 5.0, height + 0.5), (*direction, dz))
+    if direction == (0.0, 0.0):
+        assert above == (0.5, cell)  # falls 0.5 onto the top of the cell under it
+    elif direction in ((1.0, 1.0), (1.0, 0.0)):
+        assert above[0] == np.inf  # every cell ahead is at most as high
+    else:
+        assert above[0] > 0 and above[1] != cell
+    assert _brute(H, (5.0, 5.0, height - 0.5), (*direction, dz)) == (0.0, cell)
+    if 0.0 not in direction:  # (on a grid line the kernels still differ: see the end)
+        for z in (height + 0.5, height - 0.5):
+            o, d = [[5.0, 5.0, z]], [[*direction, dz]]
+            t, ref_cell = _brute(H, o[0], d[0])
+            for name in EXACT:
+                hits = algos.intersect(name, H, o, d, surface="flat", outputs=("t", "cell"))
+                assert (float(hits.t[0]), tuple(int(v) for v in hits.cell[0])) == \
+                    (t, ref_cell), (name, o, d)
+
+
+def test_ray_along_x_25_reads_column_25_only():
+    """The conventions' example: ``flat``, a ray along the line x = 25 with dx = 0 reads
+    column 25 only, whatever the height of column 24."""
+    H = np.zeros((40, 40), np.float32)
+    H[:, 26:] = 1.0  # column 25 (samples 25, 26): flat 0.5; columns >= 26: 1
+    o, d = (25.0, 3.5, 6.0), (0.0, 1.0, -0.25)
+    expected = (6.0 - 0.5) / 0.25  # z = 0.5 at t = 22, y = 25.5: column 25's top
+    for column_24 in (-5.0, 0.0, 3.0, 100.0):
+        H[:, :25] = column_24  # column 24 (samples 24, 25): (column_24 + 0) / 2
+        assert _brute(H, o, d) == (expected, (25, 25))
+    H[:, :26] = 100.0  # column 25 itself tall: hit at t = 0
+    assert _brute(H, o, d)[0] == 0.0
+
+
+def test_diagonal_vertex_crossing_enters_the_diagonal_cell():
+    """From (4, 5) (4 high) through the vertex (5, 5) into (5, 4) (6 high), level at z = 7:
+    the side cell (4, 4), 8 high, only touches the ray at the vertex and is not hit, so
+    the ray flies on over cells of 6 and 4 and misses; the other way round, (5, 4) -> (4, 5)
+    misses too, while a ray at z = 5 hits the wall of (5, 4) at the vertex."""
+    H = _cells_around_a_vertex()
+    assert _brute(H, (4.5, 5.5, 7.0), (1.0, -1.0, 0.0)) == (np.inf, (-1, -1))
+    assert _brute(H, (5.5, 4.5, 7.0), (-1.0, 1.0, 0.0)) == (np.inf, (-1, -1))
+    assert _brute(H, (4.5, 5.5, 5.0), (1.0, -1.0, 0.0)) == (0.5, (5, 4))
+
+
+def test_ray_on_the_grid_line_leaves_continuous_surfaces_unchanged():
+    """For triangles and bilinear the surface is the same from both sides of a border."""
+    rng = np.random.Generator(np.random.PCG64(4))
+    H = rng.uniform(0, 5, (9, 12)).astype(np.float32)
+    for surface in ("triangles", "bilinear"):
+        for o, d in (((4.0, 1.5, 6.0), (0.0, 1.0, -0.8)), ((2.5, 3.0, 6.0), (1.0, 0.0, -0.5)),
+                     ((4.0, 3.0, 6.0), (0.0, 0.0, -1.0))):
+            t, _ = _brute(H, o, d, surface)
+            assert np.isfinite(t), (surface, o, d)
+            x, y, z = (np.add(o, np.multiply(t, d)))
+            i, j = min(int(x), 10), min(int(y), 7)
+            u, v = x - i, y - j
+            h00, h10, h01, h11 = (float(H[j, i]), float(H[j, i + 1]), float(H[j + 1, i]),
+                                  float(H[j + 1, i + 1]))
+            if surface == "bilinear":
+                s = h00 * (1 - u) * (1 - v) + h10 * u * (1 - v) + h01 * (1 - u) * v + h11 * u * v
+            elif u >= v:
+                s = h00 + (h10 - h00) * u + (h11 - h10) * v
+            else:
+                s = h00 + (h11 - h01) * u + (h01 - h00) * v
+            assert z == pytest.approx(s, abs=1e-9), (surface, o, d)
+
+
+# ---- every exact kernel against the brute force on border rays --------------------------
+
+def _border_rays(shape, seed):
+    """Rays along grid lines, through vertices and starting on vertices or edges, with
+    directions of small integer components (exact vertex crossings) and float ones."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    rows, cols = shape
+    n = 60
+    integer_xy = np.column_stack([rng.integers(0, cols, n), rng.integers(0, rows, n)]).astype(float)
+    small = rng.integers(-3, 4, (n, 2)).astype(float)
+    small[np.all(small == 0, axis=1)] = (1.0, 1.0)
+    axis = np.zeros((n, 2))
+    axis[np.arange(n), rng.integers(0, 2, n)] = rng.choice([-1.0, 1.0, 0.5, -2.0], n)
+    z0 = rng.uniform(-1.0, 9.0, n)
+    dz = rng.choice([0.0, -0.05, -0.3, 0.1, -2.0], n)
+    o, d = [], []
+    # along grid lines (a zero component at an integer coordinate), both axes, any start
+    start = np.column_stack([rng.uniform(0, cols - 1, n), rng.uniform(0, rows - 1, n)])
+    on_x = rng.random(n) < 0.5
+    start[on_x, 0] = integer_xy[on_x, 0]
+    start[~on_x, 1] = integer_xy[~on_x, 1]
+    line = np.where(on_x[:, None], np.column_stack([np.zeros(n), axis.sum(1)]),
+                    np.column_stack([axis.sum(1), np.zeros(n)]))
+    o.append(np.column_stack([start, z0]))
+    d.append(np.column_stack([line, dz]))
+    # starting on a vertex: integer directions (through more vertices) and float ones
+    o.append(np.column_stack([integer_xy, z0]))
+    d.append(np.column_stack([small, dz]))
+    o.append(np.column_stack([integer_xy, z0]))
+    d.append(np.column_stack([rng.normal(size=(n, 2)), dz]))
+    # from a cell centre through vertices: (i + 1/2, j + 1/2) along (+-1, +-1) or (+-2, +-2)
+    centre = integer_xy[:, :2] + 0.5
+    o.append(np.column_stack([centre, z0]))
+    d.append(np.column_stack([np.sign(small) + (small == 0), dz]))
+    # starting on an edge (one integer coordinate), random directions
+    edge = np.column_stack([rng.uniform(0, cols - 1, n), rng.uniform(0, rows - 1, n)])
+    edge[on_x, 0] = integer_xy[on_x, 0]
+    edge[~on_x, 1] = integer_xy[~on_x, 1]
+    o.append(np.column_stack([edge, z0]))
+    d.append(np.column_stack([rng.normal(size=(n, 2)), dz]))
+    # vertical, on vertices and edges
+    o.append(np.column_stack([np.where(on_x[:, None], integer_xy, edge), z0 + 3]))
+    d.append(np.tile([0.0, 0.0, -1.0], (n, 1)))
+    return np.concatenate(o), np.concatenate(d)
+
+
+def _steps(shape, seed):
+    """Cells of different heights: integer steps with flat plateaus (so that many rays
+    start level with a top and walls meet at vertices)."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    H = rng.integers(0, 8, shape).astype(np.float32)
+    H[rng.random(shape) < 0.3] = 4.0
+    return H
+
+
+@pytest.fixture(scope="module")
+def border_cases():
+    shape = (13, 17)
+    o, d = _border_rays(shape, seed=31)
+    out = {}
+    for fname, H in (("steps", _steps(shape, 7)), ("plateaus", np.where(
+            np.add.outer(np.arange(13), np.arange(17)) % 5 < 2, 6.0, 1.0).astype(np.float32))):
+        for surface in algos.SURFACES:
+            t, _ = algos.brute_force_hits(H, o, d, surface)
+            out[(fname, surface)] = (H, o, d, t)
+    return out
+
+
+@pytest.mark.parametrize("name", EXACT)
+def test_exact_kernels_follow_the_border_rule(name, border_cases):
+    """Hit or miss alike, |dt| <= 1e-9 (1 + |t|). (The float64 walks are measured, not
+    held to this: dda steps to a side cell at some exact vertex crossings, e.g. origin
+    (16, 7) direction (-3, 2) on plane3 over ``plateaus``, where (13 - 16) / -3 is taken
+    as (13 - 16) * (1 / -3).)"""
+    for (fname, surface), (H, o, d, ref) in border_cases.items():
+        got = algos.intersect(name, algos.Field(H), o, d, surface=surface).t
+        hit_ref, hit_got = np.isfinite(ref), np.isfinite(got)
+        both = hit_ref & hit_got
+        err = np.zeros_like(ref)
+        err[both] = np.abs(got[both] - ref[both]) / (1 + np.abs(ref[both]))
+        bad = np.nonzero((hit_ref != hit_got) | (err > 1e-9))[0]
+        if len(bad):
+            k = bad[0]
+            raise AssertionError(
+                f"{name} on {surface}/{fname}: {len(bad)} border rays differ from the brute "
+                f"force; first: origin={o[k].tolist()!r} direction={d[k].tolist()!r} "
+                f"brute t={ref[k]!r} got t={got[k]!r}")
+
+
+@pytest.mark.parametrize("surface", JUMPING_SURFACES)
+def test_kernels_on_an_interior_grid_line_read_one_column(surface):
+    """The conventions' example on the kernels: along x = 25 with dx = 0, column 25 only.
+    Column 24 stands up to 10 high at x = 25 on both surfaces (its samples alternate 0 and
+    10 row by row); column 25 is 0 high, and the ray stays above it."""
+    H = np.zeros((40, 40), np.float32)
+    H[1::2, :25] = 10.0
+    o, d = [[25.0, 3.0, 6.0]], [[0.0, 1.0, -0.1]]
+    ref, _ = algos.brute_force_hits(H, o, d, surface)
+    assert ref[0] == np.inf  # column 25 alone is never reached before y = 39
+    wrong = [name for name in EXACT
+             if algos.intersect(name, H, o, d, surface=surface).t[0] != ref[0]]
+    assert not wrong, f"{wrong} hit column 24 along x = 25"
