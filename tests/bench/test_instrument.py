@@ -197,8 +197,12 @@ def test_one_real_aa_group_contains_one(monkeypatch):
 def test_a_deliberately_noisy_run_gives_labelled_cells_not_findings(tmp_path, monkeypatch):
     monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
     cpus = sorted(os.sched_getaffinity(0))
-    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"],
-                            preexec_fn=lambda: os.sched_setaffinity(0, {cpus[0]}))
+    # one busy loop pinned to every CPU (the measuring one included): others then use at
+    # least one whole core while every group runs, far above the contention threshold,
+    # however the scheduler shares the measuring CPU
+    busy_loops = [subprocess.Popen([sys.executable, "-c", "while True: pass"],
+                                   preexec_fn=lambda c=c: os.sched_setaffinity(0, {c}))
+                  for c in cpus]
     os.sched_setaffinity(0, {cpus[-1]})
     try:
         time.sleep(0.3)
@@ -211,8 +215,9 @@ def test_a_deliberately_noisy_run_gives_labelled_cells_not_findings(tmp_path, mo
         rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
     finally:
         os.sched_setaffinity(0, cpus)
-        busy.kill()
-        busy.wait()
+        for busy in busy_loops:
+            busy.kill()
+            busy.wait()
     assert rows and all(r["contended"] == "True" for r in rows)
     df = analysis.load(str(tmp_path / "results.csv"))
     table = analysis.pivot_ci(df, "first_hit", "triangles")
