@@ -541,9 +541,12 @@ def load_section(df, env=None) -> list:
         lines.append(f"The sweep took {run['wall_s']:.0f} s, {100 * (run['timed_share'] or 0):.0f} % "
                      "of it inside timed calls.")
         if run.get("timed_share_of_measure") is not None:
-            lines.append(f"Measuring took {run['measure_s']:.0f} s, "
+            prepared = (f" after {run['prepare_s']:.0f} s preparing the fields' structures"
+                        if run.get("prepare_s") else "")
+            lines.append(f"Measuring took {run['measure_s']:.0f} s{prepared}, "
                          f"{100 * run['timed_share_of_measure']:.0f} % of it inside timed calls "
-                         f"and {run['flush_s']:.1f} s flushing caches; "
+                         f"and {run['flush_s']:.1f} s preparing the cache state (flushing, or "
+                         "each visit's untimed warm call); "
                          f"{run.get('remeasured_groups', 0)} contended groups were measured "
                          "again.")
     if bad:

@@ -6,10 +6,14 @@ Each revision is built once into a cache (:mod:`bench.regress.revisions`) and it
 the same field and rays (:func:`bench.regress.workload.make_inputs`, made by this
 checkout). Per first-hit kernel, three measures:
 
-- ``time``: base and head batches interleaved (``bench.timing.interleaved``, caches
-  flushed before each run). Each repeat gives one paired log-ratio log(head/base); their
-  mean and Student-t interval (``confidence``, default 99 %) give the ratio head/base
-  and its interval. The machine's noise hits both sides of a pair and cancels.
+- ``time``: base and head in adjacent pairs (``bench.timing.paired_rounds``: cycles
+  ``B H B H B``, each visit warm, one untimed call before its timed ones). Each head visit
+  and the geometric mean of the base visits around it give one paired log-ratio
+  log(head/base); their median and its distribution-free interval (``confidence``,
+  default 99 %) give the ratio head/base and its interval. Pairs are added until the
+  interval is within a third of the tolerance, or the kernel's ``budget`` is spent. The
+  machine's noise hits both sides of a pair and cancels, and the ratio is absolute: a
+  slower ``dda`` shows as slower.
 - ``instructions``: callgrind instructions and branches per ray of each build
   (``bench.regress.instructions_gate``, on that gate's smaller inputs); exact, gated at 1 %.
 - ``counters``: cells, runs and tiles per ray (``algos.STATS``); exact and
@@ -38,7 +42,9 @@ DEFAULT_METRICS = ("time", "counters")
 DEFAULT_KERNELS = ("dda", "midpoint", "runs", "dda_maxmip", "runs_maxmip", "cone", "dda_compact")
 DEFAULT_TOLERANCE = 0.03
 INSTRUCTION_TOLERANCE = 0.01
-DEFAULT_REPEATS = 40
+#: The fewest pairs of a kernel, and the seconds its pairs may take
+DEFAULT_REPEATS = 20
+DEFAULT_BUDGET = 10.0
 DEFAULT_CONFIDENCE = 0.99
 #: The compare's inputs: fBm 512^2, 4000 first-hit rays at r = 25 (batches of a few ms)
 SIZE, RAYS, R, SEED = 512, 4000, 25, 2008
@@ -61,41 +67,53 @@ class KernelResult:
 
 
 def time_verdict(log_ratios, tolerance, confidence=DEFAULT_CONFIDENCE) -> dict:
-    """The ratio head/base of paired log-ratios ``log(head/base)`` (one per repeat): its
-    point value (exp of the mean), interval (Student t, ``confidence``), the
-    ``detectable`` slowdown (tolerance plus half-width) and the verdict: ``slower`` when
-    the interval lies above ``1 + tolerance``, ``faster`` when below ``1/(1 + tolerance)``,
-    ``inconclusive`` when its half-width exceeds the tolerance, else ``same``."""
+    """The ratio head/base of paired log-ratios ``log(head/base)`` (one per pair): its
+    point value (exp of the median), its distribution-free interval (the binomial order
+    statistics of ``bench.timing.median_interval`` at ``confidence``), the
+    ``detectable`` slowdown (tolerance plus the interval's wider side) and the verdict:
+    ``slower`` when the interval lies above ``1 + tolerance``, ``faster`` when below
+    ``1/(1 + tolerance)``, ``inconclusive`` when its wider side exceeds the tolerance,
+    else ``same``."""
     try:
-        from scipy import stats
+        from scipy import stats  # noqa: F401 - the interval's binomial ranks
     except ImportError as exc:
         raise CompareError("metric: time needs SciPy for its intervals "
                            "(pip install 'hftrace[regress]')") from exc
+    from .timing import median_interval
+
     x = np.asarray(log_ratios, dtype=float)
+    x = x[np.isfinite(x)]
     if x.size < 3:
-        raise ValueError(f"log_ratios: need at least 3 repeats, got {x.size}")
-    mean = float(x.mean())
-    half = float(stats.t.ppf(0.5 + confidence / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+        raise ValueError(f"log_ratios: need at least 3 pairs, got {x.size}")
+    mid, low, high = median_interval(x, confidence)
+    half = max(high - mid, mid - low)
     bound = math.log1p(tolerance)
-    if mean - half > bound:
+    if low > bound:
         verdict = "slower"
-    elif mean + half < -bound:
+    elif high < -bound:
         verdict = "faster"
     elif half > bound:
         verdict = "inconclusive"
     else:
         verdict = "same"
-    return dict(ratio=math.exp(mean), low=math.exp(mean - half), high=math.exp(mean + half),
+    return dict(ratio=math.exp(mid), low=math.exp(low), high=math.exp(high),
                 detectable=math.expm1(bound + half), repeats=int(x.size), verdict=verdict)
 
 
-def paired_times(run_base, run_head, repeats: int) -> tuple[np.ndarray, np.ndarray]:
-    """(base, head) elapsed ns of ``repeats`` interleaved runs, paired by repeat (each run
-    returns its elapsed ns): the one place this module uses ``bench.timing``."""
-    from .timing import interleaved
+def paired_times(run_base, run_head, setup) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(log(head/base) per pair, base ns per visit, head ns per visit) of
+    ``bench.timing.paired_rounds`` on the two runs (each returns its elapsed ns): at
+    least ``setup.repeats`` pairs, then until the ``setup.confidence`` interval is within
+    a third of ``setup.tolerance`` or ``setup.budget`` seconds are spent; the one place
+    this module uses ``bench.timing``."""
+    from .timing import WARM_TIMED_CALLS, paired_rounds
 
-    times = interleaved({"base": run_base, "head": run_head}, repeats, flush=True)
-    return np.asarray(times["base"], float), np.asarray(times["head"], float)
+    got = paired_rounds({"base": run_base, "head": run_head}, "base",
+                        precision=setup.tolerance / 3, budget_s=setup.budget,
+                        min_rounds=setup.repeats, max_rounds=100000, flush="warm",
+                        confidence=setup.confidence)
+    calls = WARM_TIMED_CALLS
+    return (-got.log_ratios["head"], got.times["base"] / calls, got.times["head"] / calls)
 
 
 def instruction_verdict(base: dict, head: dict, tolerance=INSTRUCTION_TOLERANCE) -> dict:
@@ -144,6 +162,7 @@ class Setup:
     surface: str = "triangles"
     tolerance: float = DEFAULT_TOLERANCE
     repeats: int = DEFAULT_REPEATS
+    budget: float = DEFAULT_BUDGET
     confidence: float = DEFAULT_CONFIDENCE
     size: int = SIZE
     rays: int = RAYS
@@ -157,6 +176,8 @@ class Setup:
             raise ValueError(f"tolerance: expected a fraction in (0, 1), got {self.tolerance}")
         if self.repeats < 3:
             raise ValueError(f"repeats: expected at least 3, got {self.repeats}")
+        if not self.budget > 0:
+            raise ValueError(f"budget: expected a positive number of seconds, got {self.budget}")
         if not 0.5 < self.confidence < 1:
             raise ValueError(f"confidence: expected a level in (0.5, 1), got {self.confidence}")
 
@@ -214,11 +235,12 @@ def measure(base_build, head_build, base_pkg, head_pkg, setup: Setup, inputs=Non
         base_field = _on(base_build, "time", base_pkg.Field, inputs.heights)
         head_field = _on(head_build, "time", head_pkg.Field, inputs.heights)
         for k in kernels:
-            echo(f"timing {k} ({setup.repeats} paired repeats) ...")
+            echo(f"timing {k} (paired, at least {setup.repeats} pairs, at most "
+                 f"{setup.budget:g} s) ...")
             run_b = _on(base_build, "time", _prepare, base_pkg, k, base_field, inputs, setup.surface)
             run_h = _on(head_build, "time", _prepare, head_pkg, k, head_field, inputs, setup.surface)
-            base_ns, head_ns = paired_times(run_b, run_h, setup.repeats)
-            t = time_verdict(np.log(head_ns / base_ns), setup.tolerance, setup.confidence)
+            logs, base_ns, head_ns = paired_times(run_b, run_h, setup)
+            t = time_verdict(logs, setup.tolerance, setup.confidence)
             rays = len(inputs.o3)
             t.update(base_ns_per_ray=float(np.median(base_ns)) / rays,
                      head_ns_per_ray=float(np.median(head_ns)) / rays)

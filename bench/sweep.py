@@ -30,10 +30,12 @@ from . import load as machine_load
 from .report import RowWriter, results_row_check, scan_csv
 from .sweep_config import WORKLOADS, ConfigError, SweepConfig, load_config
 from .timing import (
+    WARM_TIMED_CALLS,
     call_rays,
     environment,
     log_ratio_interval,
     median_interval,
+    median_ratio_interval,
     noise_floor,
     paired_rounds,
     relative_half_width,
@@ -171,6 +173,12 @@ def _group_rays(field, workload, surface, r, rays, seed, coherence="random"):
     return (o, d) + _RAYS["refs"][ref_key]
 
 
+#: The ``regime`` recorded in the rows of a paired design, by its ``flush``
+#: (``bench.timing.FLUSH_MODES``).
+PAIRED_REGIMES = {"warm": "warm", "call": "flushed-per-call", "round": "flushed-per-round",
+                  "none": "unflushed"}
+
+
 def measure_group(field, label, workload, surface, r, names, rays, repeats, seed,
                   keep_samples=False, regime="flushed", coherence="random", precision=None,
                   budget_s=3.0, call_ms=8.0, flush="round", rays_per_call=None):
@@ -184,22 +192,25 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
 
     * ``precision`` None: ``repeats`` interleaved rounds of ``rays`` rays in ``regime``
       (``bench.timing.timed_in_regime``).
-    * ``precision`` a fraction (0.02 is ±2 %): sequential paired rounds
-      (``bench.timing.paired_rounds``). The rays of a timed call are ``rays`` doubled
-      until the baseline's call lasts ``call_ms`` (``bench.timing.call_rays``, recorded
-      in ``call_rays``); the caches are flushed per ``flush``; a kernel's rounds stop
-      when its ratio's 95 % interval is within ``precision`` on either side, after at
-      least ``repeats`` rounds, or when the group has spent ``budget_s`` seconds
-      (``stop``: precision, budget or rounds). ``rays_per_call`` fixes the rays of a
-      call instead (a sweep sizes it once, in its noise calibration, so every group of a
-      run times calls of the same rays). ``regime`` is then recorded as
-      ``flushed-per-call``, ``flushed-per-round`` or ``unflushed``.
+    * ``precision`` a fraction (0.02 is ±2 %): adjacent pairs with the baseline
+      (``bench.timing.paired_rounds``: cycles ``B k1 B k2 ... B``). The rays of a timed
+      call are ``rays`` doubled until the baseline's call lasts ``call_ms``
+      (``bench.timing.call_rays``, recorded in ``call_rays``); the cache state of a
+      visit is ``flush`` (``bench.timing.FLUSH_MODES``; ``"warm"``: an untimed call of
+      the same kernel first); a kernel's pairs stop when its ratio's 95 % interval is
+      within ``precision`` on either side, after at least ``repeats`` pairs, or when the
+      group has spent ``budget_s`` seconds (``stop``: precision, budget or rounds;
+      ``rounds``: the pairs). ``rays_per_call`` fixes the rays of a call instead (a sweep
+      sizes it once, in its noise calibration, so every group of a run times calls of the
+      same rays). ``regime`` is then recorded per :data:`PAIRED_REGIMES`. ``speedup`` is
+      the median pair's ratio with its distribution-free interval
+      (``bench.timing.median_ratio_interval``).
 
-    In both, ``speedup`` and its interval are the geometric mean of the paired per-round
-    ratios and Student's t interval of their logs (``bench.timing.log_ratio_interval``),
-    ``half_width`` that interval's half-width as a fraction of the speedup, and
-    ``ns_per_ray`` the median per-ray time with its order-statistic interval
-    (``bench.timing.median_interval``).
+    With fixed repeats, ``speedup`` and its interval are the geometric mean of the paired
+    per-round ratios and Student's t interval of their logs
+    (``bench.timing.log_ratio_interval``). In both, ``half_width`` is the interval's
+    half-width as a fraction of the speedup, and ``ns_per_ray`` the median per-ray time
+    of a timed call with its order-statistic interval (``bench.timing.median_interval``).
 
     Each row also records the machine's load while the group ran (``bench.load``:
     ``contended``, ``other_cpu``, ``load_before``, ``load_after``), the group's time
@@ -234,6 +245,8 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             errors[name] = f"{type(exc).__name__}: {exc}"
     limits = _time_limits(names, workload)
     flush_s = math.nan
+    log_ratios = None
+    calls = WARM_TIMED_CALLS if precision is not None and flush == "warm" else 1  # per visit
     if precision is None:
         times = timed_in_regime(jobs, repeats, regime, errors=errors, time_limit_ns=limits)
         stops = {name: "rounds" for name in times}
@@ -242,8 +255,8 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
                                  min_rounds=repeats, flush=flush, seed=seed, errors=errors,
                                  time_limit_ns=limits)
         times, stops, flush_s = measured.times, measured.stop, measured.flush_s
-        regime = {"call": "flushed-per-call", "round": "flushed-per-round",
-                  "none": "unflushed"}[flush]
+        log_ratios = measured.log_ratios
+        regime = PAIRED_REGIMES[flush]
     if BASELINE not in times:
         raise RuntimeError(f"{label} {workload} r={r}: the baseline {BASELINE} failed: "
                            f"{errors.get(BASELINE)}")
@@ -273,9 +286,12 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
                             speedup_ci_high=nan, ns_per_cell=nan, ns_per_run=nan, agree=nan,
                             half_width=nan, stop="", rounds=0, error=error))
             continue
-        per_ray = times[name] / n_rays
+        per_ray = times[name] / (n_rays * calls)
         median, low, high = median_interval(per_ray)
-        speedup, s_low, s_high = log_ratio_interval(times[BASELINE], times[name])
+        if log_ratios is not None:
+            speedup, s_low, s_high = median_ratio_interval(log_ratios.get(name, ()))
+        else:
+            speedup, s_low, s_high = log_ratio_interval(times[BASELINE], times[name])
         if name == BASELINE:
             speedup = s_low = s_high = 1.0
         if workload == "first_hit":
@@ -291,12 +307,17 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             speedup_ci_low=round(s_low, 4), speedup_ci_high=round(s_high, 4),
             ns_per_cell=round(median / cells, 4) if cells else math.nan,
             ns_per_run=round(median / runs, 4) if runs else math.nan,
-            agree=round(agree, 6), rounds=int(np.isfinite(times[name]).sum()),
+            agree=round(agree, 6),
+            rounds=measured.rounds[name] if log_ratios is not None
+            else int(np.isfinite(times[name]).sum()),
             half_width=round(relative_half_width(speedup, s_low, s_high), 5)
             if name != BASELINE else 0.0,
             stop=stops.get(name, "")))
         if keep_samples:
-            ratios = times[BASELINE] / times[name]
+            if log_ratios is not None:
+                ratios = np.exp(log_ratios.get(name, np.ones(0)))
+            else:
+                ratios = times[BASELINE] / times[name]
             out[-1]["ratio_samples"] = ratios[np.isfinite(ratios)].tolist()
     return out
 
@@ -589,6 +610,33 @@ def _design(cfg) -> dict:
             "flush": cfg.flush}
 
 
+def prepare_field(ds, todo) -> algos.Field:
+    """Load a dataset's field (:func:`load_field`) and build, once, the structures every
+    first-hit kernel of its groups in ``todo`` keeps on it (max-mipmaps, cones, Embree's
+    scene), on two rays, so that the measure phase measures and the preparation is
+    accounted apart (``env.json``: ``run.prepare_s``)."""
+    from algos import plugins
+
+    field = load_field(ds)
+    label = dataset_label(ds)
+    rows_, cols_ = field.heights.shape
+    shape = (cols_ - 1, rows_ - 1)
+    seen = set()
+    for ds_, label_, workload, surface, r, names, _ in todo:
+        if label_ != label or workload != "first_hit":
+            continue
+        o, d = coherent_rays(field, "random", r, 2, 0)
+        for name in names:
+            if (name, surface) in seen or plugins.is_plugin(name, workload):
+                continue
+            seen.add((name, surface))
+            try:
+                _prepare(name, workload, field, o, d, shape, surface, "runs")
+            except Exception:  # noqa: BLE001 - measure_group reports the kernel's error
+                pass
+    return field
+
+
 def wait_until_quiet(limit_s: float, step_s: float = 0.5) -> float:
     """Wait, up to ``limit_s`` seconds, until other processes use at most
     ``bench.load.CONTENDED_CORES`` over one ``step_s`` interval; the seconds waited, or -1
@@ -621,7 +669,11 @@ def calibrate_noise(field, workload, surface, r, cfg, kernels, seconds=1.0) -> d
     job, _ = _prepare(BASELINE, workload, field, o, d, shape, surface, mode)
     job()
     call_s = min(job(), job()) / 1e9
-    affordable = int(cfg.group_budget / max(call_s * max(kernels, 2), 1e-6))
+    # a cycle visits every other kernel and the baseline once per kernel; a visit is its
+    # timed calls and, warm, one untimed call (flushing adds about a call's time)
+    calls = WARM_TIMED_CALLS + 1 if cfg.flush == "warm" else 2
+    cycle_s = 2 * max(kernels - 1, 1) * calls * call_s
+    affordable = int(cfg.group_budget / max(cycle_s, 1e-6))
     out = noise_floor(job, seconds=seconds, rounds_affordable=max(affordable, 2),
                       flush=cfg.flush)
     return dict(out, call_rays=n, call_s=round(call_s, 5), kernels=kernels)
@@ -654,11 +706,14 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     timed = contended = 0
     failed = []
     design = _design(cfg)
+    preparing = 0.0  # loading fields and building their structures: not measuring
     if cfg.precision is not None and todo:
         # the noise floor and the rays of a call, once per run: the baseline against
         # itself on the first group's rays
         ds, label, workload, surface, r, names, _ = todo[0]
-        fields_cache[label] = load_field(ds)
+        p0 = time.perf_counter()
+        fields_cache[label] = prepare_field(ds, todo)
+        preparing += time.perf_counter() - p0
         env["noise"] = calibrate_noise(fields_cache[label], workload, surface, r, cfg,
                                        len(names))
         env["noise"]["load"] = machine_load.load_average()
@@ -674,7 +729,9 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
         for ds, label, workload, surface, r, names, missing in todo:
             if label not in fields_cache:
                 fields_cache.clear()  # one field in memory at a time
-                fields_cache[label] = load_field(ds)
+                p0 = time.perf_counter()
+                fields_cache[label] = prepare_field(ds, todo)
+                preparing += time.perf_counter() - p0
             field_ = fields_cache[label]
             own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
             isolated = [n for n in names if n not in own and n in missing]
@@ -704,10 +761,11 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - start
-    measure = time.perf_counter() - measure0
+    measure = time.perf_counter() - measure0 - preparing
     env["run"] = {"groups": len(todo), "wall_s": round(wall, 2), "timed_s": round(timed, 2),
                   "timed_share": round(timed / wall, 4) if wall > 0 else None,
                   "measure_s": round(measure, 2), "flush_s": round(flushing, 2),
+                  "prepare_s": round(preparing, 2),
                   "timed_share_of_measure": round(timed / measure, 4) if measure > 0 else None,
                   "contended_groups": contended, "remeasured_groups": remeasured,
                   "precision": cfg.precision, "group_budget_s": cfg.group_budget,

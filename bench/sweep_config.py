@@ -6,7 +6,7 @@
     precision = 0.02                  # optional: sequential paired rounds to +-2 % (docs/METHOD.md)
     group_budget = 3.0                # with precision: seconds a group may spend measuring
     call_ms = 8.0                     # with precision: the baseline's call is at least this long
-    flush = "round"                   # with precision: flush the caches per "call", "round" or "none"
+    flush = "warm"                    # with precision: the cache state of a visit: "warm" (own untimed call first), or flushed per "call", "round", or "none"
     seed = 2004
     algorithms = ["dda", "runs"]      # default: every algorithm of each workload
     workloads = ["visit", "runs", "first_hit"]
@@ -70,7 +70,7 @@ class SweepConfig:
     precision: float | None = None
     group_budget: float = 3.0
     call_ms: float = 8.0
-    flush: str = "round"
+    flush: str = "warm"
 
 
 def _check_int(key, value, low):

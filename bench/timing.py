@@ -18,6 +18,7 @@ interval of their logs; a time per ray, the median with its order-statistic inte
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -35,7 +36,8 @@ __all__ = ["interleaved", "median_ci", "ratio_ci", "environment", "pin_to_one_cp
            "flush_caches", "cache_sizes", "last_level_cache_bytes", "resident_bytes",
            "write_json", "REGIMES", "timed_in_regime", "paired_rounds", "PairedTimes",
            "log_ratio_interval", "relative_half_width", "median_interval", "call_rays",
-           "noise_floor", "FLUSH_MODES", "STOPS"]
+           "noise_floor", "FLUSH_MODES", "STOPS", "median_ratio_interval",
+           "WARM_TIMED_CALLS"]
 
 
 def cache_sizes() -> dict:
@@ -234,18 +236,51 @@ def ratio_ci(numerator: np.ndarray, denominator: np.ndarray, n_boot: int = 2000,
 
 
 # ---- paired, sequential rounds (the sweep's design; docs/METHOD.md, "Paired rounds") ----
-#: Where the caches are flushed in :func:`paired_rounds`: before every timed call, once
-#: before every round of calls, or never (docs/METHOD.md, "Cache regimes compared").
-FLUSH_MODES = ("call", "round", "none")
+#: The cache state of a timed call in :func:`paired_rounds` (docs/METHOD.md, "Cache regimes
+#: compared"): ``"warm"``, one untimed call of the same kernel on the same rays first, so the
+#: timed calls find the lines the kernel itself left, whichever kernel ran before it (then
+#: :data:`WARM_TIMED_CALLS` timed calls, summed); ``"call"``, the caches flushed before every
+#: timed call; ``"round"``, once before every cycle of calls; ``"none"``, never.
+FLUSH_MODES = ("warm", "call", "round", "none")
+#: The timed calls of a visit in the warm state, after its untimed call: three keep the
+#: timed share of a visit at three quarters.
+WARM_TIMED_CALLS = 3
 #: Why a kernel left the rotation: its interval reached the precision asked for, the
-#: group's time budget was spent, or the largest number of rounds was reached.
+#: group's time budget was spent, or the largest number of pairs was reached.
 STOPS = ("precision", "budget", "rounds")
+
+
+def median_ratio_interval(log_ratios, confidence: float = 0.95):
+    """The speedup of paired timings from their per-pair log-ratios ``log(t_baseline /
+    t_kernel)``: ``exp`` of their median and of its distribution-free ``confidence``
+    interval (the binomial order statistics of :func:`median_interval`). Neither the
+    normality of the log-ratios nor their variance is assumed, so a heavy tail (a call
+    that an interrupt lengthened) widens nothing but its own rank.
+
+    Parameters
+    ----------
+    log_ratios : array_like, shape (n,)
+        One value per pair; NaN and infinite values are left out.
+
+    Returns
+    -------
+    (speedup, low, high) : floats
+        NaN for fewer than 2 finite values.
+    """
+    x = np.asarray(log_ratios, np.float64)
+    x = x[np.isfinite(x)]
+    if len(x) < 2:
+        return math.nan, math.nan, math.nan
+    m, lo, hi = median_interval(x, confidence)
+    return math.exp(m), math.exp(lo), math.exp(hi)
 
 
 def log_ratio_interval(baseline: np.ndarray, kernel: np.ndarray, confidence: float = 0.95):
     """The speedup ``t_baseline / t_kernel`` of paired timings and its ``confidence``
     interval: ``exp`` of the mean of the per-round log-ratios ``log(t_baseline /
-    t_kernel)`` and of Student's t interval of that mean (``scipy.stats.t``).
+    t_kernel)`` and of Student's t interval of that mean (``scipy.stats.t``). The studies
+    with fixed repeats use it; the sweeps' paired rounds use the median
+    (:func:`median_ratio_interval`).
 
     Parameters
     ----------
@@ -290,30 +325,40 @@ def median_interval(x: np.ndarray, confidence: float = 0.95):
     tail ``P(Binom(n, 1/2) <= j - 1)`` is at most ``(1 - confidence) / 2``
     (``scipy.stats.binom``). With too few values for any such ``j`` the interval is the
     range. NaN values are left out; (nan, nan, nan) when none is left."""
-    from scipy import stats
-
     x = np.sort(np.asarray(x, np.float64)[np.isfinite(np.asarray(x, np.float64))])
     n = len(x)
     if n == 0:
         return math.nan, math.nan, math.nan
+    k = _median_rank(n, float(confidence))
+    return float(np.median(x)), float(x[k]), float(x[n - 1 - k])
+
+
+@functools.lru_cache(maxsize=4096)
+def _median_rank(n: int, confidence: float) -> int:
+    """The 0-based rank of the lower bound of :func:`median_interval` for ``n`` values
+    (the sequential rounds ask for it after every cycle)."""
+    from scipy import stats
+
     tail = (1 - confidence) / 2
     k = int(stats.binom.ppf(tail, n, 0.5))
     if stats.binom.cdf(k, n, 0.5) > tail:
         k -= 1
-    k = max(k, 0)
-    return float(np.median(x)), float(x[k]), float(x[n - 1 - k])
+    return max(k, 0)
 
 
 @dataclass
 class PairedTimes:
     """What :func:`paired_rounds` measured.
 
-    ``times``: name -> float64 array (rounds,) of ns per timed call, NaN in the rounds
-    after the kernel left the rotation; ``rounds``: name -> its timed rounds; ``stop``:
-    name -> one of :data:`STOPS`; ``timed_s``: seconds inside timed calls; ``flush_s``:
-    seconds spent flushing; ``wall_s``: the whole, warm-up included."""
+    ``times``: name -> float64 array (visits,) of ns per timed visit (the sum of its timed
+    calls); ``log_ratios``: name -> float64 array (pairs,) of ``log(t_baseline / t_kernel)``
+    per pair (the baseline's own entry is empty); ``rounds``: name -> its pairs (the
+    baseline: its visits); ``stop``: name -> one of :data:`STOPS`; ``timed_s``: seconds
+    inside timed calls; ``flush_s``: seconds spent preparing the cache state (flushing, or
+    the untimed calls of the warm state); ``wall_s``: the whole, warm-up included."""
 
     times: dict
+    log_ratios: dict
     rounds: dict
     stop: dict
     timed_s: float
@@ -323,23 +368,26 @@ class PairedTimes:
 
 def paired_rounds(jobs: dict[str, Callable[[], int]], baseline: str, precision: float = 0.02,
                   budget_s: float = 3.0, min_rounds: int = 8, max_rounds: int = 500,
-                  flush: str = "round", seed: int = 0, errors: dict | None = None,
+                  flush: str = "warm", seed: int = 0, errors: dict | None = None,
                   time_limit_ns: dict | None = None, confidence: float = 0.95) -> PairedTimes:
-    """Time every job in rounds on the same rays, sequentially, until each ratio over the
-    baseline is as precise as asked.
+    """Time every job against the baseline in adjacent pairs on the same rays, until each
+    ratio is as precise as asked (docs/METHOD.md, "Paired rounds").
 
-    A round runs every job still in the rotation once, in an order drawn afresh each
-    round (seeded by ``seed``), so no kernel always follows the same predecessor; the
-    caches are flushed per :data:`FLUSH_MODES`. One untimed round comes first. Each job
-    returns its own elapsed nanoseconds (measured in C).
+    The calls run in cycles ``B k1 B k2 B ... kn B``: the kernels still in the rotation,
+    in an order drawn afresh each cycle (seeded by ``seed``), each between two visits of
+    the baseline ``B``. A kernel's pair is its visit and the geometric mean of the two
+    baseline visits around it, so a machine state that drifts over a few milliseconds
+    cancels to first order, and every visit of the baseline serves two pairs. A visit
+    prepares the cache per :data:`FLUSH_MODES` (default ``"warm"``) and returns the
+    nanoseconds of its timed calls, measured in C. One untimed call of every job comes
+    first.
 
-    From round ``min_rounds`` on, a kernel leaves the rotation once the ``confidence``
-    interval of its speedup (:func:`log_ratio_interval` over the rounds so far) is at
-    most ``precision`` wide on either side (:func:`relative_half_width`): stop
-    ``"precision"``. The baseline runs while any kernel does. When ``budget_s`` seconds of
-    wall time are spent (at least ``min_rounds`` rounds are always run), or after
-    ``max_rounds`` rounds, the kernels still in the rotation stop with ``"budget"`` or
-    ``"rounds"``.
+    From pair ``min_rounds`` on, a kernel leaves the rotation once the ``confidence``
+    interval of its speedup (:func:`median_ratio_interval`: the median pair and its
+    distribution-free interval) is at most ``precision`` wide on either side
+    (:func:`relative_half_width`): stop ``"precision"``. When ``budget_s`` seconds of wall
+    time are spent (``min_rounds`` pairs are always measured), or after ``max_rounds``
+    pairs, the kernels still in the rotation stop with ``"budget"`` or ``"rounds"``.
 
     ``errors`` and ``time_limit_ns``: as in :func:`interleaved` (a failing job leaves the
     rotation and ``errors[name]`` says why; without ``errors`` its exception propagates).
@@ -356,8 +404,8 @@ def paired_rounds(jobs: dict[str, Callable[[], int]], baseline: str, precision: 
     limits = time_limit_ns or {}
     start = time.perf_counter()
     rng = np.random.Generator(np.random.PCG64(seed))
-    alive = list(jobs)
     failed = set()
+    spent = {"timed": 0.0, "prepare": 0.0}
 
     def call(name):
         if errors is None:
@@ -376,54 +424,78 @@ def paired_rounds(jobs: dict[str, Callable[[], int]], baseline: str, precision: 
             return None
         return elapsed
 
-    for name in list(alive):  # warm-up: branch predictors, page faults
-        call(name)
-    alive = [n for n in alive if n not in failed]
-    times = {name: [] for name in jobs}
-    stop = {}
-    flush_s = timed = 0.0
-    rounds = 0
-    while baseline in alive and (len(alive) > 1 or (len(jobs) == 1 and rounds < min_rounds)):
-        order = [alive[k] for k in rng.permutation(len(alive))]
-        if flush == "round":
-            f0 = time.perf_counter()
-            flush_caches()
-            flush_s += time.perf_counter() - f0
-        got = {}
-        for name in order:
+    def visit(name):
+        total = 0
+        p0 = time.perf_counter()
+        if flush == "warm" and call(name) is None:
+            return None
+        for _ in range(WARM_TIMED_CALLS if flush == "warm" else 1):
             if flush == "call":
-                f0 = time.perf_counter()
                 flush_caches()
-                flush_s += time.perf_counter() - f0
+            spent["prepare"] += time.perf_counter() - p0
             elapsed = call(name)
-            if elapsed is not None:
-                got[name] = float(elapsed)
-                timed += elapsed / 1e9
-        rounds += 1
-        for name in jobs:
-            times[name].append(got.get(name, math.nan))
-        alive = [n for n in alive if n not in failed]
-        if baseline not in alive:
+            p0 = time.perf_counter()
+            if elapsed is None:
+                return None
+            total += elapsed
+        spent["timed"] += total / 1e9
+        return float(total)
+
+    for name in list(jobs):  # warm-up: branch predictors, page faults
+        call(name)
+    alive = [n for n in jobs if n != baseline and n not in failed]
+    times = {name: [] for name in jobs}
+    logs = {name: [] for name in jobs}
+    stop = {}
+    pairs = 0
+    if flush == "round":
+        p0 = time.perf_counter()
+        flush_caches()
+        spent["prepare"] += time.perf_counter() - p0
+    before = visit(baseline) if baseline not in failed else None
+    if before is not None:
+        times[baseline].append(before)
+    while before is not None:
+        if not alive and (len(jobs) > 1 or len(times[baseline]) >= min_rounds):
             break
-        spent = time.perf_counter() - start
-        if rounds >= min_rounds:
-            base = np.asarray(times[baseline])
-            for name in [n for n in alive if n != baseline]:
-                s, lo, hi = log_ratio_interval(base, np.asarray(times[name]), confidence)
+        for name in [alive[k] for k in rng.permutation(len(alive))] or [None]:
+            got = visit(name) if name is not None else None
+            after = visit(baseline)
+            if after is None:
+                before = None
+                break
+            times[baseline].append(after)
+            if got is not None:
+                times[name].append(got)
+                logs[name].append(0.5 * (math.log(before) + math.log(after)) - math.log(got))
+            before = after
+        if flush == "round":
+            p0 = time.perf_counter()
+            flush_caches()
+            spent["prepare"] += time.perf_counter() - p0
+        pairs += 1
+        alive = [n for n in alive if n not in failed]
+        elapsed_s = time.perf_counter() - start
+        if pairs >= min_rounds:
+            for name in list(alive):
+                s, lo, hi = median_ratio_interval(logs[name], confidence)
                 if relative_half_width(s, lo, hi) <= precision:
                     stop[name] = "precision"
                     alive.remove(name)
-            if len(alive) > 1 and (spent >= budget_s or rounds >= max_rounds):
+            if alive and (elapsed_s >= budget_s or pairs >= max_rounds):
                 for name in alive:
-                    if name != baseline:
-                        stop[name] = "budget" if spent >= budget_s else "rounds"
-                alive = [baseline]
-    out = {name: np.asarray(times[name], dtype=np.float64) for name in jobs if name not in failed}
-    done = {name: int(np.isfinite(v).sum()) for name, v in out.items()}
-    stop.setdefault(baseline, "precision" if all(stop.get(n) == "precision" for n in out
+                    stop[name] = "budget" if elapsed_s >= budget_s else "rounds"
+                alive = []
+                break
+    kept = [name for name in jobs if name not in failed]
+    stop.setdefault(baseline, "precision" if all(stop.get(n) == "precision" for n in kept
                                                  if n != baseline) else "budget")
-    return PairedTimes(times=out, rounds=done, stop={n: stop.get(n, "rounds") for n in out},
-                       timed_s=timed, flush_s=flush_s, wall_s=time.perf_counter() - start)
+    return PairedTimes(
+        times={n: np.asarray(times[n], np.float64) for n in kept},
+        log_ratios={n: np.asarray(logs[n], np.float64) for n in kept},
+        rounds={n: len(times[n]) if n == baseline else len(logs[n]) for n in kept},
+        stop={n: stop.get(n, "rounds") for n in kept},
+        timed_s=spent["timed"], flush_s=spent["prepare"], wall_s=time.perf_counter() - start)
 
 
 def call_rays(first_call_ns: float, rays: int, call_ms: float, max_factor: int = 16) -> int:
@@ -438,37 +510,23 @@ def call_rays(first_call_ns: float, rays: int, call_ms: float, max_factor: int =
 
 
 def noise_floor(job: Callable[[], int], seconds: float = 1.0, rounds_affordable: int = 40,
-                confidence: float = 0.95, flush: str = "round") -> dict:
-    """The smallest effect this machine resolves now: the same job timed against itself
-    (A/A) in paired rounds for about ``seconds`` (at least ten pairs, within three times
-    that); returns ``{"log_sd": the standard
-    deviation of one paired log-ratio, "pairs": how many, "floor": the relative half-width
-    a ratio reaches in ``rounds_affordable`` rounds at that noise}``."""
+                confidence: float = 0.95, flush: str = "warm") -> dict:
+    """The smallest effect this machine resolves now: the job against itself under
+    another name (A/A), in :func:`paired_rounds`' design for about ``seconds``. Returns
+    ``{"log_sd": the spread of one paired log-ratio (1.4826 times its median absolute
+    deviation, robust to the tail the median ignores), "pairs": how many, "floor": the
+    relative half-width the median's interval reaches in ``rounds_affordable`` pairs at
+    that spread (the median's large-sample variance, pi/2 times the mean's)}``."""
     from scipy import stats
 
-    job()
-    logs = []
-    start = time.perf_counter()
-    # at least ten pairs for a usable standard deviation, unless that takes thrice the time
-    while (time.perf_counter() - start < seconds or len(logs) < 10) and \
-            (len(logs) < 4 or time.perf_counter() - start < 3 * seconds):
-        # both copies in the same cache state: flushed before each call unless the design
-        # never flushes (a flush per round would leave the second call warm, and the A/A
-        # ratio would measure the flush, not the noise)
-        if flush != "none":
-            flush_caches()
-        a = float(job())
-        if flush != "none":
-            flush_caches()
-        b = float(job())
-        if len(logs) % 2:  # alternate which copy goes first
-            a, b = b, a
-        logs.append(math.log(a) - math.log(b))
-        if len(logs) >= 2000:
-            break
-    sd = float(np.std(logs, ddof=1))
+    # an even share of the time: the A/A design of paired_rounds at its shortest
+    got = paired_rounds({"baseline": job, "again": job}, "baseline", precision=1e-9,
+                        budget_s=seconds, min_rounds=10, max_rounds=2000, flush=flush)
+    logs = got.log_ratios["again"]
+    sd = float(1.4826 * np.median(np.abs(logs - np.median(logs)))) if len(logs) else math.nan
     n = max(int(rounds_affordable), 2)
-    floor = math.expm1(float(stats.t.ppf(0.5 + confidence / 2, n - 1)) * sd / math.sqrt(n))
+    z = float(stats.norm.ppf(0.5 + confidence / 2))
+    floor = math.expm1(z * math.sqrt(math.pi / 2) * sd / math.sqrt(n))
     return {"log_sd": round(sd, 5), "pairs": len(logs), "floor": round(floor, 5),
             "rounds_affordable": n}
 

@@ -12,7 +12,7 @@ def _setup(args):
     metrics = METRICS if args.metric == "all" else tuple(m.strip() for m in args.metric.split(",") if m.strip())
     kernels = tuple(k.strip() for k in args.kernels.split(",") if k.strip()) if args.kernels else None
     setup = Setup(metrics=metrics, kernels=kernels, surface=args.surface, tolerance=args.tolerance,
-                  repeats=args.repeats)
+                  repeats=args.repeats, budget=args.budget)
     setup.check()
     return setup
 
@@ -54,7 +54,7 @@ def _note(text):
 
 
 def _common(p, default_metric):
-    from ..compare import DEFAULT_KERNELS, DEFAULT_REPEATS, DEFAULT_TOLERANCE
+    from ..compare import DEFAULT_BUDGET, DEFAULT_KERNELS, DEFAULT_REPEATS, DEFAULT_TOLERANCE
 
     p.add_argument("--repo", default=os.curdir, help="the git repository (default: the current directory)")
     p.add_argument("--metric", default=default_metric,
@@ -66,7 +66,10 @@ def _common(p, default_metric):
     p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE,
                    help=f"time change below which kernels are the same (default {DEFAULT_TOLERANCE})")
     p.add_argument("--repeats", type=int, default=DEFAULT_REPEATS,
-                   help=f"paired timed repeats per kernel (default {DEFAULT_REPEATS})")
+                   help=f"the fewest timed pairs per kernel (default {DEFAULT_REPEATS})")
+    p.add_argument("--budget", type=float, default=DEFAULT_BUDGET,
+                   help="seconds a kernel's timed pairs may take; they stop earlier once the "
+                        f"interval is within a third of the tolerance (default {DEFAULT_BUDGET:g})")
 
 
 def register(sub):

@@ -62,7 +62,7 @@ def reproduce(args):
                       progress=not args.no_progress, counts=not args.no_counts,
                       publish=args.publish, preset_name=args.preset, kernels=kernels,
                       isolate=args.isolate, all_kernels=args.all_kernels,
-                      precision=args.precision / 100)
+                      precision=args.precision / 100, flush=args.flush)
     return 1 if args.strict and paths.get("all_contended") else 0
 
 
@@ -191,6 +191,10 @@ def register(sub):
     p.add_argument("--strict", action="store_true",
                    help="exit with status 1 when every group ran while other processes used "
                         "the machine (no cell is then a finding)")
+    p.add_argument("--flush", choices=("warm", "call", "round", "none"), default="warm",
+                   help="the cache state of a timed call: warm (default; an untimed call of "
+                        "the same kernel first), flushed before every call, once per cycle "
+                        "of calls, or never (docs/METHOD.md, \"Cache regimes compared\")")
     add_plugin(p)
     where = p.add_mutually_exclusive_group()
     where.add_argument("--out", default=None, help="output directory (default "

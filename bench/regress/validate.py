@@ -6,8 +6,9 @@ clones this checkout's HEAD into a temporary directory and commits, on top of it
 - ``aa``: a docs-only change (the same code under a second commit: A/A pairs);
 - ``per_ray``: a busy loop per ray in the C batch entry, which every first-hit kernel
   runs, calibrated to cost about ``--ray-slowdown`` (5 %) of ``dda``'s time per ray;
-- ``per_cell``: a busy loop in ``dda_compact``'s per-cell step, calibrated to about
-  ``--cell-slowdown`` (3 %) of that kernel's time;
+- ``per_tile``: a busy loop in ``dda_compact``'s floor-tile step (its own code: the cell
+  walk inside a tile is shared with the max-mipmap kernels), calibrated to about
+  ``--tile-slowdown`` (3 %) of that kernel's time;
 - a range of docs-only commits with the per-ray loop at a known place, for ``bisect``.
 
 It then runs ``--runs`` (20) compares of each pair, each one ``hftrace compare`` process
@@ -29,10 +30,11 @@ import time
 
 from . import revisions
 
-HIT_C = os.path.join("cext", "hit.c")
-COMPACT_C = os.path.join("cext", "compact.c")
+HIT_C = os.path.join("cext", "dispatch", "intersect.c")
+COMPACT_C = os.path.join("cext", "hierarchies", "compact.c")
 BATCH_END = "        ray_end(b, ray, &h);\n    }\n    return HF_OK;\n"
-CELL_STEP = "                h->cells_visited += 1;\n"
+TILE_STEP = ("            const int status = hf_floor_walk(h, &ray, ilo, jlo, iw, jw, leaf, 1, &i, "
+             "&j, t, &t_in);\n")
 
 
 def _spin(iterations: int, indent: str) -> str:
@@ -128,7 +130,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default=os.path.join("results", "regress"))
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--ray-slowdown", type=float, default=0.05)
-    parser.add_argument("--cell-slowdown", type=float, default=0.03)
+    parser.add_argument("--tile-slowdown", type=float, default=0.03)
     parser.add_argument("--bisect-commits", type=int, default=8)
     args = parser.parse_args(argv)
     root = revisions.repo_root(os.path.dirname(os.path.abspath(__file__)))
@@ -141,22 +143,22 @@ def main(argv=None) -> int:
         _git(repo, "config", "user.name", "validate")
         start = _git(repo, "rev-parse", "HEAD")
         ray_iters = _calibrate(repo, start, HIT_C, BATCH_END, "        ", "dda", args.ray_slowdown, True)
-        cell_iters = _calibrate(repo, start, COMPACT_C, CELL_STEP, "                ", "dda_compact",
-                                args.cell_slowdown, False)
+        tile_iters = _calibrate(repo, start, COMPACT_C, TILE_STEP, "            ", "dda_compact",
+                                args.tile_slowdown, True)
         _branch(repo, "aa", start)
         aa = _docs_commit(repo, "A/A")
         _branch(repo, "per_ray", start)
         _inject(repo, HIT_C, BATCH_END, _spin(ray_iters, "        "))
         per_ray = _commit(repo, f"injected: {ray_iters} busy iterations per ray")
-        _branch(repo, "per_cell", start)
-        _inject(repo, COMPACT_C, CELL_STEP, _spin(cell_iters, "                "), before=False)
-        per_cell = _commit(repo, f"injected: {cell_iters} busy iterations per dda_compact cell")
+        _branch(repo, "per_tile", start)
+        _inject(repo, COMPACT_C, TILE_STEP, _spin(tile_iters, "            "))
+        per_tile = _commit(repo, f"injected: {tile_iters} busy iterations per dda_compact floor tile")
         results = dict(command="python -m bench.regress.validate " + " ".join(argv or sys.argv[1:]),
                        commit=start, toolchain=revisions.toolchain(), load_before=os.getloadavg(),
-                       ray_iterations=ray_iters, cell_iterations=cell_iters)
+                       ray_iterations=ray_iters, tile_iterations=tile_iters)
         results["aa"] = _summarise([compare_once(repo, start, aa) for _ in range(args.runs)], None)
         results["per_ray"] = _summarise([compare_once(repo, start, per_ray) for _ in range(args.runs)], "all")
-        results["per_cell"] = _summarise([compare_once(repo, start, per_cell, ["--kernels", "dda_compact"])
+        results["per_tile"] = _summarise([compare_once(repo, start, per_tile, ["--kernels", "dda_compact"])
                                           for _ in range(args.runs)], "dda_compact")
         # bisect: docs-only commits with the per-ray loop at a known place
         _branch(repo, "range", start)
@@ -196,8 +198,8 @@ def _markdown(r) -> str:
         f"({r['aa']['kernels_flagged']} kernel verdicts `slower`).",
         f"- Busy loop per ray ({r['ray_iterations']} iterations, about 5 % of `dda`): caught in "
         f"{r['per_ray']['caught']} of {n}; per kernel {r['per_ray']['caught_per_kernel']}.",
-        f"- Busy loop per `dda_compact` cell ({r['cell_iterations']} iterations, about 3 %): caught in "
-        f"{r['per_cell']['caught']} of {n} ({r['per_cell']['other_kernels_flagged']} other verdicts `slower`).",
+        f"- Busy loop per `dda_compact` floor tile ({r['tile_iterations']} iterations, about 3 %): caught in "
+        f"{r['per_tile']['caught']} of {n} ({r['per_tile']['other_kernels_flagged']} other verdicts `slower`).",
         f"- Bisect over {r['bisect']['commits']} commits: `{r['bisect']['answer']}` "
         f"({'correct' if r['bisect']['correct'] else 'WRONG'}; {r['bisect']['wall_s']} s).",
         f"- Wall time per compare (default kernels, cached builds): median "

@@ -47,14 +47,16 @@ OUT_NAMES = {"headline": "reproduce", "standard": "reproduce-standard", "full": 
 PUBLISHED = {"headline": "reproduce-headline", "standard": "reproduce", "full": "reproduce-full"}
 #: Seconds a group may spend in timed rounds (``bench.sweep.SweepConfig.group_budget``),
 #: and the shortest baseline call (``call_ms``) a group's rays are sized for.
-GROUP_BUDGET = {"headline": 2.5, "standard": 3.0, "full": 4.0}
-CALL_MS = 8.0
-#: Where the caches are flushed (``bench.timing.FLUSH_MODES``; docs/METHOD.md, "Cache
-#: regimes compared"): before every timed call, so every kernel of a round starts from
-#: the same cold state (a flush per round leaves all but the first call of a round warm,
-#: and the random order then mixes two regimes into each ratio). A flush costs about 2 ms
-#: here, so the timed share of the measure phase stays above 60 %.
-FLUSH = "call"
+GROUP_BUDGET = {"headline": 3.5, "standard": 3.0, "full": 4.0}
+CALL_MS = 0.5
+#: The cache state of a timed call (``bench.timing.FLUSH_MODES``; docs/METHOD.md, "Cache
+#: regimes compared"): warm, each visit's timed calls follow an untimed call of the same
+#: kernel on the same rays, so they find the lines the kernel itself left, whichever
+#: kernel ran before. A flushed call's time is mostly the first touch of the field from
+#: memory that other machines share, and a paired log-ratio of two such calls spreads by
+#: 10-35 % on this VM against 1-5 % warm: the flushed regime cannot reach ±2 % in the
+#: run's minutes. ``--flush call`` still measures it.
+FLUSH = "warm"
 #: The fewest paired rounds of every kernel (``repeats``).
 MIN_ROUNDS = 10
 #: Seconds per group (used for the first line's estimate): the budget and the group's
@@ -89,7 +91,7 @@ def _check_precision(precision):
                          f"{precision!r}")
 
 
-def preset(full=False, name=None, kernels=None, precision=0.02) -> SweepConfig:
+def preset(full=False, name=None, kernels=None, precision=0.02, flush=FLUSH) -> SweepConfig:
     """The sweep of a preset (module docstring): ``name`` one of :data:`PRESETS` (default
     headline; ``full=True`` means "full"); ``kernels`` restricts the algorithms (dda, the
     baseline, is always measured); ``precision`` the half-width, as a fraction of the
@@ -100,7 +102,7 @@ def preset(full=False, name=None, kernels=None, precision=0.02) -> SweepConfig:
     _check_precision(precision)
     out = OUT_NAMES[name]
     design = dict(precision=float(precision), group_budget=GROUP_BUDGET[name], call_ms=CALL_MS,
-                  flush=FLUSH)
+                  flush=flush)
     if name == "full":
         return SweepConfig(
             name=out, rays=3000, repeats=MIN_ROUNDS, seed=2004, **design,
@@ -137,7 +139,7 @@ def estimate_seconds(cfg, name, counts=True) -> float:
 
 def run(full=False, out_dir=None, resume=False, progress=True, echo=print, counts=True,
         publish=False, preset_name=None, kernels=None, isolate=False, all_kernels=False,
-        precision=0.02):
+        precision=0.02, flush=FLUSH):
     """Run the study and write its reports; returns the paths of ``analysis.write_reports``
     and ``"all_contended"``: True when every group ran while other processes used the
     machine (``--strict`` then exits non-zero).
@@ -147,10 +149,11 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     ``reports/<name>`` of the repository (:data:`PUBLISHED`), instead. ``counts``: also
     the instruction counts (callgrind, when valgrind exists); ``resume``: keep the rows
     already measured; ``kernels``: a subset of algorithms; ``isolate``: plugins in a
-    child process (``bench.sweep.run_sweep``)."""
+    child process (``bench.sweep.run_sweep``); ``flush``: the cache state of a timed call
+    (:data:`FLUSH`)."""
     name = "full" if full else (preset_name or "headline")
     _check_precision(precision)
-    cfg = preset(name=name, kernels=kernels)
+    cfg = preset(name=name, kernels=kernels, flush=flush)
     if cfg.precision is not None:
         cfg.precision = float(precision)
     if publish and out_dir is not None:
@@ -230,7 +233,12 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     env = json.load(open(env_path))
     total = time.perf_counter() - wall0
     timed = (env.get("run") or {}).get("timed_s") or 0.0
+    # the sweep's phases: preparing (fields, their structures, Embree's scenes), then
+    # measuring (noise calibration, the groups' set-up, their timed and untimed calls)
+    prepare_s = (env.get("run") or {}).get("prepare_s") or 0.0
+    measure_s -= prepare_s
     env["reproduce"] = {"preset": name, "wall_s": round(total, 1), "measure_s": round(measure_s, 1),
+                        "prepare_s": round(prepare_s, 1),
                         "after_measure_s": round(other_phases_s, 1),
                         "reports_s": round(time.perf_counter() - reports0, 1),
                         "timed_share_of_total": round(timed / total, 4) if total else None,

@@ -56,6 +56,64 @@ def test_log_ratio_interval_is_the_geometric_mean_of_paired_ratios():
         T.log_ratio_interval([1.0, 2.0], [1.0])
 
 
+def test_median_ratio_interval_covers_one_in_about_95_percent_of_aa_groups():
+    rng = np.random.Generator(np.random.PCG64(29))
+    covered = []
+    for _ in range(2000):
+        n = int(rng.integers(10, 120))
+        # A/A: symmetric about 0, with the heavy tail of calls an interrupt lengthened
+        logs = 0.03 * rng.standard_t(2, n)
+        s, lo, hi = T.median_ratio_interval(logs)
+        assert lo <= s <= hi
+        covered.append(lo <= 1.0 <= hi)
+    assert 0.94 <= float(np.mean(covered)) <= 0.99, np.mean(covered)
+    assert np.isnan(T.median_ratio_interval([0.1])[0])
+    assert T.median_ratio_interval([0.0, np.nan, 0.0, np.inf])[0] == 1.0
+
+
+def _scripted(drift_per_call=0.01):
+    """Jobs whose every call lasts ``base / speed`` times a clock that grows by
+    ``drift_per_call`` (in the log) with each call, whoever makes it, and a log of
+    the calls."""
+    state = {"calls": 0}
+    log = []
+
+    def job(name, speed):
+        def run():
+            state["calls"] += 1
+            log.append(name)
+            return 1e6 / speed * np.exp(drift_per_call * state["calls"])
+        return run
+
+    return job, log
+
+
+def test_paired_rounds_pairs_each_kernel_between_two_baseline_visits(monkeypatch):
+    """Cycles B k B k' B ...: a drift linear in time cancels exactly in every pair, and a
+    warm visit is one untimed call of the kernel, then its timed ones."""
+    monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
+    job, log = _scripted()
+    jobs = {"dda": job("dda", 1.0), "same": job("same", 1.0), "fast": job("fast", 2.0)}
+    got = T.paired_rounds(jobs, "dda", precision=1e-6, budget_s=60, min_rounds=5,
+                          max_rounds=5, flush="none")
+    assert got.rounds == {"dda": 11, "same": 5, "fast": 5}
+    assert np.allclose(got.log_ratios["same"], 0.0)
+    assert np.allclose(got.log_ratios["fast"], np.log(2.0))
+    assert got.stop["same"] == got.stop["fast"] == "precision"  # every pair alike: width 0
+    timed = log[len(jobs):]  # after the untimed warm-up call of each
+    assert timed[::2] == ["dda"] * 11 and sorted(timed[1:4:2]) == ["fast", "same"]
+    job, log = _scripted()
+    jobs = {"dda": job("dda", 1.0), "fast": job("fast", 2.0)}
+    got = T.paired_rounds(jobs, "dda", precision=1e-6, budget_s=60, min_rounds=3,
+                          max_rounds=3, flush="warm")
+    visits = log[len(jobs):]
+    per = T.WARM_TIMED_CALLS + 1
+    assert visits == (["dda"] * per + ["fast"] * per) * 3 + ["dda"] * per
+    # the timed calls of a visit follow its first: the drift still cancels in a pair
+    assert np.allclose(got.log_ratios["fast"], np.log(2.0))
+    assert got.timed_s > 0 and got.flush_s >= 0
+
+
 def test_median_interval_covers_the_median_distribution_free():
     rng = np.random.Generator(np.random.PCG64(7))
     covered = []
@@ -93,10 +151,10 @@ def test_paired_rounds_stops_at_the_precision_with_coverage(monkeypatch):
         got = T.paired_rounds(jobs, "dda", precision=0.02, budget_s=60, min_rounds=8,
                               max_rounds=400, flush="none", seed=int(rng.integers(1 << 30)))
         assert got.stop["dda_again"] == got.stop["fast"] == "precision"
-        s, lo, hi = T.log_ratio_interval(got.times["dda"], got.times["dda_again"])
+        s, lo, hi = T.median_ratio_interval(got.log_ratios["dda_again"])
         assert T.relative_half_width(s, lo, hi) <= 0.02
         covered.append(lo <= 1.0 <= hi)
-        s, lo, hi = T.log_ratio_interval(got.times["dda"], got.times["fast"])
+        s, lo, hi = T.median_ratio_interval(got.log_ratios["fast"])
         assert lo <= 1.5 * 1.05 and hi >= 1.5 / 1.05
         rounds.append(got.rounds["dda_again"])
     # stopping on a narrow interval costs a little coverage; it stays near the nominal
@@ -183,8 +241,9 @@ def test_one_real_aa_group_contains_one(monkeypatch):
                 "dda_again": _prepare("dda", "first_hit", field, o, d, None, "triangles",
                                       "runs")[0]}
         got = T.paired_rounds(jobs, "dda", precision=0.02, budget_s=3.0, min_rounds=10,
-                              flush="round", seed=attempt)
-        s, lo, hi = T.log_ratio_interval(got.times["dda"], got.times["dda_again"])
+                              seed=attempt)
+        assert got.stop["dda_again"] in T.STOPS and got.timed_s > 0.5 * got.wall_s * 0.5
+        s, lo, hi = T.median_ratio_interval(got.log_ratios["dda_again"])
         attempts.append((s, lo, hi, got.rounds["dda_again"], got.stop["dda_again"]))
         if lo <= 1.0 <= hi:
             break

@@ -358,7 +358,7 @@ def test_reproduce_presets_and_new_run_directory(tmp_path, monkeypatch, quiet_fl
     tiny = SweepConfig(name="reproduce", rays=24, repeats=3, seed=1, workloads=["first_hit"],
                        surfaces=["triangles"], run_lengths=[2],
                        datasets=[{"name": "fbm", "size": 32, "seed": 1}])
-    monkeypatch.setattr(R, "preset", lambda full=False, name=None, kernels=None:
+    monkeypatch.setattr(R, "preset", lambda full=False, name=None, kernels=None, flush="warm":
                         SweepConfig(**{**tiny.__dict__, "algorithms": kernels}))
     monkeypatch.chdir(tmp_path)
     lines = []

@@ -156,11 +156,11 @@ def test_time_is_measured_on_both_builds(history, capsys, tmp_path):
     out_json = str(tmp_path / "t.json")
     status, out, err = _run(capsys, "compare", shas["c0"], shas["c1"], "--repo", repo,
                             "--metric", "time", "--kernels", "dda", "--repeats", "5",
-                            "--json", out_json)
+                            "--budget", "0.5", "--json", out_json)
     assert status in (0, 1), err
     with open(out_json) as f:
         t = json.load(f)["results"][0]["time"]
-    assert 0 < t["low"] <= t["ratio"] <= t["high"] and t["repeats"] == 5
+    assert 0 < t["low"] <= t["ratio"] <= t["high"] and t["repeats"] >= 5
     assert t["detectable"] > 0.03 and t["verdict"] in ("slower", "faster", "same", "inconclusive")
 
 
@@ -235,7 +235,8 @@ def test_time_verdicts(shift, spread, verdict):
     v = cmp.time_verdict(x, 0.03)
     assert v["verdict"] == verdict, (shift, spread, v)
     assert v["low"] < v["ratio"] < v["high"]
-    assert v["detectable"] == pytest.approx(np.expm1(np.log1p(0.03) + np.log(v["high"] / v["ratio"])))
+    half = max(np.log(v["high"] / v["ratio"]), np.log(v["ratio"] / v["low"]))
+    assert v["detectable"] == pytest.approx(np.expm1(np.log1p(0.03) + half))
 
 
 # ---- the exact gates' baselines: provenance and the rule for a mismatch ----------------
