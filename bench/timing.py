@@ -117,6 +117,28 @@ def flush_caches(nbytes: int | None = None) -> None:
     np.add(lines, 1.0, out=lines)
 
 
+def _guarded_call(jobs, name, errors, time_limit_ns, drop):
+    """One call of ``jobs[name]``: its elapsed ns, or None when it failed. Without
+    ``errors`` an exception propagates; with it, a job that raises or exceeds its entry
+    of ``time_limit_ns`` (name -> ns) is reported in ``errors[name]`` and ``drop(name)``
+    takes it out of the caller's rotation."""
+    if errors is None:
+        return jobs[name]()
+    try:
+        elapsed = jobs[name]()
+    except Exception as exc:  # a kernel's failure is its row's error, not the run's
+        errors[name] = f"{type(exc).__name__}: {exc}".strip()
+        drop(name)
+        return None
+    limit = (time_limit_ns or {}).get(name)
+    if limit is not None and elapsed > limit:
+        errors[name] = (f"exceeded the time limit: one call took {elapsed / 1e9:.3g} s, "
+                        f"limit {limit / 1e9:.3g} s")
+        drop(name)
+        return None
+    return elapsed
+
+
 def interleaved(jobs: dict[str, Callable[[], int]], repeats: int,
                 flush: bool = True, errors: dict | None = None,
                 time_limit_ns: dict | None = None) -> dict[str, np.ndarray]:
@@ -131,24 +153,9 @@ def interleaved(jobs: dict[str, Callable[[], int]], repeats: int,
     ``errors[name]`` says why; the other jobs go on, and the result holds only the jobs
     that finished every repeat. Without it an exception propagates."""
     names = list(jobs)
-    limits = time_limit_ns or {}
 
     def call(name):
-        if errors is None:
-            return jobs[name]()
-        try:
-            elapsed = jobs[name]()
-        except Exception as exc:  # a kernel's failure is its row's error, not the run's
-            errors[name] = f"{type(exc).__name__}: {exc}".strip()
-            names.remove(name)
-            return None
-        limit = limits.get(name)
-        if limit is not None and elapsed > limit:
-            errors[name] = (f"exceeded the time limit: one call took {elapsed / 1e9:.3g} s, "
-                            f"limit {limit / 1e9:.3g} s")
-            names.remove(name)
-            return None
-        return elapsed
+        return _guarded_call(jobs, name, errors, time_limit_ns, names.remove)
 
     for name in list(names):  # warm-up: branch predictors, page faults
         call(name)
@@ -401,28 +408,13 @@ def paired_rounds(jobs: dict[str, Callable[[], int]], baseline: str, precision: 
     if min_rounds < 2 or max_rounds < min_rounds:
         raise ValueError(f"min_rounds, max_rounds: expected 2 <= min_rounds <= max_rounds, "
                          f"got {min_rounds}, {max_rounds}")
-    limits = time_limit_ns or {}
     start = time.perf_counter()
     rng = np.random.Generator(np.random.PCG64(seed))
     failed = set()
     spent = {"timed": 0.0, "prepare": 0.0}
 
     def call(name):
-        if errors is None:
-            return jobs[name]()
-        try:
-            elapsed = jobs[name]()
-        except Exception as exc:  # a kernel's failure is its row's error, not the run's
-            errors[name] = f"{type(exc).__name__}: {exc}".strip()
-            failed.add(name)
-            return None
-        limit = limits.get(name)
-        if limit is not None and elapsed > limit:
-            errors[name] = (f"exceeded the time limit: one call took {elapsed / 1e9:.3g} s, "
-                            f"limit {limit / 1e9:.3g} s")
-            failed.add(name)
-            return None
-        return elapsed
+        return _guarded_call(jobs, name, errors, time_limit_ns, failed.add)
 
     def visit(name):
         total = 0

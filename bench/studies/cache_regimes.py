@@ -9,8 +9,12 @@ Designs (``bench.sweep.measure_group`` with ``bench.timing.paired_rounds``):
 * ``round-1000``: flushed once per round of calls, 1000 rays;
 * ``call-long``, ``round-long``, ``none-long``: calls of ``call_ms`` (rays doubled from
   1000 until the baseline's call lasts that long), flushed per call, per round, never;
-* ``big-none-long`` against ``big-call-long``: a field larger than the last-level cache
-  (fBm 4096^2, 128 MiB of heights) never flushed, against flushed per call.
+* ``warm-1000``, ``warm-long``: each visit warm (``bench.timing.FLUSH_MODES``: an
+  untimed call of the same kernel on the same rays before its timed calls), the sweep's
+  default;
+* ``big-none-long`` and ``big-warm-long`` against ``big-call-long``: a field larger than
+  the last-level cache (fBm 4096^2, 64 MiB of heights) never flushed, or warm, against
+  flushed per call.
 
 Each group runs until every ratio is within ``precision`` or ``budget_s`` is spent. The
 table gives, per design and kernel, the speedup over ``dda``, its half-width, the ratio
@@ -39,9 +43,11 @@ KERNELS = ["dda", "runs", "dda_maxmip", "embree"]
 BIG_KERNELS = ["dda", "runs", "dda_maxmip"]
 #: (design, flush, long calls, field): the reference first.
 DESIGNS = [("call-1000", "call", False, "fbm1024"), ("round-1000", "round", False, "fbm1024"),
+           ("warm-1000", "warm", False, "fbm1024"),
            ("call-long", "call", True, "fbm1024"), ("round-long", "round", True, "fbm1024"),
-           ("none-long", "none", True, "fbm1024"), ("big-call-long", "call", True, "fbm4096"),
-           ("big-none-long", "none", True, "fbm4096")]
+           ("none-long", "none", True, "fbm1024"), ("warm-long", "warm", True, "fbm1024"),
+           ("big-call-long", "call", True, "fbm4096"), ("big-none-long", "none", True, "fbm4096"),
+           ("big-warm-long", "warm", True, "fbm4096")]
 REFERENCE = {"fbm1024": "call-1000", "fbm4096": "big-call-long"}
 FIELDS = {"fbm1024": {"name": "fbm", "size": 1024, "seed": 1},
           "fbm4096": {"name": "fbm", "size": 4096, "seed": 1}}
