@@ -394,10 +394,11 @@ def summary_lines(df, env=None) -> list:
                  f" (of {len(labels)}).")
     noise = (env or {}).get("noise")
     if noise:
-        lines.append(f"Noise floor: one paired call's log-ratio has a standard deviation of "
-                     f"{100 * noise['log_sd']:.1f} % (A/A, {noise['pairs']} pairs of "
-                     f"{noise['call_rays']} rays), so {noise['rounds_affordable']} rounds, "
-                     f"what a group affords in its budget, resolve ±{100 * noise['floor']:.1f} %; "
+        lines.append(f"Noise floor: one pair's log-ratio spreads by "
+                     f"{100 * noise['log_sd']:.1f} % (A/A: the baseline against itself, "
+                     f"{noise['pairs']} pairs of {noise['call_rays']}-ray calls; 1.4826 MAD), "
+                     f"so {noise['rounds_affordable']} pairs, what a group affords a kernel in "
+                     f"its budget, resolve ±{100 * noise['floor']:.1f} %; "
                      f"load average {noise.get('load')}.")
         asked = (env.get("run") or {}).get("precision")
         if asked and noise["floor"] > asked:
@@ -445,12 +446,20 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
     if rounds is None or rounds.isna().all():  # results of the fixed-repeats design
         rounds = pd.to_numeric(df["repeats"], errors="coerce")
     calls = sorted(set(df["call_rays"].dropna().astype(int))) if "call_rays" in df else []
+    paired = "regime" in df and df["regime"].isin(["warm", "flushed-per-call",
+                                                     "flushed-per-round", "unflushed"]).any() \
+        and "precision" in df and pd.to_numeric(df["precision"], errors="coerce").notna().any()
+    if paired and "algorithm" in df:  # the baseline's own count is of its visits
+        rounds = rounds[(df["algorithm"] != "dda").to_numpy()]
+    how = ("the median over adjacent pairs (each kernel's call between two of dda's) of time "
+           "of dda / time of the algorithm" if paired else
+           "geometric mean over paired rounds of time of dda / time of the algorithm")
     lines += [f"Datasets: {', '.join(datasets)}. Rays per timed call: "
-              f"{', '.join(map(str, calls or sorted(set(df['rays']))))}; rounds per kernel: "
-              f"{int(np.nanmin(rounds))} to {int(np.nanmax(rounds))}. Speedup = geometric mean "
-              "over paired rounds of time of dda / time of the algorithm on the same rays in "
-              "the same process (docs/METHOD.md); tables aggregate datasets by the geometric "
-              "mean.", ""]
+              f"{', '.join(map(str, calls or sorted(set(df['rays']))))}; "
+              f"{'pairs' if paired else 'rounds'} per kernel: "
+              f"{int(np.nanmin(rounds))} to {int(np.nanmax(rounds))}. Speedup = {how} on the "
+              "same rays in the same process (docs/METHOD.md); tables aggregate datasets by "
+              "the geometric mean.", ""]
     table = pivot(df, *PRIMARY)
     if not table.empty:
         from .report import EMBREE_NOTE, axes_caption

@@ -8,13 +8,15 @@ whole batch. Two designs:
   algorithm rotated each repeat, after one untimed warm-up round, with the caches flushed
   before every timed run (so no kernel inherits the cache lines its predecessor left,
   which on the same rays are its own).
-* :func:`paired_rounds` (the sweeps): rounds in a fresh random order, the caches flushed
-  per call, per round or never, each kernel's rounds stopping once its paired ratio's
-  interval (:func:`log_ratio_interval`) is as precise as asked, or the group's budget is
-  spent.
+* :func:`paired_rounds` (the sweeps and ``hftrace compare``): adjacent pairs with the
+  baseline, ``B k1 B k2 B ...``, each visit warm by default (an untimed call of the same
+  kernel first), each kernel's pairs stopping once the distribution-free interval of
+  its median paired ratio (:func:`median_ratio_interval`) is as precise as asked, or the
+  budget is spent.
 
-A speedup is the geometric mean of the per-repeat paired ratios with Student's t
-interval of their logs; a time per ray, the median with its order-statistic interval.
+With fixed repeats a speedup is the geometric mean of the per-repeat paired ratios with
+Student's t interval of their logs (:func:`log_ratio_interval`); in paired rounds it is
+the median pair's ratio; a time per ray is the median with its order-statistic interval.
 """
 from __future__ import annotations
 
