@@ -97,6 +97,24 @@ static inline int hf_arg_f32(PyObject *object, const char *name, int ndim, const
     return 1;
 }
 
+/* An output array: a writable, C-contiguous, aligned, native-order array of `type` with
+ * exactly `size` elements (with optional, None too: *data is then NULL). The messages are
+ * hf_arg_array's. */
+HF_BINDING int hf_arg_out(PyObject *object, const char *name, int type, npy_intp size, int optional,
+                          void **data);
+
+/* A float32 output of exactly this shape (hf_arg_f32), writable: "<name>: must be
+ * writable" (ValueError) otherwise. */
+HF_BINDING int hf_arg_f32_out(PyObject *object, const char *name, int ndim, const npy_intp *shape,
+                              float **data);
+
+/* The shape (rows, cols) of a 2D array, its dtype and layout left to the caller's reader:
+ * a grid of vertices (HF_GRID_VERTICES, each side in [2, 2^24]) or of the cells between
+ * them (HF_GRID_CELLS, each side in [1, 2^24 - 1]). */
+enum hf_grid_kind { HF_GRID_VERTICES, HF_GRID_CELLS };
+HF_BINDING int hf_arg_grid_shape(PyObject *object, const char *name, enum hf_grid_kind kind,
+                                 npy_intp shape[2]);
+
 /* A kernel call without the GIL, timed with the monotonic clock: timed_begin releases
  * the GIL and starts the clock, timed_end stops it, takes the GIL back and returns the
  * elapsed nanoseconds. Nothing between the two may touch a Python object. */
