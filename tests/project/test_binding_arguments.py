@@ -209,3 +209,39 @@ def test_cone_and_compact_builders_refuse_word_for_word():
             call()
         assert f"{caught.type.__name__}: {caught.value}" == expected
     assert _kernels.cone_relaxed_slopes(cellmax, 1, slope) >= 0
+
+
+def test_sweep_and_row_breakpoints_are_refused_word_for_word():
+    """The sweep and the row walk read their breakpoints alike: the first array sets their
+    number, the interpolation arrays and both reaches must match it."""
+    h = np.zeros((ROWS, COLS))
+    one, ones, zero = np.ones(1), np.ones(1, np.int64), np.zeros(1, np.int64)
+    out = np.zeros(VERTICES)
+
+    def sweep(tf=one, dxa=ones, w=one, mx=ones, my=zero):
+        return _kernels.horizon_sweep(h, 1, 0, tf, dxa, zero, ones, zero, w, mx, my, 1.0, 0, 1,
+                                      out)
+
+    def rows(inv=one, dxa=zero, w=one, rx=zero, ry=zero):
+        return _kernels.horizon_rows(h, inv, dxa, zero, zero, zero, w, rx, ry, 1, 1, 0, -1, 0.0,
+                                     0.0, 0, ROWS, out)
+
+    two = np.ones(2, np.int64)
+    cases = [
+        (lambda: sweep(tf=np.ones(1, np.float32)), "TypeError: tfrac: expected a C-contiguous, "
+         "aligned, native-order array of dtype float64"),
+        (lambda: sweep(dxa=two), "ValueError: dx_a: expected 1 elements, got 2"),
+        (lambda: sweep(w=np.ones(2)), "ValueError: w: expected 1 elements, got 2"),
+        (lambda: sweep(mx=two), "ValueError: mx: expected 1 elements, got 2"),
+        (lambda: sweep(my=None), "TypeError: my: an array is required, not None"),
+        (lambda: rows(inv=[1.0]), "TypeError: inv_t: expected a numpy array, got list"),
+        (lambda: rows(rx=np.zeros(1, np.int32)), "TypeError: rx: expected a C-contiguous, "
+         "aligned, native-order array of dtype int64"),
+        (lambda: rows(ry=two), "ValueError: ry: expected 1 elements, got 2"),
+    ]
+    for call, expected in cases:
+        with pytest.raises((TypeError, ValueError)) as caught:
+            call()
+        assert f"{caught.type.__name__}: {caught.value}" == expected
+    sweep()
+    rows()
