@@ -1,7 +1,7 @@
 """The C binding's argument checks, pinned word for word (cext/binding/).
 
-Every entry point reads its output arrays, and the grids and structures it is handed,
-through the shared reader of args.h; the Python wrappers and the tests match its messages.
+The terrain and first-hit entry points read their outputs, grids and structures through
+the shared reader of args.h; the Python wrappers and the tests match its messages.
 Each case below calls one private entry point with everything valid but one argument and
 pins the exception's type and full message, so that a change to how the binding reads its
 arguments cannot change what a caller sees.
