@@ -9,7 +9,7 @@ import numpy as np
 from ..field import HeightField, is_dataarray
 from ..validate import check_spacing
 from .directions import MAX_SNAP_DENOMINATOR
-from .grid import Grid
+from .grid import Grid, _field_spacing
 
 __all__ = ["rational_azimuths", "snap_azimuths"]
 
@@ -145,3 +145,38 @@ def _rational_map_azimuths(heights, spacing, n):
         gap = np.abs((candidates - cell + 180.0) % 360.0 - 180.0)
         out.append(grid.map_azimuth(float(candidates[int(np.argmin(gap))])))
     return np.array(out)
+
+
+def _product_azimuths(heights, n_azimuths, azimuths, rational, spacing, snap_denominator):
+    """The azimuths of a product over many of them (:func:`sky_view_factor`,
+    :func:`openness`), with the record of their snapping.
+
+    The explicit ``azimuths`` (degrees) when given, else ``n_azimuths`` equally spaced
+    from north (with ``rational``, taken to the nearest rational cell directions,
+    :func:`_rational_map_azimuths`); then, with ``snap_denominator``, all snapped to cell
+    directions of q <= snap_denominator on the field's pixels (:func:`snap_azimuths`).
+
+    Returns
+    -------
+    (azimuths, snap)
+        The azimuths (degrees; a float64 array, or ``azimuths`` as given), and None or
+        :func:`snap_azimuths`' (snapped azimuths, largest change) for the statistics and
+        the DataArray attrs.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Naming ``n_azimuths``, ``snap_denominator``, ``azimuths[k]`` or ``spacing``.
+    """
+    if azimuths is None:
+        if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
+            raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
+        azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)
+        if rational:
+            azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
+    snap = None
+    if snap_denominator is not None:
+        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing),
+                             name="snap_denominator")
+        azimuths = snap[0]
+    return azimuths, snap

@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..field import HeightField
+from .azimuths import _azimuth_list
+from .curvature import _curvature_attrs
 from .observers import VIEWSHED_UINT8_NODATA
+from .stats import returned, with_stats
 
 
 def _path_attrs(stats):
@@ -72,3 +75,20 @@ def _to_dataarray(template, compute, product, attrs, extra_dim=None):
         else:
             out.attrs["_FillValue"] = VIEWSHED_UINT8_NODATA
     return out, stats
+
+
+def _azimuth_product_dataarray(product, name, heights, azimuths, max_distance, snap,
+                               return_stats, attrs, **options):
+    """The DataArray path of a product over many azimuths (:func:`sky_view_factor`,
+    :func:`openness`): ``product(field, azimuths=..., max_distance=..., **options)`` on
+    the DataArray's field, wrapped as ``name`` with ``attrs`` first, then ``n_azimuths``,
+    ``max_distance``, the curvature parameters (``options["curvature"]``,
+    ``options["refraction"]``), the paths and the snapping ``snap``. Returns what the
+    product returns: the DataArray, or ``(DataArray, TerrainStats)`` with
+    ``return_stats``."""
+    az = _azimuth_list(azimuths)
+    out, stats = _to_dataarray(heights, lambda f: with_stats(
+        product, f, azimuths=az, max_distance=max_distance, **options), name,
+        dict(**attrs, n_azimuths=len(az), max_distance=_attr(max_distance),
+             **_curvature_attrs(options["curvature"], options["refraction"])))
+    return returned(*_with_path_attrs(out, stats, snap), return_stats)

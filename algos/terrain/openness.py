@@ -7,12 +7,12 @@ import numpy as np
 
 from ..field import is_dask, is_dataarray
 from ..georef import WGS84_SEMI_MAJOR_AXIS_M
-from .azimuths import _azimuth_list, _rational_map_azimuths, snap_azimuths
-from .curvature import DEFAULT_REFRACTION, _curvature_attrs, _curvature_kappa
-from .dataarray import _attr, _to_dataarray, _with_path_attrs
-from .grid import VOID_HEIGHT, Grid, _check_surface, _field_spacing, _prepare
+from .azimuths import _product_azimuths
+from .curvature import DEFAULT_REFRACTION, _curvature_kappa
+from .dataarray import _azimuth_product_dataarray
+from .grid import VOID_HEIGHT, Grid, _check_surface, _prepare
 from .horizon import _check_units, _horizon_angles
-from .stats import check_return_stats, returned, with_stats
+from .stats import check_return_stats, returned
 from .tiled import tiled_product
 
 __all__ = ["openness", "OPENNESS_KINDS"]
@@ -82,26 +82,14 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
     _check_units(units)
     check_return_stats(return_stats, heights)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
-    if azimuths is None:
-        if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
-            raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
-        azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)
-        if rational:
-            azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
-    snap = None
-    if snap_denominator is not None:
-        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing),
-                             name="snap_denominator")
-        azimuths = snap[0]
+    azimuths, snap = _product_azimuths(heights, n_azimuths, azimuths, rational, spacing,
+                                       snap_denominator)
     options = dict(kind=kind, units=units, algorithm=algorithm, surface=surface,
                    threads=threads, **curve)
     if is_dataarray(heights):
-        az = _azimuth_list(azimuths)
-        out, stats = _to_dataarray(heights, lambda f: with_stats(
-            openness, f, azimuths=az, max_distance=max_distance, **options), "openness",
-            dict(units=units, kind=kind, n_azimuths=len(az), max_distance=_attr(max_distance),
-                 **_curvature_attrs(curvature, refraction)))
-        return returned(*_with_path_attrs(out, stats, snap), return_stats)
+        return _azimuth_product_dataarray(openness, "openness", heights, azimuths,
+                                          max_distance, snap, return_stats,
+                                          dict(units=units, kind=kind), **options)
     if is_dask(heights):
         return tiled_product(lambda b, **kw: openness(b, azimuths=azimuths, **kw), heights,
                              max_distance, spacing, np.float64, **options)

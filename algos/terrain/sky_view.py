@@ -5,12 +5,11 @@ import numpy as np
 
 from ..field import is_dask, is_dataarray
 from ..georef import WGS84_SEMI_MAJOR_AXIS_M
-from .azimuths import _azimuth_list, _rational_map_azimuths, snap_azimuths
-from .curvature import DEFAULT_REFRACTION, _curvature_attrs
-from .dataarray import _attr, _to_dataarray, _with_path_attrs
-from .grid import _field_spacing
+from .azimuths import _product_azimuths
+from .curvature import DEFAULT_REFRACTION
+from .dataarray import _azimuth_product_dataarray
 from .horizon import horizon
-from .stats import check_return_stats, returned, with_stats
+from .stats import check_return_stats, returned
 from .tiled import tiled_product
 
 __all__ = ["sky_view_factor"]
@@ -60,25 +59,13 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
     """
     check_return_stats(return_stats, heights)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
-    if azimuths is None:
-        if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
-            raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
-        azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)
-        if rational:
-            azimuths = _rational_map_azimuths(heights, spacing, n_azimuths)
-    snap = None
-    if snap_denominator is not None:
-        snap = snap_azimuths(azimuths, snap_denominator, _field_spacing(heights, spacing),
-                             name="snap_denominator")
-        azimuths = snap[0]
+    azimuths, snap = _product_azimuths(heights, n_azimuths, azimuths, rational, spacing,
+                                       snap_denominator)
     if is_dataarray(heights):
-        az = _azimuth_list(azimuths)
-        out, stats = _to_dataarray(heights, lambda f: with_stats(
-            sky_view_factor, f, azimuths=az, max_distance=max_distance, algorithm=algorithm, surface=surface,
-            threads=threads, **curve), "sky_view_factor",
-            dict(units="1", n_azimuths=len(az), max_distance=_attr(max_distance),
-                 **_curvature_attrs(curvature, refraction)))
-        return returned(*_with_path_attrs(out, stats, snap), return_stats)
+        return _azimuth_product_dataarray(
+            sky_view_factor, "sky_view_factor", heights, azimuths, max_distance, snap,
+            return_stats, dict(units="1"), algorithm=algorithm, surface=surface,
+            threads=threads, **curve)
     if is_dask(heights):
         return tiled_product(lambda b, **kw: sky_view_factor(b, azimuths=azimuths, **kw),
                              heights, max_distance, spacing, np.float64, algorithm=algorithm,

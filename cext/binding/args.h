@@ -97,6 +97,52 @@ static inline int hf_arg_f32(PyObject *object, const char *name, int ndim, const
     return 1;
 }
 
+/* An output array: a writable, C-contiguous, aligned, native-order array of `type` with
+ * exactly `size` elements (with optional, None too: *data is then NULL). The messages are
+ * hf_arg_array's. */
+static inline int hf_arg_out(PyObject *object, const char *name, int type, npy_intp size,
+                             int optional, void **data) {
+    return hf_arg_array(object, name, type, size, 1, optional, data, NULL);
+}
+
+/* A float32 output of exactly this shape (hf_arg_f32), writable: "<name>: must be
+ * writable" (ValueError) otherwise. */
+static inline int hf_arg_f32_out(PyObject *object, const char *name, int ndim,
+                                 const npy_intp *shape, float **data) {
+    const float *read;
+    if (!hf_arg_f32(object, name, ndim, shape, &read)) return 0;
+    if (!PyArray_ISWRITEABLE((PyArrayObject *)object)) {
+        PyErr_Format(PyExc_ValueError, "%s: must be writable", name);
+        return 0;
+    }
+    *data = (float *)read;
+    return 1;
+}
+
+/* The shape (rows, cols) of a 2D array, its dtype and layout left to the caller's reader:
+ * a grid of vertices (HF_GRID_VERTICES, each side in [2, 2^24]) or of the cells between
+ * them (HF_GRID_CELLS, each side in [1, 2^24 - 1]). */
+enum hf_grid_kind { HF_GRID_VERTICES, HF_GRID_CELLS };
+
+static inline int hf_arg_grid_shape(PyObject *object, const char *name, enum hf_grid_kind kind,
+                                    npy_intp shape[2]) {
+    /* a cell grid has one cell fewer per side than the vertices around it */
+    const npy_intp fewer = kind == HF_GRID_CELLS ? 1 : 0;
+    if (!PyArray_Check(object) || PyArray_NDIM((PyArrayObject *)object) != 2) {
+        PyErr_Format(PyExc_TypeError, "%s: expected a 2D numpy array", name);
+        return 0;
+    }
+    shape[0] = PyArray_DIM((PyArrayObject *)object, 0);
+    shape[1] = PyArray_DIM((PyArrayObject *)object, 1);
+    if (shape[0] < 2 - fewer || shape[1] < 2 - fewer || shape[0] > HF_MAX_GRID_SIDE - fewer ||
+        shape[1] > HF_MAX_GRID_SIDE - fewer) {
+        PyErr_Format(PyExc_ValueError, "%s: each side must be in %s", name,
+                     fewer ? "[1, 2^24 - 1]" : "[2, 2^24]");
+        return 0;
+    }
+    return 1;
+}
+
 /* A kernel call without the GIL, timed with the monotonic clock: timed_begin releases
  * the GIL and starts the clock, timed_end stops it, takes the GIL back and returns the
  * elapsed nanoseconds. Nothing between the two may touch a Python object. */

@@ -116,170 +116,202 @@ static int get_compact(PyObject *object, int32_t nx, int32_t ny, int writable, v
     return 1;
 }
 
-/* intersect, intersect_cone and intersect_compact: the batch from `args`, with the cone
- * structure (NULL but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for
- * cone, (rows - 1, cols - 1) for cone_relaxed; and the compact tree (NULL but for
- * intersect_compact). */
-static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact) {
-    int status, k;
-    intersect_args a;
-    hf_hit_batch b;
-    PyArrayObject *ha;
-    hf_ray_arrays rays;
-    npy_intp n, shape[2], plen;
-    void *p;
-    hf_timed_section section;
-    long long elapsed_ns;
-    if (!read_intersect_args(args, &a)) return NULL;
-    memset(&b, 0, sizeof b);
-    if (a.kernel < 0 || a.kernel >= HF_N_HIT_KERNELS || a.surface < 0 || a.surface > HF_BILINEAR) {
+/* The kernel and surface ids in range. */
+static int check_ids(const intersect_args *a) {
+    if (a->kernel < 0 || a->kernel >= HF_N_HIT_KERNELS || a->surface < 0 ||
+        a->surface > HF_BILINEAR) {
         PyErr_SetString(PyExc_ValueError, "kernel or surface out of range");
-        return NULL;
+        return 0;
     }
-    if (!PyArray_Check(a.heights) || PyArray_NDIM((PyArrayObject *)a.heights) != 2) {
-        PyErr_SetString(PyExc_TypeError, "heights: expected a 2D numpy array");
-        return NULL;
-    }
-    ha = (PyArrayObject *)a.heights;
-    shape[0] = PyArray_DIM(ha, 0);
-    shape[1] = PyArray_DIM(ha, 1);
-    if (shape[0] < 2 || shape[1] < 2 || shape[0] > HF_MAX_GRID_SIDE ||
-        shape[1] > HF_MAX_GRID_SIDE) {
-        PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
-        return NULL;
-    }
-    if (!hf_arg_f32(a.heights, "heights", 2, shape, &b.heights)) return NULL;
-    b.rows = (int32_t)shape[0];
-    b.cols = (int32_t)shape[1];
-    shape[0] -= 1;
-    shape[1] -= 1;
-    if (a.cellmax == Py_None) {
+    return 1;
+}
+
+/* The heights (float32, a vertex grid) and the cell maxima (float32, one per cell; None
+ * only in the lean layout); `cells` receives the cell grid's shape (rows - 1, cols - 1). */
+static int read_grids(const intersect_args *a, hf_hit_batch *b, npy_intp cells[2]) {
+    if (!hf_arg_grid_shape(a->heights, "heights", HF_GRID_VERTICES, cells)) return 0;
+    if (!hf_arg_f32(a->heights, "heights", 2, cells, &b->heights)) return 0;
+    b->rows = (int32_t)cells[0];
+    b->cols = (int32_t)cells[1];
+    cells[0] -= 1;
+    cells[1] -= 1;
+    if (a->cellmax == Py_None) {
         /* the lean layout (algos.Field(lean=True)): runs_maxmip without cell culling is
          * the one kernel that never reads the cell maxima */
-        if (a.kernel != HF_HIT_RUNS_MAXMIP || a.cull_cells || a.row_max != Py_None) {
+        if (a->kernel != HF_HIT_RUNS_MAXMIP || a->cull_cells || a->row_max != Py_None) {
             PyErr_SetString(
                 PyExc_ValueError,
                 "cellmax: only runs_maxmip without cell or run culling runs without it");
-            return NULL;
+            return 0;
         }
-        b.cellmax = NULL;
-    } else if (!hf_arg_f32(a.cellmax, "cellmax", 2, shape, &b.cellmax)) {
-        return NULL;
+        b->cellmax = NULL;
+        return 1;
     }
-    if ((o_cone != NULL) != (a.kernel == HF_HIT_CONE || a.kernel == HF_HIT_CONE_RELAXED)) {
+    return hf_arg_f32(a->cellmax, "cellmax", 2, cells, &b->cellmax);
+}
+
+/* The structure of the one entry point that runs the kernel it belongs to: the cone
+ * (intersect_cone) or the compact tree (intersect_compact); NULL from every other entry. */
+static int read_structures(const intersect_args *a, PyObject *o_cone, PyObject *o_compact,
+                           const npy_intp cells[2], hf_hit_batch *b) {
+    if ((o_cone != NULL) != (a->kernel == HF_HIT_CONE || a->kernel == HF_HIT_CONE_RELAXED)) {
         PyErr_SetString(
             PyExc_ValueError,
             "cone: only intersect_cone runs the cone kernels, and it runs nothing else");
-        return NULL;
+        return 0;
     }
     if (o_cone != NULL) {
         /* cone: top and slope side by side; cone_relaxed: slopes (its apex: the cell max) */
         npy_intp cone_shape[3];
-        cone_shape[0] = shape[0];
-        cone_shape[1] = shape[1];
+        cone_shape[0] = cells[0];
+        cone_shape[1] = cells[1];
         cone_shape[2] = 2;
-        if (!hf_arg_f32(o_cone, "cone", a.kernel == HF_HIT_CONE ? 3 : 2, cone_shape, &b.cone))
-            return NULL;
+        if (!hf_arg_f32(o_cone, "cone", a->kernel == HF_HIT_CONE ? 3 : 2, cone_shape, &b->cone))
+            return 0;
     }
-    if ((o_compact != NULL) != (a.kernel == HF_HIT_DDA_COMPACT)) {
+    if ((o_compact != NULL) != (a->kernel == HF_HIT_DDA_COMPACT)) {
         PyErr_SetString(
             PyExc_ValueError,
             "compact: only intersect_compact runs dda_compact, and it runs nothing else");
-        return NULL;
+        return 0;
     }
     if (o_compact != NULL) {
         void *records;
-        if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 0, &records)) return NULL;
-        b.compact = records;
+        if (!get_compact(o_compact, (int32_t)cells[1], (int32_t)cells[0], 0, &records)) return 0;
+        b->compact = records;
     }
+    return 1;
+}
+
+/* The run maxima (row_max and col_max together, or neither) and the mipmap: a list of
+ * float32 levels, level k of ceil(cells / 2^k) per side (None below fine_level). */
+static int read_hierarchies(const intersect_args *a, const npy_intp cells[2], hf_hit_batch *b) {
+    if (a->row_max != Py_None || a->col_max != Py_None) {
+        if (a->row_max == Py_None || a->col_max == Py_None) {
+            PyErr_SetString(PyExc_ValueError, "row_max and col_max come together");
+            return 0;
+        }
+        if (!get_rmq(a->row_max, "row_max", cells[0], cells[1], &b->row_max)) return 0;
+        if (!get_rmq(a->col_max, "col_max", cells[1], cells[0], &b->col_max)) return 0;
+        b->cull_runs = 1;
+    }
+    if (a->mip != Py_None) {
+        npy_intp levels;
+        if (!PyList_Check(a->mip)) {
+            PyErr_SetString(PyExc_TypeError, "mip: expected a list of float32 arrays");
+            return 0;
+        }
+        levels = PyList_GET_SIZE(a->mip);
+        if (levels < 1 || levels > HF_MAX_MIP_LEVELS) {
+            PyErr_SetString(PyExc_ValueError, "mip: 1 to 32 levels");
+            return 0;
+        }
+        for (int k = 0; k < levels; ++k) {
+            npy_intp ms[2];
+            /* level k covers 2^k x 2^k cells: ceil division of the cell grid */
+            ms[0] = (cells[0] + ((npy_intp)1 << k) - 1) >> k;
+            ms[1] = (cells[1] + ((npy_intp)1 << k) - 1) >> k;
+            if (PyList_GET_ITEM(a->mip, k) == Py_None && k < a->fine_level) {
+                /* levels below the floor level are never read (the lean layout) */
+                b->mip[k] = NULL;
+            } else if (!hf_arg_f32(PyList_GET_ITEM(a->mip, k), "mip level", 2, ms, &b->mip[k])) {
+                return 0;
+            }
+            b->mip_cols[k] = (int32_t)ms[1];
+        }
+        b->mip_levels = (int)levels;
+    }
+    return 1;
+}
+
+/* The rays (hf_arg_rays) and the options: the periodic pattern, the marchers' steps, the
+ * mipmap's floor level and the packet width, each checked against the kernel. */
+static int read_rays_and_options(const intersect_args *a, hf_hit_batch *b) {
+    hf_ray_arrays rays;
+    npy_intp plen;
+    void *p;
+    if (!hf_arg_rays(a->origins, a->directions, a->tmin, a->tmax, 3, &rays)) return 0;
+    b->n_rays = rays.n;
+    b->origins = rays.origins;
+    b->directions = rays.directions;
+    b->tmin = rays.tmin;
+    b->tmax = rays.tmax;
+    b->max_denominator = a->max_denominator;
+    if (!hf_arg_array(a->pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return 0;
+    b->pattern = (int32_t *)p;
+    if (a->kernel == HF_RUNS_PERIODIC &&
+        (b->pattern == NULL || a->max_denominator < 1 || a->max_denominator > HF_MAX_DENOMINATOR ||
+         plen < a->max_denominator + 1)) {
+        PyErr_SetString(PyExc_ValueError, "runs_periodic needs a pattern of max_denominator + 1");
+        return 0;
+    }
+    if (!PyArg_ParseTuple(a->march, "iiddd", &b->march_steps, &b->march_refinements,
+                          &b->march_growth, &b->march_first_fraction, &b->march_min_step))
+        return 0;
+    if (b->march_steps < 1 || b->march_refinements < 0 || !(b->march_growth >= 1.0) ||
+        !(b->march_first_fraction > 0) || !(b->march_min_step >= 0)) {
+        PyErr_SetString(PyExc_ValueError, "march: invalid parameters");
+        return 0;
+    }
+    if ((a->kernel == HF_HIT_DDA_MAXMIP || a->kernel == HF_HIT_RUNS_MAXMIP ||
+         a->kernel == HF_HIT_PACKET_MAXMIP || a->kernel == HF_HIT_PLANE_MAXMIP) &&
+        b->mip_levels < 1) {
+        PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
+        return 0;
+    }
+    if (a->fine_level < 0 || a->fine_level >= (b->mip_levels > 0 ? b->mip_levels : 1)) {
+        PyErr_SetString(PyExc_ValueError, "fine_level: outside the mipmap");
+        return 0;
+    }
+    b->floor_level = a->fine_level;
+    if (a->packet_width < 1 || a->packet_width > HF_PACKET_MAX) {
+        PyErr_Format(PyExc_ValueError, "packet_width: expected 1 .. %d, got %d", HF_PACKET_MAX,
+                     a->packet_width);
+        return 0;
+    }
+    b->packet_width = a->packet_width;
+    return 1;
+}
+
+/* The hit record's fields (each None when not wanted, hf_arg_out): t, cell (i, j),
+ * normal (x, y, z) and the five statistics, per ray. */
+static int read_outputs(const intersect_args *a, hf_hit_batch *b) {
+    const npy_intp n = b->n_rays;
+    void *p;
+    if (!hf_arg_out(a->t, "t", NPY_FLOAT64, n, 1, &p)) return 0;
+    b->t = (double *)p;
+    if (!hf_arg_out(a->cell, "cell", NPY_INT32, 2 * n, 1, &p)) return 0;
+    b->cell = (int32_t *)p;
+    if (!hf_arg_out(a->normal, "normal", NPY_FLOAT64, 3 * n, 1, &p)) return 0;
+    b->normal = (double *)p;
+    if (!hf_arg_out(a->stats, "stats", NPY_INT64, 5 * n, 1, &p)) return 0;
+    b->stats = (int64_t *)p;
+    return 1;
+}
+
+/* intersect, intersect_cone and intersect_compact: the batch from `args`, with the cone
+ * structure (NULL but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for
+ * cone, (rows - 1, cols - 1) for cone_relaxed; and the compact tree (NULL but for
+ * intersect_compact). Validation, then the kernel without the GIL; returns its elapsed
+ * nanoseconds. */
+static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact) {
+    int status;
+    intersect_args a;
+    hf_hit_batch b;
+    npy_intp cells[2];
+    hf_timed_section section;
+    long long elapsed_ns;
+    if (!read_intersect_args(args, &a)) return NULL;
+    memset(&b, 0, sizeof b);
+    if (!check_ids(&a) || !read_grids(&a, &b, cells) ||
+        !read_structures(&a, o_cone, o_compact, cells, &b))
+        return NULL;
     b.hmin = a.hmin;
     b.hmax = a.hmax;
     b.surface = a.surface;
     b.cull_cells = a.cull_cells;
-    if (a.row_max != Py_None || a.col_max != Py_None) {
-        if (a.row_max == Py_None || a.col_max == Py_None) {
-            PyErr_SetString(PyExc_ValueError, "row_max and col_max come together");
-            return NULL;
-        }
-        if (!get_rmq(a.row_max, "row_max", shape[0], shape[1], &b.row_max)) return NULL;
-        if (!get_rmq(a.col_max, "col_max", shape[1], shape[0], &b.col_max)) return NULL;
-        b.cull_runs = 1;
-    }
-    if (a.mip != Py_None) {
-        npy_intp levels;
-        if (!PyList_Check(a.mip)) {
-            PyErr_SetString(PyExc_TypeError, "mip: expected a list of float32 arrays");
-            return NULL;
-        }
-        levels = PyList_GET_SIZE(a.mip);
-        if (levels < 1 || levels > HF_MAX_MIP_LEVELS) {
-            PyErr_SetString(PyExc_ValueError, "mip: 1 to 32 levels");
-            return NULL;
-        }
-        for (k = 0; k < levels; ++k) {
-            npy_intp ms[2];
-            /* level k covers 2^k x 2^k cells: ceil division of the cell grid */
-            ms[0] = (shape[0] + ((npy_intp)1 << k) - 1) >> k;
-            ms[1] = (shape[1] + ((npy_intp)1 << k) - 1) >> k;
-            if (PyList_GET_ITEM(a.mip, k) == Py_None && k < a.fine_level) {
-                /* levels below the floor level are never read (the lean layout) */
-                b.mip[k] = NULL;
-            } else if (!hf_arg_f32(PyList_GET_ITEM(a.mip, k), "mip level", 2, ms, &b.mip[k])) {
-                return NULL;
-            }
-            b.mip_cols[k] = (int32_t)ms[1];
-        }
-        b.mip_levels = (int)levels;
-    }
-    if (!hf_arg_rays(a.origins, a.directions, a.tmin, a.tmax, 3, &rays)) return NULL;
-    n = rays.n;
-    b.n_rays = n;
-    b.origins = rays.origins;
-    b.directions = rays.directions;
-    b.tmin = rays.tmin;
-    b.tmax = rays.tmax;
-    b.max_denominator = a.max_denominator;
-    if (!hf_arg_array(a.pattern, "pattern", NPY_INT32, -1, 1, 1, &p, &plen)) return NULL;
-    b.pattern = (int32_t *)p;
-    if (a.kernel == HF_RUNS_PERIODIC &&
-        (b.pattern == NULL || a.max_denominator < 1 || a.max_denominator > HF_MAX_DENOMINATOR ||
-         plen < a.max_denominator + 1)) {
-        PyErr_SetString(PyExc_ValueError, "runs_periodic needs a pattern of max_denominator + 1");
+    if (!read_hierarchies(&a, cells, &b) || !read_rays_and_options(&a, &b) || !read_outputs(&a, &b))
         return NULL;
-    }
-    if (!PyArg_ParseTuple(a.march, "iiddd", &b.march_steps, &b.march_refinements, &b.march_growth,
-                          &b.march_first_fraction, &b.march_min_step))
-        return NULL;
-    if (b.march_steps < 1 || b.march_refinements < 0 || !(b.march_growth >= 1.0) ||
-        !(b.march_first_fraction > 0) || !(b.march_min_step >= 0)) {
-        PyErr_SetString(PyExc_ValueError, "march: invalid parameters");
-        return NULL;
-    }
-    if ((a.kernel == HF_HIT_DDA_MAXMIP || a.kernel == HF_HIT_RUNS_MAXMIP ||
-         a.kernel == HF_HIT_PACKET_MAXMIP || a.kernel == HF_HIT_PLANE_MAXMIP) &&
-        b.mip_levels < 1) {
-        PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
-        return NULL;
-    }
-    if (a.fine_level < 0 || a.fine_level >= (b.mip_levels > 0 ? b.mip_levels : 1)) {
-        PyErr_SetString(PyExc_ValueError, "fine_level: outside the mipmap");
-        return NULL;
-    }
-    b.floor_level = a.fine_level;
-    if (a.packet_width < 1 || a.packet_width > HF_PACKET_MAX) {
-        PyErr_Format(PyExc_ValueError, "packet_width: expected 1 .. %d, got %d", HF_PACKET_MAX,
-                     a.packet_width);
-        return NULL;
-    }
-    b.packet_width = a.packet_width;
-    if (!hf_arg_array(a.t, "t", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
-    b.t = (double *)p;
-    if (!hf_arg_array(a.cell, "cell", NPY_INT32, 2 * n, 1, 1, &p, NULL)) return NULL;
-    b.cell = (int32_t *)p;
-    if (!hf_arg_array(a.normal, "normal", NPY_FLOAT64, 3 * n, 1, 1, &p, NULL)) return NULL;
-    b.normal = (double *)p;
-    if (!hf_arg_array(a.stats, "stats", NPY_INT64, 5 * n, 1, 1, &p, NULL)) return NULL;
-    b.stats = (int64_t *)p;
 
     hf_timed_begin(&section);
     status = hf_intersect_batch(a.kernel, &b);
@@ -298,6 +330,24 @@ static PyObject *intersect(PyObject *self, PyObject *args) {
     return intersect_with(args, NULL, NULL);
 }
 
+/* intersect_cone and intersect_compact: their structure first, then intersect()'s
+ * arguments; `cone` says which of the two it is. */
+static PyObject *intersect_after_structure(PyObject *args, const char *entry, const char *structure,
+                                           int cone) {
+    PyObject *rest, *first, *result;
+    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
+        PyErr_Format(PyExc_TypeError, "%s: expected %s, then intersect()'s arguments", entry,
+                     structure);
+        return NULL;
+    }
+    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
+    if (rest == NULL) return NULL;
+    first = PyTuple_GET_ITEM(args, 0);
+    result = intersect_with(rest, cone ? first : NULL, cone ? NULL : first);
+    Py_DECREF(rest);
+    return result;
+}
+
 /* ---- cone step mapping ----------------------------------------------------------------- */
 
 PyDoc_STRVAR(intersect_cone_doc,
@@ -308,18 +358,8 @@ PyDoc_STRVAR(intersect_cone_doc,
              "Private: use algos.intersect.");
 
 static PyObject *intersect_cone(PyObject *self, PyObject *args) {
-    PyObject *rest, *result;
     (void)self;
-    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
-        PyErr_SetString(PyExc_TypeError,
-                        "intersect_cone: expected cone, then intersect()'s arguments");
-        return NULL;
-    }
-    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
-    if (rest == NULL) return NULL;
-    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0), NULL);
-    Py_DECREF(rest);
-    return result;
+    return intersect_after_structure(args, "intersect_cone", "cone", 1);
 }
 
 PyDoc_STRVAR(cone_relaxed_slopes_doc,
@@ -339,27 +379,13 @@ static PyObject *cone_relaxed_slopes(PyObject *self, PyObject *args) {
     long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OiO", &o_cellmax, &radius, &o_slope)) return NULL;
-    if (!PyArray_Check(o_cellmax) || PyArray_NDIM((PyArrayObject *)o_cellmax) != 2) {
-        PyErr_SetString(PyExc_TypeError, "cellmax: expected a 2D numpy array");
-        return NULL;
-    }
-    shape[0] = PyArray_DIM((PyArrayObject *)o_cellmax, 0);
-    shape[1] = PyArray_DIM((PyArrayObject *)o_cellmax, 1);
-    if (shape[0] < 1 || shape[1] < 1 || shape[0] >= HF_MAX_GRID_SIDE ||
-        shape[1] >= HF_MAX_GRID_SIDE) {
-        PyErr_SetString(PyExc_ValueError, "cellmax: each side must be in [1, 2^24 - 1]");
-        return NULL;
-    }
+    if (!hf_arg_grid_shape(o_cellmax, "cellmax", HF_GRID_CELLS, shape)) return NULL;
     if (radius < 1 || radius > 64) {
         PyErr_Format(PyExc_ValueError, "radius: expected 1 to 64, got %d", radius);
         return NULL;
     }
     if (!hf_arg_f32(o_cellmax, "cellmax", 2, shape, &cellmax)) return NULL;
-    if (!hf_arg_f32(o_slope, "slope", 2, shape, (const float **)&slope)) return NULL;
-    if (!PyArray_ISWRITEABLE((PyArrayObject *)o_slope)) {
-        PyErr_SetString(PyExc_ValueError, "slope: must be writable");
-        return NULL;
-    }
+    if (!hf_arg_f32_out(o_slope, "slope", 2, shape, &slope)) return NULL;
     hf_timed_begin(&section);
     hf_cone_relaxed_build(cellmax, (int32_t)shape[0], (int32_t)shape[1], radius, slope);
     elapsed_ns = hf_timed_end(&section);
@@ -375,18 +401,8 @@ PyDoc_STRVAR(intersect_compact_doc,
              "Private: use algos.intersect.");
 
 static PyObject *intersect_compact(PyObject *self, PyObject *args) {
-    PyObject *rest, *result;
     (void)self;
-    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
-        PyErr_SetString(PyExc_TypeError,
-                        "intersect_compact: expected compact, then intersect()'s arguments");
-        return NULL;
-    }
-    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
-    if (rest == NULL) return NULL;
-    result = intersect_with(rest, NULL, PyTuple_GET_ITEM(args, 0));
-    Py_DECREF(rest);
-    return result;
+    return intersect_after_structure(args, "intersect_compact", "compact", 0);
 }
 
 PyDoc_STRVAR(compact_build_doc,
@@ -404,17 +420,7 @@ static PyObject *compact_build(PyObject *self, PyObject *args) {
     long long elapsed_ns;
     (void)self;
     if (!PyArg_ParseTuple(args, "OO", &o_cellmax, &o_compact)) return NULL;
-    if (!PyArray_Check(o_cellmax) || PyArray_NDIM((PyArrayObject *)o_cellmax) != 2) {
-        PyErr_SetString(PyExc_TypeError, "cellmax: expected a 2D numpy array");
-        return NULL;
-    }
-    shape[0] = PyArray_DIM((PyArrayObject *)o_cellmax, 0);
-    shape[1] = PyArray_DIM((PyArrayObject *)o_cellmax, 1);
-    if (shape[0] < 1 || shape[1] < 1 || shape[0] >= HF_MAX_GRID_SIDE ||
-        shape[1] >= HF_MAX_GRID_SIDE) {
-        PyErr_SetString(PyExc_ValueError, "cellmax: each side must be in [1, 2^24 - 1]");
-        return NULL;
-    }
+    if (!hf_arg_grid_shape(o_cellmax, "cellmax", HF_GRID_CELLS, shape)) return NULL;
     if (!hf_arg_f32(o_cellmax, "cellmax", 2, shape, &cellmax)) return NULL;
     if (!get_compact(o_compact, (int32_t)shape[1], (int32_t)shape[0], 1, &records)) return NULL;
     hf_timed_begin(&section);

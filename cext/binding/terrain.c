@@ -7,19 +7,11 @@
 
 /* heights: a C-contiguous float64 (rows, cols) array with both sides in [2, 2^24]. */
 static int get_heights(PyObject *object, const double **data, int64_t *rows, int64_t *cols) {
-    PyArrayObject *a;
+    npy_intp shape[2];
     void *p;
-    if (!PyArray_Check(object) || PyArray_NDIM((PyArrayObject *)object) != 2) {
-        PyErr_SetString(PyExc_TypeError, "heights: expected a 2D numpy array");
-        return 0;
-    }
-    a = (PyArrayObject *)object;
-    *rows = PyArray_DIM(a, 0);
-    *cols = PyArray_DIM(a, 1);
-    if (*rows < 2 || *cols < 2 || *rows > HF_MAX_GRID_SIDE || *cols > HF_MAX_GRID_SIDE) {
-        PyErr_SetString(PyExc_ValueError, "heights: each side must be in [2, 2^24]");
-        return 0;
-    }
+    if (!hf_arg_grid_shape(object, "heights", HF_GRID_VERTICES, shape)) return 0;
+    *rows = shape[0];
+    *cols = shape[1];
     if (!hf_arg_array(object, "heights", NPY_FLOAT64, -1, 0, 0, &p, NULL)) return 0;
     *data = (const double *)p;
     return 1;
@@ -95,9 +87,10 @@ static int get_field(PyObject *o_h, int check_range, long long start, long long 
     return o_mip == NULL || get_mip(o_mip, f->rows, f->cols, &f->mip, &f->has_mip);
 }
 
-/* The output: one writable element of `type` per vertex. */
-static int get_out(PyObject *o_out, const terrain_field *f, int type, void **out) {
-    return hf_arg_array(o_out, "out", type, f->rows * f->cols, 1, 0, out, NULL);
+/* An output (`out`, the chain's `occ`): one element of `type` per vertex (hf_arg_out). */
+static int get_vertex_out(PyObject *object, const char *name, const terrain_field *f, int type,
+                          void **data) {
+    return hf_arg_out(object, name, type, f->rows * f->cols, 0, data);
 }
 
 /* The mipmap for the kernel: NULL when the call passed None. */
@@ -212,7 +205,7 @@ static PyObject *horizon_pattern(PyObject *self, PyObject *args) {
     lx = (const int64_t *)p;
     if (!hf_arg_array(o_ly, "limit_y", NPY_INT64, f.rows, 0, 0, &p, NULL)) return NULL;
     ly = (const int64_t *)p;
-    if (!get_out(o_out, &f, NPY_FLOAT64, &p)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &p)) return NULL;
     if (end_k < -1 || end_k + 1 >= (long long)n + (end_k < 0)) {
         PyErr_SetString(PyExc_ValueError, "end_k: outside the pattern");
         return NULL;
@@ -304,7 +297,7 @@ static PyObject *horizon_sweep(PyObject *self, PyObject *args) {
     mx = (const int64_t *)p;
     if (!hf_arg_array(o_my, "my", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     my = (const int64_t *)p;
-    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &out)) return NULL;
     if (n < 1 || mx[n - 1] != q || my[n - 1] != pp || lerp.dxa[n - 1] != q ||
         lerp.dya[n - 1] != pp || lerp.dxb[n - 1] != q || lerp.dyb[n - 1] != pp) {
         PyErr_SetString(PyExc_ValueError, "pattern: the last breakpoint must be the next vertex");
@@ -348,7 +341,7 @@ static PyObject *horizon_walk(PyObject *self, PyObject *args) {
     if (!check_kappa(kappa)) return NULL;
     if (!get_field(o_h, 1, start, stop, o_mip, &f)) return NULL;
     if (!check_direction(dx, dy, max_distance)) return NULL;
-    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &out)) return NULL;
     hf_timed_begin(&section);
     hf_horizon_walk(f.H, f.rows, f.cols, mip_of(&f), dx, dy, max_distance, kappa, start, stop,
                     (double *)out, &st);
@@ -399,7 +392,7 @@ static PyObject *horizon_rows(PyObject *self, PyObject *args) {
     rx = (const int64_t *)p;
     if (!hf_arg_array(o_ry, "ry", NPY_INT64, n, 0, 0, &p, NULL)) return NULL;
     ry = (const int64_t *)p;
-    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &out)) return NULL;
     if (n_main < 0 || n_main > (long long)n || end_k < -1 ||
         (end_k >= 0 && (n_main != end_k + 1 || end_k + 1 >= (long long)n))) {
         PyErr_SetString(PyExc_ValueError, "n_main, end_k: outside the pattern");
@@ -481,8 +474,8 @@ static PyObject *horizon_chain(PyObject *self, PyObject *args) {
             return NULL;
         }
     }
-    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
-    if (!hf_arg_array(o_occ, "occ", NPY_FLOAT64, f.rows * f.cols, 1, 0, &occ, NULL)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &out)) return NULL;
+    if (!get_vertex_out(o_occ, "occ", &f, NPY_FLOAT64, &occ)) return NULL;
     hf_timed_begin(&section);
     hf_horizon_chain(f.H, f.rows, f.cols, &f.mip, dx, dy, max_distance, n_nb, nb_x, nb_y, nb_d,
                      block_rows, block_start, block_stop, (double *)out, (double *)occ, &st);
@@ -511,7 +504,7 @@ static PyObject *viewshed(PyObject *self, PyObject *args) {
         return NULL;
     if (!get_field(o_h, 1, start, stop, o_mip, &f)) return NULL;
     if (!check_observer(&f, ox, oy, z0, th, drop, !(eps >= 0) || !isfinite(eps))) return NULL;
-    if (!get_out(o_out, &f, NPY_UINT8, &out)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_UINT8, &out)) return NULL;
     hf_timed_begin(&section);
     hf_viewshed(f.H, f.rows, f.cols, mip_of(&f), ox, oy, z0, th, drop, eps, start, stop,
                 (uint8_t *)out, &st);
@@ -546,7 +539,7 @@ static PyObject *viewshed_threshold(PyObject *self, PyObject *args) {
         PyErr_Format(PyExc_ValueError, "kind: expected 0 (target) or 1 (observer), got %d", kind);
         return NULL;
     }
-    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &out)) return NULL;
     hf_timed_begin(&section);
     hf_viewshed_threshold(f.H, f.rows, f.cols, mip_of(&f), ox, oy, z0, th, drop, kind, start, stop,
                           (double *)out, &st);
@@ -579,7 +572,7 @@ static PyObject *horizon_march(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "direction, step or max_distance invalid");
         return NULL;
     }
-    if (!get_out(o_out, &f, NPY_FLOAT64, &out)) return NULL;
+    if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &out)) return NULL;
     hf_timed_begin(&section);
     hf_horizon_march(f.H, f.rows, f.cols, dx, dy, step, max_distance, zmax, kappa, start, stop,
                      (double *)out, &st);
