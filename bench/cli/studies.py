@@ -55,7 +55,7 @@ def reproduce(args):
     if args.full and args.preset not in (None, "full"):
         raise ValueError(f"--full: contradicts --preset {args.preset}")
     preset_name = "full" if args.full else (args.preset or "headline")
-    kernels = names(args.kernels, lambda name: _reproduce_kernel(name, preset_name))
+    kernels = names(args.kernels, lambda name: _reproduce_kernel(name, preset_name), "--kernels")
     if not 0 < args.precision < 100:
         raise ValueError(f"--precision: expected a percentage in (0, 100), got {args.precision}")
     paths = study.run(full=args.full, out_dir=args.out, resume=args.resume,

@@ -372,3 +372,34 @@ def test_cache_regime_comparison_divides_by_the_flushed_design(tmp_path, monkeyp
     assert [x["design"] for x in paired] == [d for d, *_ in C.PAIRED_DESIGNS]
     assert paired[0]["vs_reference"] == 1.0 and paired[0]["meta_rounds"] >= 10
     assert C.paired_markdown(paired).count("\n") == len(C.PAIRED_DESIGNS) + 2
+
+
+@pytest.mark.parametrize("argv, first", [
+    (["reproduce", "--kernels", "warp_drive"], "hftrace: error: --kernels: unknown intersector 'warp_drive'"),
+    (["reproduce", "--kernels", ","], "hftrace: error: --kernels: expected comma-separated names"),
+    (["bench-intersect", "--algorithms", "dda,warp_drive"],
+     "hftrace: error: --algorithms: unknown intersector 'warp_drive'"),
+    (["bench-traverse", "--algorithms", "warp_drive"], "hftrace: error: --algorithms: "),
+])
+def test_an_unknown_kernel_name_is_one_line_naming_its_option(monkeypatch, capsys, argv, first):
+    """A bad name in ``--kernels`` or ``--algorithms`` is reported against that option,
+    before anything is measured."""
+    from bench.cli import main
+    from bench.studies import intersect, reproduce, traverse
+
+    for module in (reproduce, intersect, traverse):
+        monkeypatch.setattr(module, "run", lambda **kw: pytest.fail("measured despite a bad name"))
+    assert main(argv + ["--out", "unused"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(first), err
+
+
+def test_empty_items_of_kernels_are_skipped(monkeypatch):
+    """``--kernels dda,,runs,`` measures dda and runs (as ``compare --kernels`` does)."""
+    from bench.cli import main
+    from bench.studies import reproduce
+
+    seen = {}
+    monkeypatch.setattr(reproduce, "run", lambda **kw: seen.update(kw) or {})
+    assert main(["reproduce", "--kernels", "dda,,runs,", "--no-counts", "--no-progress"]) == 0
+    assert seen["kernels"] == ["dda", "runs"]
