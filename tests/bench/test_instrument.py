@@ -380,6 +380,7 @@ def test_cache_regime_comparison_divides_by_the_flushed_design(tmp_path, monkeyp
     (["bench-intersect", "--algorithms", "dda,warp_drive"],
      "hftrace: error: --algorithms: unknown intersector 'warp_drive'"),
     (["bench-traverse", "--algorithms", "warp_drive"], "hftrace: error: --algorithms: "),
+    (["reproduce", "--kernels", "dda"], "hftrace: error: --kernels: name at least one kernel besides dda"),
 ])
 def test_an_unknown_kernel_name_is_one_line_naming_its_option(monkeypatch, capsys, argv, first):
     """A bad name in ``--kernels`` or ``--algorithms`` is reported against that option,
