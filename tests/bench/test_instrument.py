@@ -404,3 +404,33 @@ def test_empty_items_of_kernels_are_skipped(monkeypatch):
     monkeypatch.setattr(reproduce, "run", lambda **kw: seen.update(kw) or {})
     assert main(["reproduce", "--kernels", "dda,,runs,", "--no-counts", "--no-progress"]) == 0
     assert seen["kernels"] == ["dda", "runs"]
+
+
+def test_resume_refuses_another_precision_or_cache_state(tmp_path, monkeypatch, capsys):
+    """``reproduce --resume`` continues one run: rows measured with another ``--flush`` or
+    ``--precision`` are refused (one line naming the option), never blended into a table
+    whose caption names one regime."""
+    from bench.cli import main
+    from bench.studies import reproduce as R
+    from bench.sweep_config import SweepConfig
+
+    def tiny(full=False, name=None, kernels=None, flush="warm"):
+        return SweepConfig(name="reproduce", rays=24, repeats=3, seed=1, workloads=["first_hit"],
+                           surfaces=["triangles"], run_lengths=[2], algorithms=kernels,
+                           datasets=[{"name": "fbm", "size": 32, "seed": 1}], precision=0.02,
+                           group_budget=0.05, call_ms=0.01, flush=flush)
+
+    monkeypatch.setattr(R, "preset", tiny)
+    out = str(tmp_path / "run")
+    base = ["reproduce", "--kernels", "dda,runs", "--out", out, "--no-counts", "--no-progress"]
+    assert main(base + ["--flush", "none"]) == 0
+    rows = (tmp_path / "run" / "results.csv").read_text()
+    capsys.readouterr()
+    for extra, words in ((["--resume"], "--flush none, this run asks --flush warm"),
+                         (["--resume", "--flush", "none", "--precision", "5"],
+                          "--precision 2, this run asks --precision 5")):
+        assert main(base + extra) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err[-1].startswith("hftrace: error: --resume: row 1 of ") and words in err[-1], err
+        assert (tmp_path / "run" / "results.csv").read_text() == rows  # nothing measured
+    assert main(base + ["--resume", "--flush", "none"]) == 0  # the same settings continue
