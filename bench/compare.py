@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -192,6 +193,10 @@ def _select(setup: Setup, base_pkg, head_pkg) -> tuple[list[str], list[str]]:
                                f"(known: {', '.join(in_head)})")
         if k not in in_head:
             raise CompareError(f"kernels: {k!r} exists in the base but not in the head revision")
+    known = sorted({sf for k in in_head for sf in head_pkg.INTERSECTOR_REGISTRY[k].surfaces})
+    if setup.surface not in known:
+        raise CompareError(f"surface: {setup.surface!r} is not a cell surface of the head "
+                           f"revision (known: {', '.join(known)})")
     for k in wanted:
         if setup.surface not in head_pkg.INTERSECTOR_REGISTRY[k].surfaces:
             raise CompareError(f"kernels: {k!r} does not support the surface {setup.surface!r}")
@@ -283,6 +288,10 @@ def compare(repo: str, base: str, head: str | None, setup: Setup, echo=print) ->
     """Build ``base`` and ``head`` (``None``: the working tree) of ``repo`` and compare them
     (:func:`measure`). ``CompareError``/``RevisionError`` on a user error."""
     setup.check()
+    root = revisions.repo_root(repo)
+    for revision in (base, head):  # both named revisions exist before either is built
+        if revision is not None:
+            revisions.resolve(root, revision)
     b = revisions.build(repo, base, echo=echo)
     h = revisions.build(repo, head, echo=echo)
     return measure(b, h, revisions.load(b, "base"), revisions.load(h, "head"), setup, echo=echo)
@@ -349,8 +358,14 @@ def publish(report: dict, json_path: str | None = None, echo=print) -> None:
         write_json(json_path, report)
     summary = os.environ.get("GITHUB_STEP_SUMMARY")
     if summary:
-        with open(summary, "a") as f:
-            f.write(markdown(report))
+        # the job summary is a copy for the reader: failing to write it must not turn a
+        # verdict (exit 0 or 1) into an error
+        try:
+            with open(summary, "a") as f:
+                f.write(markdown(report))
+        except OSError as exc:
+            print(f"warning: GITHUB_STEP_SUMMARY: cannot write {summary}: {exc.strerror or exc}",
+                  file=sys.stderr)
 
 
 def bisect(repo: str, good: str, bad: str, setup: Setup, echo=print) -> dict:

@@ -28,6 +28,7 @@ def compare(args):
 
     try:
         setup = _setup(args)
+        _check_json(args.json)
         report = compare(args.repo, args.base, args.head, setup, echo=_note)
     except (RuntimeError, ValueError) as exc:  # CompareError, RevisionError, valgrind's failure
         return _fail(exc)
@@ -47,6 +48,20 @@ def bisect(args):
     for line in bisect_lines(result, args.good, args.bad):
         print(line)
     return 0
+
+
+def _check_json(path):
+    """``ValueError`` naming ``--json`` when its folder does not exist or is not writable:
+    said before anything is built or measured, not after."""
+    if not path:
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise ValueError(f"--json: {path} is a directory; give a file name")
+    if not os.path.isdir(folder):
+        raise ValueError(f"--json: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"--json: the folder {folder} is not writable")
 
 
 def _note(text):
