@@ -340,3 +340,15 @@ def test_counters_gate_refuses_a_tolerance():
     lines = []
     assert counters_gate.run(counters_gate.BASELINE, tolerance=0.05, echo=lines.append) == 2
     assert "exact" in lines[-1]
+
+
+@pytest.mark.parametrize("command, words", [
+    ("compare", ["exit status: 0 when no kernel is slower", "1 when at least one is slower",
+                 "2 on an error"]),
+    ("bisect", ["exit status: 0 when the search ran", "first bad commit", "2 on an error"])])
+def test_help_states_the_exit_statuses(capsys, command, words):
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--help"])
+    assert stop.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert all(w in text for w in words), text
