@@ -434,3 +434,29 @@ def test_resume_refuses_another_precision_or_cache_state(tmp_path, monkeypatch, 
         assert err[-1].startswith("hftrace: error: --resume: row 1 of ") and words in err[-1], err
         assert (tmp_path / "run" / "results.csv").read_text() == rows  # nothing measured
     assert main(base + ["--resume", "--flush", "none"]) == 0  # the same settings continue
+
+
+def test_a_table_of_mixed_cache_regimes_says_so(tmp_path, monkeypatch, capsys):
+    """``hftrace plot`` of a results.csv whose rows were measured in two cache regimes
+    captions the table as mixed, not as flushed before every run."""
+    from bench.cli import main
+    from bench.studies import reproduce as R
+    from bench.sweep_config import SweepConfig
+
+    monkeypatch.setattr(R, "preset", lambda full=False, name=None, kernels=None, flush="warm":
+                        SweepConfig(name="reproduce", rays=24, repeats=3, seed=1,
+                                    workloads=["first_hit"], surfaces=["triangles"],
+                                    run_lengths=[2, 5], algorithms=kernels, precision=0.02,
+                                    datasets=[{"name": "fbm", "size": 32, "seed": 1}],
+                                    group_budget=0.05, call_ms=0.01, flush=flush))
+    out = tmp_path / "run"
+    assert main(["reproduce", "--kernels", "dda,runs", "--flush", "none", "--out", str(out),
+                 "--no-counts", "--no-progress"]) == 0
+    assert "Cache regime: caches never flushed" in (out / "speedup.md").read_text()
+    lines = (out / "results.csv").read_text().splitlines()
+    mixed = lines[:-2] + [line.replace(",unflushed,", ",warm,") for line in lines[-2:]]
+    (out / "results.csv").write_text("\n".join(mixed) + "\n")
+    assert main(["plot", str(out / "results.csv"), "--out", str(tmp_path / "again")]) == 0
+    text = (tmp_path / "again" / "speedup.md").read_text()
+    assert "Cache regime: mixed (unflushed, warm; each row" in text
+    assert "caches flushed before every timed run" not in text
