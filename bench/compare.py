@@ -45,6 +45,8 @@ DEFAULT_TOLERANCE = 0.03
 INSTRUCTION_TOLERANCE = 0.01
 #: The fewest pairs of a kernel, and the seconds its pairs may take
 DEFAULT_REPEATS = 20
+#: The most pairs a kernel's time is measured in (``paired_rounds``' ``max_rounds``)
+MAX_PAIRS = 100000
 DEFAULT_BUDGET = 10.0
 DEFAULT_CONFIDENCE = 0.99
 #: The compare's inputs: fBm 512^2, 4000 first-hit rays at r = 25 (batches of a few ms)
@@ -111,7 +113,7 @@ def paired_times(run_base, run_head, setup) -> tuple[np.ndarray, np.ndarray, np.
 
     got = paired_rounds({"base": run_base, "head": run_head}, "base",
                         precision=setup.tolerance / 3, budget_s=setup.budget,
-                        min_rounds=setup.repeats, max_rounds=100000, flush="warm",
+                        min_rounds=setup.repeats, max_rounds=MAX_PAIRS, flush="warm",
                         confidence=setup.confidence)
     calls = WARM_TIMED_CALLS
     return (-got.log_ratios["head"], got.times["base"] / calls, got.times["head"] / calls)
@@ -175,8 +177,8 @@ class Setup:
             raise ValueError(f"metric: expected some of {', '.join(METRICS)} or all, got {bad or 'none'}")
         if not 0 < self.tolerance < 1:
             raise ValueError(f"tolerance: expected a fraction in (0, 1), got {self.tolerance}")
-        if self.repeats < 3:
-            raise ValueError(f"repeats: expected at least 3, got {self.repeats}")
+        if not 3 <= self.repeats <= MAX_PAIRS:
+            raise ValueError(f"repeats: expected 3 to {MAX_PAIRS} pairs, got {self.repeats}")
         if not self.budget > 0:
             raise ValueError(f"budget: expected a positive number of seconds, got {self.budget}")
         if not 0.5 < self.confidence < 1:

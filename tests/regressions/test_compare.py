@@ -199,10 +199,12 @@ def test_bisect_without_regression(history, capsys):
     (["compare", "{c0}", "{c1}", "--tolerance", "3"], ["tolerance", "3"]),
     (["bisect", "{c3}", "{c0}"], ["bisect", "not a descendant"]),
     (["compare", "{c0}", "{c1}", "--surface", "voxels"], ["surface", "'voxels'", "known: "]),
+    (["compare", "{c0}", "{c1}", "--metric", "time", "--repeats", "200000"],
+     ["repeats: expected 3 to 100000 pairs, got 200000"]),
     (["compare", "{c0}", "{c1}", "--json", "/nonexistent-folder/v.json"],
      ["--json", "/nonexistent-folder", "does not exist"]),
 ], ids=["bad-revision", "does-not-build", "unknown-kernel", "bad-metric", "bad-tolerance",
-        "bisect-backwards", "unknown-surface", "json-folder-missing"])
+        "bisect-backwards", "unknown-surface", "too-many-repeats", "json-folder-missing"])
 def test_errors_are_one_line_and_exit_2(history, capsys, argv, words):
     repo, shas = history
     argv = [a.format(**shas) for a in argv] + ["--repo", repo]
