@@ -467,8 +467,14 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
         # the headline names its regime: the sweep's rows record it (older CSVs: flushed, random)
         regimes = sorted(set(df["regime"].dropna())) if "regime" in df else []
         coherences = sorted(set(df["coherence"].dropna())) if "coherence" in df else []
-        caption = axes_caption(regimes[0] if len(regimes) == 1 else "flushed",
-                               coherences[0] if len(coherences) == 1 else "random")
+        # rows of several regimes or coherences (results.csv files put together by hand)
+        # are said to be mixed, never captioned as one of them
+        caption = axes_caption(
+            regimes[0] if len(regimes) == 1 else
+            f"mixed ({', '.join(regimes)}; each row's `regime` says which)" if regimes else
+            "flushed",
+            coherences[0] if len(coherences) == 1 else
+            f"mixed ({', '.join(coherences)})" if coherences else "random")
         embree = f" {EMBREE_NOTE}." if any(str(a).startswith("embree") for a in df["algorithm"]) else ""
         shown = None if full else headline_kernels(df)
         scope = ("every kernel measured" if full else

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +45,8 @@ DEFAULT_TOLERANCE = 0.03
 INSTRUCTION_TOLERANCE = 0.01
 #: The fewest pairs of a kernel, and the seconds its pairs may take
 DEFAULT_REPEATS = 20
+#: The most pairs a kernel's time is measured in (``paired_rounds``' ``max_rounds``)
+MAX_PAIRS = 100000
 DEFAULT_BUDGET = 10.0
 DEFAULT_CONFIDENCE = 0.99
 #: The compare's inputs: fBm 512^2, 4000 first-hit rays at r = 25 (batches of a few ms)
@@ -110,7 +113,7 @@ def paired_times(run_base, run_head, setup) -> tuple[np.ndarray, np.ndarray, np.
 
     got = paired_rounds({"base": run_base, "head": run_head}, "base",
                         precision=setup.tolerance / 3, budget_s=setup.budget,
-                        min_rounds=setup.repeats, max_rounds=100000, flush="warm",
+                        min_rounds=setup.repeats, max_rounds=MAX_PAIRS, flush="warm",
                         confidence=setup.confidence)
     calls = WARM_TIMED_CALLS
     return (-got.log_ratios["head"], got.times["base"] / calls, got.times["head"] / calls)
@@ -174,8 +177,8 @@ class Setup:
             raise ValueError(f"metric: expected some of {', '.join(METRICS)} or all, got {bad or 'none'}")
         if not 0 < self.tolerance < 1:
             raise ValueError(f"tolerance: expected a fraction in (0, 1), got {self.tolerance}")
-        if self.repeats < 3:
-            raise ValueError(f"repeats: expected at least 3, got {self.repeats}")
+        if not 3 <= self.repeats <= MAX_PAIRS:
+            raise ValueError(f"repeats: expected 3 to {MAX_PAIRS} pairs, got {self.repeats}")
         if not self.budget > 0:
             raise ValueError(f"budget: expected a positive number of seconds, got {self.budget}")
         if not 0.5 < self.confidence < 1:
@@ -192,6 +195,10 @@ def _select(setup: Setup, base_pkg, head_pkg) -> tuple[list[str], list[str]]:
                                f"(known: {', '.join(in_head)})")
         if k not in in_head:
             raise CompareError(f"kernels: {k!r} exists in the base but not in the head revision")
+    known = sorted({sf for k in in_head for sf in head_pkg.INTERSECTOR_REGISTRY[k].surfaces})
+    if setup.surface not in known:
+        raise CompareError(f"surface: {setup.surface!r} is not a cell surface of the head "
+                           f"revision (known: {', '.join(known)})")
     for k in wanted:
         if setup.surface not in head_pkg.INTERSECTOR_REGISTRY[k].surfaces:
             raise CompareError(f"kernels: {k!r} does not support the surface {setup.surface!r}")
@@ -283,6 +290,10 @@ def compare(repo: str, base: str, head: str | None, setup: Setup, echo=print) ->
     """Build ``base`` and ``head`` (``None``: the working tree) of ``repo`` and compare them
     (:func:`measure`). ``CompareError``/``RevisionError`` on a user error."""
     setup.check()
+    root = revisions.repo_root(repo)
+    for revision in (base, head):  # both named revisions exist before either is built
+        if revision is not None:
+            revisions.resolve(root, revision)
     b = revisions.build(repo, base, echo=echo)
     h = revisions.build(repo, head, echo=echo)
     return measure(b, h, revisions.load(b, "base"), revisions.load(h, "head"), setup, echo=echo)
@@ -349,8 +360,14 @@ def publish(report: dict, json_path: str | None = None, echo=print) -> None:
         write_json(json_path, report)
     summary = os.environ.get("GITHUB_STEP_SUMMARY")
     if summary:
-        with open(summary, "a") as f:
-            f.write(markdown(report))
+        # the job summary is a copy for the reader: failing to write it must not turn a
+        # verdict (exit 0 or 1) into an error
+        try:
+            with open(summary, "a") as f:
+                f.write(markdown(report))
+        except OSError as exc:
+            print(f"warning: GITHUB_STEP_SUMMARY: cannot write {summary}: {exc.strerror or exc}",
+                  file=sys.stderr)
 
 
 def bisect(repo: str, good: str, bad: str, setup: Setup, echo=print) -> dict:

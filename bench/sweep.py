@@ -422,6 +422,19 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
                     f"--resume: row {k + 1} of {csv_path} was measured with {key} = "
                     f"{row.get(key)}, the config says {getattr(cfg, key)}; choose another "
                     "--out (or restore the config) rather than mix them")
+        if cfg.precision is not None and row.get("precision") not in (None, ""):
+            # the paired design's precision and cache state set what a row's interval means:
+            # rows of two settings in one table would be read as one measure
+            flushes = {regime: flush for flush, regime in PAIRED_REGIMES.items()}
+            got = {"--precision": f"{100 * float(row['precision']):g}",
+                   "--flush": flushes.get(row.get("regime"), row.get("regime"))}
+            want = {"--precision": f"{100 * float(cfg.precision):g}", "--flush": cfg.flush}
+            for key in got:
+                if got[key] != want[key]:
+                    raise ValueError(
+                        f"--resume: row {k + 1} of {csv_path} was measured with {key} "
+                        f"{got[key]}, this run asks {key} {want[key]}; resume with the run's "
+                        "setting or choose another --out rather than mix them")
         if commit and row.get("commit") and row["commit"] != commit:
             raise ValueError(
                 f"--resume: row {k + 1} of {csv_path} was measured at commit "

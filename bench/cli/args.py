@@ -57,15 +57,26 @@ def vector(text):
     return values
 
 
-def names(text, lookup):
+def names(text, lookup, option="--algorithms"):
     """A comma-separated list of algorithm names, each checked by ``lookup`` (e.g.
     ``algos.get_traversal``, which raises ValueError naming an unknown one); None for
-    an empty text."""
+    an empty text. Empty items (``dda,,runs``, a trailing comma) are skipped. The
+    lookup's error is raised again naming the command-line ``option`` it came from."""
     if not text:
         return None
-    chosen = [n.strip() for n in text.split(",")]
+    chosen = [n.strip() for n in text.split(",") if n.strip()]
+    if not chosen:
+        raise ValueError(f"{option}: expected comma-separated names, got {text!r}")
     for name in chosen:
-        lookup(name)
+        try:
+            lookup(name)
+        except ValueError as exc:
+            message = str(exc)
+            if message.startswith("name: "):
+                message = message[len("name: "):]
+            if not message.startswith(option):
+                message = f"{option}: {message}"
+            raise ValueError(message) from None
     return chosen
 
 

@@ -28,6 +28,7 @@ def compare(args):
 
     try:
         setup = _setup(args)
+        _check_json(args.json)
         report = compare(args.repo, args.base, args.head, setup, echo=_note)
     except (RuntimeError, ValueError) as exc:  # CompareError, RevisionError, valgrind's failure
         return _fail(exc)
@@ -47,6 +48,20 @@ def bisect(args):
     for line in bisect_lines(result, args.good, args.bad):
         print(line)
     return 0
+
+
+def _check_json(path):
+    """``ValueError`` naming ``--json`` when its folder does not exist or is not writable:
+    said before anything is built or measured, not after."""
+    if not path:
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise ValueError(f"--json: {path} is a directory; give a file name")
+    if not os.path.isdir(folder):
+        raise ValueError(f"--json: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"--json: the folder {folder} is not writable")
 
 
 def _note(text):
@@ -75,7 +90,11 @@ def _common(p, default_metric):
 def register(sub):
     """Add ``compare`` and ``bisect`` to the sub-parsers ``sub``."""
     p = sub.add_parser("compare", help="two git revisions built here, measured side by side: "
-                                       "a verdict per kernel (exit 1 when one is slower)")
+                                       "a verdict per kernel (exit 1 when one is slower)",
+                       epilog="exit status: 0 when no kernel is slower (same, faster or "
+                              "inconclusive), 1 when at least one is slower beyond the "
+                              "tolerance, 2 on an error (one line: a revision that does not "
+                              "exist or does not build, a bad option, no valgrind)")
     p.add_argument("base", help="the base revision (a commit, branch or tag)")
     p.add_argument("head", nargs="?", default=None,
                    help="the head revision (default: the working tree)")
@@ -83,7 +102,11 @@ def register(sub):
     p.add_argument("--json", default=None, help="also write the verdicts to this JSON file")
     p.set_defaults(func=compare)
     p = sub.add_parser("bisect", help="the first commit between GOOD and BAD whose kernels are "
-                                      "slower than GOOD's")
+                                      "slower than GOOD's",
+                       epilog="exit status: 0 when the search ran (it prints `first bad commit: "
+                              "SHA`, or that BAD is not slower than GOOD), 2 on an error (one "
+                              "line: a revision that does not exist or does not build on the "
+                              "path, a bad option)")
     p.add_argument("good", help="a revision without the regression")
     p.add_argument("bad", help="a later revision with it")
     _common(p, "counters")

@@ -50,12 +50,17 @@ def bench_intersect(args):
 def reproduce(args):
     """``hftrace reproduce``: bench.studies.reproduce.run."""
     from ..studies import reproduce as study
+    from ..sweep import BASELINE
 
     load_plugins(args)
     if args.full and args.preset not in (None, "full"):
         raise ValueError(f"--full: contradicts --preset {args.preset}")
     preset_name = "full" if args.full else (args.preset or "headline")
-    kernels = names(args.kernels, lambda name: _reproduce_kernel(name, preset_name))
+    kernels = names(args.kernels, lambda name: _reproduce_kernel(name, preset_name), "--kernels")
+    if kernels is not None and set(kernels) <= {BASELINE}:
+        # every cell is a speedup over the baseline: a run of the baseline alone has none
+        raise ValueError(f"--kernels: name at least one kernel besides {BASELINE}, the baseline "
+                         f"every speedup is measured against (it always runs); got {args.kernels!r}")
     if not 0 < args.precision < 100:
         raise ValueError(f"--precision: expected a percentage in (0, 100), got {args.precision}")
     paths = study.run(full=args.full, out_dir=args.out, resume=args.resume,

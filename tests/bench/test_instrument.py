@@ -372,3 +372,91 @@ def test_cache_regime_comparison_divides_by_the_flushed_design(tmp_path, monkeyp
     assert [x["design"] for x in paired] == [d for d, *_ in C.PAIRED_DESIGNS]
     assert paired[0]["vs_reference"] == 1.0 and paired[0]["meta_rounds"] >= 10
     assert C.paired_markdown(paired).count("\n") == len(C.PAIRED_DESIGNS) + 2
+
+
+@pytest.mark.parametrize("argv, first", [
+    (["reproduce", "--kernels", "warp_drive"], "hftrace: error: --kernels: unknown intersector 'warp_drive'"),
+    (["reproduce", "--kernels", ","], "hftrace: error: --kernels: expected comma-separated names"),
+    (["bench-intersect", "--algorithms", "dda,warp_drive"],
+     "hftrace: error: --algorithms: unknown intersector 'warp_drive'"),
+    (["bench-traverse", "--algorithms", "warp_drive"], "hftrace: error: --algorithms: "),
+    (["reproduce", "--kernels", "dda"], "hftrace: error: --kernels: name at least one kernel besides dda"),
+])
+def test_an_unknown_kernel_name_is_one_line_naming_its_option(monkeypatch, capsys, argv, first):
+    """A bad name in ``--kernels`` or ``--algorithms`` is reported against that option,
+    before anything is measured."""
+    from bench.cli import main
+    from bench.studies import intersect, reproduce, traverse
+
+    for module in (reproduce, intersect, traverse):
+        monkeypatch.setattr(module, "run", lambda **kw: pytest.fail("measured despite a bad name"))
+    assert main(argv + ["--out", "unused"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(first), err
+
+
+def test_empty_items_of_kernels_are_skipped(monkeypatch):
+    """``--kernels dda,,runs,`` measures dda and runs (as ``compare --kernels`` does)."""
+    from bench.cli import main
+    from bench.studies import reproduce
+
+    seen = {}
+    monkeypatch.setattr(reproduce, "run", lambda **kw: seen.update(kw) or {})
+    assert main(["reproduce", "--kernels", "dda,,runs,", "--no-counts", "--no-progress"]) == 0
+    assert seen["kernels"] == ["dda", "runs"]
+
+
+def test_resume_refuses_another_precision_or_cache_state(tmp_path, monkeypatch, capsys):
+    """``reproduce --resume`` continues one run: rows measured with another ``--flush`` or
+    ``--precision`` are refused (one line naming the option), never blended into a table
+    whose caption names one regime."""
+    from bench.cli import main
+    from bench.studies import reproduce as R
+    from bench.sweep_config import SweepConfig
+
+    def tiny(full=False, name=None, kernels=None, flush="warm"):
+        return SweepConfig(name="reproduce", rays=24, repeats=3, seed=1, workloads=["first_hit"],
+                           surfaces=["triangles"], run_lengths=[2], algorithms=kernels,
+                           datasets=[{"name": "fbm", "size": 32, "seed": 1}], precision=0.02,
+                           group_budget=0.05, call_ms=0.01, flush=flush)
+
+    monkeypatch.setattr(R, "preset", tiny)
+    out = str(tmp_path / "run")
+    base = ["reproduce", "--kernels", "dda,runs", "--out", out, "--no-counts", "--no-progress"]
+    assert main(base + ["--flush", "none"]) == 0
+    rows = (tmp_path / "run" / "results.csv").read_text()
+    capsys.readouterr()
+    for extra, words in ((["--resume"], "--flush none, this run asks --flush warm"),
+                         (["--resume", "--flush", "none", "--precision", "5"],
+                          "--precision 2, this run asks --precision 5")):
+        assert main(base + extra) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err[-1].startswith("hftrace: error: --resume: row 1 of ") and words in err[-1], err
+        assert (tmp_path / "run" / "results.csv").read_text() == rows  # nothing measured
+    assert main(base + ["--resume", "--flush", "none"]) == 0  # the same settings continue
+
+
+def test_a_table_of_mixed_cache_regimes_says_so(tmp_path, monkeypatch, capsys):
+    """``hftrace plot`` of a results.csv whose rows were measured in two cache regimes
+    captions the table as mixed, not as flushed before every run."""
+    from bench.cli import main
+    from bench.studies import reproduce as R
+    from bench.sweep_config import SweepConfig
+
+    monkeypatch.setattr(R, "preset", lambda full=False, name=None, kernels=None, flush="warm":
+                        SweepConfig(name="reproduce", rays=24, repeats=3, seed=1,
+                                    workloads=["first_hit"], surfaces=["triangles"],
+                                    run_lengths=[2, 5], algorithms=kernels, precision=0.02,
+                                    datasets=[{"name": "fbm", "size": 32, "seed": 1}],
+                                    group_budget=0.05, call_ms=0.01, flush=flush))
+    out = tmp_path / "run"
+    assert main(["reproduce", "--kernels", "dda,runs", "--flush", "none", "--out", str(out),
+                 "--no-counts", "--no-progress"]) == 0
+    assert "Cache regime: caches never flushed" in (out / "speedup.md").read_text()
+    lines = (out / "results.csv").read_text().splitlines()
+    mixed = lines[:-2] + [line.replace(",unflushed,", ",warm,") for line in lines[-2:]]
+    (out / "results.csv").write_text("\n".join(mixed) + "\n")
+    assert main(["plot", str(out / "results.csv"), "--out", str(tmp_path / "again")]) == 0
+    text = (tmp_path / "again" / "speedup.md").read_text()
+    assert "Cache regime: mixed (unflushed, warm; each row" in text
+    assert "caches flushed before every timed run" not in text

@@ -198,8 +198,13 @@ def test_bisect_without_regression(history, capsys):
     (["compare", "{c0}", "{c1}", "--metric", "speed"], ["metric", "speed"]),
     (["compare", "{c0}", "{c1}", "--tolerance", "3"], ["tolerance", "3"]),
     (["bisect", "{c3}", "{c0}"], ["bisect", "not a descendant"]),
+    (["compare", "{c0}", "{c1}", "--surface", "voxels"], ["surface", "'voxels'", "known: "]),
+    (["compare", "{c0}", "{c1}", "--metric", "time", "--repeats", "200000"],
+     ["repeats: expected 3 to 100000 pairs, got 200000"]),
+    (["compare", "{c0}", "{c1}", "--json", "/nonexistent-folder/v.json"],
+     ["--json", "/nonexistent-folder", "does not exist"]),
 ], ids=["bad-revision", "does-not-build", "unknown-kernel", "bad-metric", "bad-tolerance",
-        "bisect-backwards"])
+        "bisect-backwards", "unknown-surface", "too-many-repeats", "json-folder-missing"])
 def test_errors_are_one_line_and_exit_2(history, capsys, argv, words):
     repo, shas = history
     argv = [a.format(**shas) for a in argv] + ["--repo", repo]
@@ -210,6 +215,40 @@ def test_errors_are_one_line_and_exit_2(history, capsys, argv, words):
     last = err.strip().splitlines()[-1]
     assert last.startswith("hftrace: error: ") and all(w in last for w in words), err
     assert "Traceback" not in err
+
+
+def test_json_is_checked_before_anything_is_built(tmp_path, capsys, monkeypatch):
+    """A ``--json`` that cannot be written is refused before the builds (which take
+    minutes), not after the measure."""
+    from bench.regress import revisions
+
+    monkeypatch.setattr(revisions, "build", lambda *a, **k: pytest.fail("built despite --json"))
+    status, out, err = _run(capsys, "compare", "HEAD", "--repo", ROOT, "--json",
+                            str(tmp_path / "missing" / "v.json"))
+    assert status == 2 and err.strip().splitlines() == [
+        f"hftrace: error: --json: the folder {tmp_path / 'missing'} does not exist"]
+
+
+def test_a_missing_head_is_named_before_the_base_is_built(history, capsys, monkeypatch):
+    repo, shas = history
+    from bench.regress import revisions
+
+    monkeypatch.setattr(revisions, "build", lambda *a, **k: pytest.fail("built the base first"))
+    status, out, err = _run(capsys, "compare", shas["c0"], "no-such-head", "--repo", repo)
+    assert status == 2 and err.strip().splitlines() == [
+        f"hftrace: error: revision: 'no-such-head' is not a commit of {repo}"]
+
+
+def test_an_unwritable_job_summary_keeps_the_verdict(history, capsys, monkeypatch):
+    """Under GitHub Actions a job summary that cannot be written is a warning: the exit
+    status stays the verdict's (1 for the counter regression), not the error status."""
+    repo, shas = history
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", "/nonexistent-folder/summary.md")
+    status, out, err = _run(capsys, "compare", shas["c0"], shas["c2"], "--repo", repo,
+                            "--metric", "counters", "--kernels", "dda")
+    assert status == 1, out + err
+    assert _verdicts(out) == {"dda": "slower"}
+    assert "warning: GITHUB_STEP_SUMMARY: cannot write /nonexistent-folder/summary.md" in err
 
 
 def test_not_a_repository(tmp_path, capsys):
@@ -303,3 +342,15 @@ def test_counters_gate_refuses_a_tolerance():
     lines = []
     assert counters_gate.run(counters_gate.BASELINE, tolerance=0.05, echo=lines.append) == 2
     assert "exact" in lines[-1]
+
+
+@pytest.mark.parametrize("command, words", [
+    ("compare", ["exit status: 0 when no kernel is slower", "1 when at least one is slower",
+                 "2 on an error"]),
+    ("bisect", ["exit status: 0 when the search ran", "first bad commit", "2 on an error"])])
+def test_help_states_the_exit_statuses(capsys, command, words):
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--help"])
+    assert stop.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert all(w in text for w in words), text
