@@ -4,6 +4,7 @@
 #include "binding/args.h"
 #include "hierarchies/compact.h"
 #include "hierarchies/cone.h"
+#include "raster/pitched.h"
 #include "surfaces/hitbatch.h"
 
 /* (values, prefix, suffix, sparse, block_shift) for lines of `length` cells */
@@ -256,7 +257,8 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         return NULL;
     }
     if ((a.kernel == HF_HIT_DDA_MAXMIP || a.kernel == HF_HIT_RUNS_MAXMIP ||
-         a.kernel == HF_HIT_PACKET_MAXMIP || a.kernel == HF_HIT_PLANE_MAXMIP) &&
+         a.kernel == HF_HIT_PACKET_MAXMIP || a.kernel == HF_HIT_PLANE_MAXMIP ||
+         a.kernel == HF_HIT_PITCHED_MAXMIP) &&
         b.mip_levels < 1) {
         PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
         return NULL;
@@ -282,7 +284,9 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
     b.stats = (int64_t *)p;
 
     hf_timed_begin(&section);
-    status = hf_intersect_batch(a.kernel, &b);
+    /* pitched_maxmip sits above the dispatcher (it draws with the rasteriser's geometry) */
+    status = a.kernel == HF_HIT_PITCHED_MAXMIP ? hf_pitched_batch(&b, hf_maxmip_steps())
+                                               : hf_intersect_batch(a.kernel, &b);
     elapsed_ns = hf_timed_end(&section);
 
     if (status != HF_OK) {
