@@ -121,7 +121,8 @@ static int get_compact(PyObject *object, int32_t nx, int32_t ny, int writable, v
  * structure (NULL but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for
  * cone, (rows - 1, cols - 1) for cone_relaxed; and the compact tree (NULL but for
  * intersect_compact). */
-static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact) {
+static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact,
+                                PyObject *o_bound) {
     int status, k;
     intersect_args a;
     hf_hit_batch b;
@@ -282,6 +283,14 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
     b.normal = (double *)p;
     if (!hf_arg_array(a.stats, "stats", NPY_INT64, 5 * n, 1, 1, &p, NULL)) return NULL;
     b.stats = (int64_t *)p;
+    if (o_bound != NULL) {
+        if (a.kernel != HF_HIT_PITCHED_MAXMIP) {
+            PyErr_SetString(PyExc_ValueError, "bound: only pitched_maxmip writes its bounds");
+            return NULL;
+        }
+        if (!hf_arg_array(o_bound, "bound", NPY_FLOAT64, n, 1, 1, &p, NULL)) return NULL;
+        b.bound = (double *)p;
+    }
 
     hf_timed_begin(&section);
     /* pitched_maxmip sits above the dispatcher (it draws with the rasteriser's geometry) */
@@ -299,7 +308,29 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
 
 static PyObject *intersect(PyObject *self, PyObject *args) {
     (void)self;
-    return intersect_with(args, NULL, NULL);
+    return intersect_with(args, NULL, NULL, NULL);
+}
+
+PyDoc_STRVAR(intersect_pitched_bounds_doc,
+             "intersect_pitched_bounds(bound, kernel, surface, field, ...) -> int\n\n"
+             "intersect() for pitched_maxmip, also writing into bound (float64, (n,)) the\n"
+             "parameter each ray's walk was allowed to start from: its lower bound on the\n"
+             "first hit (t0 where none applies, inf where the ray meets no tile box).\n"
+             "Private: for the tests of the bound.");
+
+static PyObject *intersect_pitched_bounds(PyObject *self, PyObject *args) {
+    PyObject *rest, *result;
+    (void)self;
+    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
+        PyErr_SetString(PyExc_TypeError,
+                        "intersect_pitched_bounds: expected bound, then intersect()'s arguments");
+        return NULL;
+    }
+    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
+    if (rest == NULL) return NULL;
+    result = intersect_with(rest, NULL, NULL, PyTuple_GET_ITEM(args, 0));
+    Py_DECREF(rest);
+    return result;
 }
 
 /* ---- cone step mapping ----------------------------------------------------------------- */
@@ -321,7 +352,7 @@ static PyObject *intersect_cone(PyObject *self, PyObject *args) {
     }
     rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
     if (rest == NULL) return NULL;
-    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0), NULL);
+    result = intersect_with(rest, PyTuple_GET_ITEM(args, 0), NULL, NULL);
     Py_DECREF(rest);
     return result;
 }
@@ -388,7 +419,7 @@ static PyObject *intersect_compact(PyObject *self, PyObject *args) {
     }
     rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
     if (rest == NULL) return NULL;
-    result = intersect_with(rest, NULL, PyTuple_GET_ITEM(args, 0));
+    result = intersect_with(rest, NULL, PyTuple_GET_ITEM(args, 0), NULL);
     Py_DECREF(rest);
     return result;
 }
@@ -430,6 +461,8 @@ static PyObject *compact_build(PyObject *self, PyObject *args) {
 static PyMethodDef intersect_methods[] = {
     {"intersect", intersect, METH_VARARGS, intersect_doc},
     {"intersect_cone", intersect_cone, METH_VARARGS, intersect_cone_doc},
+    {"intersect_pitched_bounds", intersect_pitched_bounds, METH_VARARGS,
+     intersect_pitched_bounds_doc},
     {"cone_relaxed_slopes", cone_relaxed_slopes, METH_VARARGS, cone_relaxed_slopes_doc},
     {"intersect_compact", intersect_compact, METH_VARARGS, intersect_compact_doc},
     {"compact_build", compact_build, METH_VARARGS, compact_build_doc},

@@ -334,10 +334,12 @@ static int pitched_ray(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray,
     hf_mip_walk w;
     double t0, t1, bound;
     int entry_axis;
+    if (b->bound) b->bound[ray] = INFINITY;
     if (!steps->begin(b, ray, &h, &t0, &t1, &entry_axis)) {
         steps->end(b, ray, &h);
         return HF_OK;
     }
+    if (b->bound) b->bound[ray] = t0;
     if (!(t0 < t1) || hf_on_grid_line(&h)) {
         /* a single parameter, or a ray on a grid line: dda_maxmip's own per-ray paths */
         const int status = steps->solve(b, ray, &h, t0, t1, entry_axis);
@@ -348,10 +350,12 @@ static int pitched_ray(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray,
     hf_mip_setup(&h, b, &r, &w);
     if (img->depth && t0 >= 0) {
         if (!coarse_bound(img, b->directions + 3 * ray, &bound)) {
+            if (b->bound) b->bound[ray] = INFINITY;
             steps->end(b, ray, &h); /* it meets no box: a miss */
             return HF_OK;
         }
         if (bound > t0) {
+            if (b->bound) b->bound[ray] = bound;
             /* start at the entry of the cell holding the bound, if the ray crosses it */
             const double start = bound < t1 ? bound : t1;
             const int32_t i = hf_cell_at(h.ox, h.dx, start, r.nx);
