@@ -68,7 +68,7 @@ typedef struct {
  * touching it (INFINITY: none). */
 typedef struct {
     hf_raster camera;
-    double c_min;
+    double c_min, c_min2; /* the smallest cosine of a ray used with forward, and its square */
     double *depth;
 } coarse_image;
 
@@ -188,12 +188,12 @@ static double norm3(const double v[3]) {
     return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
 
-/* Ray `ray`'s camera coordinates when it lies in the image's cone (its cosine with the
- * forward axis at least c_min), else 0. */
+/* Direction d's camera coordinates; returns 1 when it lies in the image's cone (its
+ * cosine with the forward axis at least c_min; compared squared, without a root). */
 static int in_cone(const coarse_image *img, const double d[3], cam_vertex *v) {
-    const double length = norm3(d);
+    const double length2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     *v = direction_to_camera(&img->camera, d);
-    return length > 0 && v->w >= img->c_min * length;
+    return length2 > 0 && v->w > 0 && v->w * v->w >= img->c_min2 * length2;
 }
 
 /* Draw the coarse image of the batch's eye (every ray shares origins[0]); returns 1 when
@@ -203,14 +203,16 @@ static int coarse_build(const hf_hit_batch *b, coarse_image *img) {
     const double *eye = b->origins;
     hf_raster *cam = &img->camera;
     double f[3] = {0, 0, 0}, right[3], up[3], length, a_max = 0, b_max = 0, nearest;
-    double c_min = 1.0, pixels, aspect;
-    int64_t ray, k, n_cone = 0, n_boxes = 0;
+    double c_min2 = 1.0, pixels, aspect;
+    const double min_cosine2 = MIN_COSINE * MIN_COSINE;
+    int64_t ray, k, n_cone = 0, n_boxes = 0, stride = b->n_rays / 1024 + 1;
     int32_t width, height;
     tile_box *boxes = NULL;
     int coarsest;
     memset(img, 0, sizeof *img);
-    /* forward: the mean of the unit directions */
-    for (ray = 0; ray < b->n_rays; ++ray) {
+    /* forward: the mean of the unit directions of up to 1024 rays spread over the batch
+     * (any forward axis is correct; the cone below is measured on every ray) */
+    for (ray = 0; ray < b->n_rays; ray += stride) {
         const double *d = b->directions + 3 * ray, len = norm3(d);
         if (!(len > 0) || !isfinite(len)) continue;
         f[0] += d[0] / len;
@@ -237,18 +239,21 @@ static int coarse_build(const hf_hit_batch *b, coarse_image *img) {
     memcpy(cam->up, up, sizeof up);
     /* the cone: c_min and the field of view of the rays inside it */
     for (ray = 0; ray < b->n_rays; ++ray) {
-        const double *d = b->directions + 3 * ray, len = norm3(d);
-        cam_vertex v;
-        if (!(len > 0) || !isfinite(len)) continue;
-        v = direction_to_camera(cam, d);
-        if (!(v.w >= MIN_COSINE * len)) continue;
-        if (v.w / len < c_min) c_min = v.w / len;
-        if (fabs(v.a / v.w) > a_max) a_max = fabs(v.a / v.w);
-        if (fabs(v.b / v.w) > b_max) b_max = fabs(v.b / v.w);
+        const double *d = b->directions + 3 * ray;
+        const double length2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        const cam_vertex v = direction_to_camera(cam, d);
+        /* squared cosines and tangents compared by products: no root, few divisions */
+        if (!(length2 > 0) || !isfinite(length2) || !(v.w > 0) ||
+            !(v.w * v.w >= min_cosine2 * length2))
+            continue;
+        if (v.w * v.w < c_min2 * length2) c_min2 = v.w * v.w / length2;
+        if (fabs(v.a) > a_max * v.w) a_max = fabs(v.a) / v.w;
+        if (fabs(v.b) > b_max * v.w) b_max = fabs(v.b) / v.w;
         ++n_cone;
     }
     if (n_cone == 0) return 0;
-    img->c_min = c_min * (1.0 - 1e-9);
+    img->c_min2 = c_min2 * (1.0 - 1e-9);
+    img->c_min = sqrt(img->c_min2);
     cam->half_w = (a_max > MIN_HALF_TAN ? a_max : MIN_HALF_TAN) * (1.0 + 1e-9);
     cam->half_h = (b_max > MIN_HALF_TAN ? b_max : MIN_HALF_TAN) * (1.0 + 1e-9);
     pixels = (double)n_cone / COARSE_RAYS;

@@ -182,3 +182,16 @@ def test_rejects_bad_input():
             *prepare_intersect(algos.INTERSECTOR_REGISTRY["dda_maxmip"], algos.Field(H),
                                "triangles", o, np.array([[0.5, 0.0, -1.0]]), None, None,
                                ("t",), dict(cull_cells=True, fine_level=3), 1).args[1:])
+
+
+def test_render_same_image():
+    """algos.render with the pinhole (the default projection) draws dda_maxmip's image."""
+    from datasets_gen import fields
+
+    H = fields.generate("fbm", (97, 97), seed=2, amplitude=15.0, scale=24.0)
+    a = algos.render(H, "dda_maxmip", width=48, height=27, threads=1)
+    b = algos.render(H, "pitched_maxmip", width=48, height=27, threads=1)
+    assert np.isfinite(a.depth).any()
+    assert np.array_equal(a.depth.view(np.int64), b.depth.view(np.int64))
+    assert np.array_equal(a.cell, b.cell)
+    assert np.array_equal(a.rgb, b.rgb)
