@@ -12,11 +12,11 @@
  * - Every point a first hit can lie on (on the surface, on a cell's wall, or inside the
  *   solid where a ray starts below it) lies in the closed box of some tile of the cut
  *   below: the tile's cells, from below both the clip height hmin (where a descending
- *   ray's range ends) and the eye (a level or rising ray never goes lower) to the tile's
- *   maximum
- *   (every surface lies at or below its cell's corner maximum). The boxes are a cut of
- *   the max mipmap: tiles of 2^L cells (L = floor_level + 1), split down to single cells
- *   near the eye; each is widened by a hair against rounding.
+ *   ray's range ends) and the eye (a level or rising ray never goes lower) up to the
+ *   tile's maximum (every surface lies at or below its cell's corner maximum). The boxes
+ *   are a cut of the max mipmap: tiles of 2^L cells (L = floor_level +
+ *   BOX_LEVEL_ABOVE_FLOOR), split down to single cells near the eye; each is widened by
+ *   a hair against rounding.
  * - Camera frame: forward f is the mean of the rays' unit directions; every ray used has
  *   cos(d, f) >= c_min >= MIN_COSINE. Depth is w(p) = (p - eye) . f, so a point p = eye +
  *   t d has w = t (d . f).
@@ -48,13 +48,20 @@
 #include "raster/pitched.h"
 #include "raster/warnock.h"
 
-#define COARSE_RAYS  64   /* rays per coarse pixel, about                        */
-#define COARSE_MAX   2048 /* the coarse image's longest side, in pixels          */
-#define REFINE_RATIO 2.0  /* a tile closer to the eye than this many sides splits */
-#define MIN_COSINE   0.05 /* the widest ray cone used: about 87 degrees          */
-#define COVER_MARGIN 0.01 /* a rectangle touches pixels within this many pixels  */
-#define BOUND_SHRINK (1.0 - 1e-6)
-#define MIN_HALF_TAN 1e-6 /* the narrowest half field of view of the coarse image */
+/* The image's resolution and boxes. Chosen by callgrind instructions per ray on the
+ * 640 x 360 pinhole pitched 2.6 degrees over fBm 2048^2 (bench/studies/pitched_counts.py;
+ * dda_maxmip: 2189): 64 rays per square coarse pixel 2048; 16 rays, 4 times more rows
+ * than columns (8 x 2 rays) 1963; 8 x 1 rays 1955; 16 rays, 4 x taller, with boxes at the
+ * floor level instead of one above it 2015 (the tighter bound costs more boxes). */
+#define COARSE_RAYS           16   /* rays per coarse pixel, about */
+#define COARSE_TALL           4.0  /* ray rows per coarse pixel: 1 / this of its ray columns */
+#define BOX_LEVEL_ABOVE_FLOOR 1    /* the largest boxes: this many levels above the floor */
+#define COARSE_MAX            2048 /* the coarse image's longest side, in pixels */
+#define REFINE_RATIO          2.0  /* a tile closer to the eye than this many sides splits */
+#define MIN_COSINE            0.05 /* the widest ray cone used: about 87 degrees */
+#define COVER_MARGIN          0.01 /* a rectangle touches pixels within this many pixels */
+#define BOUND_SHRINK          (1.0 - 1e-6)
+#define MIN_HALF_TAN          1e-6 /* the narrowest half field of view of the coarse image */
 
 typedef struct {
     double lo[3], hi[3];
@@ -258,14 +265,16 @@ static int coarse_build(const hf_hit_batch *b, coarse_image *img) {
     cam->half_h = (b_max > MIN_HALF_TAN ? b_max : MIN_HALF_TAN) * (1.0 + 1e-9);
     pixels = (double)n_cone / COARSE_RAYS;
     if (pixels < 1) pixels = 1;
-    aspect = cam->half_w / cam->half_h;
+    aspect = cam->half_w / cam->half_h / COARSE_TALL;
     aspect = aspect < 1.0 / 256 ? 1.0 / 256 : (aspect > 256 ? 256 : aspect);
     width = (int32_t)fmin(ceil(sqrt(pixels * aspect)), COARSE_MAX);
     height = (int32_t)fmin(ceil(pixels / width), COARSE_MAX);
     cam->width = width > 0 ? width : 1;
     cam->height = height > 0 ? height : 1;
     /* the boxes and the near plane */
-    coarsest = b->floor_level + 1 < b->mip_levels - 1 ? b->floor_level + 1 : b->mip_levels - 1;
+    coarsest = b->floor_level + BOX_LEVEL_ABOVE_FLOOR < b->mip_levels - 1
+                   ? b->floor_level + BOX_LEVEL_ABOVE_FLOOR
+                   : b->mip_levels - 1;
     if (!collect_boxes(b, eye, coarsest, &boxes, &n_boxes, &nearest)) return -1;
     if (!(nearest > 1e-9 * (1.0 + norm3(eye))) || !isfinite(nearest)) {
         free(boxes); /* the eye is inside (or touches) a box: no bound */
