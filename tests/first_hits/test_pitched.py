@@ -195,3 +195,37 @@ def test_render_same_image():
     assert np.array_equal(a.depth.view(np.int64), b.depth.view(np.int64))
     assert np.array_equal(a.cell, b.cell)
     assert np.array_equal(a.rgb, b.rgb)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_eyes_identical(seed):
+    """Seeded random eyes (inside, above, outside and far from the field), random fans of
+    directions around a random heading, random per-ray tmin >= 0 and tmax: bit for bit
+    dda_maxmip's, on every field and surface; the bound never above the hit."""
+    rng = np.random.default_rng(seed)
+    bounded = 0
+    for field_name, H in FIELDS.items():
+        fld = algos.Field(H)
+        rows, cols = H.shape
+        top = float(H.max())
+        eye = np.array([rng.uniform(-20, cols + 20), rng.uniform(-20, rows + 20),
+                        top + rng.choice([0.01, 0.5, 3.0, 40.0]) * rng.uniform(0.5, 1.5)])
+        heading = np.array([cols / 2, rows / 2, 0.0]) - eye
+        heading[2] = -np.linalg.norm(heading[:2]) * np.tan(np.radians(rng.uniform(-10, 80)))
+        n = 300
+        d = heading / np.linalg.norm(heading) + rng.normal(scale=rng.uniform(0.05, 0.8),
+                                                           size=(n, 3))
+        o = np.tile(eye, (n, 1))
+        tmin = np.where(rng.random(n) < 0.3, rng.uniform(0, 20, n), 0.0)
+        tmax = np.where(rng.random(n) < 0.3, tmin + rng.uniform(0, 60, n), np.inf)
+        for surface in algos.SURFACES:
+            ref = algos.intersect("dda_maxmip", fld, o, d, surface=surface, outputs=OUTPUTS,
+                                  tmin=tmin, tmax=tmax, threads=1)
+            got = algos.intersect("pitched_maxmip", fld, o, d, surface=surface,
+                                  outputs=OUTPUTS, tmin=tmin, tmax=tmax, threads=1)
+            _assert_identical(ref, got, o, d, f"seed {seed}, {field_name}, {surface}")
+        t, bound = _bounds(H, o, d, "triangles")
+        ref = algos.intersect("dda_maxmip", fld, o, d, threads=1).t
+        assert np.all(bound <= ref), (seed, field_name, eye.tolist())
+        bounded += int(np.sum((bound > 0) & np.isfinite(ref)))
+    assert bounded > 0, "no ray that hits was given a bound above 0"
