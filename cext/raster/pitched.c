@@ -37,7 +37,8 @@
  *   ray's [t0, t1]). Outputs are bit-identical to dda_maxmip's.
  * Where it does not apply the batch, or the ray, takes dda_maxmip's walk from t0: rays
  * that do not share the first ray's origin bit for bit (then the whole batch), an eye
- * inside (or within a hair of) a box, rays outside the cone (cos < MIN_COSINE), rays
+ * inside (or within a hair of) a box, a cut of more than 4 N + 65536 boxes for N rays (the
+ * whole batch), rays outside the cone (cos < MIN_COSINE), rays
  * whose range starts before the eye (t0 < 0), single-parameter rays and rays on a grid
  * line (dda_maxmip's own paths). */
 #include <math.h>
@@ -124,11 +125,14 @@ static double box_distance(const tile_box *box, const double eye[3]) {
 }
 
 /* The cut of the mipmap: tiles at `coarsest` level or finer, split while nearer the eye
- * than REFINE_RATIO of their side, down to cells. Appends the boxes to *boxes and sets
- * *nearest to the smallest distance from the eye to one. Returns 0 when out of memory. */
-static int collect_boxes(const hf_hit_batch *b, const double eye[3], int coarsest, tile_box **boxes,
-                         int64_t *n_boxes, double *nearest) {
+ * than REFINE_RATIO of their side, down to the finest level stored (cells). Appends the
+ * boxes to *boxes and sets *nearest to the smallest distance from the eye to one.
+ * Returns 1, 0 when out of memory, 2 when the cut would exceed max_boxes (an image that
+ * would cost more than the walks it shortens: then no bound). */
+static int collect_boxes(const hf_hit_batch *b, const double eye[3], int coarsest,
+                         int64_t max_boxes, tile_box **boxes, int64_t *n_boxes, double *nearest) {
     const int top = b->mip_levels - 1;
+    int finest = 0;
     int32_t rows_of[HF_MAX_MIP_LEVELS];
     tile_ref *stack = NULL;
     int64_t n_stack = 0, cap_stack = 0, cap_boxes = 0;
@@ -136,6 +140,7 @@ static int collect_boxes(const hf_hit_batch *b, const double eye[3], int coarses
     int32_t ti, tj;
     rows_of[0] = b->rows - 1;
     for (level = 1; level <= top; ++level) rows_of[level] = (rows_of[level - 1] + 1) / 2;
+    while (finest < top && b->mip[finest] == NULL) ++finest; /* a lean mipmap starts higher */
     *n_boxes = 0;
     *nearest = INFINITY;
     if (!grow((void **)&stack, &cap_stack, (int64_t)rows_of[top] * b->mip_cols[top] + 4 * top + 4,
@@ -152,8 +157,12 @@ static int collect_boxes(const hf_hit_batch *b, const double eye[3], int coarses
         const tile_ref t = stack[--n_stack];
         const tile_box box = box_of(b, eye, t.level, t.tile_i, t.tile_j);
         const double distance = box_distance(&box, eye);
-        if (t.level == 0 ||
+        if (t.level <= finest ||
             (t.level <= coarsest && distance >= REFINE_RATIO * (double)((int64_t)1 << t.level))) {
+            if (*n_boxes >= max_boxes) {
+                free(stack);
+                return 2;
+            }
             if (!grow((void **)boxes, &cap_boxes, *n_boxes + 1, sizeof **boxes)) {
                 free(stack);
                 return 0;
@@ -275,7 +284,18 @@ static int coarse_build(const hf_hit_batch *b, coarse_image *img) {
     coarsest = b->floor_level + BOX_LEVEL_ABOVE_FLOOR < b->mip_levels - 1
                    ? b->floor_level + BOX_LEVEL_ABOVE_FLOOR
                    : b->mip_levels - 1;
-    if (!collect_boxes(b, eye, coarsest, &boxes, &n_boxes, &nearest)) return -1;
+    {
+        const int collected =
+            collect_boxes(b, eye, coarsest, 4 * n_cone + 65536, &boxes, &n_boxes, &nearest);
+        if (collected == 0) {
+            free(boxes);
+            return -1;
+        }
+        if (collected == 2) {
+            free(boxes);
+            return 0;
+        }
+    }
     if (!(nearest > 1e-9 * (1.0 + norm3(eye))) || !isfinite(nearest)) {
         free(boxes); /* the eye is inside (or touches) a box: no bound */
         return 0;

@@ -229,3 +229,24 @@ def test_random_eyes_identical(seed):
         assert np.all(bound <= ref), (seed, field_name, eye.tolist())
         bounded += int(np.sum((bound > 0) & np.isfinite(ref)))
     assert bounded > 0, "no ray that hits was given a bound above 0"
+
+
+def test_many_boxes_fall_back():
+    """fine_level=0 on a 700^2 field asks for more boxes than a small batch is worth: the
+    bound is dropped (every ray walks from t0) and the hits stay dda_maxmip's."""
+    from datasets_gen import fields
+
+    H = fields.generate("fbm", (700, 700), seed=5, amplitude=30.0, scale=64.0)
+    fld = algos.Field(H)
+    position = (10.5, 20.25, float(H.max()) + 3.0)
+    rs = raysets.pinhole(position, _look(position, 6.0, 40.0), 50.0, 16, 9)
+    ref = algos.intersect("dda_maxmip", fld, rs.origins, rs.directions, outputs=OUTPUTS,
+                          fine_level=0)
+    got = algos.intersect("pitched_maxmip", fld, rs.origins, rs.directions, outputs=OUTPUTS,
+                          fine_level=0)
+    _assert_identical(ref, got, rs.origins, rs.directions, "fine_level=0")
+    # no bound: every ray took dda_maxmip's very walk, so the work counts agree too
+    ref, got = (algos.intersect(k, fld, rs.origins, rs.directions, outputs=("stats",),
+                                fine_level=0) for k in ("dda_maxmip", "pitched_maxmip"))
+    for name in ("cells_visited", "tiles_skipped"):
+        assert np.array_equal(ref.stats[name], got.stats[name]), name
