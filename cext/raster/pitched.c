@@ -215,7 +215,7 @@ static int in_cone(const coarse_image *img, const double d[3], cam_vertex *v) {
 /* Draw the coarse image of the batch's eye (every ray shares origins[0]); returns 1 when
  * it is usable, 0 when the bound does not apply (then img->depth is NULL), -1 when out of
  * memory. */
-static int coarse_build(const hf_hit_batch *b, coarse_image *img) {
+HF_COLD int coarse_build(const hf_hit_batch *b, coarse_image *img) {
     const double *eye = b->origins;
     hf_raster *cam = &img->camera;
     double f[3] = {0, 0, 0}, right[3], up[3], length, a_max = 0, b_max = 0, nearest;
