@@ -296,8 +296,11 @@ HF_COLD int coarse_build(const hf_hit_batch *b, coarse_image *img) {
             return 0;
         }
     }
-    if (!(nearest > 1e-9 * (1.0 + norm3(eye))) || !isfinite(nearest)) {
-        free(boxes); /* the eye is inside (or touches) a box: no bound */
+    /* Numerical hazard: camera coordinates carry the eye's rounding (about 1e-16 |eye|);
+     * an eye this far from every box keeps it under 1e-8 of any depth the image uses, far
+     * inside BOUND_SHRINK. Nearer (inside a box, or touching one): no bound. */
+    if (!(nearest > 1e-6 * (1.0 + norm3(eye))) || !isfinite(nearest)) {
+        free(boxes);
         return 0;
     }
     cam->near = nearest * img->c_min / 4;
