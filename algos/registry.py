@@ -202,6 +202,14 @@ INTERSECTOR_REGISTRY.update({
                 "where the ray below hit (flat, plane3, triangles; bilinear rays and rays "
                 "without a partner walk alone); bit-identical to dda_maxmip",
         citation="Cohen-Or & Shaked 1993; Lee & Shin 1995; Tevs, Ihrke & Seidel 2008"),
+    "pitched_maxmip": Intersector(
+        "pitched_maxmip", _C_ID["pitched_maxmip"], "maxmip", "float64", "dda", ("cellmax", "mip"),
+        dict(cull_cells=True, fine_level=3),
+        summary="dda_maxmip's walk started at a conservative lower bound on the hit, read "
+                "from a coarse image of the max-mipmap tile boxes drawn from the eye; applies "
+                "to batches whose rays share one origin bit for bit (a pinhole camera at any "
+                "pitch), the others walk from their start; bit-identical to dda_maxmip",
+        citation="Warnock 1969; Tevs, Ihrke & Seidel 2008"),
     "runs_maxmip": Intersector(
         "runs_maxmip", _C_ID["runs_maxmip"], "maxmip", "exact", "runs",
         ("cellmax", "mip"), dict(cull_cells=True, cull_runs=False, fine_level=3),

@@ -124,7 +124,9 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         rays from ``position`` to ``look_at``, the film ``2 |look_at - position|
         tan(fov / 2)`` cells wide, ``algos.plane_cameras.orthographic_rays``;
         ``depth`` is then measured from the vertical film through ``position``). The last
-        two are the batches ``plane_maxmip`` traces a column at a time.
+        two are the batches ``plane_maxmip`` traces a column at a time; a ``"pinhole"``
+        image, whose rays share one eye, is the batch ``pitched_maxmip`` starts each
+        walk near its hit for.
 
     Returns
     -------

@@ -11,6 +11,8 @@ deliberate, documented change, which regenerates the pin:
 copied, not recomputed: it must equal them bit for bit. ``plane_maxmip`` joined the same
 way, with two groups of vertical planes added for every kernel (a level camera and an
 orthographic camera over the fBm field), whose ``dda_maxmip`` arrays it was given too;
+``pitched_maxmip`` joined the same way, with a group of one pitched pinhole camera over
+the fBm field (its eye shared by every ray, bit for bit), pinned for every kernel.
 ``python -m tests.hit_pin --add`` adds missing arrays and never rewrites a pinned one.
 """
 from __future__ import annotations
@@ -31,7 +33,7 @@ PIN = os.path.join(os.path.dirname(__file__), "data", "hit_pin.npz")
 #: Every C intersector; the peer (Embree) is not ours to pin.
 KERNELS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.kind != "peer")
 #: Kernels whose t and cell equal dda_maxmip's bit for bit, pinned with its arrays.
-SAME_AS_DDA_MAXMIP = ("packet_maxmip", "plane_maxmip")
+SAME_AS_DDA_MAXMIP = ("packet_maxmip", "plane_maxmip", "pitched_maxmip")
 EXACT = tuple(n for n in KERNELS if algos.INTERSECTOR_REGISTRY[n].accuracy == "exact")
 
 
@@ -53,6 +55,10 @@ def cases():
     for camera in (raysets.level_camera, raysets.orthographic_camera):
         rs = camera(position, look_at, 60.0, 32, 18)
         out.append((f"fbm257-{rs.params['kind']}", H, rs.origins, rs.directions))
+    # one eye: a pinhole pitched down about 19 degrees (no two rays share a vertical plane)
+    rs = raysets.pinhole(position, (position[0] + 0.7, position[1] + 0.5, position[2] - 0.3),
+                         60.0, 32, 18)
+    out.append(("fbm257-pinhole", H, rs.origins, rs.directions))
     return out
 
 

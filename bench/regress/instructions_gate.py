@@ -3,11 +3,11 @@
 Every C kernel runs once per (workload, surface) on a small fixed input (fBm 256^2,
 seed 1; 200 first-hit rays or 400 traversal rays at r = 25) in one child Python under
 ``valgrind --tool=callgrind --branch-sim=yes``. ``--dump-before`` and ``--dump-after`` on
-the two C batch entries cut the run into one profile per batch, and only instructions
-executed in the extension's own code (the ``algos._kernels`` object) are counted, so
-NumPy, the interpreter and the set-up between batches never enter. The counts are exact
-for one build on one input: two runs give identical numbers (tested), so the default
-tolerance is 1 %. The gate is on each case's instructions and branches per ray in
+the C batch entries (:data:`BATCH_ENTRIES`) cut the run into one profile per batch, and
+only instructions executed in the extension's own code (the ``algos._kernels`` object)
+are counted, so NumPy, the interpreter and the set-up between batches never enter. The
+counts are exact for one build on one input: two runs give identical numbers (tested), so
+the default tolerance is 1 %. The gate is on each case's instructions and branches per ray in
 total; the per-function counts recorded beside them only name the functions that grew,
 since the split between functions moves whenever the compiler inlines differently.
 
@@ -30,6 +30,9 @@ from ..profile import callgrind_available
 BASELINE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "instructions_baseline.json")
 
 DEFAULT_TOLERANCE = 0.01
+#: The C batch entries, one profile each: the dispatcher's two, and pitched_maxmip's
+#: (above the dispatcher, called by the binding)
+BATCH_ENTRIES = ("hf_intersect_batch", "hf_walk_batch", "hf_pitched_batch")
 SIZE = 256
 FIRST_HIT_RAYS = 200
 TRAVERSAL_RAYS = 400
@@ -177,9 +180,9 @@ def measure(echo=print, only=None, root=None, inputs=None, todo=None) -> dict:
         spec = dict(inputs=arrays, cases=todo)
         out = os.path.join(tmp, "cg.out")
         cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
-               "--branch-sim=yes", "--dump-before=hf_intersect_batch",
-               "--dump-before=hf_walk_batch", "--dump-after=hf_intersect_batch",
-               "--dump-after=hf_walk_batch", sys.executable, "-c", _CHILD, json.dumps(spec)]
+               "--branch-sim=yes", *(f"--dump-{when}={entry}" for when in ("before", "after")
+                                     for entry in BATCH_ENTRIES),
+               sys.executable, "-c", _CHILD, json.dumps(spec)]
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
                    PYTHONHASHSEED="0")
         env.pop("LD_PRELOAD", None)

@@ -4,6 +4,7 @@
 #include "binding/args.h"
 #include "hierarchies/compact.h"
 #include "hierarchies/cone.h"
+#include "raster/pitched.h"
 #include "surfaces/hitbatch.h"
 
 /* (values, prefix, suffix, sparse, block_shift) for lines of `length` cells */
@@ -254,7 +255,8 @@ static int read_rays_and_options(const intersect_args *a, hf_hit_batch *b) {
         return 0;
     }
     if ((a->kernel == HF_HIT_DDA_MAXMIP || a->kernel == HF_HIT_RUNS_MAXMIP ||
-         a->kernel == HF_HIT_PACKET_MAXMIP || a->kernel == HF_HIT_PLANE_MAXMIP) &&
+         a->kernel == HF_HIT_PACKET_MAXMIP || a->kernel == HF_HIT_PLANE_MAXMIP ||
+         a->kernel == HF_HIT_PITCHED_MAXMIP) &&
         b->mip_levels < 1) {
         PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
         return 0;
@@ -292,9 +294,10 @@ static int read_outputs(const intersect_args *a, hf_hit_batch *b) {
 /* intersect, intersect_cone and intersect_compact: the batch from `args`, with the cone
  * structure (NULL but for intersect_cone): float32 of shape (rows - 1, cols - 1, 2) for
  * cone, (rows - 1, cols - 1) for cone_relaxed; and the compact tree (NULL but for
- * intersect_compact). Validation, then the kernel without the GIL; returns its elapsed
- * nanoseconds. */
-static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact) {
+ * intersect_compact); and the bounds' output (NULL but for intersect_pitched_bounds).
+ * Validation, then the kernel without the GIL; returns its elapsed nanoseconds. */
+static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_compact,
+                                PyObject *o_bound) {
     int status;
     intersect_args a;
     hf_hit_batch b;
@@ -312,9 +315,20 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
     b.cull_cells = a.cull_cells;
     if (!read_hierarchies(&a, cells, &b) || !read_rays_and_options(&a, &b) || !read_outputs(&a, &b))
         return NULL;
+    if (o_bound != NULL) {
+        void *p;
+        if (a.kernel != HF_HIT_PITCHED_MAXMIP) {
+            PyErr_SetString(PyExc_ValueError, "bound: only pitched_maxmip writes its bounds");
+            return NULL;
+        }
+        if (!hf_arg_array(o_bound, "bound", NPY_FLOAT64, b.n_rays, 1, 1, &p, NULL)) return NULL;
+        b.bound = (double *)p;
+    }
 
     hf_timed_begin(&section);
-    status = hf_intersect_batch(a.kernel, &b);
+    /* pitched_maxmip sits above the dispatcher (it draws with the rasteriser's geometry) */
+    status = a.kernel == HF_HIT_PITCHED_MAXMIP ? hf_pitched_batch(&b, hf_maxmip_steps())
+                                               : hf_intersect_batch(a.kernel, &b);
     elapsed_ns = hf_timed_end(&section);
 
     if (status != HF_OK) {
@@ -327,7 +341,29 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
 
 static PyObject *intersect(PyObject *self, PyObject *args) {
     (void)self;
-    return intersect_with(args, NULL, NULL);
+    return intersect_with(args, NULL, NULL, NULL);
+}
+
+PyDoc_STRVAR(intersect_pitched_bounds_doc,
+             "intersect_pitched_bounds(bound, kernel, surface, field, ...) -> int\n\n"
+             "intersect() for pitched_maxmip, also writing into bound (float64, (n,)) the\n"
+             "parameter each ray's walk was allowed to start from: its lower bound on the\n"
+             "first hit (t0 where none applies, inf where the ray meets no tile box).\n"
+             "Private: for the tests of the bound.");
+
+static PyObject *intersect_pitched_bounds(PyObject *self, PyObject *args) {
+    PyObject *rest, *result;
+    (void)self;
+    if (!PyTuple_Check(args) || PyTuple_GET_SIZE(args) < 1) {
+        PyErr_SetString(PyExc_TypeError,
+                        "intersect_pitched_bounds: expected bound, then intersect()'s arguments");
+        return NULL;
+    }
+    rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
+    if (rest == NULL) return NULL;
+    result = intersect_with(rest, NULL, NULL, PyTuple_GET_ITEM(args, 0));
+    Py_DECREF(rest);
+    return result;
 }
 
 /* intersect_cone and intersect_compact: their structure first, then intersect()'s
@@ -343,7 +379,7 @@ static PyObject *intersect_after_structure(PyObject *args, const char *entry, co
     rest = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
     if (rest == NULL) return NULL;
     first = PyTuple_GET_ITEM(args, 0);
-    result = intersect_with(rest, cone ? first : NULL, cone ? NULL : first);
+    result = intersect_with(rest, cone ? first : NULL, cone ? NULL : first, NULL);
     Py_DECREF(rest);
     return result;
 }
@@ -432,6 +468,8 @@ static PyObject *compact_build(PyObject *self, PyObject *args) {
 static PyMethodDef intersect_methods[] = {
     {"intersect", intersect, METH_VARARGS, intersect_doc},
     {"intersect_cone", intersect_cone, METH_VARARGS, intersect_cone_doc},
+    {"intersect_pitched_bounds", intersect_pitched_bounds, METH_VARARGS,
+     intersect_pitched_bounds_doc},
     {"cone_relaxed_slopes", cone_relaxed_slopes, METH_VARARGS, cone_relaxed_slopes_doc},
     {"intersect_compact", intersect_compact, METH_VARARGS, intersect_compact_doc},
     {"compact_build", compact_build, METH_VARARGS, compact_build_doc},

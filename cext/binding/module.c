@@ -29,6 +29,7 @@ static const struct {
     {"packet_maxmip", HF_HIT_PACKET_MAXMIP},
     {"dda_compact", HF_HIT_DDA_COMPACT},
     {"plane_maxmip", HF_HIT_PLANE_MAXMIP},
+    {"pitched_maxmip", HF_HIT_PITCHED_MAXMIP},
 };
 
 /* KERNEL_IDS: {name: id} of every kernel above. */

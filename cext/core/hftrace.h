@@ -45,7 +45,8 @@ enum hf_hit_kernel {
     HF_HIT_PACKET_MAXMIP = 13,
     HF_HIT_DDA_COMPACT = 14,
     HF_HIT_PLANE_MAXMIP = 15,
-    HF_N_HIT_KERNELS = 16
+    HF_HIT_PITCHED_MAXMIP = 16,
+    HF_N_HIT_KERNELS = 17
 };
 
 enum hf_mode {

@@ -464,6 +464,12 @@ static void maxmip_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) {
     ray_end(b, ray, h);
 }
 
+static const hf_ray_steps maxmip_steps = {maxmip_begin, maxmip_solve, maxmip_end};
+
+const hf_ray_steps *hf_maxmip_steps(void) {
+    return &maxmip_steps;
+}
+
 int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_pattern pattern;
     hf_direction direction_cache; /* the exact walks' per-direction set-up, across rays */
@@ -477,10 +483,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     hf_compact compact; /* dda_compact: the tree's geometry (compact.h) */
     int64_t ray;
     if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b);
-    if (kernel == HF_HIT_PLANE_MAXMIP) {
-        static const hf_ray_steps steps = {maxmip_begin, maxmip_solve, maxmip_end};
-        return hf_plane_batch(b, &steps);
-    }
+    if (kernel == HF_HIT_PLANE_MAXMIP) return hf_plane_batch(b, &maxmip_steps);
     if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;

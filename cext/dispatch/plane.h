@@ -16,6 +16,10 @@ typedef struct {
     void (*end)(hf_hit_batch *b, int64_t ray, const hf_hit *h);
 } hf_ray_steps;
 
+/* dda_maxmip's three steps (intersect.c): what plane_maxmip here and the kernels above
+ * the dispatcher (pitched_maxmip, raster/pitched.c) walk a ray with. */
+const hf_ray_steps *hf_maxmip_steps(void);
+
 /* The batch with the rays of each vertical plane traced bottom up as a chain of resumed
  * dda_maxmip walks; t, cell and normal equal dda_maxmip's. HF_OK, HF_ERR_MEMORY, or a
  * step's error status (b->bad_ray names the ray). */

@@ -46,6 +46,10 @@ typedef struct {
     double *normal; /* (n, 3)  */
     int64_t *stats; /* (n, 5): cells visited, cells tested, runs visited, runs culled,
                        tiles skipped */
+    /* pitched_maxmip: (n,) the parameter each ray's walk was allowed to start from (its
+     * lower bound on the hit: t0 where none applies, inf where the ray meets no box or
+     * misses the field's box), for the tests; NULL for every other call */
+    double *bound;
     int64_t bad_ray;
 } hf_hit_batch;
 

@@ -27,6 +27,8 @@ output mode and option. :func:`check` runs it and asserts the invariants:
 * ``dda_compact`` gives ``dda_maxmip``'s hits bit for bit (tests/fuzz/compact_cases.py).
 * ``plane_maxmip`` gives ``dda_maxmip``'s t, cell and normal bit for bit, on the case's
   rays and on vertical planes grown from them (tests/fuzz/plane_cases.py).
+* ``pitched_maxmip`` gives them too, on the case's rays and on the batch of one eye made
+  from them (tests/fuzz/pitched_cases.py).
 
 The decoder needs no fuzzer, so ``tests/fuzz/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -49,13 +51,16 @@ import algos
 
 from .compact_cases import check_compact
 from .cone_cases import check_cone
+from .pitched_cases import check_pitched
 from .plane_cases import check_plane
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
-# (packet_maxmip and plane_maxmip are not drawn on their own, which would remap the
-# committed corpus: every dda_maxmip call is repeated with them and must match bit for bit)
+# (packet_maxmip, plane_maxmip and pitched_maxmip are not drawn on their own, which would
+# remap the committed corpus: every dda_maxmip call is repeated with them and must match
+# bit for bit)
 INTERSECTORS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items()
-                     if a.kind != "peer" and n not in ("packet_maxmip", "plane_maxmip"))
+                     if a.kind != "peer"
+                     and n not in ("packet_maxmip", "plane_maxmip", "pitched_maxmip"))
 PACKET_WIDTHS = (1, 2, 4, 8)
 EXACT_TRAVERSALS = ("midpoint", "runs")
 EXACT_INTERSECTORS = ("midpoint", "runs", "runs_periodic", "runs_maxmip")
@@ -340,6 +345,7 @@ def _check(data: bytes) -> None:
         _check_packets(case, result)
     check_compact(case, _call)  # dda_compact gives dda_maxmip's (tests/fuzz/compact_cases.py)
     check_plane(case, _call)  # so does plane_maxmip, on planes too (tests/fuzz/plane_cases.py)
+    check_pitched(case, _call)  # and pitched_maxmip, from one eye too (pitched_cases.py)
 
 
 def _check_packets(case, result):
