@@ -53,9 +53,9 @@ def split(n: int, threads: int, chunks_per_thread: int | None = None,
         chunks_per_thread = CHUNKS_PER_THREAD
     if n <= 0:
         return [(0, 0)]
+    if threads <= 1:  # one range (the timed calls of one thread take this path)
+        return [(0, int(n))]
     pieces = max(1, min(threads * chunks_per_thread, n // max(min_chunk, 1)))
-    if threads <= 1:
-        pieces = 1
     bounds = np.linspace(0, n, pieces + 1).astype(np.int64)
     return [(int(bounds[k]), int(bounds[k + 1])) for k in range(pieces)]
 

@@ -179,9 +179,42 @@ PAIRED_REGIMES = {"warm": "warm", "call": "flushed-per-call", "round": "flushed-
                   "none": "unflushed"}
 
 
+#: What one cell test of the baseline costs in cell steps of its walk (``dda`` on
+#: triangles, this VM: about 2.7 ns per cell visited and 36 ns per cell tested, fitted on
+#: fBm, terraces, uniform noise and Jacksboro): the weight of ``cells_tested`` in
+#: :func:`work_per_ray`.
+TEST_WEIGHT = 13
+
+
+def work_per_ray(field, workload, surface, r, rays, seed, coherence="random") -> float:
+    """The baseline's exact work per ray on a group's ``rays`` rays, in cell steps: cells
+    visited plus :data:`TEST_WEIGHT` times cells tested (``algos.STATS`` of ``dda``; the
+    2D workloads: the cells per ray). A count, not a time, so every run sizes a group's
+    calls alike."""
+    o, d, cells, *_ = _group_rays(field, workload, surface, r, rays, seed, coherence)
+    if workload != "first_hit":
+        return float(cells)
+    got = algos.intersect(BASELINE, field, o, d, surface=surface, outputs=("stats",))
+    return float(np.mean(got.stats["cells_visited"]) +
+                 TEST_WEIGHT * np.mean(got.stats["cells_tested"]))
+
+
+def rays_for_cells(cells_per_ray: float, rays: int, call_cells: int, max_factor: int = 16) -> int:
+    """The rays of a call doing about ``call_cells`` cell steps: ``rays`` times the power
+    of two (from 1/``max_factor`` to ``max_factor``) nearest, in the log, to
+    ``call_cells / (rays * cells_per_ray)``; at least 16 rays. ``cells_per_ray``: the work
+    per ray (:func:`work_per_ray`)."""
+    if not cells_per_ray > 0:
+        return rays
+    k = round(math.log2(call_cells / (rays * cells_per_ray)))
+    k = max(-int(math.log2(max_factor)), min(int(math.log2(max_factor)), k))
+    return max(16, int(round(rays * 2.0 ** k)))
+
+
 def measure_group(field, label, workload, surface, r, names, rays, repeats, seed,
                   keep_samples=False, regime="flushed", coherence="random", precision=None,
-                  budget_s=3.0, call_ms=8.0, flush="round", rays_per_call=None):
+                  budget_s=3.0, call_ms=8.0, flush="round", rays_per_call=None,
+                  call_cells=None):
     """Rows for one group: every algorithm on the same rays, interleaved. With
     ``keep_samples`` each row also holds ``ratio_samples``, the per-round paired ratios
     time(baseline) / time(algorithm). ``regime`` is the cache regime
@@ -202,7 +235,11 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
       group has spent ``budget_s`` seconds (``stop``: precision, budget or rounds;
       ``rounds``: the pairs). ``rays_per_call`` fixes the rays of a call instead (a sweep
       sizes it once, in its noise calibration, so every group of a run times calls of the
-      same rays). ``regime`` is then recorded per :data:`PAIRED_REGIMES`. ``speedup`` is
+      same rays). ``call_cells`` replaces both: the rays of a call are ``rays`` times the
+      power of two that brings the baseline's exact work per call nearest to it
+      (:func:`work_per_ray`, :func:`rays_for_cells`), a count, so the choice is the same in
+      every run, and every group's call stays short (0.2-0.4 ms here).
+      ``regime`` is then recorded per :data:`PAIRED_REGIMES`. ``speedup`` is
       the median pair's ratio with its distribution-free interval
       (``bench.timing.median_ratio_interval``).
 
@@ -227,7 +264,11 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
     shape = (cols_ - 1, rows_ - 1)
     mode = "visit" if workload == "visit" else "runs"
     n_rays = rays if rays_per_call is None else int(rays_per_call)
-    if precision is not None and BASELINE in names and rays_per_call is None:
+    if precision is not None and call_cells:
+        # sized by the baseline's exact work per ray on the configured rays
+        n_rays = rays_for_cells(work_per_ray(field, workload, surface, r, rays, seed, coherence),
+                                rays, call_cells)
+    elif precision is not None and BASELINE in names and rays_per_call is None:
         # the call length: the baseline timed once on the configured rays
         o, d, *_ = _group_rays(field, workload, surface, r, rays, seed, coherence)
         probe, _ = _prepare(BASELINE, workload, field, o, d, shape, surface, mode)
@@ -620,7 +661,7 @@ def _design(cfg) -> dict:
     if cfg.precision is None:
         return {}
     return {"precision": cfg.precision, "budget_s": cfg.group_budget, "call_ms": cfg.call_ms,
-            "flush": cfg.flush}
+            "flush": cfg.flush, "call_cells": cfg.call_cells}
 
 
 def prepare_field(ds, todo) -> algos.Field:
@@ -676,8 +717,12 @@ def calibrate_noise(field, workload, surface, r, cfg, kernels, seconds=1.0) -> d
     o, d, *_ = _group_rays(field, workload, surface, r, cfg.rays, seed=cfg.seed)
     job, _ = _prepare(BASELINE, workload, field, o, d, shape, surface, mode)
     job()
-    # the fastest of five calls: a busy moment only lengthens a call
-    n = call_rays(min(job() for _ in range(5)), cfg.rays, cfg.call_ms)
+    if cfg.call_cells:
+        n = rays_for_cells(work_per_ray(field, workload, surface, r, cfg.rays, cfg.seed),
+                           cfg.rays, cfg.call_cells)
+    else:
+        # the fastest of five calls: a busy moment only lengthens a call
+        n = call_rays(min(job() for _ in range(5)), cfg.rays, cfg.call_ms)
     o, d, *_ = _group_rays(field, workload, surface, r, n, seed=cfg.seed)
     job, _ = _prepare(BASELINE, workload, field, o, d, shape, surface, mode)
     job()
@@ -730,7 +775,8 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
         env["noise"] = calibrate_noise(fields_cache[label], workload, surface, r, cfg,
                                        len(names))
         env["noise"]["load"] = machine_load.load_average()
-        design["rays_per_call"] = env["noise"]["call_rays"]
+        if not cfg.call_cells:  # sized by cells, every group sizes its own calls
+            design["rays_per_call"] = env["noise"]["call_rays"]
         write_json(os.path.join(out_dir, "env.json"), env)
     measure0 = time.perf_counter()
     # contended groups are measured again once the machine is quiet, within this allowance

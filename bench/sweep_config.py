@@ -6,7 +6,8 @@
     precision = 0.02                  # optional: sequential paired rounds to +-2 % (docs/METHOD.md)
     group_budget = 3.0                # with precision: seconds a group may spend measuring
     call_ms = 8.0                     # with precision: the baseline's call is at least this long
-    flush = "warm"                    # with precision: the cache state of a visit: "warm" (own untimed call first), or flushed per "call", "round", or "none"
+    call_cells = 100000               # optional, with precision: a call's work, in cell steps
+    flush = "warm"                    # with precision: "warm" (own untimed call first), "call", "round", "none"
     seed = 2004
     algorithms = ["dda", "runs"]      # default: every algorithm of each workload
     workloads = ["visit", "runs", "first_hit"]
@@ -36,7 +37,8 @@ __all__ = ["SweepConfig", "ConfigError", "load_config", "WORKLOADS"]
 
 WORKLOADS = ("visit", "runs", "first_hit")
 _KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
-         "run_lengths", "datasets", "plugins", "precision", "group_budget", "call_ms", "flush"}
+         "run_lengths", "datasets", "plugins", "precision", "group_budget", "call_ms", "flush",
+         "call_cells"}
 _DATASET_KEYS = {"name", "size", "seed", "params"}
 
 
@@ -71,6 +73,7 @@ class SweepConfig:
     group_budget: float = 3.0
     call_ms: float = 8.0
     flush: str = "warm"
+    call_cells: int | None = None
 
 
 def _check_int(key, value, low):
@@ -124,6 +127,8 @@ def load_config(source) -> SweepConfig:
                           f"{cfg.precision!r}")
     if cfg.flush not in FLUSH_MODES:
         raise ConfigError(f"flush: expected one of {', '.join(FLUSH_MODES)}, got {cfg.flush!r}")
+    if cfg.call_cells is not None:
+        _check_int("call_cells", cfg.call_cells, 1)
     for key in ("group_budget", "call_ms"):
         value = getattr(cfg, key)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:

@@ -376,7 +376,7 @@ class PairedTimes:
 
 
 def paired_rounds(jobs: dict[str, Callable[[], int]], baseline: str, precision: float = 0.02,
-                  budget_s: float = 3.0, min_rounds: int = 8, max_rounds: int = 500,
+                  budget_s: float = 3.0, min_rounds: int = 8, max_rounds: int = 5000,
                   flush: str = "warm", seed: int = 0, errors: dict | None = None,
                   time_limit_ns: dict | None = None, confidence: float = 0.95) -> PairedTimes:
     """Time every job against the baseline in adjacent pairs on the same rays, until each

@@ -47,8 +47,12 @@ OUT_NAMES = {"headline": "reproduce", "standard": "reproduce-standard", "full": 
 PUBLISHED = {"headline": "reproduce-headline", "standard": "reproduce", "full": "reproduce-full"}
 #: Seconds a group may spend in timed rounds (``bench.sweep.SweepConfig.group_budget``),
 #: and the shortest baseline call (``call_ms``) a group's rays are sized for.
-GROUP_BUDGET = {"headline": 3.5, "standard": 3.0, "full": 4.0}
+GROUP_BUDGET = {"headline": 6.0, "standard": 3.0, "full": 4.0}
 CALL_MS = 0.5
+#: The work a timed call is sized to, in cell steps of the baseline (``bench.sweep.work_per_ray``,
+#: ``rays_for_cells``): 0.2-0.4 ms here on every dataset and run length, so a kernel's
+#: working set stays near the per-core cache and a group affords some hundred pairs.
+CALL_CELLS = 100000
 #: The cache state of a timed call (``bench.timing.FLUSH_MODES``; docs/METHOD.md, "Cache
 #: regimes compared"): warm, each visit's timed calls follow an untimed call of the same
 #: kernel on the same rays, so they find the lines the kernel itself left, whichever
@@ -102,7 +106,7 @@ def preset(full=False, name=None, kernels=None, precision=0.02, flush=FLUSH) -> 
     _check_precision(precision)
     out = OUT_NAMES[name]
     design = dict(precision=float(precision), group_budget=GROUP_BUDGET[name], call_ms=CALL_MS,
-                  flush=flush)
+                  flush=flush, call_cells=CALL_CELLS)
     if name == "full":
         return SweepConfig(
             name=out, rays=3000, repeats=MIN_ROUNDS, seed=2004, **design,
