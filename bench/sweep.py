@@ -360,57 +360,6 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             else:
                 ratios = times[BASELINE] / times[name]
             out[-1]["ratio_samples"] = ratios[np.isfinite(ratios)].tolist()
-            out[-1]["ns_samples"] = per_ray[np.isfinite(per_ray)].tolist()
-    return out
-
-
-def merge_passes(passes: list) -> list:
-    """One group's rows from several passes of :func:`measure_group` (each a list of rows
-    made with ``keep_samples``, the same algorithms in the same order): the speedup and
-    its interval from every pass's pairs pooled (``bench.timing.median_ratio_interval``),
-    the time per ray from every visit pooled, the pairs, seconds and load summed or
-    spanned (``contended`` when any pass was). A kernel that failed in any pass keeps
-    that pass's error row. The samples are dropped."""
-    out = []
-    for k, first in enumerate(passes[0]):
-        rows = [p[k] for p in passes]
-        failed = [row for row in rows if row.get("error") and "ratio_samples" not in row]
-        if failed:
-            out.append({key: v for key, v in failed[0].items()
-                        if key not in ("ratio_samples", "ns_samples")})
-            continue
-        ratios = np.concatenate([np.asarray(row.get("ratio_samples", []), float) for row in rows])
-        per_ray = np.concatenate([np.asarray(row.get("ns_samples", []), float) for row in rows])
-        median, low, high = median_interval(per_ray)
-        if first["algorithm"] == first["baseline"]:
-            speedup = s_low = s_high = 1.0
-        else:
-            speedup, s_low, s_high = median_ratio_interval(np.log(ratios))
-        half = relative_half_width(speedup, s_low, s_high) if first["algorithm"] != first["baseline"] else 0.0
-        precision = first.get("precision")
-        stop = ("precision" if precision not in ("", None) and half <= float(precision)
-                else rows[-1].get("stop", ""))
-        merged = {key: v for key, v in rows[-1].items() if key not in ("ratio_samples", "ns_samples")}
-        cells = first["ns_per_ray"] / first["ns_per_cell"] if first.get("ns_per_cell") else math.nan
-        run_ = first["ns_per_ray"] / first["ns_per_run"] if first.get("ns_per_run") else math.nan
-        merged.update(
-            ns_per_ray=round(median, 2), ns_per_ray_ci_low=round(low, 2),
-            ns_per_ray_ci_high=round(high, 2), speedup=round(speedup, 4),
-            speedup_ci_low=round(s_low, 4), speedup_ci_high=round(s_high, 4),
-            ns_per_cell=round(median / cells, 4) if np.isfinite(cells) and cells else math.nan,
-            ns_per_run=round(median / run_, 4) if np.isfinite(run_) and run_ else math.nan,
-            half_width=round(half, 5), stop=stop,
-            rounds=int(sum(int(row.get("rounds") or 0) for row in rows)),
-            agree=min(float(row["agree"]) for row in rows),
-            error=next((row["error"] for row in rows if row.get("error")), ""),
-            timed_s=round(sum(float(row["timed_s"]) for row in rows), 4),
-            wall_s=round(sum(float(row["wall_s"]) for row in rows), 4),
-            flush_s=round(sum(float(row["flush_s"]) for row in rows), 4),
-            contended=any(bool(row["contended"]) for row in rows),
-            other_cpu=max((row["other_cpu"] for row in rows if row.get("other_cpu") is not None),
-                          default=None),
-            load_before=rows[0].get("load_before"), load_after=rows[-1].get("load_after"))
-        out.append(merged)
     return out
 
 
@@ -742,23 +691,6 @@ def prepare_field(ds, todo) -> algos.Field:
     return field
 
 
-def _measure_passes(field, entries, cfg, design, isolate=False) -> dict:
-    """The groups ``entries`` (of one dataset, as in ``todo``) measured in ``cfg.passes``
-    passes of ``cfg.group_budget / cfg.passes`` seconds each, every group once per pass,
-    and merged (:func:`merge_passes`); (label, workload, surface, r) -> rows."""
-    from algos import plugins
-
-    passes = {}
-    budget = cfg.group_budget / cfg.passes
-    for _ in range(cfg.passes):
-        for ds, label, workload, surface, r, names, missing in entries:
-            own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
-            rows = measure_group(field, label, workload, surface, r, own, cfg.rays, cfg.repeats,
-                                 cfg.seed, keep_samples=True, **dict(design, budget_s=budget))
-            passes.setdefault((label, workload, surface, str(r)), []).append(rows)
-    return {key: merge_passes(rows) for key, rows in passes.items()}
-
-
 def wait_until_quiet(limit_s: float, step_s: float = 0.5) -> float:
     """Wait, up to ``limit_s`` seconds, until other processes use at most
     ``bench.load.CONTENDED_CORES`` over one ``step_s`` interval; the seconds waited, or -1
@@ -851,7 +783,6 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     spare = 0.25 * len(todo) * cfg.group_budget if cfg.precision is not None else 0.0
     remeasured = 0
     flushing = 0.0
-    block = {}  # a dataset's groups measured in passes, by (label, workload, surface, r)
     with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
                    check=results_row_check()) as writer:
         for ds, label, workload, surface, r, names, missing in todo:
@@ -863,18 +794,8 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
             field_ = fields_cache[label]
             own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
             isolated = [n for n in names if n not in own and n in missing]
-            key = (label, workload, surface, str(r))
-            if cfg.precision is not None and cfg.passes > 1 and key not in block:
-                # every group of this dataset, pass after pass: each group's pairs are
-                # spread over the block's time, not taken in one stretch of seconds
-                block.clear()
-                block.update(_measure_passes(field_, [t for t in todo if t[1] == label], cfg,
-                                             design, isolate))
-            if key in block:
-                measured = block.pop(key)
-            else:
-                measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
-                                         cfg.repeats, cfg.seed, **design)
+            measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
+                                     cfg.repeats, cfg.seed, **design)
             while measured[0]["contended"] and spare > measured[0]["wall_s"]:
                 # contention is never a finding: wait for a quiet machine, then measure again
                 waited = wait_until_quiet(min(5.0, spare - measured[0]["wall_s"]))

@@ -7,7 +7,6 @@
     group_budget = 3.0                # with precision: seconds a group may spend measuring
     call_ms = 8.0                     # with precision: the baseline's call is at least this long
     call_cells = 100000               # optional, with precision: a call's work, in cell steps
-    passes = 3                        # with precision: each dataset's groups measured in this many passes
     flush = "warm"                    # with precision: "warm" (own untimed call first), "call", "round", "none"
     seed = 2004
     algorithms = ["dda", "runs"]      # default: every algorithm of each workload
@@ -39,7 +38,7 @@ __all__ = ["SweepConfig", "ConfigError", "load_config", "WORKLOADS"]
 WORKLOADS = ("visit", "runs", "first_hit")
 _KEYS = {"name", "rays", "repeats", "seed", "algorithms", "workloads", "surfaces",
          "run_lengths", "datasets", "plugins", "precision", "group_budget", "call_ms", "flush",
-         "call_cells", "passes"}
+         "call_cells"}
 _DATASET_KEYS = {"name", "size", "seed", "params"}
 
 
@@ -75,7 +74,6 @@ class SweepConfig:
     call_ms: float = 8.0
     flush: str = "warm"
     call_cells: int | None = None
-    passes: int = 1
 
 
 def _check_int(key, value, low):
@@ -131,7 +129,6 @@ def load_config(source) -> SweepConfig:
         raise ConfigError(f"flush: expected one of {', '.join(FLUSH_MODES)}, got {cfg.flush!r}")
     if cfg.call_cells is not None:
         _check_int("call_cells", cfg.call_cells, 1)
-    _check_int("passes", cfg.passes, 1)
     for key in ("group_budget", "call_ms"):
         value = getattr(cfg, key)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:

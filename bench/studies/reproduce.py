@@ -53,12 +53,6 @@ CALL_MS = 0.5
 #: ``rays_for_cells``): 0.2-0.4 ms here on every dataset and run length, so a kernel's
 #: working set stays near the per-core cache and a group affords some hundred pairs.
 CALL_CELLS = 100000
-#: Each dataset's groups are measured in this many passes, each group once per pass
-#: (``bench.sweep.merge_passes``): a group's pairs then span the half minute of its
-#: dataset rather than a few seconds, and the state of this VM (its neighbours' use of
-#: the shared cache and memory, which moves a memory-bound kernel's time against a
-#: compute-bound one's within seconds) is sampled several times.
-PASSES = 3
 #: The cache state of a timed call (``bench.timing.FLUSH_MODES``; docs/METHOD.md, "Cache
 #: regimes compared"): warm, each visit's timed calls follow an untimed call of the same
 #: kernel on the same rays, so they find the lines the kernel itself left, whichever
@@ -112,7 +106,7 @@ def preset(full=False, name=None, kernels=None, precision=0.02, flush=FLUSH) -> 
     _check_precision(precision)
     out = OUT_NAMES[name]
     design = dict(precision=float(precision), group_budget=GROUP_BUDGET[name], call_ms=CALL_MS,
-                  flush=flush, call_cells=CALL_CELLS, passes=PASSES)
+                  flush=flush, call_cells=CALL_CELLS)
     if name == "full":
         return SweepConfig(
             name=out, rays=3000, repeats=MIN_ROUNDS, seed=2004, **design,
