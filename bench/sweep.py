@@ -43,9 +43,9 @@ from .timing import (
     write_json,
 )
 
-__all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "run_sweep_dask", "COLUMNS",
+__all__ = ["SweepConfig", "ConfigError", "load_config", "run_sweep", "COLUMNS",
            "RUN_COLUMNS", "config_hash", "new_run", "scan_results", "row_key", "WORKLOADS",
-           "measure_group", "dask_client"]
+           "measure_group"]
 
 BASELINE = "dda"
 COLUMNS = ["algorithm", "baseline", "workload", "surface", "dataset", "grid", "run_length",
@@ -517,91 +517,6 @@ def _write_group(writer, rows, missing, bar, label, commit="", run=None):
     if bar is not None:
         bar.set_postfix_str(label)
         bar.update(1)
-
-
-def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed, **design):
-    """One group on a Dask worker: load the field there, measure (``design``: the
-    sequential design's arguments of :func:`measure_group`), return the rows and the
-    worker's environment. Module-level (importable) so any worker can run it."""
-    rows = measure_group(load_field(ds), label, workload, surface, r, names, rays,
-                         repeats, seed, **design)
-    import socket
-
-    return rows, dict(environment(), hostname=socket.gethostname(), pid=os.getpid())
-
-
-def dask_client(address: str, memory_limit=None):
-    """A distributed Client: ``local:N`` starts a LocalCluster of N single-threaded
-    worker processes (each limited to ``memory_limit``, e.g. "600MiB", when given);
-    anything else is a scheduler address."""
-    from dask.distributed import Client, LocalCluster
-
-    if address.startswith("local:"):
-        try:
-            n = int(address.split(":", 1)[1])
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ValueError(f"--dask: expected local:N with N >= 1, got {address!r}")
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None,
-                               **({"memory_limit": memory_limit} if memory_limit else {}))
-        return Client(cluster), cluster
-    return Client(address), None
-
-
-def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, progress=True,
-                   echo=print):
-    """The sweep with each group as one task on a Dask worker (single-threaded workers:
-    a group's interleaving, hence its ratios, is the serial sweep's). The driver appends
-    a group's rows to results.csv as soon as the group comes back, so a killed driver
-    loses no finished group and ``resume`` skips it; a killed worker's task is rerun by
-    the scheduler and its rows are written once, by the driver. Each worker's environment
-    goes into env.json under "workers"."""
-    commit = environment().get("git_commit", "")
-    run = new_run(cfg, commit)
-    bad = []
-    csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad,
-                              check_machine=False)
-    _report_damaged(csv_path, bad, echo)
-    from dask.distributed import as_completed
-
-    client, cluster = dask_client(address)
-    env = dict(environment(), dask_address=address, workers={})
-    try:
-        futures = {}
-        for item in todo:
-            ds, label, workload, surface, r, names, missing = item
-            future = client.submit(measure_task, ds, label, workload, surface, r, names,
-                                   cfg.rays, cfg.repeats, cfg.seed, pure=False, **_design(cfg))
-            futures[future] = item
-        bar = _bar(progress, len(todo), f"{cfg.name} (dask)")
-        start = time.perf_counter()
-        with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
-                       check=results_row_check()) as writer:
-            # this client's loop: as_completed otherwise tracks the futures on the default
-            # client's, and a second client in the process then waits on an event bound
-            # to another loop ("bound to a different event loop")
-            for future in as_completed(futures, loop=client.loop):
-                ds, label, workload, surface, r, names, missing = futures[future]
-                rows, worker_env = future.result()
-                worker = worker_env.get("hostname", "") + f" pid {worker_env.get('pid', '')}"
-                env["workers"].setdefault(worker, worker_env)
-                write_json(os.path.join(out_dir, "env.json"), env)
-                # the rows were measured on the worker's machine
-                _write_group(writer, rows, missing, bar, f"{label} {workload} {surface} r={r}",
-                             commit=commit, run=dict(run, machine=worker_env.get("hostname")
-                                                     or run["machine"]))
-        if bar is not None:
-            bar.close()
-        if echo and todo:
-            echo(f"{len(todo)} groups measured on {address} in {time.perf_counter() - start:.1f} s")
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-    write_json(os.path.join(out_dir, "env.json"), env)
-    return read_rows(csv_path)
 
 
 def _measure_isolated(field, label, workload, surface, r, names, rays, repeats, seed, **design):

@@ -19,8 +19,10 @@ def run_sweep(args):
     out_dir = args.out or os.path.join(results_dir("sweep"), cfg.name)
     if args.dask:
         # each group on one single-threaded worker process (pinning is the workers' own)
-        rows = engine.run_sweep_dask(cfg, out_dir, args.dask, resume=args.resume,
-                                     progress=not args.no_progress)
+        from ..sweep_dask import run_sweep_dask
+
+        rows = run_sweep_dask(cfg, out_dir, args.dask, resume=args.resume,
+                              progress=not args.no_progress)
     else:
         pin_to_one_cpu()
         rows = engine.run_sweep(cfg, out_dir, resume=args.resume, progress=not args.no_progress,

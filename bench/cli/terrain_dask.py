@@ -72,7 +72,7 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
 
     from datasets_gen.raster import create_product
 
-    from ..sweep import dask_client
+    from ..sweep_dask import dask_client
 
     if max_distance is None:
         raise ValueError("--max-distance: a tiled (dask) product needs a finite distance "

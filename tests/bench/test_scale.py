@@ -18,7 +18,7 @@ from algos import parallel
 from algos.accel import maxima
 from algos.accel.mipmap import max_mipmap as _mipmap
 from algos.accel.mipmap import tile_max_rows as _tile_max_rows
-from bench import sweep
+from bench import sweep, sweep_dask
 from datasets_gen.rays import first_hit_rays
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -277,7 +277,7 @@ def test_dask_sweep_gives_the_serial_rows(tmp_path, monkeypatch):
     monkeypatch.setenv("HFTRACE_FLUSH_MB", "0")
     cfg = sweep.load_config(DASK_TINY)
     serial = sweep.run_sweep(cfg, str(tmp_path / "serial"), progress=False, echo=None)
-    spread = sweep.run_sweep_dask(cfg, str(tmp_path / "dask"), "local:2", progress=False,
+    spread = sweep_dask.run_sweep_dask(cfg, str(tmp_path / "dask"), "local:2", progress=False,
                                   echo=None)
     assert _keys(serial) == _keys(spread) and len(set(_keys(spread))) == len(spread)
     assert list(serial[0]) == list(spread[0]) == sweep.COLUMNS
@@ -405,7 +405,7 @@ def test_dask_sweep_survives_a_killed_worker(tmp_path, monkeypatch):
 
         thread = threading.Thread(target=killer, daemon=True)
         thread.start()
-        rows = sweep.run_sweep_dask(cfg, str(tmp_path / "out"), cluster.scheduler_address,
+        rows = sweep_dask.run_sweep_dask(cfg, str(tmp_path / "out"), cluster.scheduler_address,
                                     progress=False, echo=None)
         thread.join(timeout=10)
     finally:
