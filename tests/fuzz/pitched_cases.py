@@ -30,6 +30,10 @@ def _assert_same(case, want, got, what):
         if a is None:
             continue
         a, b = np.asarray(a), np.asarray(b)
+        if a.shape != b.shape:
+            raise AssertionError(f"{name} ({what}): shapes {a.shape} and {b.shape} differ")
+        if a.size == 0:  # an empty batch: nothing to differ in
+            continue
         bad = np.nonzero((a.view(np.uint8) != b.view(np.uint8)).reshape(len(a), -1).any(axis=1))[0]
         if len(bad):
             k = int(bad[0])
