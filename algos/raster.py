@@ -135,12 +135,24 @@ def _surface_at(h: np.ndarray, x: float, y: float) -> float:
     return h00 + (h11 - h01) * u + (h01 - h00) * v
 
 
+#: The narrowest field of view the rasterisers take, degrees. Narrower, the projection's
+#: scale (half the image over tan(fov / 2)) times the field's coordinates leaves the
+#: floating range, and a z-buffer drawn at fov 1e-300 picked a farther cell than the
+#: exact trace (the fuzzer's find); at 1e-30 it still agreed. The ray tracers take any
+#: fov in (0, 180).
+MIN_RASTER_FOV = 1e-9
+
+
 def _setup(heights, position, look_at, fov, width, height):
     """The field, the camera (see :func:`pinhole_frame`) and the skirts' lower edge,
-    validated: a camera at or below the surface inside the footprint is refused."""
+    validated: a camera at or below the surface inside the footprint, and a field of view
+    narrower than :data:`MIN_RASTER_FOV`, are refused."""
     fld = as_field(heights)
     h = fld.cell_heights  # cell units; refuses rectangular pixels and voids
     frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
+    if float(fov) < MIN_RASTER_FOV:
+        raise ValueError(f"fov: the rasterisers need at least {MIN_RASTER_FOV:g} degrees (a "
+                         f"narrower view's projection leaves the floating range), got {fov}")
     px, py, pz = (float(v) for v in frame[:3])
     rows, cols = h.shape
     if 0 <= px <= cols - 1 and 0 <= py <= rows - 1 and not pz > _surface_at(h, px, py):
@@ -213,8 +225,9 @@ def render(algorithm, heights, position, look_at, fov, width, height, *,
     Raises
     ------
     ValueError
-        Unknown algorithm or output; a bad camera (see :func:`pinhole_frame`); a camera
-        at or below the surface inside the footprint (every ray would hit at t = 0);
+        Unknown algorithm or output; a bad camera (see :func:`pinhole_frame`); a field of
+        view narrower than :data:`MIN_RASTER_FOV`; a camera at or below the surface inside
+        the footprint (every ray would hit at t = 0);
         ``step`` out of range; ``floating_horizon`` with the vertical in view.
     TypeError
         Non-integer image sizes, a non-numeric height array.

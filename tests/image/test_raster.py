@@ -450,3 +450,21 @@ def test_render_command_takes_rasterisers_and_diffs_them(tmp_path):
     assert paths["diff"]["cell_differs"] == 0.0
     assert main(["render", "fbm", "--size", "8", "--algorithm", "zbuffer",
                  "--surface", "bilinear", "--out", out]) == 2
+
+
+def test_a_field_of_view_too_narrow_to_project_is_refused_not_drawn_wrong():
+    """The fuzzer's find: at fov 1e-300 the z-buffer's projection left the floating range
+    and drew a farther cell than the exact trace; the rasterisers now refuse it, naming
+    fov, and at the narrowest fov they take they still agree with the trace."""
+    from algos import raster as R
+
+    heights = np.array([[4.375, 1.25, 0, 0], [0, 0, 0, 0], [14.375, 11.875, 12.75, 6.75],
+                        [0, -2.75, -4.5, -2.0]])
+    position, look_at = [1e-116, -26.3125, 0.0], [2.0, 1.0, 0.0]
+    for algorithm in ("zbuffer", "warnock", "painter"):
+        with pytest.raises(ValueError, match="fov: the rasterisers need at least"):
+            R.render(algorithm, heights, position, look_at, 1e-300, 7, 17)
+    traced = R.trace("dda_maxmip", heights, position, look_at, R.MIN_RASTER_FOV, 7, 17)
+    for algorithm in ("zbuffer", "warnock"):
+        drawn = R.render(algorithm, heights, position, look_at, R.MIN_RASTER_FOV, 7, 17)
+        assert np.array_equal(drawn.cell, traced.cell)
