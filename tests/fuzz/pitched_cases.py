@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-#: the kernel whose outputs pitched_maxmip must reproduce bit for bit
-REFERENCE = "dda_maxmip"
+# the reference kernel and the bit-for-bit comparison are the plane kernel's cases'
+from .plane_cases import REFERENCE, compare_batches
 
 
 def _eye_batch(case: dict) -> dict:
@@ -22,27 +22,6 @@ def _eye_batch(case: dict) -> dict:
     if len(o) == 0:
         return case
     return dict(case, origins=np.tile(o[0], (len(o), 1)))
-
-
-def _assert_same(case, want, got, what):
-    for name in ("t", "cell", "normal"):
-        a, b = getattr(want, name), getattr(got, name)
-        if a is None:
-            continue
-        a, b = np.asarray(a), np.asarray(b)
-        if a.shape != b.shape:
-            raise AssertionError(f"{name} ({what}): shapes {a.shape} and {b.shape} differ")
-        if a.size == 0:  # an empty batch: nothing to differ in
-            continue
-        bad = np.nonzero((a.view(np.uint8) != b.view(np.uint8)).reshape(len(a), -1).any(axis=1))[0]
-        if len(bad):
-            k = int(bad[0])
-            o = np.asarray(case["origins"], dtype=float).reshape(-1, 3)[k]
-            d = np.asarray(case["directions"], dtype=float).reshape(-1, 3)[k]
-            raise AssertionError(
-                f"pitched_maxmip and {REFERENCE} differ in {name} ({what}), {len(bad)} rays; "
-                f"first: ray {k}, origin={o.tolist()!r} direction={d.tolist()!r}, "
-                f"surface={case['surface']!r}: {REFERENCE} {a[k]!r}, pitched_maxmip {b[k]!r}")
 
 
 def check_pitched(case: dict, call) -> None:
@@ -65,16 +44,5 @@ def check_pitched(case: dict, call) -> None:
     """
     if case.get("op") != "intersect" or case.get("kernel") != REFERENCE:
         return
-    for what, batch in (("the case's rays", case), ("its one-eye batch", _eye_batch(case))):
-        outcomes = []
-        for kernel in (REFERENCE, "pitched_maxmip"):
-            try:
-                outcomes.append(call(batch, kernel))
-            except (ValueError, TypeError) as exc:
-                outcomes.append(exc)
-        want, got = outcomes
-        if isinstance(want, Exception) or isinstance(got, Exception):
-            assert isinstance(want, Exception) and isinstance(got, Exception), \
-                f"only one of {REFERENCE} and pitched_maxmip refused {what}: {want!r} {got!r}"
-            continue
-        _assert_same(batch, want, got, what)
+    compare_batches((("the case's rays", case), ("its one-eye batch", _eye_batch(case))),
+                    call, "pitched_maxmip")

@@ -39,7 +39,10 @@ def _plane_batch(case: dict) -> dict:
     return out
 
 
-def _assert_same(case, want, got, what):
+def assert_same(case, want, got, what, kernel="plane_maxmip"):
+    """Assert bit-identical t, cell and normal of ``kernel`` (``got``) and
+    :data:`REFERENCE` (``want``) on ``case``'s rays; the first differing ray in full
+    precision otherwise. Shared with the pitched kernel's cases."""
     for name in ("t", "cell", "normal"):
         a, b = getattr(want, name), getattr(got, name)
         if a is None:
@@ -55,9 +58,27 @@ def _assert_same(case, want, got, what):
             o = np.asarray(case["origins"], dtype=float).reshape(-1, 3)[k]
             d = np.asarray(case["directions"], dtype=float).reshape(-1, 3)[k]
             raise AssertionError(
-                f"plane_maxmip and {REFERENCE} differ in {name} ({what}), {len(bad)} rays; "
+                f"{kernel} and {REFERENCE} differ in {name} ({what}), {len(bad)} rays; "
                 f"first: ray {k}, origin={o.tolist()!r} direction={d.tolist()!r}, "
-                f"surface={case['surface']!r}: {REFERENCE} {a[k]!r}, plane_maxmip {b[k]!r}")
+                f"surface={case['surface']!r}: {REFERENCE} {a[k]!r}, {kernel} {b[k]!r}")
+
+
+def compare_batches(batches, call, kernel) -> None:
+    """For each ``(what, batch)``: ``kernel`` and :data:`REFERENCE` both refuse it, or give
+    bit-identical outputs (:func:`assert_same`)."""
+    for what, batch in batches:
+        outcomes = []
+        for name in (REFERENCE, kernel):
+            try:
+                outcomes.append(call(batch, name))
+            except (ValueError, TypeError) as exc:
+                outcomes.append(exc)
+        want, got = outcomes
+        if isinstance(want, Exception) or isinstance(got, Exception):
+            assert isinstance(want, Exception) and isinstance(got, Exception), \
+                f"only one of {REFERENCE} and {kernel} refused {what}: {want!r} {got!r}"
+            continue
+        assert_same(batch, want, got, what, kernel)
 
 
 def check_plane(case: dict, call) -> None:
@@ -80,16 +101,5 @@ def check_plane(case: dict, call) -> None:
     """
     if case.get("op") != "intersect" or case.get("kernel") != REFERENCE:
         return
-    for what, batch in (("the case's rays", case), ("its plane batch", _plane_batch(case))):
-        outcomes = []
-        for kernel in (REFERENCE, "plane_maxmip"):
-            try:
-                outcomes.append(call(batch, kernel))
-            except (ValueError, TypeError) as exc:
-                outcomes.append(exc)
-        want, got = outcomes
-        if isinstance(want, Exception) or isinstance(got, Exception):
-            assert isinstance(want, Exception) and isinstance(got, Exception), \
-                f"only one of {REFERENCE} and plane_maxmip refused {what}: {want!r} {got!r}"
-            continue
-        _assert_same(batch, want, got, what)
+    compare_batches((("the case's rays", case), ("its plane batch", _plane_batch(case))),
+                    call, "plane_maxmip")
