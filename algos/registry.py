@@ -210,6 +210,14 @@ INTERSECTOR_REGISTRY.update({
                 "to batches whose rays share one origin bit for bit (a pinhole camera at any "
                 "pitch), the others walk from their start; bit-identical to dda_maxmip",
         citation="Warnock 1969; Tevs, Ihrke & Seidel 2008"),
+    "ring_maxmip": Intersector(
+        "ring_maxmip", _C_ID["ring_maxmip"], "maxmip", "float64", "dda", ("cellmax", "mip"),
+        dict(cull_cells=True, fine_level=3),
+        summary="dda_maxmip's walks of independent rays, 8 in flight and advanced one step "
+                "(a tile test, a descent or a floor tile) in turn, with a software prefetch "
+                "of each ray's next tile maximum and floor-tile cells from its 2D line; "
+                "bit-identical to dda_maxmip, statistics included",
+        citation="Kocberber, Falsafi & Grot 2015; Tevs, Ihrke & Seidel 2008"),
     "runs_maxmip": Intersector(
         "runs_maxmip", _C_ID["runs_maxmip"], "maxmip", "exact", "runs",
         ("cellmax", "mip"), dict(cull_cells=True, cull_runs=False, fine_level=3),

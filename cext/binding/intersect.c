@@ -256,7 +256,7 @@ static int read_rays_and_options(const intersect_args *a, hf_hit_batch *b) {
     }
     if ((a->kernel == HF_HIT_DDA_MAXMIP || a->kernel == HF_HIT_RUNS_MAXMIP ||
          a->kernel == HF_HIT_PACKET_MAXMIP || a->kernel == HF_HIT_PLANE_MAXMIP ||
-         a->kernel == HF_HIT_PITCHED_MAXMIP) &&
+         a->kernel == HF_HIT_PITCHED_MAXMIP || a->kernel == HF_HIT_RING_MAXMIP) &&
         b->mip_levels < 1) {
         PyErr_SetString(PyExc_ValueError, "the maxmip kernels need the mipmap");
         return 0;

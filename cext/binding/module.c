@@ -30,6 +30,7 @@ static const struct {
     {"dda_compact", HF_HIT_DDA_COMPACT},
     {"plane_maxmip", HF_HIT_PLANE_MAXMIP},
     {"pitched_maxmip", HF_HIT_PITCHED_MAXMIP},
+    {"ring_maxmip", HF_HIT_RING_MAXMIP},
 };
 
 /* KERNEL_IDS: {name: id} of every kernel above. */

@@ -46,7 +46,8 @@ enum hf_hit_kernel {
     HF_HIT_DDA_COMPACT = 14,
     HF_HIT_PLANE_MAXMIP = 15,
     HF_HIT_PITCHED_MAXMIP = 16,
-    HF_N_HIT_KERNELS = 17
+    HF_HIT_RING_MAXMIP = 17,
+    HF_N_HIT_KERNELS = 18
 };
 
 enum hf_mode {

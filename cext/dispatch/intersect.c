@@ -10,6 +10,7 @@
 #include "hierarchies/compact.h"
 #include "hierarchies/cone.h"
 #include "hierarchies/packet.h"
+#include "hierarchies/ring.h"
 #include "dispatch/plane.h"
 #include "surfaces/hitbatch.h"
 #include "walks/walk.h"
@@ -445,7 +446,8 @@ static int packet_batch(hf_hit_batch *b) {
     return HF_OK;
 }
 
-/* The three steps of one ray with dda_maxmip's walk, for plane_maxmip (plane.c). */
+/* The three steps of one ray with dda_maxmip's walk, for plane_maxmip (plane.c) and
+ * ring_maxmip (ring.c). */
 static int maxmip_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0, double *t1,
                         int *entry_axis) {
     return ray_begin(b, ray, h, t0, t1, entry_axis);
@@ -484,6 +486,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     int64_t ray;
     if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b);
     if (kernel == HF_HIT_PLANE_MAXMIP) return hf_plane_batch(b, &maxmip_steps);
+    if (kernel == HF_HIT_RING_MAXMIP) return hf_ring_batch(b, &maxmip_steps);
     if (walk == NULL && !marching && !relaxed) return HF_ERR_ARGUMENT;
     if (kernel == HF_RUNS_PERIODIC && (b->pattern == NULL || b->max_denominator < 1))
         return HF_ERR_ARGUMENT;
