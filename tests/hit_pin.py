@@ -13,6 +13,7 @@ way, with two groups of vertical planes added for every kernel (a level camera a
 orthographic camera over the fBm field), whose ``dda_maxmip`` arrays it was given too;
 ``pitched_maxmip`` joined the same way, with a group of one pitched pinhole camera over
 the fBm field (its eye shared by every ray, bit for bit), pinned for every kernel.
+``ring_maxmip`` joined the same way, on the existing groups (no new group).
 ``python -m tests.hit_pin --add`` adds missing arrays and never rewrites a pinned one.
 """
 from __future__ import annotations
@@ -33,7 +34,7 @@ PIN = os.path.join(os.path.dirname(__file__), "data", "hit_pin.npz")
 #: Every C intersector; the peer (Embree) is not ours to pin.
 KERNELS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items() if a.kind != "peer")
 #: Kernels whose t and cell equal dda_maxmip's bit for bit, pinned with its arrays.
-SAME_AS_DDA_MAXMIP = ("packet_maxmip", "plane_maxmip", "pitched_maxmip")
+SAME_AS_DDA_MAXMIP = ("packet_maxmip", "plane_maxmip", "pitched_maxmip", "ring_maxmip")
 EXACT = tuple(n for n in KERNELS if algos.INTERSECTOR_REGISTRY[n].accuracy == "exact")
 
 
