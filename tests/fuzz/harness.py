@@ -29,6 +29,8 @@ output mode and option. :func:`check` runs it and asserts the invariants:
   rays and on vertical planes grown from them (tests/fuzz/plane_cases.py).
 * ``pitched_maxmip`` gives them too, on the case's rays and on the batch of one eye made
   from them (tests/fuzz/pitched_cases.py).
+* ``ring_maxmip`` gives them too (statistics included), on the case's rays and on a
+  longer shuffled batch of them that refills and drains the ring (tests/fuzz/ring_cases.py).
 
 The decoder needs no fuzzer, so ``tests/fuzz/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -53,14 +55,15 @@ from .compact_cases import check_compact
 from .cone_cases import check_cone
 from .pitched_cases import check_pitched
 from .plane_cases import check_plane
+from .ring_cases import check_ring
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
-# (packet_maxmip, plane_maxmip and pitched_maxmip are not drawn on their own, which would
-# remap the committed corpus: every dda_maxmip call is repeated with them and must match
-# bit for bit)
+# (packet_maxmip, plane_maxmip, pitched_maxmip and ring_maxmip are not drawn on their own,
+# which would remap the committed corpus: every dda_maxmip call is repeated with them and
+# must match bit for bit)
 INTERSECTORS = tuple(n for n, a in algos.INTERSECTOR_REGISTRY.items()
                      if a.kind != "peer"
-                     and n not in ("packet_maxmip", "plane_maxmip", "pitched_maxmip"))
+                     and n not in ("packet_maxmip", "plane_maxmip", "pitched_maxmip", "ring_maxmip"))
 PACKET_WIDTHS = (1, 2, 4, 8)
 EXACT_TRAVERSALS = ("midpoint", "runs")
 EXACT_INTERSECTORS = ("midpoint", "runs", "runs_periodic", "runs_maxmip")
@@ -350,6 +353,7 @@ def _check(data: bytes) -> None:
     check_compact(case, _call)  # dda_compact gives dda_maxmip's (tests/fuzz/compact_cases.py)
     check_plane(case, _call)  # so does plane_maxmip, on planes too (tests/fuzz/plane_cases.py)
     check_pitched(case, _call)  # and pitched_maxmip, from one eye too (pitched_cases.py)
+    check_ring(case, _call)  # and ring_maxmip, on a long batch too (ring_cases.py)
 
 
 def _check_packets(case, result):
