@@ -15,7 +15,7 @@ from ..helpers import first_hit_fields
 
 SHAPE = (33, 41)  # (rows, cols)
 OUTPUTS = ("t", "cell", "normal", "stats")
-#: the ring's slots (cext/hierarchies/ring.h, HF_RING_SLOTS)
+#: the ring's slots (cext/dispatch/ring.h, HF_RING_SLOTS)
 SLOTS = 8
 
 

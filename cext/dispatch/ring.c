@@ -22,7 +22,7 @@
 #include <stdint.h>
 #include "core/hftrace.h"
 #include "hierarchies/maxmip.h"
-#include "hierarchies/ring.h"
+#include "dispatch/ring.h"
 
 /* HF_RING_PREFETCH=0 (CFLAGS=-DHF_RING_PREFETCH=0) turns the prefetches off, to time the
  * interleaving alone; outputs never depend on it. Non-GNU compilers have no prefetch. */
