@@ -46,31 +46,35 @@ typedef struct {
 } ring_slot;
 
 /* Prefetch what the slot's next step reads: the maximum of its tile and, when that is a
- * floor tile (a walk of it may follow), the cell maxima and the two height rows of each
- * cell row the ray crosses in it, from the current cell to the one holding the tile's
- * exit point (clamped into the tile, so every address lies in the grid; a NaN exit, from
- * a vertical ray without end, clamps too). */
-static inline void ring_prefetch(const hf_hit_batch *b, const ring_slot *s) {
+ * floor tile (a walk of it may follow), the cell maxima and height rows that the walk
+ * reads: those of the current cell, of the cell holding the tile's exit point (clamped
+ * into the tile, so every address lies in the grid; a NaN exit, from a vertical ray
+ * without end, clamps too) and of the row half way between, in one column (a tile's row
+ * of maxima or heights spans one or two lines). No loop: a fixed set of addresses. */
+/* (Always inlined: GCC 12 takes a function whose only effect is __builtin_prefetch for a
+ * const one and deletes its calls, prefetches and all; inlined first, they stay.) */
+HF_HOT void ring_prefetch(const hf_hit_batch *b, const ring_slot *s) {
     const hf_mip_walk *w = &s->w;
     const hf_mip_ray *r = &s->r;
     const int level = w->level;
     HF_PREFETCH(&b->mip[level][(int64_t)s->tile.tile_j * b->mip_cols[level] + s->tile.tile_i]);
     if (level == r->floor_level) {
-        int64_t ilo, ihi, jlo, jhi, i_exit, j_exit, row, first, last, column;
+        int64_t ilo, ihi, jlo, jhi, i_exit, j_exit, middle;
         hf_tile_cells(s->tile.tile_i, level, r->nx, &ilo, &ihi);
         hf_tile_cells(s->tile.tile_j, level, r->ny, &jlo, &jhi);
         i_exit = hf_index_of(r->ox + s->tile.t_exit * r->dx, r->fx);
         j_exit = hf_index_of(r->oy + s->tile.t_exit * r->dy, r->fy);
         i_exit = i_exit < ilo ? ilo : (i_exit > ihi ? ihi : i_exit);
         j_exit = j_exit < jlo ? jlo : (j_exit > jhi ? jhi : j_exit);
-        column = w->i < i_exit ? w->i : i_exit;
-        first = w->j < j_exit ? w->j : j_exit;
-        last = w->j < j_exit ? j_exit : w->j;
-        for (row = first; row <= last; ++row) {
-            HF_PREFETCH(&b->cellmax[row * r->nx + column]);
-            HF_PREFETCH(&b->heights[row * b->cols + column]);
-        }
-        HF_PREFETCH(&b->heights[(last + 1) * b->cols + column]);
+        middle = (w->j + j_exit) >> 1;
+        HF_PREFETCH(&b->cellmax[(int64_t)w->j * r->nx + w->i]);
+        HF_PREFETCH(&b->heights[(int64_t)w->j * b->cols + w->i]);
+        HF_PREFETCH(&b->heights[((int64_t)w->j + 1) * b->cols + w->i]);
+        HF_PREFETCH(&b->cellmax[middle * r->nx + i_exit]);
+        HF_PREFETCH(&b->heights[(middle + 1) * b->cols + i_exit]);
+        HF_PREFETCH(&b->cellmax[j_exit * r->nx + i_exit]);
+        HF_PREFETCH(&b->heights[j_exit * b->cols + i_exit]);
+        HF_PREFETCH(&b->heights[(j_exit + 1) * b->cols + i_exit]);
     }
 }
 
@@ -100,41 +104,62 @@ static int ring_take(hf_hit_batch *b, const hf_ray_steps *steps, int64_t *next, 
     return 0;
 }
 
-/* One step of the slot's walk, as one pass of hf_mip_walk_alone's loop: 1 on a hit, 0
+/* The slot's walk, one pass of hf_mip_walk_alone's loop at a time, up to the next step that
+ * reads a level at or below `cold_level` (whose maxima, or the floor tile's cells, are
+ * likely out of cache): that step's tile is prefetched and the ring moves on. Steps at
+ * coarser levels read small, cached arrays and follow at once. Returns 1 on a hit, 0
  * when the walk ends without one (or gives up at its guard, as that loop does), -1 when
- * it goes on (then its next tile is computed and prefetched). */
-static inline int ring_step(const hf_hit_batch *b, ring_slot *s) {
-    int status, skip;
-    if (s->w.guard > s->r.guard_max) return 0;
-    skip = hf_tile_zlow(s->r.oz, s->r.dz, s->r.descending, s->w.t, s->tile.t_exit) >
-           hf_mip_tile_max(b, s->w.level, s->tile.tile_i, s->tile.tile_j);
-    status = hf_mip_iterate(&s->h, &s->r, &s->w, &s->tile, skip, 0);
-    if (status < 0) {
+ * it goes on. */
+static inline int ring_advance(const hf_hit_batch *b, ring_slot *s, int cold_level) {
+    for (;;) {
+        int status, skip;
+        if (s->w.guard > s->r.guard_max) return 0;
+        skip = hf_tile_zlow(s->r.oz, s->r.dz, s->r.descending, s->w.t, s->tile.t_exit) >
+               hf_mip_tile_max(b, s->w.level, s->tile.tile_i, s->tile.tile_j);
+        status = hf_mip_iterate(&s->h, &s->r, &s->w, &s->tile, skip, 0);
+        if (status >= 0) return status;
         s->tile = hf_mip_tile_exit(&s->r, &s->w);
-        ring_prefetch(b, s);
+        if (s->w.level <= cold_level) {
+            ring_prefetch(b, s);
+            return -1;
+        }
     }
-    return status;
+}
+
+/* The finest level whose tile maxima take more than HF_RING_WARM_BYTES (at least the
+ * floor level, whose walks read the cells): the levels the ring yields at. */
+static int ring_cold_level(const hf_hit_batch *b) {
+    const int top = b->mip_levels - 1;
+    const int floor_level = b->floor_level < top ? b->floor_level : top;
+    int level, cold = floor_level;
+    for (level = floor_level + 1; level <= top; ++level) {
+        const int64_t rows = (((int64_t)b->rows - 1) + ((int64_t)1 << level) - 1) >> level;
+        if (rows * b->mip_cols[level] * (int64_t)sizeof(float) > HF_RING_WARM_BYTES) cold = level;
+    }
+    return cold;
 }
 
 int hf_ring_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
     ring_slot slots[HF_RING_SLOTS];
     int order[HF_RING_SLOTS]; /* the slots in flight, order[0 .. live) */
-    int live = 0, k, status = HF_OK;
+    int live = 0, k, status = HF_OK, cold_level;
     int64_t next = 0;
     b->bad_ray = -1;
     if (b->mip_levels < 1) return HF_ERR_ARGUMENT;
+    cold_level = ring_cold_level(b);
     /* fill the ring */
     for (k = 0; k < HF_RING_SLOTS; ++k) {
         if (!ring_take(b, steps, &next, &slots[k], &status)) break;
         order[live++] = k;
     }
     if (status != HF_OK) return status;
-    /* one step per slot in turn; a finished ray's slot takes the next ray, or leaves the
-     * ring when the batch is exhausted (its place taken by the last slot in flight) */
+    /* each slot in turn advances to its next cold step; a finished ray's slot takes the next ray,
+     * or leaves the ring when the batch is exhausted (its place taken by the last slot in flight)
+     */
     while (live > 0) {
         for (k = 0; k < live;) {
             ring_slot *s = &slots[order[k]];
-            if (ring_step(b, s) < 0) {
+            if (ring_advance(b, s, cold_level) < 0) {
                 ++k;
                 continue;
             }

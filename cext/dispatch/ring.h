@@ -12,6 +12,12 @@
 #define HF_RING_SLOTS 8
 #endif
 
+/* A mipmap level whose tile maxima take at most this many bytes is taken as cached: a
+ * walk's steps there follow one another without yielding its slot. */
+#ifndef HF_RING_WARM_BYTES
+#define HF_RING_WARM_BYTES (512 * 1024)
+#endif
+
 /* The batch with up to HF_RING_SLOTS max-mipmap walks in flight, each advanced one step in
  * turn; `steps` are dda_maxmip's own (intersect.c), which set up, solve (the rays without a
  * max-mipmap walk) and write out each ray. t, cell, normal and the statistics equal
