@@ -57,7 +57,7 @@ HF_HOT void ring_prefetch(const hf_hit_batch *b, const ring_slot *s) {
     HF_PREFETCH(&b->mip[level][(int64_t)s->tile.tile_j * b->mip_cols[level] + s->tile.tile_i]);
     if (level == s->r.floor_level) {
         const int64_t row = (int64_t)w->j * b->cols + w->i;
-        HF_PREFETCH(&b->cellmax[(int64_t)w->j * s->r.nx + w->i]);
+        if (b->cellmax != NULL) HF_PREFETCH(&b->cellmax[(int64_t)w->j * s->r.nx + w->i]);
         HF_PREFETCH(&b->heights[row]);
         HF_PREFETCH(&b->heights[row + b->cols]);
     }
