@@ -46,20 +46,39 @@ typedef struct {
 } ring_slot;
 
 /* Prefetch what the slot's next step reads: the maximum of its tile and, when that is a
- * floor tile (a walk of it may follow), the maximum and the two height rows of the cell
- * the walk starts in (a tile's row of maxima or heights spans one or two lines; the
- * walk's later rows are left to the hardware, as computing them cost more than it hid).
+ * floor tile (a walk of it may follow), the cell maxima and height rows that the walk
+ * reads: those of the current cell, of the cell holding the tile's exit point (clamped
+ * into the tile, so every address lies in the grid; a NaN exit, from a vertical ray
+ * without end, clamps too) and of the row half way between (a tile's row of maxima or
+ * heights spans one or two lines). A fixed set of addresses, no loop. The starting cell
+ * alone costs fewer instructions but hid less: timed on a busy machine, it left the ring
+ * slower than dda_maxmip at 4096^2 where this set did not (docs/ring.md).
  * Always inlined: GCC 12 takes a function whose only effect is __builtin_prefetch for a
  * const one and deletes its calls, prefetches and all; inlined first, they stay. */
 HF_HOT void ring_prefetch(const hf_hit_batch *b, const ring_slot *s) {
     const hf_mip_walk *w = &s->w;
+    const hf_mip_ray *r = &s->r;
     const int level = w->level;
     HF_PREFETCH(&b->mip[level][(int64_t)s->tile.tile_j * b->mip_cols[level] + s->tile.tile_i]);
-    if (level == s->r.floor_level) {
-        const int64_t row = (int64_t)w->j * b->cols + w->i;
-        if (b->cellmax != NULL) HF_PREFETCH(&b->cellmax[(int64_t)w->j * s->r.nx + w->i]);
-        HF_PREFETCH(&b->heights[row]);
-        HF_PREFETCH(&b->heights[row + b->cols]);
+    if (level == r->floor_level) {
+        int64_t ilo, ihi, jlo, jhi, i_exit, j_exit, middle;
+        hf_tile_cells(s->tile.tile_i, level, r->nx, &ilo, &ihi);
+        hf_tile_cells(s->tile.tile_j, level, r->ny, &jlo, &jhi);
+        i_exit = hf_index_of(r->ox + s->tile.t_exit * r->dx, r->fx);
+        j_exit = hf_index_of(r->oy + s->tile.t_exit * r->dy, r->fy);
+        i_exit = i_exit < ilo ? ilo : (i_exit > ihi ? ihi : i_exit);
+        j_exit = j_exit < jlo ? jlo : (j_exit > jhi ? jhi : j_exit);
+        middle = (w->j + j_exit) >> 1;
+        if (b->cellmax != NULL) {
+            HF_PREFETCH(&b->cellmax[(int64_t)w->j * r->nx + w->i]);
+            HF_PREFETCH(&b->cellmax[middle * r->nx + i_exit]);
+            HF_PREFETCH(&b->cellmax[j_exit * r->nx + i_exit]);
+        }
+        HF_PREFETCH(&b->heights[(int64_t)w->j * b->cols + w->i]);
+        HF_PREFETCH(&b->heights[((int64_t)w->j + 1) * b->cols + w->i]);
+        HF_PREFETCH(&b->heights[(middle + 1) * b->cols + i_exit]);
+        HF_PREFETCH(&b->heights[j_exit * b->cols + i_exit]);
+        HF_PREFETCH(&b->heights[(j_exit + 1) * b->cols + i_exit]);
     }
 }
 
