@@ -1,0 +1,72 @@
+"""Inputs a GIS or NumPy user passes in good faith: masked arrays, float64 heights beyond
+float32, directions of any magnitude, cameras given loosely. Each either works exactly
+(the brute force agrees) or is refused naming the argument and the value."""
+import numpy as np
+import pytest
+
+import algos
+from algos.registry import INTERSECTOR_REGISTRY
+
+STRICT = [n for n, a in INTERSECTOR_REGISTRY.items()
+          if a.accuracy in ("exact", "float64") and a.kind != "peer"]
+
+
+def _rays(seed, n=120, size=17):
+    """Rays from around and above a size x size field, mostly downwards."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    o = np.column_stack([rng.uniform(-2, size + 1, n), rng.uniform(-2, size + 1, n),
+                         rng.uniform(1, 8, n)])
+    d = rng.normal(size=(n, 3))
+    d[:, 2] -= 0.4
+    return o, d
+
+
+# ---- masked arrays: the mask is the void mask ---------------------------------------------
+def _masked_field():
+    """A flat field whose sample (row 4, col 6) is a -9999 sentinel under a mask, as
+    ``rasterio``'s ``read(masked=True)`` returns a DEM's nodata."""
+    h = np.zeros((9, 9))
+    h[4, 6] = -9999.0
+    return np.ma.masked_equal(h, -9999.0)
+
+
+def test_masked_array_mask_is_the_void_mask():
+    masked = _masked_field()
+    field = algos.HeightField(masked)
+    assert field.nodata_mask is not None
+    np.testing.assert_array_equal(field.nodata_mask, np.ma.getmaskarray(masked))
+    # NaN outside the mask is a void too
+    both = masked.copy()
+    both[1, 1] = np.nan
+    assert algos.HeightField(both).nodata_mask[1, 1]
+    # a mask with nothing masked is no void
+    assert algos.HeightField(np.ma.masked_array(np.zeros((3, 3)))).nodata_mask is None
+
+
+def test_first_hits_and_renders_refuse_a_masked_sample():
+    o, d = np.array([[6.5, 4.5, 5.0]]), np.array([[0.0, 0.0, -1.0]])
+    with pytest.raises(ValueError, match=r"heights: sample \(row 4, col 6\) is -9999.0 \(nodata\)"):
+        algos.intersect("dda_maxmip", _masked_field(), o, d)
+    with pytest.raises(ValueError, match=r"sample \(row 4, col 6\)"):
+        algos.render(_masked_field(), "dda", width=4, height=2)
+
+
+def test_terrain_products_take_the_mask_as_voids():
+    masked = _masked_field()
+    nan_void = np.where(np.ma.getmaskarray(masked), np.nan, masked.data)
+    got = algos.sky_view_factor(masked, 8)
+    expected = algos.sky_view_factor(nan_void, 8)
+    np.testing.assert_array_equal(got, expected)
+    assert np.isnan(got[4, 6])
+
+
+# ---- heights beyond float32 ---------------------------------------------------------------
+def test_float64_heights_beyond_float32_are_refused_with_the_sample():
+    h = np.zeros((5, 6))
+    h[2, 3] = 1e39  # finite in float64, inf once stored as float32
+    with pytest.raises(ValueError, match=r"heights: sample \(row 2, col 3\) = 1e\+39 .*float32"):
+        algos.HeightField(h)
+    with pytest.raises(ValueError, match=r"heights: sample \(row 2, col 3\) = 1e\+39"):
+        algos.intersect("dda", h, [[1.0, 1.0, 5.0]], [[0.0, 0.0, -1.0]])
+    h[2, 3] = -3.4e38  # within float32: kept
+    assert algos.HeightField(h).nodata_mask is None
