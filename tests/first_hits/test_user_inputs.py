@@ -70,3 +70,45 @@ def test_float64_heights_beyond_float32_are_refused_with_the_sample():
         algos.intersect("dda", h, [[1.0, 1.0, 5.0]], [[0.0, 0.0, -1.0]])
     h[2, 3] = -3.4e38  # within float32: kept
     assert algos.HeightField(h).nodata_mask is None
+
+
+# ---- directions of any magnitude ----------------------------------------------------------
+@pytest.mark.parametrize("exponent", [32, 40, 200, -200])
+@pytest.mark.parametrize("surface", algos.SURFACES)
+def test_hits_do_not_depend_on_the_scale_of_the_direction(exponent, surface):
+    """``t`` is in units of ``d``: scaling ``d`` by 2^k (exact in binary) scales ``t`` by
+    2^-k and changes no hit cell, on every surface (bilinear's root solver once took an
+    absolute slack, so at |d| >= 2^32 it accepted roots beyond the cell)."""
+    rng = np.random.Generator(np.random.PCG64(7))
+    heights = rng.random((17, 17)) * 4
+    o, d = _rays(7)
+    scale = 2.0 ** exponent
+    ref = algos.intersect("dda", heights, o, d, surface=surface)
+    for name in STRICT:
+        if surface not in INTERSECTOR_REGISTRY[name].surfaces:
+            continue
+        got = algos.intersect(name, heights, o, d * scale, surface=surface)
+        wrong = np.nonzero((got.cell != ref.cell).any(axis=1))[0]
+        assert len(wrong) == 0, (
+            f"{name} on {surface}, d scaled by 2**{exponent}: {len(wrong)} rays change cell; "
+            f"first: origin={o[wrong[0]].tolist()!r} direction={(d[wrong[0]] * scale).tolist()!r} "
+            f"cell {got.cell[wrong[0]].tolist()} instead of {ref.cell[wrong[0]].tolist()}")
+        np.testing.assert_allclose(got.t * scale, ref.t, rtol=1e-9, err_msg=name)
+
+
+@pytest.mark.parametrize("scale", [1e-320, 2.0 ** -600, 2.0 ** 600])
+def test_directions_beyond_the_documented_magnitudes_are_refused(scale):
+    """|d| so small that t overflows (a hit read as a miss) or so large or small that the
+    surface's quadratic under- or overflows is refused, naming the ray."""
+    o = np.array([[1.5, 2.5, 20.0], [1.5, 2.5, 20.0]])
+    d = np.array([[1.0, 1.0, -1.0], [1.0, 1.0, -1.0]])
+    d[1] *= scale
+    with pytest.raises(ValueError, match=r"directions: ray 1 has a largest component "):
+        algos.intersect("dda", np.zeros((33, 33)), o, d)
+
+
+# ---- other arguments ----------------------------------------------------------------------
+def test_outputs_none_is_named():
+    with pytest.raises(TypeError, match="outputs: expected"):
+        algos.intersect("dda", np.zeros((4, 4)), [[1.0, 1.0, 5.0]], [[0.0, 0.0, -1.0]],
+                        outputs=None)
