@@ -6,6 +6,7 @@ import pytest
 
 import algos
 from algos.registry import INTERSECTOR_REGISTRY
+from algos.render import PROJECTIONS
 
 STRICT = [n for n, a in INTERSECTOR_REGISTRY.items()
           if a.accuracy in ("exact", "float64") and a.kind != "peer"]
@@ -112,3 +113,52 @@ def test_outputs_none_is_named():
     with pytest.raises(TypeError, match="outputs: expected"):
         algos.intersect("dda", np.zeros((4, 4)), [[1.0, 1.0, 5.0]], [[0.0, 0.0, -1.0]],
                         outputs=None)
+
+
+# ---- render: every camera checks its arguments alike ---------------------------------------
+HEIGHTS = np.random.Generator(np.random.PCG64(1)).random((33, 33)) * 5
+VIEW = dict(position=[16.0, -10.0, 12.0], look_at=[16.0, 16.0, 2.0])
+
+
+@pytest.mark.parametrize("projection", PROJECTIONS)
+@pytest.mark.parametrize("size,error,message", [
+    (2.7, TypeError, r"width: expected an integer, got 2.7"),
+    ("8", TypeError, r"width: expected an integer, got '8'"),
+    (True, TypeError, r"width: expected an integer, got True"),
+    (0, ValueError, r"width: expected a size in \[1, 2\^24\], got 0"),
+    (2**25, ValueError, r"width: expected a size in \[1, 2\^24\], got 33554432")])
+def test_render_sizes_are_checked_on_every_camera(projection, size, error, message):
+    with pytest.raises(error, match=message):
+        algos.render(HEIGHTS, "dda_maxmip", projection=projection, width=size, height=2, **VIEW)
+
+
+@pytest.mark.parametrize("projection", PROJECTIONS)
+def test_render_names_the_camera_argument(projection):
+    def call(**kw):
+        args = dict(VIEW, width=4, height=2, projection=projection)
+        args.update(kw)
+        return algos.render(HEIGHTS, "dda_maxmip", **args)
+
+    with pytest.raises(ValueError, match=r"position: expected a 3-vector .*'abc'"):
+        call(position="abc")
+    with pytest.raises(ValueError, match=r"look_at: expected a 3-vector .*\[1.0, 2.0\]"):
+        call(look_at=[1.0, 2.0])
+    with pytest.raises(ValueError, match=r"position: expected a 3-vector .*nan"):
+        call(position=[np.nan, 0.0, 5.0])
+    with pytest.raises(ValueError, match=r"fov: expected degrees in \(0, 180\), got 'wide'"):
+        call(fov="wide")
+    # within the camera's coordinates but beyond the tracers' origin limit: named position
+    with pytest.raises(ValueError, match=r"position: \[100000000000.0, 0.0, 5.0\] lies beyond 2\*\*30"):
+        call(position=[1e11, 0.0, 5.0])
+    for fog in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match=r"fog: expected a density >= 0"):
+            call(fog=fog)
+    assert call(fov="60").depth.shape == (2, 4)  # a number as text, as float() reads it
+
+
+def test_orthographic_film_beyond_the_origin_limit_names_fov():
+    """The orthographic film spans 2 |look_at - position| tan(fov/2): near 180 degrees its
+    corners leave the tracers' coordinate range; the error names fov, not origins."""
+    with pytest.raises(ValueError, match=r"fov: the orthographic film .* 2\*\*30"):
+        algos.render(HEIGHTS, "dda_maxmip", projection="orthographic", width=4, height=2,
+                     fov=179.9999999, **VIEW)
