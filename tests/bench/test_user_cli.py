@@ -61,3 +61,20 @@ def test_reproduce_empty_out_is_refused(capsys):
                             "--no-counts", "--no-progress")
     assert status == 2
     assert err.strip().splitlines()[-1] == "hftrace: error: --out: an empty path; give a directory"
+
+
+def test_render_diff_names_its_own_option(tmp_path, capsys):
+    """An unknown kernel on the --diff side was reported under --algorithm."""
+    status, out, err = _run(capsys, "render", "fbm", "--size", "16", "--width", "4",
+                            "--height", "2", "--diff", "runs", "nope",
+                            "--out", str(tmp_path / "x"))
+    assert status == 2
+    assert err.strip().splitlines()[-1].startswith("hftrace: error: --diff: unknown renderer 'nope'")
+
+
+def test_render_negative_fog_is_refused(tmp_path, capsys):
+    status, out, err = _run(capsys, "render", "fbm", "--size", "16", "--width", "4",
+                            "--height", "2", "--fog", "-1", "--out", str(tmp_path / "x"))
+    assert status == 2
+    assert "fog: expected a density >= 0" in err.strip().splitlines()[-1]
+    assert not list(tmp_path.iterdir())
