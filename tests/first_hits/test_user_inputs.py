@@ -162,3 +162,39 @@ def test_orthographic_film_beyond_the_origin_limit_names_fov():
     with pytest.raises(ValueError, match=r"fov: the orthographic film .* 2\*\*30"):
         algos.render(HEIGHTS, "dda_maxmip", projection="orthographic", width=4, height=2,
                      fov=179.9999999, **VIEW)
+
+
+# ---- float traversals outside their number range --------------------------------------------
+FLOAT_WALKS = [t.name for t in algos.registry.TRAVERSAL_REGISTRY.values()
+               if t.precision in ("float64", "float32") and t.plugin is None]
+
+
+@pytest.mark.parametrize("name", FLOAT_WALKS)
+@pytest.mark.parametrize("scale", [1e-320, 1e-50, 1e50])
+def test_float_walks_refuse_directions_outside_their_number_range(name, scale):
+    """d = (2, 3) x 1e-320 made the float64 walks stop after one cell (1/d overflows);
+    dda_f32's float32 copy of d read 1e-50 as zero (one cell) and 1e50 as inf (no cell).
+    A float walk refuses such a ray by name; the exact walks take it (the lattice
+    rescales d) and equal the reference."""
+    precision = algos.registry.TRAVERSAL_REGISTRY[name].precision
+    o = np.array([[0.5, 0.25], [0.5, 0.25]])
+    d = np.array([[2.0, 3.0], [2.0 * scale, 3.0 * scale]])
+    low, high = (2.0**-100, 2.0**100) if precision == "float32" else (2.0**-1000, 2.0**1000)
+    if low <= 3.0 * scale <= high:
+        expected = [tuple(c) for c in algos.reference_cells(o[0], d[0], (8, 8))]
+        assert [tuple(c) for c in algos.traverse(name, o, d, (8, 8))[1].tolist()][:3] == \
+            expected[:3]
+        return
+    with pytest.raises(ValueError, match=rf"directions: ray 1 .* {name} walks in {precision}"):
+        algos.traverse(name, o, d, (8, 8))
+
+
+@pytest.mark.parametrize("name", [t for t in algos.TRAVERSALS
+                                  if algos.registry.TRAVERSAL_REGISTRY[t].exact])
+def test_exact_walks_take_any_direction_magnitude(name):
+    o = np.array([[0.5, 0.25]])
+    for scale in (1e-320, 1e-50, 1e50):
+        d = np.array([[2.0, 3.0]]) * scale
+        (ro,), (rd,) = algos.quantize(o, d)
+        expected = [tuple(c) for c in algos.reference_cells(ro, rd, (8, 8))]
+        assert [tuple(c) for c in algos.traverse(name, o, d, (8, 8))[0].tolist()] == expected
