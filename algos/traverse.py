@@ -124,7 +124,7 @@ def _check_float_range(algorithm: Traversal, directions: np.ndarray) -> None:
         k = int(np.argmax(bad))
         low, high = (int(np.log2(b)) for b in bounds)
         raise ValueError(
-            f"directions: ray {k} has a largest component {largest[k]!r}, outside "
+            f"directions: ray {k} has a largest component {float(largest[k])!r}, outside "
             f"[2**{low}, 2**{high}], where {algorithm.name} walks in {algorithm.precision} "
             "(1/d would leave the range); scale the direction (no cell changes) or use an "
             "exact kernel")

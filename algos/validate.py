@@ -104,8 +104,8 @@ def check_rays3(origins, directions):
     scale = (largest < MIN_HIT_DIRECTION) | (largest > MAX_HIT_DIRECTION)
     if scale.any():
         k = int(np.argmax(scale))
-        raise ValueError(f"directions: ray {k} has a largest component |directions[{k}]| = "
-                         f"{largest[k]!r} outside [2**-400, 2**400], the documented range "
+        raise ValueError(f"directions: ray {k} has a largest component max |directions[{k}, :]| = "
+                         f"{float(largest[k])!r} outside [2**-400, 2**400], the documented range "
                          "(t is in units of d: scale the direction, and t with it)")
     far = np.abs(o) > MAX_ORIGIN
     if far.any():
