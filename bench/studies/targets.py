@@ -34,8 +34,9 @@ Counts: each contender (the best exact kernel, embreex and the C peer's fastest
 configuration of the warm regime) runs once more in a process of its own under
 ``valgrind --tool=callgrind --cache-sim=yes`` (the fixed cache model of
 ``bench.studies.compact.CACHE``), on a subsample of the same rays, collecting only inside
-its entry: instructions and last-level data misses per ray, after a flush (``flushed``)
-and right after an untimed call (``warm``). A configuration valgrind cannot run (a packet
+our C batch entry or Embree's ``rtcIntersect`` calls (:data:`COLLECT`): instructions and
+last-level data misses per ray, after a flush (``flushed``) and right after a call of its
+own (``warm``). A configuration valgrind cannot run (a packet
 width it does not emulate, a triangle BVH whose build under valgrind outlasts the tier)
 is replaced or skipped, and the row says so.
 
@@ -117,12 +118,17 @@ PEERS = ("embreex", "embree3")
 PITCH = 2.6
 #: The exact reference the kernels' hits are checked against.
 REFERENCE = "runs"
-#: The C entries of our kernels (collected under callgrind) and of the C Embree 3 peer;
-#: embreex is collected inside Embree's ``rtcIntersect1`` and its dumps are taken at
-#: the entry of embreex's ``run``.
-OUR_ENTRIES = ("hf_intersect_batch", "hf_pitched_batch")
-PEER_ENTRIES = {"embree3": ("hfe3_trace",), "embreex": ("rtcIntersect1",)}
-EMBREEX_CALL = "*EmbreeScene_2run*"
+#: What callgrind collects (one ``--toggle-collect`` pattern per process: callgrind keeps
+#: only one) and where it dumps (at the entry of each call, so each call's counts are a
+#: part of their own; a dump pattern needs its leading ``*``): our C batch entries,
+#: ``hf_intersect_batch`` and ``hf_pitched_batch`` (``hf_*t*_batch`` leaves out
+#: ``hf_plane_batch``, which the first calls: a nested toggle would switch collection off
+#: inside it); Embree's ``rtcIntersect1/4/8/16`` for both peers, split at embreex's
+#: ``run`` and at the C peer's ctypes call (``ffi_call``). Embree is thus counted inside
+#: its own queries, without the peers' loops around them.
+COLLECT = {"ours": ("hf_*t*_batch", "*hf_*t*_batch"),
+           "embreex": ("rtcIntersect*", "*EmbreeScene_2run*"),
+           "embree3": ("rtcIntersect*", "*ffi_call")}
 
 #: Tiers. ``sides``: row key -> field side (a row absent from it is not measured in the
 #: tier); ``rays``: random rays per row; ``image``: the cameras' width and height;
@@ -132,23 +138,24 @@ EMBREEX_CALL = "*EmbreeScene_2run*"
 #: triangle BVHs are built under valgrind for the counts; ``mesh_max_side``: larger
 #: triangle meshes are timed in a pair of their own with the best exact kernel (one mesh
 #: in memory at a time); ``judge``: False in the quick tier (tiny fields fit in every
-#: cache: it checks that every row runs); ``kernels``/``peers``: None for every strict
+#: cache: it checks that every row runs); ``counts``: whether callgrind counts (minutes a
+#: row, so not in the quick tier); ``kernels``/``peers``: None for every strict
 #: intersector and both peers.
 TIERS = {
     "quick": dict(sides=dict(random2048=64, random4096=96, level=64, pitched=64, horizon16=64),
                   rays=300, image=(32, 18), repeats=3, processes=2, horizon_repeats=1,
-                  count_rays=40, count_mesh_max_side=256, mesh_max_side=4096, judge=False,
+                  count_rays=40, count_mesh_max_side=256, mesh_max_side=4096, judge=False, counts=False,
                   kernels=None, peers=None),
     # the issue's sizes but 8192^2: about 20 minutes on a quiet 2-core machine
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
                    rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=2,
-                   count_rays=400, count_mesh_max_side=1024, mesh_max_side=4096, judge=True,
+                   count_rays=400, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
                    kernels=None, peers=None),
     "full": dict(sides=dict(random2048=2048, random4096=4096, random8192=8192, level=2048,
                             pitched=2048, horizon16=2048),
                  rays=4000, image=(640, 360), repeats=9, processes=5, horizon_repeats=3,
-                 count_rays=1000, count_mesh_max_side=4096, mesh_max_side=4096, judge=True,
+                 count_rays=1000, count_mesh_max_side=4096, mesh_max_side=4096, judge=True, counts=True,
                  kernels=None, peers=None),
 }
 
@@ -253,6 +260,8 @@ def _peer_missing(peer) -> str:
     """Why ``peer`` has no configuration here."""
     if peer == "embreex":
         return "not available (embreex does not import: pip install embreex)"
+    if peer != "embree3":
+        return f"not available (no peer named {peer!r})"
     from algos.peers import embree3 as embree3_peer
 
     return f"not available ({embree3_peer.unavailable_reason() or 'no native packet width'})"
@@ -418,26 +427,25 @@ def count_contender(kind, side, cfg, seed, contender, peer=None) -> dict:
     n = cfg["rays"] if kind == "random" else cfg["image"][0] * cfg["image"][1]
     stride = max(1, n // cfg["count_rays"])
     rays = len(range(0, n, stride))
-    if peer is None:
-        toggles, dumps = OUR_ENTRIES, OUR_ENTRIES
-    else:
-        toggles = PEER_ENTRIES[peer]
-        dumps = (EMBREEX_CALL,) if peer == "embreex" else toggles
+    toggle, dump = COLLECT[peer or "ours"]
     spec = dict(kind=kind, side=side, cfg=cfg, seed=seed, contender=contender, stride=stride)
     cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "callgrind.out")
         cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", *cache,
-               f"--callgrind-out-file={out}", "--collect-atstart=no",
-               *(f"--toggle-collect={e}" for e in toggles),
-               *(f"--dump-before={e}" for e in dumps),
+               f"--callgrind-out-file={out}", f"--toggle-collect={toggle}",
+               f"--dump-before={dump}",
                sys.executable, "-m", "bench.studies.targets", "--count-child", json.dumps(spec)]
         proc = subprocess.run(cmd, capture_output=True, text=True, env=_child_env())
         if proc.returncode != 0:
             raise RuntimeError(f"valgrind failed ({proc.returncode}): {proc.stderr[-1500:]}")
         parts = [_parse(p)["totals"] for p in _parts(tmp, out)]
+    # the two counted calls are the last parts with instructions (a later dump, at the
+    # C peer's ctypes call that frees its scene, holds none)
+    parts = [t for t in parts if t.get("Ir", 0) > 0]
     if len(parts) < 2:
-        raise RuntimeError(f"callgrind wrote {len(parts)} parts, expected at least 2")
+        raise RuntimeError(f"callgrind collected {len(parts)} calls of {contender}, expected 2 "
+                           f"(--toggle-collect={toggle})")
     result = {"rays": rays}
     for regime, t in (("flushed", parts[-2]), ("warm", parts[-1])):
         result[regime] = dict(instructions=t.get("Ir", 0) / rays,
@@ -607,10 +615,12 @@ def measure_row(row, cfg, seed, processes, counts, echo=print) -> dict:
         ok = [r for r in runs if "error" not in r]
         record.update(runs=runs, setting=ok[0]["setting"] if ok else "",
                       summary=_summarise_rays(line, runs, cfg))
-        if counts and ok:
+        if counts and cfg["counts"] and ok:
             record["counts"] = row_counts(row.kind, side, cfg, seed, ok[0], echo)
         elif ok:
-            record["counts"] = {"note": "counts switched off (--no-counts)"}
+            record["counts"] = {"note": "counts switched off (--no-counts)" if not counts else
+                                f"no counts in the {cfg.get('name')} tier (callgrind takes "
+                                "minutes a row: the medium and full tiers count)"}
     errors = [r["error"] for r in record["runs"] if "error" in r]
     if errors:
         record["error"] = errors[0]
@@ -630,7 +640,7 @@ def run(out_dir="results/targets", tier="quick", processes=None, seed=2008, coun
 
     if tier not in TIERS:
         raise ValueError(f"tier: expected one of {', '.join(TIERS)}, got {tier!r}")
-    cfg = dict(TIERS[tier])
+    cfg = dict(TIERS[tier], name=tier)
     if processes is None:
         processes = cfg["processes"]
     if isinstance(processes, bool) or not isinstance(processes, int) or processes < 1:
