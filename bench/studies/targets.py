@@ -133,8 +133,8 @@ COLLECT = {"ours": ("hf_*t*_batch", "*hf_*t*_batch"),
 #: Tiers. ``sides``: row key -> field side (a row absent from it is not measured in the
 #: tier); ``rays``: random rays per row; ``image``: the cameras' width and height;
 #: ``repeats``: interleaved repeats per regime; ``processes``: processes of line 1;
-#: ``horizon_repeats``: timed calls of line 5; ``count_rays``: rays counted under
-#: callgrind (an even subsample); ``count_mesh_max_side``: the largest field whose
+#: ``horizon_repeats``: timed calls of line 5; ``count_rays``: about the rays counted
+#: under callgrind (:func:`counted_rays`); ``count_mesh_max_side``: the largest field whose
 #: triangle BVHs are built under valgrind for the counts; ``mesh_max_side``: larger
 #: triangle meshes are timed in a pair of their own with the best exact kernel (one mesh
 #: in memory at a time); ``judge``: False in the quick tier (tiny fields fit in every
@@ -150,12 +150,12 @@ TIERS = {
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
                    rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=2,
-                   count_rays=400, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
+                   count_rays=2000, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
                    kernels=None, peers=None),
     "full": dict(sides=dict(random2048=2048, random4096=4096, random8192=8192, level=2048,
                             pitched=2048, horizon16=2048),
                  rays=4000, image=(640, 360), repeats=9, processes=5, horizon_repeats=3,
-                 count_rays=1000, count_mesh_max_side=4096, mesh_max_side=4096, judge=True, counts=True,
+                 count_rays=4000, count_mesh_max_side=4096, mesh_max_side=4096, judge=True, counts=True,
                  kernels=None, peers=None),
 }
 
@@ -388,7 +388,7 @@ def measure_horizon(side, cfg) -> dict:
 # ---- counts under callgrind ----------------------------------------------------------------
 
 def _count_child(spec) -> None:
-    """The counted process: the row's field and rays, every ``stride``-th ray, the
+    """The counted process: the row's field and rays, those of :func:`counted_rays`, the
     contender prepared; then a flush and two calls (the entries' dumps split them)."""
     import algos
     from algos.intersect import prepare_timed_intersect
@@ -396,7 +396,8 @@ def _count_child(spec) -> None:
     from ..timing import flush_caches
 
     field, o, d, coherent, _ = row_rays(spec["kind"], spec["side"], spec["cfg"], spec["seed"])
-    o, d = o[:: spec["stride"]], d[:: spec["stride"]]
+    keep = counted_rays(spec["kind"], spec["cfg"])
+    o, d = o[keep], d[keep]
     who = spec["contender"]
     if who in algos.INTERSECTOR_REGISTRY:
         run, _ = prepare_timed_intersect(who, field, o, d)
@@ -406,6 +407,19 @@ def _count_child(spec) -> None:
     flush_caches()
     run()  # flushed
     run()  # warm: right after its own call
+
+
+def counted_rays(kind, cfg) -> np.ndarray:
+    """Indices of the rays counted under callgrind, about ``count_rays`` of them: every
+    k-th random ray, or every k-th image column whole (a column is one vertical plane
+    of the level camera: a subsample across columns would leave its kernel no plane to
+    share)."""
+    if kind == "random":
+        return np.arange(0, cfg["rays"], max(1, cfg["rays"] // cfg["count_rays"]))
+    width, height = cfg["image"]
+    columns = max(1, min(width, round(cfg["count_rays"] / height)))
+    pixels = np.arange(width * height).reshape(height, width)
+    return np.ascontiguousarray(pixels[:, np.arange(columns) * width // columns]).ravel()
 
 
 def _parts(directory, out):
@@ -418,17 +432,15 @@ def _parts(directory, out):
 
 def count_contender(kind, side, cfg, seed, contender, peer=None) -> dict:
     """Per-ray instructions and last-level data misses of ``contender`` (a registry
-    name, or an :func:`embree_configs` label of ``peer``) on every ``stride``-th ray of
-    the row, under callgrind's cache simulation: ``{"flushed": {...}, "warm": {...},
+    name, or an :func:`embree_configs` label of ``peer``) on the rays of
+    :func:`counted_rays` of the row, under callgrind's cache simulation: ``{"flushed": {...}, "warm": {...},
     "rays": n}``."""
     from ..profile import _parse
     from .compact import CACHE
 
-    n = cfg["rays"] if kind == "random" else cfg["image"][0] * cfg["image"][1]
-    stride = max(1, n // cfg["count_rays"])
-    rays = len(range(0, n, stride))
+    rays = len(counted_rays(kind, cfg))
     toggle, dump = COLLECT[peer or "ours"]
-    spec = dict(kind=kind, side=side, cfg=cfg, seed=seed, contender=contender, stride=stride)
+    spec = dict(kind=kind, side=side, cfg=cfg, seed=seed, contender=contender)
     cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "callgrind.out")
