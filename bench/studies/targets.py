@@ -21,7 +21,8 @@ pinned to one CPU, every contender single-threaded. For a ray row, every strict
 intersector of the registry (accuracy ``exact`` or ``float64``: equal to the brute force
 to 1e-9 relative, peers and plugins left out) and every Embree configuration reached are
 timed side by side, interleaved, in both cache regimes of ``bench.timing.REGIMES``
-(``timed_in_regime``). In each regime the best exact kernel is the fastest of those whose
+(``timed_in_regime``), except the kernels a screening call finds :data:`SCREEN` times
+slower than the fastest. In each regime the best exact kernel is the fastest of those whose
 hits agree with the exact reference (``runs``) on every ray, so a kernel registered later
 enters by itself. Embree is compared as two peers: embreex (single-ray triangle queries,
 its fastest, ``algos.peers.embree.embree_timed``), and the C Embree 3 peer at its fastest
@@ -114,6 +115,9 @@ ROWS = (
 
 #: The peers a ray row compares against: embreex and the C Embree 3 peer.
 PEERS = ("embreex", "embree3")
+#: A strict kernel whose screening call (one warm call) is this many times slower than
+#: the fastest one's is left out of the interleaved timing: it cannot be the best.
+SCREEN = 3.0
 #: Pitch of the pinhole camera of line 4, degrees below the horizontal.
 PITCH = 2.6
 #: The exact reference the kernels' hits are checked against.
@@ -319,10 +323,18 @@ def measure_rays(kind, side, cfg, seed, echo=print) -> dict:
         ours[name]()  # an output is the latest call's
     agree = {k: hit_agreement(outs[k](), reference, 1e-9) for k in ours}
     exact = [k for k in ours if agree[k] == 1.0]
+    # screening: one warm call each; a kernel SCREEN times slower than the fastest cannot
+    # be the best, and a per-cell walk on 230k grazing camera rays would take minutes
+    screen = {k: ours[k]() / n for k in exact}
+    fastest = min(screen.values(), default=math.inf)
+    left_out = {k: round(v, 1) for k, v in screen.items() if v > SCREEN * fastest}
+    exact = [k for k in exact if k not in left_out]
+    for k in left_out:
+        del ours[k]
     peers = cfg.get("peers") or PEERS
     configs = embree_configs(coherent, peers)
     present = {p for p, *_ in configs}
-    result = dict(setting=setting, rays=n, side=side, cpu=cpu, agree=agree,
+    result = dict(setting=setting, rays=n, side=side, cpu=cpu, agree=agree, left_out=left_out,
                   missing={p: _peer_missing(p) for p in peers if p not in present},
                   configs={label: peer for peer, label, _, _ in configs}, regimes={})
     big = max(field.heights.shape) > cfg["mesh_max_side"]
@@ -861,6 +873,10 @@ def table(record, env, cfg, counts=True) -> str:
             elif entry.get("note"):
                 notes.append(f"- {rec['setting']}, {who}: {entry['note']}")
         runs = [r for r in rec["runs"] if "error" not in r]
+        if runs and runs[0].get("left_out"):
+            notes.append(f"- {rec['setting']}: left out after a screening call {SCREEN:g}x "
+                         "slower than the fastest (ns/ray): " + ", ".join(
+                             f"{k} {v:.0f}" for k, v in sorted(runs[0]["left_out"].items())))
         if runs:
             bad = {k: v for k, v in runs[0]["agree"].items() if v < 1.0}
             if bad:
