@@ -64,7 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["run", "LINES", "ROWS", "TIERS", "COLUMNS", "judge", "line_status", "spread",
-           "embree_configs", "measure_rays", "measure_horizon"]
+           "embree_configs", "peer_configs", "counted_rays", "measure_rays", "measure_horizon"]
 
 
 @dataclass(frozen=True)
@@ -229,7 +229,13 @@ def _strict_names(kernels=None, surface="triangles"):
     return names if kernels is None else [n for n in kernels if n in names]
 
 
-def embree_configs(coherent: bool, peers=PEERS):
+def embree_configs(coherent: bool):
+    """(label, prepare(field, o, d) -> (run, t), is_mesh) of every Embree configuration
+    this machine reaches: :func:`peer_configs` without the peer's name."""
+    return [(label, prepare, is_mesh) for _, label, prepare, is_mesh in peer_configs(coherent)]
+
+
+def peer_configs(coherent: bool, peers=PEERS):
     """(peer, label, prepare(field, o, d) -> (run, t), is_mesh) of every Embree
     configuration this machine reaches among ``peers``: embreex (single rays, triangles)
     and the C peer's geometries and native packet widths, coherent flag for width > 1
@@ -332,7 +338,7 @@ def measure_rays(kind, side, cfg, seed, echo=print) -> dict:
     for k in left_out:
         del ours[k]
     peers = cfg.get("peers") or PEERS
-    configs = embree_configs(coherent, peers)
+    configs = peer_configs(coherent, peers)
     present = {p for p, *_ in configs}
     result = dict(setting=setting, rays=n, side=side, cpu=cpu, agree=agree, left_out=left_out,
                   missing={p: _peer_missing(p) for p in peers if p not in present},
@@ -414,7 +420,7 @@ def _count_child(spec) -> None:
     if who in algos.INTERSECTOR_REGISTRY:
         run, _ = prepare_timed_intersect(who, field, o, d)
     else:
-        run = next(prep for _, label, prep, _ in embree_configs(coherent) if label == who)(
+        run = next(prep for label, prep, _ in embree_configs(coherent) if label == who)(
             field, o, d)[0]
     flush_caches()
     run()  # flushed

@@ -155,6 +155,21 @@ def test_counted_configuration_is_one_valgrind_runs():
     assert targets._countable("embreex triangles x1", 512, cfg) == ("embreex triangles x1", "")
 
 
+def test_embree_configurations_of_both_peers():
+    from algos.peers import embree3 as embree3_peer
+
+    configs = targets.peer_configs(coherent=True)
+    labels = {label: peer for peer, label, _, _ in configs}
+    assert labels.get("embreex triangles x1") == "embreex"
+    if embree3_peer.available():  # both geometries at every native width, coherent packets
+        for width in embree3_peer.native_widths():
+            flag = " coherent" if width > 1 else ""
+            for geometry in ("grid", "triangles"):
+                assert labels[f"embree3 {geometry} x{width}{flag}"] == "embree3"
+    assert [c[0] for c in targets.embree_configs(True)] == list(labels)
+    assert targets.peer_configs(False, peers=("embree9",)) == []
+
+
 def test_counted_rays_keep_whole_image_columns():
     cfg = dict(TINY, rays=4000, image=(640, 360), count_rays=2000)
     assert list(targets.counted_rays("random", cfg)) == list(range(0, 4000, 2))
