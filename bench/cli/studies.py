@@ -137,6 +137,9 @@ def targets(args):
     if args.full and args.tier not in (None, "full"):
         raise ValueError(f"--full: contradicts --tier {args.tier}")
     tier = "full" if args.full else args.tier or ("medium" if args.publish else "quick")
+    if args.publish and tier == "quick":
+        raise ValueError("--publish: the quick tier judges nothing and is not published; "
+                         "use --tier medium (the default with --publish) or full")
     only = None
     if args.only:
         only = [key.strip() for key in args.only.split(",") if key.strip()]

@@ -217,6 +217,8 @@ def test_command_line_validates_its_options(tmp_path, capsys):
     assert "--only: unknown row 'nope'" in capsys.readouterr().err
     assert main(["targets", "--full", "--tier", "quick", "--out", str(tmp_path)]) == 2
     assert "--full: contradicts --tier quick" in capsys.readouterr().err
+    assert main(["targets", "--publish", "--tier", "quick"]) == 2
+    assert "--publish: the quick tier judges nothing" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["targets", "--tier", "huge"])
     assert "--tier" in capsys.readouterr().err
