@@ -834,7 +834,8 @@ def table(record, env, cfg, counts=True) -> str:
              f"{env.get('git_commit')}; load averages (1, 5, 15 min) {env.get('load_before')} "
              f"before, {env.get('load_after', 'unfinished')} after. The targets' wording is "
              "the round's; a status is met only in both regimes and against every peer "
-             "named.", "",
+             "named." + ("" if cfg["judge"] else f" The {tier} tier measures tiny fields (the "
+                         "detail gives each setting) and judges nothing."), "",
              "| rays | today | measured | target | status |", "|---|---|---|---|---|"]
     for line in LINES:
         rows = [r for r in ROWS if r.line == line.number]
