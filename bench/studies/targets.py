@@ -347,7 +347,7 @@ def measure_rays(kind, side, cfg, seed, echo=print) -> dict:
     jobs, alone = dict(ours), []
     for peer, label, prepare, is_mesh in configs:
         if is_mesh and big:
-            alone.append((label, prepare))
+            alone.append((peer, label, prepare))
         else:
             jobs[label], outs[label] = prepare(field, o, d)
             jobs[label]()
@@ -356,17 +356,21 @@ def measure_rays(kind, side, cfg, seed, echo=print) -> dict:
         times = timed_in_regime(jobs, cfg["repeats"], regime)
         ns = {k: float(np.median(v)) / n for k, v in times.items()}
         best = min(exact, key=ns.get) if exact else None
-        pairs = {}
-        for label, prepare in alone if best is not None else ():
-            # one triangle mesh at a time, on a Field of its own freed after its pair
-            own = algos.Field(field.heights)
-            job, out = prepare(own, o, d)
+        pairs, own = {}, {}
+        for peer, label, prepare in alone if best is not None else ():
+            # one peer's triangle mesh at a time, on a Field of its own (the C peer's
+            # widths share its scene), freed before the next peer's
+            if peer not in own:
+                own.clear()
+                own[peer] = algos.Field(field.heights)
+            job, out = prepare(own[peer], o, d)
             job()
             pair = timed_in_regime({best: jobs[best], label: job}, cfg["repeats"], regime)
             pairs[label] = (pair[label], pair[best])
             ns[label] = float(np.median(pair[label])) / n
             agree[label] = hit_agreement(out(), reference, 1e-4)
-            del own, job, out
+            del job, out
+        own.clear()
         entry = dict(ns={k: round(v, 3) for k, v in ns.items()}, best=best, peers={},
                      paired_apart=sorted(pairs))
         for peer in peers:

@@ -14,7 +14,7 @@ from bench.studies import targets
 
 TINY = dict(sides=dict(random2048=40, random4096=48, level=40, pitched=40, horizon16=40),
             rays=120, image=(16, 9), repeats=2, processes=2, horizon_repeats=1, count_rays=20,
-            count_mesh_max_side=64, mesh_max_side=4096, judge=False, counts=False, kernels=None,
+            count_mesh_max_side=64, mesh_max_side=44, judge=False, counts=False, kernels=None,
             peers=None)
 
 
@@ -53,6 +53,12 @@ def test_tiny_tier_writes_every_line_of_the_targets(tmp_path, tiny):
             assert run["regimes"][regime]["ns"][best] == min(
                 run["regimes"][regime]["ns"][k] for k in run["agree"]
                 if k in algos.INTERSECTOR_REGISTRY and run["agree"][k] == 1.0)
+    # above mesh_max_side (44) each triangle mesh is timed in a pair of its own with the
+    # best exact kernel; below it, with everything
+    for regime in ("flushed", "warm"):
+        apart = record["rows"]["random4096"]["runs"][0]["regimes"][regime]["paired_apart"]
+        assert "embreex triangles x1" in apart and not any("grid" in x for x in apart)
+        assert record["rows"]["level"]["runs"][0]["regimes"][regime]["paired_apart"] == []
     seconds = record["rows"]["horizon16"]["summary"]["seconds"]
     assert seconds["seconds"] > 0 and seconds["target"] == 20.0
     text = (tmp_path / "targets.md").read_text()
