@@ -16,15 +16,15 @@ measured before the round, and its targets):
    distance, one thread: seconds against the target
    (``bench.studies.terrain_azimuths``'s call).
 
-Every row is measured in a process of its own (``python -m bench.studies.targets``),
+Every row is measured in a process of its own (:mod:`bench.studies.targets_measure`),
 pinned to one CPU, every contender single-threaded. For a ray row, every strict
 intersector of the registry (accuracy ``exact`` or ``float64``: equal to the brute force
 to 1e-9 relative, peers and plugins left out) and every Embree configuration reached are
 timed side by side, interleaved, in both cache regimes of ``bench.timing.REGIMES``
-(``timed_in_regime``), except the kernels a screening call finds :data:`SCREEN` times
-slower than the fastest. In each regime the best exact kernel is the fastest of those whose
-hits agree with the exact reference (``runs``) on every ray, so a kernel registered later
-enters by itself. Embree is compared as two peers: embreex (single-ray triangle queries,
+(``timed_in_regime``), except the kernels a screening call finds ``SCREEN`` (3) times
+slower than the fastest. In each regime the best exact kernel is the fastest of those
+whose hits agree with the exact reference (``runs``) on every ray, so a kernel
+registered later enters by itself. Embree is compared as two peers: embreex (single-ray triangle queries,
 its fastest, ``algos.peers.embree.embree_timed``), and the C Embree 3 peer at its fastest
 configuration in that regime (``algos.peers.embree3``: grid and triangle geometry, single
 rays and every native packet width, the coherent flag on camera rays). A ratio is the
@@ -35,11 +35,11 @@ Counts: each contender (the best exact kernel, embreex and the C peer's fastest
 configuration of the warm regime) runs once more in a process of its own under
 ``valgrind --tool=callgrind --cache-sim=yes`` (the fixed cache model of
 ``bench.studies.compact.CACHE``), on a subsample of the same rays, collecting only inside
-our C batch entry or Embree's ``rtcIntersect`` calls (:data:`COLLECT`): instructions and
-last-level data misses per ray, after a flush (``flushed``) and right after a call of its
-own (``warm``). A configuration valgrind cannot run (a packet
-width it does not emulate, a triangle BVH whose build under valgrind outlasts the tier)
-is replaced or skipped, and the row says so.
+our C batch entry or Embree's ``rtcIntersect`` calls (:mod:`bench.studies.targets_counts`):
+instructions and last-level data misses per ray, after a flush (``flushed``) and right
+after a call of its own (``warm``). A configuration valgrind cannot run (a packet width
+it does not emulate, a triangle BVH whose build under valgrind outlasts the tier) is
+replaced or skipped, and the row says so.
 
 Status of a target: ``met`` when the whole evidence interval is on the target's side
 (the paired interval of one process; with several processes, the range of their
@@ -49,12 +49,10 @@ each row finishes, and ``resume`` keeps the rows already measured.
 """
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
 import os
-import re
 import subprocess
 import sys
 import tempfile
@@ -63,8 +61,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .targets_counts import row_counts
+from .targets_measure import PEERS, SCREEN, _child_env, _jsonable
+
 __all__ = ["run", "LINES", "ROWS", "TIERS", "COLUMNS", "judge", "line_status", "spread",
-           "embree_configs", "peer_configs", "counted_rays", "measure_rays", "measure_horizon"]
+           "measure_row", "csv_rows", "table"]
 
 
 @dataclass(frozen=True)
@@ -113,27 +114,6 @@ ROWS = (
     Row("horizon16", 5, "horizon", "jacksboro"),
 )
 
-#: The peers a ray row compares against: embreex and the C Embree 3 peer.
-PEERS = ("embreex", "embree3")
-#: A strict kernel whose screening call (one warm call) is this many times slower than
-#: the fastest one's is left out of the interleaved timing: it cannot be the best.
-SCREEN = 3.0
-#: Pitch of the pinhole camera of line 4, degrees below the horizontal.
-PITCH = 2.6
-#: The exact reference the kernels' hits are checked against.
-REFERENCE = "runs"
-#: What callgrind collects (one ``--toggle-collect`` pattern per process: callgrind keeps
-#: only one) and where it dumps (at the entry of each call, so each call's counts are a
-#: part of their own; a dump pattern needs its leading ``*``): our C batch entries,
-#: ``hf_intersect_batch`` and ``hf_pitched_batch`` (``hf_*t*_batch`` leaves out
-#: ``hf_plane_batch``, which the first calls: a nested toggle would switch collection off
-#: inside it); Embree's ``rtcIntersect1/4/8/16`` for both peers, split at embreex's
-#: ``run`` and at the C peer's ctypes call (``ffi_call``). Embree is thus counted inside
-#: its own queries, without the peers' loops around them.
-COLLECT = {"ours": ("hf_*t*_batch", "*hf_*t*_batch"),
-           "embreex": ("rtcIntersect*", "*EmbreeScene_2run*"),
-           "embree3": ("rtcIntersect*", "*ffi_call")}
-
 #: Tiers. ``sides``: row key -> field side (a row absent from it is not measured in the
 #: tier); ``rays``: random rays per row; ``image``: the cameras' width and height;
 #: ``repeats``: interleaved repeats per regime; ``processes``: processes of line 1;
@@ -153,7 +133,7 @@ TIERS = {
     # the issue's sizes but 8192^2: about 20 minutes on a quiet 2-core machine
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
-                   rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=2,
+                   rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=1,
                    count_rays=2000, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
                    kernels=None, peers=None),
     "full": dict(sides=dict(random2048=2048, random4096=4096, random8192=8192, level=2048,
@@ -216,335 +196,7 @@ def spread(values):
     return float(v.min()), float(np.median(v)), float(v.max())
 
 
-# ---- one row, in its own process -----------------------------------------------------------
-
-def _strict_names(kernels=None, surface="triangles"):
-    """The registry's strict intersectors (accuracy exact or float64; no peer, no plugin)
-    on ``surface``; with ``kernels``, those of its names (an unknown name is left out)."""
-    import algos
-
-    names = [n for n, a in algos.INTERSECTOR_REGISTRY.items()
-             if a.kind not in ("peer", "plugin") and a.accuracy in ("exact", "float64")
-             and surface in a.surfaces]
-    return names if kernels is None else [n for n in kernels if n in names]
-
-
-def embree_configs(coherent: bool):
-    """(label, prepare(field, o, d) -> (run, t), is_mesh) of every Embree configuration
-    this machine reaches: :func:`peer_configs` without the peer's name."""
-    return [(label, prepare, is_mesh) for _, label, prepare, is_mesh in peer_configs(coherent)]
-
-
-def peer_configs(coherent: bool, peers=PEERS):
-    """(peer, label, prepare(field, o, d) -> (run, t), is_mesh) of every Embree
-    configuration this machine reaches among ``peers``: embreex (single rays, triangles)
-    and the C peer's geometries and native packet widths, coherent flag for width > 1
-    when ``coherent``. A peer that is not installed yields nothing."""
-    out = []
-    if "embreex" in peers:
-        try:
-            import embreex  # noqa: F401
-
-            from algos.peers.embree import embree_timed
-        except ImportError:
-            pass
-        else:
-            out.append(("embreex", "embreex triangles x1",
-                        lambda f, o, d: embree_timed(f, o, d, threads=1), True))
-    if "embree3" in peers:
-        from algos.peers import embree3 as embree3_peer
-
-        if embree3_peer.available():
-            for geometry in ("grid", "triangles"):
-                for width in embree3_peer.native_widths():
-                    flag = " coherent" if coherent and width > 1 else ""
-                    out.append(("embree3", f"embree3 {geometry} x{width}{flag}",
-                                lambda f, o, d, g=geometry, w=width: embree3_peer.embree3_timed(
-                                    f, o, d, geometry=g, packet=w,
-                                    coherent=coherent and w > 1, threads=1),
-                                geometry == "triangles"))
-    return out
-
-
-def _peer_missing(peer) -> str:
-    """Why ``peer`` has no configuration here."""
-    if peer == "embreex":
-        return "not available (embreex does not import: pip install embreex)"
-    if peer != "embree3":
-        return f"not available (no peer named {peer!r})"
-    from algos.peers import embree3 as embree3_peer
-
-    return f"not available ({embree3_peer.unavailable_reason() or 'no native packet width'})"
-
-
-def row_rays(kind, side, cfg, seed):
-    """(field, origins, directions, coherent, setting) of a ray row: ``random`` rays
-    (``first_hit_rays``, azimuths uniform, 5-20 degrees down) on fBm ``side``^2 (seed 1),
-    or the ``level`` and ``pitched`` cameras of :mod:`bench.studies.plane_counts` and
-    :mod:`bench.studies.pitched_counts` at the tier's image size."""
-    import algos
-    import datasets_gen
-
-    width, height = cfg["image"]
-    if kind == "random":
-        from datasets_gen.rays import first_hit_rays
-
-        field = algos.Field(datasets_gen.load("fbm", size=side, seed=1).heights)
-        o, d = first_hit_rays(field, "random", cfg["rays"], seed)
-        return field, o, d, False, f"fBm {side}^2, {len(o)} random rays"
-    if kind == "level":
-        from .plane_counts import camera_rays
-
-        field, o, d = camera_rays(side, width, height)
-        return field, o, d, True, f"fBm {side}^2, level camera {width}x{height}, 60 deg"
-    if kind == "pitched":
-        from .pitched_counts import camera_rays
-
-        field, o, d = camera_rays(side, width, height, PITCH)
-        return field, o, d, True, (f"fBm {side}^2, pinhole {width}x{height}, 60 deg, "
-                                   f"{PITCH} deg down")
-    raise ValueError(f"kind: expected random, level or pitched, got {kind!r}")
-
-
-def measure_rays(kind, side, cfg, seed, echo=print) -> dict:
-    """Time a ray row in this process (pinned to one CPU): every strict kernel and every
-    Embree configuration, interleaved, in each regime. Returns a JSON-ready dict:
-    ``setting``, ``rays``, ``agree`` (name -> fraction of rays agreeing with the exact
-    reference), ``missing`` (peer -> why absent), and per regime the ns per ray of every
-    contender, the best exact kernel, and per peer its fastest configuration with the
-    ratio and interval."""
-    import algos
-    from algos.intersect import prepare_timed_intersect
-
-    from ..sweep import hit_agreement
-    from ..timing import REGIMES, log_ratio_interval, pin_to_one_cpu, timed_in_regime
-
-    cpu = pin_to_one_cpu()
-    field, o, d, coherent, setting = row_rays(kind, side, cfg, seed)
-    n = len(o)
-    reference = algos.intersect(REFERENCE, field, o, d, threads=1).t
-    ours, outs = {}, {}
-    for name in _strict_names(cfg.get("kernels")):
-        ours[name], outs[name] = prepare_timed_intersect(name, field, o, d)
-        ours[name]()  # an output is the latest call's
-    agree = {k: hit_agreement(outs[k](), reference, 1e-9) for k in ours}
-    exact = [k for k in ours if agree[k] == 1.0]
-    # screening: one warm call each; a kernel SCREEN times slower than the fastest cannot
-    # be the best, and a per-cell walk on 230k grazing camera rays would take minutes
-    screen = {k: ours[k]() / n for k in exact}
-    fastest = min(screen.values(), default=math.inf)
-    left_out = {k: round(v, 1) for k, v in screen.items() if v > SCREEN * fastest}
-    exact = [k for k in exact if k not in left_out]
-    for k in left_out:
-        del ours[k]
-    peers = cfg.get("peers") or PEERS
-    configs = peer_configs(coherent, peers)
-    present = {p for p, *_ in configs}
-    result = dict(setting=setting, rays=n, side=side, cpu=cpu, agree=agree, left_out=left_out,
-                  missing={p: _peer_missing(p) for p in peers if p not in present},
-                  configs={label: peer for peer, label, _, _ in configs}, regimes={})
-    big = max(field.heights.shape) > cfg["mesh_max_side"]
-    jobs, alone = dict(ours), []
-    for peer, label, prepare, is_mesh in configs:
-        if is_mesh and big:
-            alone.append((peer, label, prepare))
-        else:
-            jobs[label], outs[label] = prepare(field, o, d)
-            jobs[label]()
-            agree[label] = hit_agreement(outs[label](), reference, 1e-4)
-    for regime in REGIMES:
-        times = timed_in_regime(jobs, cfg["repeats"], regime)
-        ns = {k: float(np.median(v)) / n for k, v in times.items()}
-        best = min(exact, key=ns.get) if exact else None
-        pairs, own = {}, {}
-        for peer, label, prepare in alone if best is not None else ():
-            # one peer's triangle mesh at a time, on a Field of its own (the C peer's
-            # widths share its scene), freed before the next peer's
-            if peer not in own:
-                own.clear()
-                own[peer] = algos.Field(field.heights)
-            job, out = prepare(own[peer], o, d)
-            job()
-            pair = timed_in_regime({best: jobs[best], label: job}, cfg["repeats"], regime)
-            pairs[label] = (pair[label], pair[best])
-            ns[label] = float(np.median(pair[label])) / n
-            agree[label] = hit_agreement(out(), reference, 1e-4)
-            del job, out
-        own.clear()
-        entry = dict(ns={k: round(v, 3) for k, v in ns.items()}, best=best, peers={},
-                     paired_apart=sorted(pairs))
-        for peer in peers:
-            labels = [lb for lb, p in result["configs"].items() if p == peer and lb in ns]
-            if best is None or not labels:
-                continue
-            label = min(labels, key=ns.get)
-            num, den = pairs.get(label, (times.get(label), times[best]))
-            ratio, low, high = log_ratio_interval(num, den)
-            entry["peers"][peer] = dict(config=label, ns=round(ns[label], 3), ratio=ratio,
-                                        low=low, high=high)
-        result["regimes"][regime] = entry
-        echo(f"    {regime}: best {best}" + "".join(
-            f"; {p} {v['config']} {v['ratio']:.2f}x" for p, v in entry["peers"].items()))
-    return result
-
-
-def measure_horizon(side, cfg) -> dict:
-    """Seconds of the horizon at the 16 equal azimuths of
-    ``bench.studies.terrain_azimuths`` (Jacksboro ``side``, unlimited distance, one
-    thread), in this process pinned to one CPU: one value per timed call."""
-    import algos.terrain as T
-    import datasets_gen
-
-    from ..timing import pin_to_one_cpu
-    from .terrain_azimuths import SIXTEEN, _timed
-
-    cpu = pin_to_one_cpu()
-    hf = datasets_gen.load("jacksboro", size=side)
-    rows, cols = hf.heights.shape
-    seconds = [_timed(lambda: T.horizon(hf, SIXTEEN, threads=1))[0]
-               for _ in range(cfg["horizon_repeats"])]
-    return dict(setting=f"Jacksboro {rows} x {cols}, 16 azimuths, unlimited distance, "
-                        "1 thread", seconds=seconds, cpu=cpu)
-
-
-# ---- counts under callgrind ----------------------------------------------------------------
-
-def _count_child(spec) -> None:
-    """The counted process: the row's field and rays, those of :func:`counted_rays`, the
-    contender prepared; then a flush and two calls (the entries' dumps split them)."""
-    import algos
-    from algos.intersect import prepare_timed_intersect
-
-    from ..timing import flush_caches
-
-    field, o, d, coherent, _ = row_rays(spec["kind"], spec["side"], spec["cfg"], spec["seed"])
-    keep = counted_rays(spec["kind"], spec["cfg"])
-    o, d = o[keep], d[keep]
-    who = spec["contender"]
-    if who in algos.INTERSECTOR_REGISTRY:
-        run, _ = prepare_timed_intersect(who, field, o, d)
-    else:
-        run = next(prep for label, prep, _ in embree_configs(coherent) if label == who)(
-            field, o, d)[0]
-    flush_caches()
-    run()  # flushed
-    run()  # warm: right after its own call
-
-
-def counted_rays(kind, cfg) -> np.ndarray:
-    """Indices of the rays counted under callgrind, about ``count_rays`` of them: every
-    k-th random ray, or every k-th image column whole (a column is one vertical plane
-    of the level camera: a subsample across columns would leave its kernel no plane to
-    share)."""
-    if kind == "random":
-        return np.arange(0, cfg["rays"], max(1, cfg["rays"] // cfg["count_rays"]))
-    width, height = cfg["image"]
-    columns = max(1, min(width, round(cfg["count_rays"] / height)))
-    pixels = np.arange(width * height).reshape(height, width)
-    return np.ascontiguousarray(pixels[:, np.arange(columns) * width // columns]).ravel()
-
-
-def _parts(directory, out):
-    """The callgrind parts of one run, in order: ``out.1``, ``out.2``, ..., then ``out``."""
-    numbered = sorted((f for f in os.listdir(directory)
-                       if re.fullmatch(re.escape(os.path.basename(out)) + r"\.\d+", f)),
-                      key=lambda f: int(f.rsplit(".", 1)[1]))
-    return [os.path.join(directory, f) for f in numbered] + [out]
-
-
-def count_contender(kind, side, cfg, seed, contender, peer=None) -> dict:
-    """Per-ray instructions and last-level data misses of ``contender`` (a registry
-    name, or an :func:`embree_configs` label of ``peer``) on the rays of
-    :func:`counted_rays` of the row, under callgrind's cache simulation: ``{"flushed": {...}, "warm": {...},
-    "rays": n}``."""
-    from ..profile import _parse
-    from .compact import CACHE
-
-    rays = len(counted_rays(kind, cfg))
-    toggle, dump = COLLECT[peer or "ours"]
-    spec = dict(kind=kind, side=side, cfg=cfg, seed=seed, contender=contender)
-    cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
-    with tempfile.TemporaryDirectory() as tmp:
-        out = os.path.join(tmp, "callgrind.out")
-        cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", *cache,
-               f"--callgrind-out-file={out}", f"--toggle-collect={toggle}",
-               f"--dump-before={dump}",
-               sys.executable, "-m", "bench.studies.targets", "--count-child", json.dumps(spec)]
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=_child_env())
-        if proc.returncode != 0:
-            raise RuntimeError(f"valgrind failed ({proc.returncode}): {proc.stderr[-1500:]}")
-        parts = [_parse(p)["totals"] for p in _parts(tmp, out)]
-    # the two counted calls are the last parts with instructions (a later dump, at the
-    # C peer's ctypes call that frees its scene, holds none)
-    parts = [t for t in parts if t.get("Ir", 0) > 0]
-    if len(parts) < 2:
-        raise RuntimeError(f"callgrind collected {len(parts)} calls of {contender}, expected 2 "
-                           f"(--toggle-collect={toggle})")
-    result = {"rays": rays}
-    for regime, t in (("flushed", parts[-2]), ("warm", parts[-1])):
-        result[regime] = dict(instructions=t.get("Ir", 0) / rays,
-                              ll_misses=(t.get("DLmr", 0) + t.get("DLmw", 0)) / rays)
-    return result
-
-
-def _countable(label, side, cfg):
-    """The configuration counted for ``label`` under valgrind, and a note: valgrind runs
-    no packet wider than 8 (AVX-512), and a triangle BVH is built under it only up to
-    ``count_mesh_max_side``. None when nothing comparable can run."""
-    note = ""
-    match = re.fullmatch(r"(embree3 (grid|triangles) x)(\d+)(.*)", label)
-    if match and int(match.group(3)) > 8:
-        label = f"{match.group(1)}8{match.group(4)}"
-        note = "counted at packet width 8 (valgrind does not emulate AVX-512)"
-    if "triangles" in label and side > cfg["count_mesh_max_side"]:
-        if label.startswith("embree3"):
-            grid = label.replace("triangles", "grid")
-            return grid, (f"counted on Embree's grid geometry: a {side}^2 triangle BVH is "
-                          f"not built under valgrind in this tier")
-        return None, (f"not counted: a {side}^2 triangle BVH is not built under valgrind "
-                      f"in this tier")
-    return label, note
-
-
-def row_counts(kind, side, cfg, seed, measured, echo=print) -> dict:
-    """Counts of the warm regime's best exact kernel and of each peer's fastest
-    configuration: ``{"ours": {...}, "embreex": {...}, "embree3": {...}}``, each with
-    ``contender`` and ``note``; an entry is ``{"note": why}`` when it was not counted."""
-    from ..profile import callgrind_available
-
-    if not callgrind_available():
-        return {"note": "valgrind is not installed: no counts"}
-    warm = measured["regimes"]["warm"]
-    out = {}
-    todo = []
-    if warm["best"]:
-        todo.append(("ours", warm["best"], None, ""))
-    for peer, entry in warm["peers"].items():
-        label, note = _countable(entry["config"], side, cfg)
-        if label is None:
-            out[peer] = {"note": note}
-        else:
-            todo.append((peer, label, peer, note))
-    for key, contender, peer, note in todo:
-        start = time.perf_counter()
-        try:
-            out[key] = dict(count_contender(kind, side, cfg, seed, contender, peer),
-                            contender=contender, note=note)
-        except (RuntimeError, OSError) as exc:
-            out[key] = {"note": f"not counted: {exc}"[:300]}
-        echo(f"    counts {contender}: {time.perf_counter() - start:.0f} s")
-    return out
-
-
 # ---- the parent: processes, gathering, tables ----------------------------------------------
-
-def _child_env():
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-    env.pop("LD_PRELOAD", None)  # a sanitizer runtime cannot run under valgrind
-    return env
-
 
 def _run_child(row, side, cfg, seed):
     """Measure one row in a fresh ``python -m bench.studies.targets`` process; its
@@ -552,7 +204,7 @@ def _run_child(row, side, cfg, seed):
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "row.json")
         spec = dict(kind=row.kind, side=side, cfg=cfg, seed=seed, out=path)
-        proc = subprocess.run([sys.executable, "-m", "bench.studies.targets", "--child",
+        proc = subprocess.run([sys.executable, "-m", "bench.studies.targets_measure", "--child",
                                json.dumps(spec)], capture_output=True, text=True,
                               env=_child_env())
         if proc.returncode != 0 or not os.path.exists(path):
@@ -731,12 +383,6 @@ def _write(out_dir, record, env, cfg, counts):
     return text
 
 
-def _jsonable(value):
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-
-
 def _row_missing(row, cfg, record):
     """Why a row has no record: not in the tier, or not measured yet."""
     if row.key not in cfg["sides"]:
@@ -906,32 +552,3 @@ def table(record, env, cfg, counts=True) -> str:
               + (f" --processes {record['processes']}" if record["processes"] != cfg["processes"]
                  else "") + ("" if counts else " --no-counts") + "`", ""]
     return "\n".join(lines)
-
-
-# ---- the child processes' entry -------------------------------------------------------------
-
-def main(argv=None) -> int:
-    """The processes of :func:`run`: ``--child SPEC`` measures one row and writes its
-    JSON to ``SPEC["out"]``; ``--count-child SPEC`` is the process counted under
-    callgrind."""
-    parser = argparse.ArgumentParser(description="one row of the targets table (internal)")
-    group = parser.add_mutually_exclusive_group(required=True)
-    group.add_argument("--child", default=None)
-    group.add_argument("--count-child", default=None)
-    args = parser.parse_args(argv)
-    if args.count_child:
-        _count_child(json.loads(args.count_child))
-        return 0
-    spec = json.loads(args.child)
-    if spec["kind"] == "horizon":
-        result = measure_horizon(spec["side"], spec["cfg"])
-    else:
-        result = measure_rays(spec["kind"], spec["side"], spec["cfg"], spec["seed"],
-                              echo=lambda *_: None)
-    with open(spec["out"], "w") as f:
-        json.dump(result, f, default=_jsonable)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

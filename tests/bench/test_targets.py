@@ -1,7 +1,8 @@
-"""The targets study (bench/studies/targets.py): a tiny tier runs every row in processes
-of its own and writes a table with every line of the targets; an absent kernel or peer
-says "not available"; the status logic on synthetic numbers; resuming; the command
-line's validation. Ratios are not asserted (timing on a shared machine)."""
+"""The targets study (bench/studies/targets.py, targets_measure.py, targets_counts.py):
+a tiny tier runs every row in processes of its own and writes a table with every line of
+the targets; an absent kernel or peer says "not available"; the status logic on
+synthetic numbers; resuming; the command line's validation. Ratios are not asserted
+(timing on a shared machine)."""
 import csv
 import json
 import math
@@ -10,7 +11,7 @@ import os
 import pytest
 
 import algos
-from bench.studies import targets
+from bench.studies import targets, targets_counts, targets_measure
 
 TINY = dict(sides=dict(random2048=40, random4096=48, level=40, pitched=40, horizon16=40),
             rays=120, image=(16, 9), repeats=2, processes=2, horizon_repeats=1, count_rays=20,
@@ -50,9 +51,10 @@ def test_tiny_tier_writes_every_line_of_the_targets(tmp_path, tiny):
             # the best exact kernel is a strict one that agrees with the exact reference
             assert algos.INTERSECTOR_REGISTRY[best].accuracy in ("exact", "float64")
             assert run["agree"][best] == 1.0
-            assert run["regimes"][regime]["ns"][best] == min(
-                run["regimes"][regime]["ns"][k] for k in run["agree"]
-                if k in algos.INTERSECTOR_REGISTRY and run["agree"][k] == 1.0)
+            ns = run["regimes"][regime]["ns"]  # the kernels left after the screening call
+            assert ns[best] == min(ns[k] for k in ns if k in algos.INTERSECTOR_REGISTRY
+                                   and run["agree"][k] == 1.0)
+            assert not set(run["left_out"]) & set(ns)
     # above mesh_max_side (44) each triangle mesh is timed in a pair of its own with the
     # best exact kernel; below it, with everything
     for regime in ("flushed", "warm"):
@@ -153,18 +155,18 @@ def test_several_processes_are_judged_on_their_spread():
 
 def test_counted_configuration_is_one_valgrind_runs():
     cfg = dict(TINY, count_mesh_max_side=1024)
-    assert targets._countable("embree3 grid x16 coherent", 2048, cfg)[0] == \
+    assert targets_counts.countable("embree3 grid x16 coherent", 2048, cfg)[0] == \
         "embree3 grid x8 coherent"
-    label, note = targets._countable("embree3 triangles x8", 2048, cfg)
+    label, note = targets_counts.countable("embree3 triangles x8", 2048, cfg)
     assert label == "embree3 grid x8" and "grid geometry" in note
-    assert targets._countable("embreex triangles x1", 2048, cfg)[0] is None
-    assert targets._countable("embreex triangles x1", 512, cfg) == ("embreex triangles x1", "")
+    assert targets_counts.countable("embreex triangles x1", 2048, cfg)[0] is None
+    assert targets_counts.countable("embreex triangles x1", 512, cfg) == ("embreex triangles x1", "")
 
 
 def test_embree_configurations_of_both_peers():
     from algos.peers import embree3 as embree3_peer
 
-    configs = targets.peer_configs(coherent=True)
+    configs = targets_measure.peer_configs(coherent=True)
     labels = {label: peer for peer, label, _, _ in configs}
     assert labels.get("embreex triangles x1") == "embreex"
     if embree3_peer.available():  # both geometries at every native width, coherent packets
@@ -172,19 +174,19 @@ def test_embree_configurations_of_both_peers():
             flag = " coherent" if width > 1 else ""
             for geometry in ("grid", "triangles"):
                 assert labels[f"embree3 {geometry} x{width}{flag}"] == "embree3"
-    assert [c[0] for c in targets.embree_configs(True)] == list(labels)
-    assert targets.peer_configs(False, peers=("embree9",)) == []
+    assert [c[0] for c in targets_measure.embree_configs(True)] == list(labels)
+    assert targets_measure.peer_configs(False, peers=("embree9",)) == []
 
 
 def test_counted_rays_keep_whole_image_columns():
     cfg = dict(TINY, rays=4000, image=(640, 360), count_rays=2000)
-    assert list(targets.counted_rays("random", cfg)) == list(range(0, 4000, 2))
-    keep = targets.counted_rays("level", cfg)
+    assert list(targets_measure.counted_rays("random", cfg)) == list(range(0, 4000, 2))
+    keep = targets_measure.counted_rays("level", cfg)
     columns = keep % 640
     assert len(keep) == 6 * 360 and sorted(set(columns)) == [0, 106, 213, 320, 426, 533]
     for c in set(columns):  # every kept column whole: its 360 rows, top to bottom
         assert list(keep[columns == c] // 640) == list(range(360))
-    assert len(targets.counted_rays("pitched", dict(cfg, count_rays=10))) == 360
+    assert len(targets_measure.counted_rays("pitched", dict(cfg, count_rays=10))) == 360
 
 
 def test_resume_keeps_the_measured_rows(tmp_path, tiny, monkeypatch):
@@ -234,7 +236,7 @@ def test_command_line_validates_its_options(tmp_path, capsys):
 @pytest.mark.skipif(not __import__("shutil").which("valgrind"), reason="valgrind not installed")
 def test_counts_of_our_kernel_under_callgrind():
     cfg = dict(TINY, count_rays=10)
-    counts = targets.count_contender("random", 24, cfg, 2008, "dda_maxmip")
+    counts = targets_counts.count_contender("random", 24, cfg, 2008, "dda_maxmip")
     assert counts["rays"] == 10  # every 12th of 120 rays
     for regime in ("flushed", "warm"):
         assert counts[regime]["instructions"] > 100
