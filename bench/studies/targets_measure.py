@@ -222,7 +222,6 @@ def measure_horizon(side, cfg) -> dict:
                         "1 thread", seconds=seconds, cpu=cpu)
 
 
-
 def _count_child(spec) -> None:
     """The counted process: the row's field and rays, those of :func:`counted_rays`, the
     contender prepared; then a flush and two calls (the entries' dumps split them)."""
@@ -258,8 +257,9 @@ def counted_rays(kind, cfg) -> np.ndarray:
     return np.ascontiguousarray(pixels[:, np.arange(columns) * width // columns]).ravel()
 
 
-
 def _child_env():
+    """The environment of a child process: this tree first on PYTHONPATH, one BLAS
+    thread, no preloaded sanitizer runtime."""
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
@@ -267,12 +267,11 @@ def _child_env():
     return env
 
 
-
 def _jsonable(value):
+    """NumPy scalars as Python numbers, for ``json.dump``."""
     if isinstance(value, (np.floating, np.integer)):
         return value.item()
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-
 
 
 # ---- the child processes' entry -------------------------------------------------------------

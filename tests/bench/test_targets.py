@@ -243,3 +243,17 @@ def test_counts_of_our_kernel_under_callgrind():
     # the warm call finds its lines: no more last-level misses than after the flush
     assert counts["warm"]["ll_misses"] <= counts["flushed"]["ll_misses"]
     assert counts["flushed"]["ll_misses"] > 0
+
+
+@pytest.mark.skipif(not __import__("shutil").which("valgrind"), reason="valgrind not installed")
+def test_counts_of_the_c_peer_inside_embree():
+    from algos.peers import embree3 as embree3_peer
+
+    if not embree3_peer.available():
+        pytest.skip(embree3_peer.unavailable_reason())
+    cfg = dict(TINY, count_rays=18)  # two whole image columns of the level camera
+    counts = targets_counts.count_contender("level", 24, cfg, 2008, "embree3 grid x4 coherent",
+                                            "embree3")
+    assert counts["rays"] == 18
+    # Embree's own queries only: the ctypes call that frees the scene adds no dump
+    assert counts["flushed"]["instructions"] > 10 and counts["warm"]["instructions"] > 10
