@@ -118,7 +118,7 @@ ROWS = (
 #: tier); ``rays``: random rays per row; ``image``: the cameras' width and height;
 #: ``repeats``: interleaved repeats per regime; ``processes``: processes of line 1;
 #: ``horizon_repeats``: timed calls of line 5; ``count_rays``: about the rays counted
-#: under callgrind (:func:`counted_rays`); ``count_mesh_max_side``: the largest field whose
+#: under callgrind, None for all (``targets_measure.counted_rays``); ``count_mesh_max_side``: the largest field whose
 #: triangle BVHs are built under valgrind for the counts; ``mesh_max_side``: larger
 #: triangle meshes are timed in a pair of their own with the best exact kernel (one mesh
 #: in memory at a time); ``judge``: False in the quick tier (tiny fields fit in every
@@ -134,12 +134,12 @@ TIERS = {
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
                    rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=1,
-                   count_rays=2000, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
+                   count_rays=None, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
                    kernels=None, peers=None),
     "full": dict(sides=dict(random2048=2048, random4096=4096, random8192=8192, level=2048,
                             pitched=2048, horizon16=2048),
                  rays=4000, image=(640, 360), repeats=9, processes=5, horizon_repeats=3,
-                 count_rays=4000, count_mesh_max_side=4096, mesh_max_side=4096, judge=True, counts=True,
+                 count_rays=None, count_mesh_max_side=4096, mesh_max_side=4096, judge=True, counts=True,
                  kernels=None, peers=None),
 }
 
@@ -544,10 +544,11 @@ def table(record, env, cfg, counts=True) -> str:
             notes.append(f"- {row.key}: failed: {rec['error'][-300:]}")
     if notes:
         lines += ["", "Notes:", ""] + notes
+    which = ("every ray of the row" if cfg["count_rays"] is None else
+             f"an even subsample of about {cfg['count_rays']} of the row's rays")
     lines += ["", "Counts: callgrind's cache simulation (I1/D1 32 KiB 8-way, LL 8 MiB 16-way) on "
-              f"an even subsample of about {cfg['count_rays']} of the row's rays, collected "
-              "inside each contender's entry only; flushed = after a cache flush, warm = right "
-              "after its own call.", "",
+              f"{which}, collected inside our C batch entry or Embree's rtcIntersect calls "
+              "only; flushed = after a cache flush, warm = right after its own call.", "",
               "Command: `hftrace targets --tier " + tier
               + (f" --processes {record['processes']}" if record["processes"] != cfg["processes"]
                  else "") + ("" if counts else " --no-counts") + "`", ""]

@@ -7,6 +7,9 @@ in a process of its own (``python -m bench.studies.targets_measure --count-child
 under ``valgrind --tool=callgrind --cache-sim=yes`` with the fixed cache model of
 ``bench.studies.compact.CACHE``, on :func:`~bench.studies.targets_measure.counted_rays`:
 one flush, then two calls, the first counted as ``flushed`` and the second as ``warm``.
+The field and the rays are built natively once per row and loaded by each counted
+process (:func:`~bench.studies.targets_measure.save_case`): generating a field under
+valgrind would cost minutes.
 """
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ import sys
 import tempfile
 import time
 
-from .targets_measure import _child_env, counted_rays
+from .targets_measure import _child_env, counted_rays, save_case
 
 __all__ = ["COLLECT", "count_contender", "countable", "row_counts"]
 
@@ -43,18 +46,23 @@ def _parts(directory, out):
     return [os.path.join(directory, f) for f in numbered] + [out]
 
 
-def count_contender(kind, side, cfg, seed, contender, peer=None) -> dict:
+def count_contender(kind, side, cfg, seed, contender, peer=None, case=None) -> dict:
     """Per-ray instructions and last-level data misses of ``contender`` (a registry
     name, or an ``embree_configs`` label of ``peer``) on the row's ``counted_rays``,
-    under callgrind's cache simulation: ``{"flushed": {...}, "warm": {...}, "rays": n}``."""
+    under callgrind's cache simulation: ``{"flushed": {...}, "warm": {...}, "rays": n}``.
+    ``case``: a directory :func:`~bench.studies.targets_measure.save_case` wrote for
+    this row (default: written here)."""
     from ..profile import _parse
     from .compact import CACHE
 
     rays = len(counted_rays(kind, cfg))
     toggle, dump = COLLECT[peer or "ours"]
-    spec = dict(kind=kind, side=side, cfg=cfg, seed=seed, contender=contender)
     cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
     with tempfile.TemporaryDirectory() as tmp:
+        if case is None:
+            case = tmp
+            save_case(kind, side, cfg, seed, case)
+        spec = dict(case=case, contender=contender)
         out = os.path.join(tmp, "callgrind.out")
         cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", *cache,
                f"--callgrind-out-file={out}", f"--toggle-collect={toggle}",
@@ -115,12 +123,14 @@ def row_counts(kind, side, cfg, seed, measured, echo=print) -> dict:
             out[peer] = {"note": note}
         else:
             todo.append((peer, label, peer, note))
-    for key, contender, peer, note in todo:
-        start = time.perf_counter()
-        try:
-            out[key] = dict(count_contender(kind, side, cfg, seed, contender, peer),
-                            contender=contender, note=note)
-        except (RuntimeError, OSError) as exc:
-            out[key] = {"note": f"not counted: {exc}"[:300]}
-        echo(f"    counts {contender}: {time.perf_counter() - start:.0f} s")
+    with tempfile.TemporaryDirectory() as case:
+        save_case(kind, side, cfg, seed, case)  # once for every contender of the row
+        for key, contender, peer, note in todo:
+            start = time.perf_counter()
+            try:
+                out[key] = dict(count_contender(kind, side, cfg, seed, contender, peer, case),
+                                contender=contender, note=note)
+            except (RuntimeError, OSError) as exc:
+                out[key] = {"note": f"not counted: {exc}"[:300]}
+            echo(f"    counts {contender}: {time.perf_counter() - start:.0f} s")
     return out

@@ -19,7 +19,7 @@ import sys
 import numpy as np
 
 __all__ = ["PEERS", "SCREEN", "PITCH", "REFERENCE", "embree_configs", "peer_configs",
-           "row_rays", "measure_rays", "measure_horizon", "counted_rays", "main"]
+           "row_rays", "measure_rays", "measure_horizon", "counted_rays", "save_case", "main"]
 
 #: The peers a ray row compares against: embreex and the C Embree 3 peer.
 PEERS = ("embreex", "embree3")
@@ -222,17 +222,34 @@ def measure_horizon(side, cfg) -> dict:
                         "1 thread", seconds=seconds, cpu=cpu)
 
 
+def save_case(kind, side, cfg, seed, directory) -> int:
+    """Write the row's heights and its :func:`counted_rays` to ``directory`` (``.npy``),
+    built natively, so that the process under valgrind only loads them; the number of
+    rays."""
+    field, o, d, coherent, _ = row_rays(kind, side, cfg, seed)
+    keep = counted_rays(kind, cfg)
+    np.save(os.path.join(directory, "heights.npy"), field.heights)
+    np.save(os.path.join(directory, "origins.npy"), o[keep])
+    np.save(os.path.join(directory, "directions.npy"), d[keep])
+    with open(os.path.join(directory, "case.json"), "w") as f:
+        json.dump(dict(coherent=coherent), f)
+    return len(keep)
+
+
 def _count_child(spec) -> None:
-    """The counted process: the row's field and rays, those of :func:`counted_rays`, the
-    contender prepared; then a flush and two calls (the entries' dumps split them)."""
+    """The counted process: the case of :func:`save_case` loaded, the contender prepared;
+    then a flush and two calls (the entries' dumps split them)."""
     import algos
     from algos.intersect import prepare_timed_intersect
 
     from ..timing import flush_caches
 
-    field, o, d, coherent, _ = row_rays(spec["kind"], spec["side"], spec["cfg"], spec["seed"])
-    keep = counted_rays(spec["kind"], spec["cfg"])
-    o, d = o[keep], d[keep]
+    def load(name):
+        return np.load(os.path.join(spec["case"], f"{name}.npy"))
+
+    with open(os.path.join(spec["case"], "case.json")) as f:
+        coherent = json.load(f)["coherent"]
+    field, o, d = algos.Field(load("heights")), load("origins"), load("directions")
     who = spec["contender"]
     if who in algos.INTERSECTOR_REGISTRY:
         run, _ = prepare_timed_intersect(who, field, o, d)
@@ -245,12 +262,16 @@ def _count_child(spec) -> None:
 
 
 def counted_rays(kind, cfg) -> np.ndarray:
-    """Indices of the rays counted under callgrind, about ``count_rays`` of them: every
-    k-th random ray, or every k-th image column whole (a column is one vertical plane
-    of the level camera: a subsample across columns would leave its kernel no plane to
-    share)."""
+    """Indices of the rays counted under callgrind: all of them when ``count_rays`` is
+    None (a per-batch cost, such as the pitched kernel's coarse image, is then shared
+    as in the timings), else about ``count_rays``: every k-th random ray, or every k-th
+    image column whole (a column is one vertical plane of the level camera: a subsample
+    across columns would leave its kernel no plane to share)."""
+    n = cfg["rays"] if kind == "random" else cfg["image"][0] * cfg["image"][1]
+    if cfg["count_rays"] is None or cfg["count_rays"] >= n:
+        return np.arange(n)
     if kind == "random":
-        return np.arange(0, cfg["rays"], max(1, cfg["rays"] // cfg["count_rays"]))
+        return np.arange(0, n, max(1, n // cfg["count_rays"]))
     width, height = cfg["image"]
     columns = max(1, min(width, round(cfg["count_rays"] / height)))
     pixels = np.arange(width * height).reshape(height, width)

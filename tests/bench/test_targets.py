@@ -187,6 +187,9 @@ def test_counted_rays_keep_whole_image_columns():
     for c in set(columns):  # every kept column whole: its 360 rows, top to bottom
         assert list(keep[columns == c] // 640) == list(range(360))
     assert len(targets_measure.counted_rays("pitched", dict(cfg, count_rays=10))) == 360
+    assert list(targets_measure.counted_rays("pitched", dict(cfg, count_rays=None))) == \
+        list(range(640 * 360))
+    assert len(targets_measure.counted_rays("random", dict(cfg, count_rays=9000))) == 4000
 
 
 def test_resume_keeps_the_measured_rows(tmp_path, tiny, monkeypatch):
