@@ -1,5 +1,5 @@
 """The targets study (bench/studies/targets.py, targets_measure.py, targets_counts.py):
-a tiny tier runs every row in processes of its own and writes a table with every line of
+the quick tier runs every row in processes of its own and writes a table with every line of
 the targets; an absent kernel or peer says "not available"; the status logic on
 synthetic numbers; resuming; the command line's validation. Ratios are not asserted
 (timing on a shared machine)."""
@@ -30,15 +30,19 @@ def _csv(out):
         return list(csv.DictReader(f))
 
 
-def test_tiny_tier_writes_every_line_of_the_targets(tmp_path, tiny):
+def test_quick_tier_writes_every_line_of_the_targets(tmp_path, monkeypatch):
+    # the quick tier as the command runs it, but for mesh_max_side: 96^2 meshes are timed
+    # in pairs of their own here, 64^2 ones with everything
+    quick = dict(targets.TIERS["quick"], mesh_max_side=80)
+    monkeypatch.setitem(targets.TIERS, "quick", quick)
     lines = []
-    record = targets.run(out_dir=str(tmp_path), tier=tiny, counts=False, echo=lines.append)
+    record = targets.run(out_dir=str(tmp_path), tier="quick", echo=lines.append)
     for name in ("targets.csv", "targets.json", "targets.md", "env.json"):
         assert (tmp_path / name).exists(), name
     env = json.loads((tmp_path / "env.json").read_text())
-    assert env["load_before"] and env["load_after"] and env["tier"] == "tiny"
+    assert env["load_before"] and env["load_after"] and env["tier"] == "quick"
     # every row of the tier measured, none failed; 8192^2 is the full tier's
-    assert set(record["rows"]) == set(TINY["sides"])
+    assert set(record["rows"]) == set(quick["sides"])
     assert not any("error" in r for r in record["rows"].values())
     line1 = record["rows"]["random2048"]
     assert len(line1["runs"]) == 2  # two processes
@@ -55,8 +59,8 @@ def test_tiny_tier_writes_every_line_of_the_targets(tmp_path, tiny):
             assert ns[best] == min(ns[k] for k in ns if k in algos.INTERSECTOR_REGISTRY
                                    and run["agree"][k] == 1.0)
             assert not set(run["left_out"]) & set(ns)
-    # above mesh_max_side (44) each triangle mesh is timed in a pair of its own with the
-    # best exact kernel; below it, with everything
+    # above mesh_max_side each triangle mesh is timed in a pair of its own with the best
+    # exact kernel; below it, with everything
     for regime in ("flushed", "warm"):
         apart = record["rows"]["random4096"]["runs"][0]["regimes"][regime]["paired_apart"]
         assert "embreex triangles x1" in apart and not any("grid" in x for x in apart)
@@ -68,7 +72,8 @@ def test_tiny_tier_writes_every_line_of_the_targets(tmp_path, tiny):
     for line in targets.LINES:
         assert f"| {line.rays} | {line.today} |" in text
     assert "min-median-max over 2 processes" in text
-    assert "8192^2: not measured (tiny tier; `--tier full`)" in text
+    assert "8192^2: not measured (quick tier; `--tier full`)" in text
+    assert "no counts in the quick tier" in (tmp_path / "targets.json").read_text()
     rows = _csv(tmp_path)
     assert {r["row"] for r in rows} == {r.key for r in targets.ROWS}
     ray_rows = [r for r in rows if r["regime"]]
@@ -78,7 +83,7 @@ def test_tiny_tier_writes_every_line_of_the_targets(tmp_path, tiny):
         if r["ratio"]:
             assert math.isfinite(float(r["ratio"])) and float(r["ratio"]) > 0
             assert float(r["low"]) <= float(r["ratio"]) <= float(r["high"]) or r["processes"] == "2"
-    assert lines[0].startswith("targets (tiny tier)") and "os.getloadavg()" in lines[0]
+    assert lines[0].startswith("targets (quick tier)") and "os.getloadavg()" in lines[0]
 
 
 def test_absent_kernel_and_peer_say_not_available(tmp_path, monkeypatch):
