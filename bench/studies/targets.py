@@ -130,7 +130,7 @@ TIERS = {
                   rays=300, image=(32, 18), repeats=3, processes=2, horizon_repeats=1,
                   count_rays=40, count_mesh_max_side=256, mesh_max_side=4096, judge=False, counts=False,
                   kernels=None, peers=None),
-    # the issue's sizes but 8192^2: about 20 minutes on a quiet 2-core machine
+    # the targets' sizes but 8192^2: about 20 minutes on a quiet 2-core machine
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
                    rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=1,
