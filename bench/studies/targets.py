@@ -199,8 +199,8 @@ def spread(values):
 # ---- the parent: processes, gathering, tables ----------------------------------------------
 
 def _run_child(row, side, cfg, seed):
-    """Measure one row in a fresh ``python -m bench.studies.targets`` process; its
-    result dict (``{"error": ...}`` when the process failed)."""
+    """Measure one row in a fresh ``python -m bench.studies.targets_measure`` process;
+    its result dict (``{"error": ...}`` when the process failed)."""
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "row.json")
         spec = dict(kind=row.kind, side=side, cfg=cfg, seed=seed, out=path)
@@ -215,6 +215,7 @@ def _run_child(row, side, cfg, seed):
 
 
 def _load() -> str:
+    """``os.getloadavg()`` as text (1, 5 and 15 minutes), or "unavailable"."""
     try:
         return " ".join(f"{x:.2f}" for x in os.getloadavg())
     except OSError:
@@ -252,7 +253,7 @@ def _summarise_rays(line, runs, cfg):
             else:
                 low, high = lo, hi
             status = ("no target" if target is None else judge(low, high, target)
-                      if cfg["judge"] else "not judged (quick tier)")
+                      if cfg["judge"] else f"not judged ({cfg.get('name', 'quick')} tier)")
             out[key] = dict(status=status, target=target, ratio=med, low=low, high=high,
                             spread=[lo, med, hi], processes=len(entries),
                             ours=_most_common(bests),
@@ -278,7 +279,7 @@ def _summarise_horizon(line, run, cfg):
     lo, med, hi = spread(run["seconds"])
     target = line.targets["seconds"]
     status = (judge(lo, hi, target, smaller_is_better=True) if cfg["judge"]
-              else "not judged (quick tier)")
+              else f"not judged ({cfg.get('name', 'quick')} tier)")
     return {"seconds": dict(status=status, target=target, seconds=med, spread=[lo, med, hi],
                             repeats=len(run["seconds"]))}
 
