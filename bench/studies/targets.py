@@ -214,6 +214,11 @@ def _run_child(row, side, cfg, seed):
             return json.load(f)
 
 
+def _processes(n) -> str:
+    """The number of processes in words: 1 process, 3 processes."""
+    return f"{n} process" + ("es" if n != 1 else "")
+
+
 def _load() -> str:
     """``os.getloadavg()`` as text (1, 5 and 15 minutes), or "unavailable"."""
     try:
@@ -347,7 +352,7 @@ def run(out_dir="results/targets", tier="quick", processes=None, seed=2008, coun
         record["rows"] = {k: v for k, v in previous.get("rows", {}).items() if "error" not in v}
     env = dict(environment(), tier=tier, processes=processes, load_before=_load())
     echo(f"targets ({tier} tier): one process per row pinned to one CPU, line 1 in "
-         f"{processes} processes; os.getloadavg() = {env['load_before']}")
+         f"{_processes(processes)}; os.getloadavg() = {env['load_before']}")
     start = time.perf_counter()
     for row in ROWS:
         if row.key not in cfg["sides"] or (only and row.key not in only):
@@ -479,9 +484,9 @@ def table(record, env, cfg, counts=True) -> str:
     lines = [f"# Targets, {tier} tier", "",
              f"Our best exact kernel against Embree on the same rays, one CPU (pinned), one "
              f"thread, interleaved, {cfg['repeats']} repeats per cache regime (flushed and "
-             f"warm, docs/METHOD.md), one process per row; line 1 in {record['processes']} "
-             f"processes (min-median-max of the ratio). Ratio = Embree's time / ours "
-             f"(> 1: we are faster); [95 % interval]. Machine {env.get('cpu')}, commit "
+             f"warm, docs/METHOD.md), one process per row; line 1 in "
+             f"{_processes(record['processes'])} (min-median-max of the ratio). Ratio = "
+             f"Embree's time / ours (> 1: we are faster); [95 % interval]. Machine {env.get('cpu')}, commit "
              f"{env.get('git_commit')}; load averages (1, 5, 15 min) {env.get('load_before')} "
              f"before, {env.get('load_after', 'unfinished')} after. The targets' wording is "
              "the round's; a status is met only in both regimes and against every peer "
