@@ -22,6 +22,7 @@
 #include "core/hftrace.h"
 #include "dispatch/plane.h"
 #include "hierarchies/maxmip.h"
+#include "walks/walk.h" /* HF_ASSERT */
 
 /* One ray of a plane, ordered by oz, then dz, then index. */
 typedef struct {
@@ -67,6 +68,135 @@ static int plane_eligible(const hf_hit_batch *b, int64_t r) {
     return b->surface != HF_BILINEAR && (d[0] != 0 || d[1] != 0);
 }
 
+/* What every ray of one plane shares, set up once from any one of them: the 2D line's
+ * clip to the box's footprint (its face parameters, as the box clip of intersect.c
+ * computes them), the box's widened z slab, and the fields of the hit record and of the
+ * walk's constants that do not depend on oz, dz or the ray's range. A ray's own set-up is
+ * then its [tmin, tmax] against the footprint's faces, its z clip and what depends on
+ * dz (plane_begin): the same values as dda_maxmip's per-ray set-up, with no division
+ * but the z clip's. */
+typedef struct {
+    int outside;                 /* a zero component outside the footprint: every ray misses */
+    int moves[2];                /* dx != 0, dy != 0 */
+    double face_a[2], face_b[2]; /* the parameters at the footprint's faces 0 and cols-1 (rows-1) */
+    double zlo, zhi;             /* the box's z slab, widened (hf_box_z_margin) */
+    hf_hit hit;                  /* the hit record: shared fields set, the rest per ray */
+    hf_mip_ray ray;              /* the walk's constants: shared fields set, the rest per ray */
+} plane_shared;
+
+/* The shared set-up of the plane of ray `ray`. Returns 0 when its rays must take
+ * dda_maxmip's own per-ray paths (a line on a grid line of flat or plane3). */
+static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s) {
+    const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
+    const double side[2] = {b->cols - 1, b->rows - 1};
+    const double margin = hf_box_z_margin(b->hmin, b->hmax);
+    hf_hit *h = &s->hit;
+    int k;
+    memset(s, 0, sizeof *s);
+    for (k = 0; k < 2; ++k) {
+        s->moves[k] = d[k] != 0;
+        if (s->moves[k]) {
+            const double inv = 1.0 / d[k];
+            s->face_a[k] = (0 - o[k]) * inv;
+            s->face_b[k] = (side[k] - o[k]) * inv;
+        } else if (!(o[k] >= 0 && o[k] <= side[k])) {
+            s->outside = 1;
+        }
+    }
+    s->zlo = b->hmin - margin;
+    s->zhi = b->hmax + margin;
+    /* the hit record as ray_begin fills it, but for oz, dz, the range and what
+     * hf_hit_prepare derives from dz (plane_begin) */
+    h->heights = b->heights;
+    h->cellmax = b->cellmax;
+    h->rows = b->rows;
+    h->cols = b->cols;
+    h->row_max = b->cull_runs ? &b->row_max : NULL;
+    h->col_max = b->cull_runs ? &b->col_max : NULL;
+    h->surface = b->surface;
+    h->cull_cells = b->cull_cells;
+    h->ox = o[0];
+    h->oy = o[1];
+    h->dx = d[0];
+    h->dy = d[1];
+    h->inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
+    h->inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
+    hf_hit_prepare(h);
+    /* the walk's constants (hf_mip_setup), but for oz, dz, descending and t1 */
+    hf_mip_ray_of(h, &s->ray);
+    s->ray.top = b->mip_levels - 1;
+    s->ray.floor_level = b->floor_level < s->ray.top ? b->floor_level : s->ray.top;
+    s->ray.guard_max = 4 * ((int64_t)s->ray.nx + s->ray.ny) + 64;
+    return !hf_on_grid_line(h);
+}
+
+/* Ray `ray` of the plane: clip it and fill s->hit and s->ray for it, as ray_begin and
+ * hf_mip_setup would (a debug build checks this field by field against `steps`).
+ * Returns 1 when there is a walk to do, 0 when the ray misses the box (then s->hit is a
+ * miss, ready for the outputs). */
+HF_HOT int plane_begin(const hf_hit_batch *b, plane_shared *s, int64_t ray, double *t0_out,
+                       double *t1_out, int *entry_axis_out) {
+    const double oz = b->origins[3 * ray + 2], dz = b->directions[3 * ray + 2];
+    double t0 = b->tmin ? b->tmin[ray] : 0.0, t1 = b->tmax ? b->tmax[ray] : (double)INFINITY;
+    int axis = -1, k, inside = !s->outside;
+    hf_hit *h = &s->hit;
+    /* the result and the statistics start empty, as after ray_begin's memset */
+    h->found = 0;
+    h->t = 0;
+    h->i = h->j = 0;
+    h->wall_axis = 0;
+    h->su = h->sv = 0;
+    h->cells_visited = h->cells_tested = h->runs_visited = h->runs_culled = h->tiles_skipped = 0;
+    for (k = 0; k < 2; ++k)
+        if (s->moves[k]) hf_slab_clip(s->face_a[k], s->face_b[k], k, &t0, &t1, &axis);
+    inside = inside && t0 <= t1 && hf_box_clip_z(oz, dz, s->zlo, s->zhi, &t0, &t1, &axis);
+    h->oz = inside ? oz : 0;
+    h->dz = inside ? dz : 0;
+    h->t0 = inside ? t0 : 0;
+    h->t1 = inside ? t1 : 0;
+    h->entry_axis = inside ? axis : 0;
+    /* hf_hit_prepare's fields that depend on dz */
+    {
+        const int descending = h->dz < 0;
+        h->bound_off[0] = descending == (h->dx > 0);
+        h->bound_off[1] = descending == (h->dy > 0);
+        h->bound_lo = descending ? -(double)INFINITY : h->t0;
+        h->bound_hi = descending ? h->t1 : (double)INFINITY;
+        h->fast_runs = h->fast && descending;
+        s->ray.descending = descending;
+    }
+    s->ray.oz = h->oz;
+    s->ray.dz = h->dz;
+    s->ray.t1 = h->t1;
+    *t0_out = t0;
+    *t1_out = t1;
+    *entry_axis_out = axis;
+    return inside;
+}
+
+#ifdef HF_DEBUG
+/* Debug builds: the plane's set-up of a ray equals dda_maxmip's, field by field. */
+static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps,
+                              const plane_shared *s, int64_t ray, int inside) {
+    hf_hit h;
+    hf_mip_ray r;
+    hf_mip_walk w;
+    double t0, t1;
+    int axis;
+    const int walk = steps->begin(b, ray, &h, &t0, &t1, &axis);
+    HF_ASSERT(walk == inside, "ray=%lld begin=%d plane=%d", (long long)ray, walk, inside);
+    if (!walk) {
+        HF_ASSERT(!s->hit.found && s->hit.cells_visited == 0, "ray=%lld", (long long)ray);
+        return;
+    }
+    HF_ASSERT(memcmp(&h, &s->hit, sizeof h) == 0, "ray=%lld: the hit record differs",
+              (long long)ray);
+    hf_mip_setup(&h, b, &r, &w);
+    HF_ASSERT(memcmp(&r, &s->ray, sizeof r) == 0, "ray=%lld: the walk's constants differ",
+              (long long)ray);
+}
+#endif
+
 /* What the rays below have cleared.
  * - A hit: a ray from height oz with slope dz, whose walk started at t_start, hit in cell
  *   (i, j), whose interval starts at t_enter; its walk stood at parameter t there. Every
@@ -83,90 +213,136 @@ typedef struct {
 } plane_chain;
 
 /* One ray of a plane, above every ray the chain came from: its first hit, equal to
- * dda_maxmip's. Updates the chain. */
-static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray, plane_chain *chain) {
-    hf_hit h;
-    hf_mip_ray r;
+ * dda_maxmip's. Updates the chain. `s`: the plane's shared set-up, or NULL for a ray
+ * that takes dda_maxmip's own set-up (a ray alone in its plane, a line on a grid line). */
+static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s, int64_t ray,
+                     plane_chain *chain) {
+    hf_hit own;
+    hf_mip_ray own_ray;
+    hf_hit *const h = s ? &s->hit : &own;
+    hf_mip_ray *const r = s ? &s->ray : &own_ray;
     hf_mip_walk w;
     double t0, t1;
-    int entry_axis, status = 0, walked = 1;
-    if (!steps->begin(b, ray, &h, &t0, &t1, &entry_axis)) {
-        steps->end(b, ray, &h);
+    int entry_axis, status = 0, walked = 1, resumed = 0;
+    const int inside = s ? plane_begin(b, s, ray, &t0, &t1, &entry_axis)
+                         : steps->begin(b, ray, h, &t0, &t1, &entry_axis);
+#ifdef HF_DEBUG
+    if (s) plane_check_begin(b, steps, s, ray, inside);
+#endif
+    if (!inside) {
+        steps->end(b, ray, h);
         return HF_OK;
     }
-    if (!(t0 < t1) || hf_on_grid_line(&h)) {
+    if (!(t0 < t1) || (!s && hf_on_grid_line(h))) {
         /* a single parameter, or a ray on a grid line: dda_maxmip's own per-ray paths */
-        const int solved = steps->solve(b, ray, &h, t0, t1, entry_axis);
+        const int solved = steps->solve(b, ray, h, t0, t1, entry_axis);
         if (solved != HF_OK) return solved;
-        steps->end(b, ray, &h);
+        steps->end(b, ray, h);
         return HF_OK;
     }
-    hf_mip_setup(&h, b, &r, &w);
-    if (chain->miss_valid && h.oz >= chain->miss_oz && h.dz >= chain->miss_dz &&
+    if (s) {
+        /* hf_mip_setup's start, but for the cell: set below, at the chain's cell or at
+         * the ray's entry */
+        w.i = w.j = 0;
+        w.t = t0;
+        w.level = hf_mip_restart_level(r);
+        w.guard = 0;
+    } else {
+        hf_mip_setup(h, b, r, &w);
+    }
+    if (chain->miss_valid && h->oz >= chain->miss_oz && h->dz >= chain->miss_dz &&
         t0 >= chain->miss_t_start && t1 == chain->miss_t1) {
         /* A ray below missed over this very range but for a later start: every cell
          * after this ray's first has the same interval for both, so only the first one,
          * cut short by the later start, can hold a hit. */
         if (t0 != chain->miss_t_start) {
-            h.cells_visited += 1;
-            status = hf_hit_cell_exact(&h, w.i, w.j);
+            h->cells_visited += 1;
+            status = hf_hit_cell_exact(h, hf_cell_at(h->ox, h->dx, t0, r->nx),
+                                       hf_cell_at(h->oy, h->dy, t0, r->ny));
         }
         walked = 0;
-    } else if (chain->valid && h.oz >= chain->oz && h.dz >= chain->dz && t0 >= chain->t_start &&
+    } else if (chain->valid && h->oz >= chain->oz && h->dz >= chain->dz && t0 >= chain->t_start &&
                t0 < chain->t && chain->t_enter < t1) {
         /* Resume only where every cell before the chain's cell has the same interval for
          * this ray as for the ray that cleared it: the ray starts no earlier than that ray
          * (and at t >= 0, where z grows with oz and dz), before the resume point, and its
          * range goes on past the hit cell's entry (strictly: a walk never enters a cell
          * at its t1, so a cell whose interval is [t1, t1] is not one it tests). */
-        if (t0 == chain->t_start || (w.i == chain->i && w.j == chain->j)) {
+        resumed = 1;
+        if (t0 != chain->t_start) {
+            /* a later start cuts the first cell short: unless it is the chain's cell,
+             * test it on this ray's interval; then the cells up to the chain's cell
+             * have the same intervals */
+            const int32_t i = hf_cell_at(h->ox, h->dx, t0, r->nx);
+            const int32_t j = hf_cell_at(h->oy, h->dy, t0, r->ny);
+            if (i != chain->i || j != chain->j) {
+                h->cells_visited += 1;
+                status = hf_hit_cell_exact(h, i, j);
+            }
+        }
+        if (!status) {
             w.i = chain->i;
             w.j = chain->j;
             w.t = chain->t;
-            w.level = r.floor_level; /* the hit is near: start at the floor tile */
-        } else {
-            /* a later start cuts the first cell short: test it on this ray's interval,
-             * then the cells up to the chain's cell have the same intervals */
-            h.cells_visited += 1;
-            status = hf_hit_cell_exact(&h, w.i, w.j);
-            if (!status) {
-                w.i = chain->i;
-                w.j = chain->j;
-                w.t = chain->t;
-                w.level = r.floor_level;
-            }
+            w.level = r->floor_level; /* the hit is near: start at the floor tile */
         }
     }
-    if (!status && walked) status = hf_mip_walk_alone(&h, b, &r, &w, 0);
+    if (!resumed && walked && s) {
+        /* a fresh walk from the ray's entry, as hf_mip_setup starts it */
+        w.i = hf_cell_at(h->ox, h->dx, t0, r->nx);
+        w.j = hf_cell_at(h->oy, h->dy, t0, r->ny);
+    }
+    if (!status && walked) status = hf_mip_walk_alone(h, b, r, &w, 0);
     if (status > 0) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;
-        (void)hf_cell_interval(&h, h.i, h.j, &ta, &tb);
+        (void)hf_cell_interval(h, h->i, h->j, &ta, &tb);
         chain->valid = t0 >= 0; /* z grows with oz and dz only where t >= 0 */
-        chain->oz = h.oz;
-        chain->dz = h.dz;
+        chain->oz = h->oz;
+        chain->dz = h->dz;
         chain->t_start = t0;
         chain->t_enter = ta;
         chain->t = w.t;
-        chain->i = h.i;
-        chain->j = h.j;
-    } else if (!walked || w.guard <= r.guard_max) {
+        chain->i = h->i;
+        chain->j = h->j;
+    } else if (!walked || w.guard <= r->guard_max) {
         /* the whole range [t0, t1] is clear for this ray (a walk that gave up proves
          * nothing) */
         chain->miss_valid = t0 >= 0;
-        chain->miss_oz = h.oz;
-        chain->miss_dz = h.dz;
+        chain->miss_oz = h->oz;
+        chain->miss_dz = h->dz;
         chain->miss_t_start = t0;
         chain->miss_t1 = t1;
     }
-    steps->end(b, ray, &h);
+    steps->end(b, ray, h);
     return HF_OK;
 }
 
-/* The rays of one plane, members[0 .. count), traced bottom up. */
-static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, plane_member *members,
-                       int64_t count) {
+/* The `count` rays of one plane, ray[k] = first + k * stride when `members` is NULL, else
+ * members[k].ray, ordered bottom up: traced as one chain, with the plane's set-up shared. */
+static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, const plane_member *members,
+                       int64_t first, int64_t stride, int64_t count) {
+    plane_shared shared;
     plane_chain chain;
+    int64_t k;
+    plane_shared *const s =
+        plane_shared_init(b, members ? members[0].ray : first, &shared) ? &shared : NULL;
+    memset(&chain, 0, sizeof chain);
+    for (k = 0; k < count; ++k) {
+        const int64_t ray = members ? members[k].ray : first + k * stride;
+        const int status = plane_ray(b, steps, s, ray, &chain);
+        if (status != HF_OK) {
+            b->bad_ray = ray;
+            return status;
+        }
+    }
+    return HF_OK;
+}
+
+/* The plane's members in batch order, put bottom up: an image column listed top down is
+ * reversed (ties keep their order reversed, which changes nothing: equal rays give equal
+ * hits), other orders sorted. */
+static void plane_order(plane_member *members, int64_t count) {
     int64_t k;
     int ascending = 1, descending = 1;
     for (k = 1; k < count; ++k) {
@@ -174,8 +350,6 @@ static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, plane_member 
         if (!member_below(&members[k], &members[k - 1])) descending = 0;
     }
     if (descending && !ascending) {
-        /* an image column listed top down: reverse it (ties keep their order reversed,
-         * which changes nothing: equal rays give equal hits) */
         for (k = 0; k < count / 2; ++k) {
             const plane_member m = members[k];
             members[k] = members[count - 1 - k];
@@ -184,24 +358,62 @@ static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, plane_member 
     } else if (!ascending) {
         qsort(members, (size_t)count, sizeof *members, member_order);
     }
-    memset(&chain, 0, sizeof chain);
-    for (k = 0; k < count; ++k) {
-        const int status = plane_ray(b, steps, members[k].ray, &chain);
-        if (status != HF_OK) {
-            b->bad_ray = members[k].ray;
-            return status;
+}
+
+/* The member record of ray r (its height, slope and index). */
+static plane_member member_of(const hf_hit_batch *b, int64_t r) {
+    plane_member m;
+    m.oz = b->origins[3 * r + 2];
+    m.dz = b->directions[3 * r + 2];
+    m.ray = r;
+    return m;
+}
+
+/* A batch laid out as an image whose columns are planes, as the level and orthographic
+ * cameras give it (row-major): for some width w dividing n, ray k shares the plane of ray
+ * k - w for every k >= w, every ray can share a plane, and down every column the rays go
+ * one way in elevation (each below the one above it in the listing, or each above).
+ * Returns w (0: not such a batch; one pass, no table), and in *top_down whether the
+ * columns are listed from the top. Columns that happen to share one plane are traced as
+ * separate planes, which is exact too (any ray of a plane may start a chain). */
+static int64_t image_columns(const hf_hit_batch *b, int *top_down) {
+    const int64_t n = b->n_rays;
+    int64_t width, k;
+    int ascending = 1, descending = 1;
+    for (width = 1; width < n && !same_plane(b, 0, width); ++width) {}
+    if (width >= n || n % width != 0) return 0;
+    for (k = 0; k < n; ++k) {
+        if (!plane_eligible(b, k)) return 0;
+        if (k >= width) {
+            const plane_member above = member_of(b, k - width), here = member_of(b, k);
+            if (!same_plane(b, k, k - width)) return 0;
+            if (!member_below(&above, &here)) ascending = 0;
+            if (!member_below(&here, &above)) descending = 0;
+            if (!ascending && !descending) return 0;
         }
     }
-    return HF_OK;
+    *top_down = descending && !ascending;
+    return width;
 }
 
 int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
     const int64_t n = b->n_rays;
-    int64_t slots = 16, ray, *table = NULL, *next = NULL, *last = NULL;
+    int64_t slots = 16, ray, *table = NULL, *next = NULL, *last = NULL, width;
     plane_member *members = NULL;
-    int status = HF_OK;
+    int status = HF_OK, top_down = 0;
     if (b->mip_levels < 1) return HF_ERR_ARGUMENT;
     b->bad_ray = -1;
+    width = n > 1 ? image_columns(b, &top_down) : 0;
+    if (width > 0) {
+        /* an image of planes: each column bottom up, no grouping to do */
+        const int64_t height = n / width;
+        int64_t column;
+        for (column = 0; column < width && status == HF_OK; ++column)
+            status = top_down ? plane_trace(b, steps, NULL, column + (height - 1) * width, -width,
+                                            height)
+                              : plane_trace(b, steps, NULL, column, width, height);
+        return status;
+    }
     /* an open-addressing table of the planes (at most half full), each plane a list of
      * its rays in batch order: next[] links them, last[] holds a list's tail at its head */
     while (slots < 2 * n) slots *= 2;
@@ -235,18 +447,15 @@ int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
         if (last[ray] >= 0 && next[ray] >= 0) {
             /* the head of a plane of two rays or more: the whole plane */
             int64_t count = 0, member;
-            for (member = ray; member >= 0; member = next[member]) {
-                members[count].oz = b->origins[3 * member + 2];
-                members[count].dz = b->directions[3 * member + 2];
-                members[count].ray = member;
-                ++count;
-            }
-            status = plane_trace(b, steps, members, count);
+            for (member = ray; member >= 0; member = next[member])
+                members[count++] = member_of(b, member);
+            plane_order(members, count);
+            status = plane_trace(b, steps, members, 0, 0, count);
         } else if (last[ray] >= 0 || !plane_eligible(b, ray)) {
             /* a ray alone in its plane, or one that shares none: dda_maxmip's walk */
             plane_chain alone;
             memset(&alone, 0, sizeof alone);
-            status = plane_ray(b, steps, ray, &alone);
+            status = plane_ray(b, steps, NULL, ray, &alone);
             if (status != HF_OK) b->bad_ray = ray;
         }
     }
