@@ -45,8 +45,12 @@ static int member_below(const plane_member *p, const plane_member *q) {
 /* The key of a ray's plane: its horizontal origin and direction, compared by their bits
  * (so -0 and +0 are different planes; NaN never reaches a kernel). */
 static int same_plane(const hf_hit_batch *b, int64_t r, int64_t s) {
-    return memcmp(b->origins + 3 * r, b->origins + 3 * s, 2 * sizeof(double)) == 0 &&
-           memcmp(b->directions + 3 * r, b->directions + 3 * s, 2 * sizeof(double)) == 0;
+    uint64_t p[4], q[4];
+    memcpy(p, b->origins + 3 * r, 2 * sizeof(double));
+    memcpy(p + 2, b->directions + 3 * r, 2 * sizeof(double));
+    memcpy(q, b->origins + 3 * s, 2 * sizeof(double));
+    memcpy(q + 2, b->directions + 3 * s, 2 * sizeof(double));
+    return ((p[0] ^ q[0]) | (p[1] ^ q[1]) | (p[2] ^ q[2]) | (p[3] ^ q[3])) == 0;
 }
 
 static uint64_t plane_hash(const hf_hit_batch *b, int64_t r) {
@@ -318,19 +322,29 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
     return HF_OK;
 }
 
-/* The `count` rays of one plane, ray[k] = first + k * stride when `members` is NULL, else
- * members[k].ray, ordered bottom up: traced as one chain, with the plane's set-up shared. */
+/* The `count` rays of one plane, ray[k] = members[k].ray, or first + k * stride when
+ * `members` is NULL, ordered bottom up: traced as one chain, with the plane's set-up
+ * shared. In the strided form the rays are candidates only (an image's column): each is
+ * checked against the first, and one that does not share its plane is traced alone. */
 static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, const plane_member *members,
                        int64_t first, int64_t stride, int64_t count) {
     plane_shared shared;
-    plane_chain chain;
+    plane_chain chain, alone;
     int64_t k;
-    plane_shared *const s =
-        plane_shared_init(b, members ? members[0].ray : first, &shared) ? &shared : NULL;
+    const int64_t head = members ? members[0].ray : first;
+    const int chained = plane_eligible(b, head);
+    plane_shared *const s = chained && plane_shared_init(b, head, &shared) ? &shared : NULL;
     memset(&chain, 0, sizeof chain);
     for (k = 0; k < count; ++k) {
         const int64_t ray = members ? members[k].ray : first + k * stride;
-        const int status = plane_ray(b, steps, s, ray, &chain);
+        int status;
+        if (members ||
+            (chained && (k == 0 || (plane_eligible(b, ray) && same_plane(b, ray, head))))) {
+            status = plane_ray(b, steps, s, ray, &chain);
+        } else {
+            memset(&alone, 0, sizeof alone);
+            status = plane_ray(b, steps, NULL, ray, &alone);
+        }
         if (status != HF_OK) {
             b->bad_ray = ray;
             return status;
@@ -370,29 +384,24 @@ static plane_member member_of(const hf_hit_batch *b, int64_t r) {
 }
 
 /* A batch laid out as an image whose columns are planes, as the level and orthographic
- * cameras give it (row-major): for some width w dividing n, ray k shares the plane of ray
- * k - w for every k >= w, every ray can share a plane, and down every column the rays go
- * one way in elevation (each below the one above it in the listing, or each above).
- * Returns w (0: not such a batch; one pass, no table), and in *top_down whether the
- * columns are listed from the top. Columns that happen to share one plane are traced as
- * separate planes, which is exact too (any ray of a plane may start a chain). */
+ * cameras give it (row-major): ray 0 shares its plane first with ray w, w divides n, and
+ * every ray of the second row shares the plane of the ray above it. Returns w (0: not
+ * such a batch), and in *top_down whether the columns are listed from the top (ray w
+ * below ray 0). Nothing else is assumed: plane_trace checks every ray of a column
+ * against the column's first, and the chain's own conditions hold whatever the order
+ * (the order only makes the chain resume more often). Columns that share one plane are
+ * traced as separate planes, which is exact too. */
 static int64_t image_columns(const hf_hit_batch *b, int *top_down) {
     const int64_t n = b->n_rays;
     int64_t width, k;
-    int ascending = 1, descending = 1;
     for (width = 1; width < n && !same_plane(b, 0, width); ++width) {}
     if (width >= n || n % width != 0) return 0;
-    for (k = 0; k < n; ++k) {
-        if (!plane_eligible(b, k)) return 0;
-        if (k >= width) {
-            const plane_member above = member_of(b, k - width), here = member_of(b, k);
-            if (!same_plane(b, k, k - width)) return 0;
-            if (!member_below(&above, &here)) ascending = 0;
-            if (!member_below(&here, &above)) descending = 0;
-            if (!ascending && !descending) return 0;
-        }
+    for (k = 0; k < width; ++k)
+        if (!plane_eligible(b, k) || !same_plane(b, k, k + width)) return 0;
+    {
+        const plane_member first = member_of(b, 0), second = member_of(b, width);
+        *top_down = member_below(&second, &first) && !member_below(&first, &second);
     }
-    *top_down = descending && !ascending;
     return width;
 }
 
