@@ -322,35 +322,79 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
     return HF_OK;
 }
 
-/* The `count` rays of one plane, ray[k] = members[k].ray, or first + k * stride when
- * `members` is NULL, ordered bottom up: traced as one chain, with the plane's set-up
- * shared. In the strided form the rays are candidates only (an image's column): each is
- * checked against the first, and one that does not share its plane is traced alone. */
+/* One plane being traced: its shared set-up (NULL when its rays take dda_maxmip's own,
+ * on a grid line) and its chain. `head` is the ray it was set up from; `chained` is 0
+ * when that ray shares no plane (then every candidate is traced alone). */
+typedef struct {
+    plane_shared shared, *s;
+    plane_chain chain;
+    int64_t head;
+    int chained;
+} plane_column;
+
+static void plane_column_init(const hf_hit_batch *b, int64_t head, plane_column *c) {
+    c->head = head;
+    c->chained = plane_eligible(b, head);
+    c->s = c->chained && plane_shared_init(b, head, &c->shared) ? &c->shared : NULL;
+    memset(&c->chain, 0, sizeof c->chain);
+}
+
+/* The next ray of the plane, above the ones before it. `checked`: the ray is known to
+ * share the head's plane; else it is a candidate (an image's column), checked here, and
+ * traced alone when it does not. */
+static int plane_column_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_column *c,
+                            int64_t ray, int checked) {
+    int status;
+    if (c->chained &&
+        (checked || ray == c->head || (plane_eligible(b, ray) && same_plane(b, ray, c->head)))) {
+        status = plane_ray(b, steps, c->s, ray, &c->chain);
+    } else {
+        plane_chain alone;
+        memset(&alone, 0, sizeof alone);
+        status = plane_ray(b, steps, NULL, ray, &alone);
+    }
+    if (status != HF_OK) b->bad_ray = ray;
+    return status;
+}
+
+/* The `count` rays of one plane, members[0 .. count), ordered bottom up: one chain. */
 static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, const plane_member *members,
-                       int64_t first, int64_t stride, int64_t count) {
-    plane_shared shared;
-    plane_chain chain, alone;
+                       int64_t count) {
+    plane_column column;
     int64_t k;
-    const int64_t head = members ? members[0].ray : first;
-    const int chained = plane_eligible(b, head);
-    plane_shared *const s = chained && plane_shared_init(b, head, &shared) ? &shared : NULL;
-    memset(&chain, 0, sizeof chain);
-    for (k = 0; k < count; ++k) {
-        const int64_t ray = members ? members[k].ray : first + k * stride;
-        int status;
-        if (members ||
-            (chained && (k == 0 || (plane_eligible(b, ray) && same_plane(b, ray, head))))) {
-            status = plane_ray(b, steps, s, ray, &chain);
-        } else {
-            memset(&alone, 0, sizeof alone);
-            status = plane_ray(b, steps, NULL, ray, &alone);
-        }
-        if (status != HF_OK) {
-            b->bad_ray = ray;
-            return status;
+    int status = HF_OK;
+    plane_column_init(b, members[0].ray, &column);
+    for (k = 0; k < count && status == HF_OK; ++k)
+        status = plane_column_ray(b, steps, &column, members[k].ray, 1);
+    return status;
+}
+
+/* How many columns of an image are traced side by side: row by row, each ray of a row
+ * in its own column's chain. Neighbouring columns walk neighbouring cells, and the rays
+ * of a row lie side by side in the batch, so each cache line that a ray reads serves the
+ * next ones; and consecutive rays, in different chains, do not wait on each other. */
+#define PLANE_COLUMNS_SIDE_BY_SIDE 8
+
+/* The image of `width` columns and n / width rows, each column bottom up (its first ray
+ * in the batch is the bottom one when top_down), in blocks of columns side by side. */
+static int plane_image(hf_hit_batch *b, const hf_ray_steps *steps, int64_t width, int top_down) {
+    plane_column columns[PLANE_COLUMNS_SIDE_BY_SIDE];
+    const int64_t height = b->n_rays / width;
+    int64_t first, row;
+    int status = HF_OK;
+    for (first = 0; first < width && status == HF_OK; first += PLANE_COLUMNS_SIDE_BY_SIDE) {
+        const int64_t block =
+            width - first < PLANE_COLUMNS_SIDE_BY_SIDE ? width - first : PLANE_COLUMNS_SIDE_BY_SIDE;
+        int64_t c;
+        for (c = 0; c < block; ++c)
+            plane_column_init(b, (top_down ? (height - 1) * width : 0) + first + c, &columns[c]);
+        for (row = 0; row < height && status == HF_OK; ++row) {
+            const int64_t base = (top_down ? height - 1 - row : row) * width + first;
+            for (c = 0; c < block && status == HF_OK; ++c)
+                status = plane_column_ray(b, steps, &columns[c], base + c, 0);
         }
     }
-    return HF_OK;
+    return status;
 }
 
 /* The plane's members in batch order, put bottom up: an image column listed top down is
@@ -413,16 +457,7 @@ int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
     if (b->mip_levels < 1) return HF_ERR_ARGUMENT;
     b->bad_ray = -1;
     width = n > 1 ? image_columns(b, &top_down) : 0;
-    if (width > 0) {
-        /* an image of planes: each column bottom up, no grouping to do */
-        const int64_t height = n / width;
-        int64_t column;
-        for (column = 0; column < width && status == HF_OK; ++column)
-            status = top_down ? plane_trace(b, steps, NULL, column + (height - 1) * width, -width,
-                                            height)
-                              : plane_trace(b, steps, NULL, column, width, height);
-        return status;
-    }
+    if (width > 0) return plane_image(b, steps, width, top_down); /* no grouping to do */
     /* an open-addressing table of the planes (at most half full), each plane a list of
      * its rays in batch order: next[] links them, last[] holds a list's tail at its head */
     while (slots < 2 * n) slots *= 2;
@@ -459,7 +494,7 @@ int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
             for (member = ray; member >= 0; member = next[member])
                 members[count++] = member_of(b, member);
             plane_order(members, count);
-            status = plane_trace(b, steps, members, 0, 0, count);
+            status = plane_trace(b, steps, members, count);
         } else if (last[ray] >= 0 || !plane_eligible(b, ray)) {
             /* a ray alone in its plane, or one that shares none: dda_maxmip's walk */
             plane_chain alone;
