@@ -17,6 +17,7 @@
  * monotone) and every ray without a partner take dda_maxmip's per-ray walk. The proof
  * and its limits: docs/plane.md. Outputs (t, cell, normal) equal dda_maxmip's bit for
  * bit; the statistics count the work this kernel did. */
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 #include "core/hftrace.h"
@@ -134,16 +135,15 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     return !hf_on_grid_line(h);
 }
 
-/* Ray `ray` of the plane: clip it and fill s->hit and s->ray for it, as ray_begin and
- * hf_mip_setup would (a debug build checks this field by field against `steps`).
- * Returns 1 when there is a walk to do, 0 when the ray misses the box (then s->hit is a
- * miss, ready for the outputs). */
-HF_HOT int plane_begin(const hf_hit_batch *b, plane_shared *s, int64_t ray, double *t0_out,
-                       double *t1_out, int *entry_axis_out) {
+/* Ray `ray` of the plane: clip it, and fill h and r (copies of s->hit and s->ray) for it
+ * as ray_begin and hf_mip_setup would (a debug build checks this field by field against
+ * `steps`). Returns 1 when there is a walk to do, 0 when the ray misses the box (then h
+ * is a miss, ready for the outputs). */
+HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray, hf_hit *h,
+                       hf_mip_ray *r, double *t0_out, double *t1_out, int *entry_axis_out) {
     const double oz = b->origins[3 * ray + 2], dz = b->directions[3 * ray + 2];
     double t0 = b->tmin ? b->tmin[ray] : 0.0, t1 = b->tmax ? b->tmax[ray] : (double)INFINITY;
     int axis = -1, k, inside = !s->outside;
-    hf_hit *h = &s->hit;
     /* the result and the statistics start empty, as after ray_begin's memset */
     h->found = 0;
     h->t = 0;
@@ -154,34 +154,35 @@ HF_HOT int plane_begin(const hf_hit_batch *b, plane_shared *s, int64_t ray, doub
     for (k = 0; k < 2; ++k)
         if (s->moves[k]) hf_slab_clip(s->face_a[k], s->face_b[k], k, &t0, &t1, &axis);
     inside = inside && t0 <= t1 && hf_box_clip_z(oz, dz, s->zlo, s->zhi, &t0, &t1, &axis);
-    h->oz = inside ? oz : 0;
-    h->dz = inside ? dz : 0;
-    h->t0 = inside ? t0 : 0;
-    h->t1 = inside ? t1 : 0;
-    h->entry_axis = inside ? axis : 0;
-    /* hf_hit_prepare's fields that depend on dz */
-    {
-        const int descending = h->dz < 0;
-        h->bound_off[0] = descending == (h->dx > 0);
-        h->bound_off[1] = descending == (h->dy > 0);
-        h->bound_lo = descending ? -(double)INFINITY : h->t0;
-        h->bound_hi = descending ? h->t1 : (double)INFINITY;
-        h->fast_runs = h->fast && descending;
-        s->ray.descending = descending;
-    }
-    s->ray.oz = h->oz;
-    s->ray.dz = h->dz;
-    s->ray.t1 = h->t1;
     *t0_out = t0;
     *t1_out = t1;
     *entry_axis_out = axis;
-    return inside;
+    if (!inside) return 0;
+    h->oz = oz;
+    h->dz = dz;
+    h->t0 = t0;
+    h->t1 = t1;
+    h->entry_axis = axis;
+    /* hf_hit_prepare's fields that depend on dz */
+    {
+        const int descending = dz < 0;
+        h->bound_off[0] = descending == (h->dx > 0);
+        h->bound_off[1] = descending == (h->dy > 0);
+        h->bound_lo = descending ? -(double)INFINITY : t0;
+        h->bound_hi = descending ? t1 : (double)INFINITY;
+        h->fast_runs = h->fast && descending;
+        r->descending = descending;
+    }
+    r->oz = oz;
+    r->dz = dz;
+    r->t1 = t1;
+    return 1;
 }
 
 #ifdef HF_DEBUG
 /* Debug builds: the plane's set-up of a ray equals dda_maxmip's, field by field. */
-static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps,
-                              const plane_shared *s, int64_t ray, int inside) {
+static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps, const hf_hit *mine,
+                              const hf_mip_ray *mine_r, int64_t ray, int inside) {
     hf_hit h;
     hf_mip_ray r;
     hf_mip_walk w;
@@ -190,13 +191,12 @@ static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps,
     const int walk = steps->begin(b, ray, &h, &t0, &t1, &axis);
     HF_ASSERT(walk == inside, "ray=%lld begin=%d plane=%d", (long long)ray, walk, inside);
     if (!walk) {
-        HF_ASSERT(!s->hit.found && s->hit.cells_visited == 0, "ray=%lld", (long long)ray);
+        HF_ASSERT(!mine->found && mine->cells_visited == 0, "ray=%lld", (long long)ray);
         return;
     }
-    HF_ASSERT(memcmp(&h, &s->hit, sizeof h) == 0, "ray=%lld: the hit record differs",
-              (long long)ray);
+    HF_ASSERT(memcmp(&h, mine, sizeof h) == 0, "ray=%lld: the hit record differs", (long long)ray);
     hf_mip_setup(&h, b, &r, &w);
-    HF_ASSERT(memcmp(&r, &s->ray, sizeof r) == 0, "ray=%lld: the walk's constants differ",
+    HF_ASSERT(memcmp(&r, mine_r, sizeof r) == 0, "ray=%lld: the walk's constants differ",
               (long long)ray);
 }
 #endif
@@ -221,17 +221,27 @@ typedef struct {
  * that takes dda_maxmip's own set-up (a ray alone in its plane, a line on a grid line). */
 static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s, int64_t ray,
                      plane_chain *chain) {
-    hf_hit own;
-    hf_mip_ray own_ray;
-    hf_hit *const h = s ? &s->hit : &own;
-    hf_mip_ray *const r = s ? &s->ray : &own_ray;
+    /* local copies of the plane's set-up: the walk keeps their fields in registers */
+    hf_hit own, *const h = &own;
+    hf_mip_ray r;
     hf_mip_walk w;
     double t0, t1;
     int entry_axis, status = 0, walked = 1, resumed = 0;
-    const int inside = s ? plane_begin(b, s, ray, &t0, &t1, &entry_axis)
-                         : steps->begin(b, ray, h, &t0, &t1, &entry_axis);
+    int inside;
+    if (s) {
 #ifdef HF_DEBUG
-    if (s) plane_check_begin(b, steps, s, ray, inside);
+        memset(h, 0, sizeof *h); /* the bytes past `found` too, for the field check */
+#endif
+        /* the record up to its result (plane_begin clears that): under 256 bytes, which
+         * the compiler copies with vector moves, not a string instruction */
+        memcpy(h, &s->hit, offsetof(hf_hit, found));
+        r = s->ray;
+        inside = plane_begin(b, s, ray, h, &r, &t0, &t1, &entry_axis);
+    } else {
+        inside = steps->begin(b, ray, h, &t0, &t1, &entry_axis);
+    }
+#ifdef HF_DEBUG
+    if (s) plane_check_begin(b, steps, h, &r, ray, inside);
 #endif
     if (!inside) {
         steps->end(b, ray, h);
@@ -249,10 +259,10 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
          * the ray's entry */
         w.i = w.j = 0;
         w.t = t0;
-        w.level = hf_mip_restart_level(r);
+        w.level = hf_mip_restart_level(&r);
         w.guard = 0;
     } else {
-        hf_mip_setup(h, b, r, &w);
+        hf_mip_setup(h, b, &r, &w);
     }
     if (chain->miss_valid && h->oz >= chain->miss_oz && h->dz >= chain->miss_dz &&
         t0 >= chain->miss_t_start && t1 == chain->miss_t1) {
@@ -261,8 +271,8 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
          * cut short by the later start, can hold a hit. */
         if (t0 != chain->miss_t_start) {
             h->cells_visited += 1;
-            status = hf_hit_cell_exact(h, hf_cell_at(h->ox, h->dx, t0, r->nx),
-                                       hf_cell_at(h->oy, h->dy, t0, r->ny));
+            status = hf_hit_cell_exact(h, hf_cell_at(h->ox, h->dx, t0, r.nx),
+                                       hf_cell_at(h->oy, h->dy, t0, r.ny));
         }
         walked = 0;
     } else if (chain->valid && h->oz >= chain->oz && h->dz >= chain->dz && t0 >= chain->t_start &&
@@ -277,8 +287,8 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
             /* a later start cuts the first cell short: unless it is the chain's cell,
              * test it on this ray's interval; then the cells up to the chain's cell
              * have the same intervals */
-            const int32_t i = hf_cell_at(h->ox, h->dx, t0, r->nx);
-            const int32_t j = hf_cell_at(h->oy, h->dy, t0, r->ny);
+            const int32_t i = hf_cell_at(h->ox, h->dx, t0, r.nx);
+            const int32_t j = hf_cell_at(h->oy, h->dy, t0, r.ny);
             if (i != chain->i || j != chain->j) {
                 h->cells_visited += 1;
                 status = hf_hit_cell_exact(h, i, j);
@@ -288,15 +298,15 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
             w.i = chain->i;
             w.j = chain->j;
             w.t = chain->t;
-            w.level = r->floor_level; /* the hit is near: start at the floor tile */
+            w.level = r.floor_level; /* the hit is near: start at the floor tile */
         }
     }
     if (!resumed && walked && s) {
         /* a fresh walk from the ray's entry, as hf_mip_setup starts it */
-        w.i = hf_cell_at(h->ox, h->dx, t0, r->nx);
-        w.j = hf_cell_at(h->oy, h->dy, t0, r->ny);
+        w.i = hf_cell_at(h->ox, h->dx, t0, r.nx);
+        w.j = hf_cell_at(h->oy, h->dy, t0, r.ny);
     }
-    if (!status && walked) status = hf_mip_walk_alone(h, b, r, &w, 0);
+    if (!status && walked) status = hf_mip_walk_alone(h, b, &r, &w, 0);
     if (status > 0) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;
@@ -309,7 +319,7 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
         chain->t = w.t;
         chain->i = h->i;
         chain->j = h->j;
-    } else if (!walked || w.guard <= r->guard_max) {
+    } else if (!walked || w.guard <= r.guard_max) {
         /* the whole range [t0, t1] is clear for this ray (a walk that gave up proves
          * nothing) */
         chain->miss_valid = t0 >= 0;
