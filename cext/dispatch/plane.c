@@ -385,24 +385,35 @@ static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, const plane_m
  * next ones; and consecutive rays, in different chains, do not wait on each other. */
 #define PLANE_COLUMNS_SIDE_BY_SIDE 8
 
-/* The image of `width` columns and n / width rows, each column bottom up (its first ray
- * in the batch is the bottom one when top_down), in blocks of columns side by side. */
+/* The image of `width` columns: column c holds rays c, c + width, ... below n (the last
+ * row may be short, and the first need not be an image's first: a thread's share of a
+ * camera's batch), each column bottom up (its last ray in the batch first when
+ * top_down), in blocks of columns side by side. */
 static int plane_image(hf_hit_batch *b, const hf_ray_steps *steps, int64_t width, int top_down) {
     plane_column columns[PLANE_COLUMNS_SIDE_BY_SIDE];
-    const int64_t height = b->n_rays / width;
+    int64_t count[PLANE_COLUMNS_SIDE_BY_SIDE], next[PLANE_COLUMNS_SIDE_BY_SIDE];
+    const int64_t n = b->n_rays, step = top_down ? -width : width;
     int64_t first, row;
     int status = HF_OK;
     for (first = 0; first < width && status == HF_OK; first += PLANE_COLUMNS_SIDE_BY_SIDE) {
         const int64_t block =
             width - first < PLANE_COLUMNS_SIDE_BY_SIDE ? width - first : PLANE_COLUMNS_SIDE_BY_SIDE;
         int64_t c;
-        for (c = 0; c < block; ++c)
-            plane_column_init(b, (top_down ? (height - 1) * width : 0) + first + c, &columns[c]);
-        for (row = 0; row < height && status == HF_OK; ++row) {
-            const int64_t base = (top_down ? height - 1 - row : row) * width + first;
-            for (c = 0; c < block && status == HF_OK; ++c)
-                status = plane_column_ray(b, steps, &columns[c], base + c, 0);
+        for (c = 0; c < block; ++c) {
+            count[c] = (n - (first + c) + width - 1) / width; /* the rays of column c */
+            next[c] = first + c + (top_down ? (count[c] - 1) * width : 0);
+            plane_column_init(b, next[c], &columns[c]);
         }
+        /* the rows every column of the block has, then the block's first columns'
+         * last ray (they are the longer ones, by one) */
+        for (row = 0; row < count[block - 1] && status == HF_OK; ++row) {
+            for (c = 0; c < block && status == HF_OK; ++c) {
+                status = plane_column_ray(b, steps, &columns[c], next[c], 0);
+                next[c] += step;
+            }
+        }
+        for (c = 0; c < block && status == HF_OK && count[c] > count[block - 1]; ++c)
+            status = plane_column_ray(b, steps, &columns[c], next[c], 0);
     }
     return status;
 }
@@ -438,8 +449,8 @@ static plane_member member_of(const hf_hit_batch *b, int64_t r) {
 }
 
 /* A batch laid out as an image whose columns are planes, as the level and orthographic
- * cameras give it (row-major): ray 0 shares its plane first with ray w, w divides n, and
- * every ray of the second row shares the plane of the ray above it. Returns w (0: not
+ * cameras give it (row-major): ray 0 shares its plane first with ray w, and every ray of
+ * the second row (rays w .. 2w - 1) shares the plane of the ray above it. Returns w (0: not
  * such a batch), and in *top_down whether the columns are listed from the top (ray w
  * below ray 0). Nothing else is assumed: plane_trace checks every ray of a column
  * against the column's first, and the chain's own conditions hold whatever the order
@@ -449,7 +460,7 @@ static int64_t image_columns(const hf_hit_batch *b, int *top_down) {
     const int64_t n = b->n_rays;
     int64_t width, k;
     for (width = 1; width < n && !same_plane(b, 0, width); ++width) {}
-    if (width >= n || n % width != 0) return 0;
+    if (width > n / 2) return 0; /* no complete second row */
     for (k = 0; k < width; ++k)
         if (!plane_eligible(b, k) || !same_plane(b, k, k + width)) return 0;
     {

@@ -395,3 +395,20 @@ def test_image_layout_resumes():
         ref = algos.intersect("dda_maxmip", fld, o, d, outputs=("stats",), threads=1)
         got = algos.intersect("plane_maxmip", fld, o, d, outputs=("stats",), threads=1)
         assert got.stats["cells_visited"].sum() < 0.8 * ref.stats["cells_visited"].sum(), what
+
+
+def test_image_layout_partial_rows():
+    """A share of an image (what a thread gets): starting inside a row, ending inside
+    one, and the whole image on 1, 2, 3 and 7 threads; every way against dda_maxmip."""
+    H = fields.generate("fbm", (97, 97), seed=4, amplitude=15.0, scale=24.0)
+    fld = algos.Field(H)
+    position, look_at = default_camera(H)
+    rs = raysets.level_camera(position, look_at, 60.0, 37, 21)
+    o, d = rs.origins, rs.directions
+    for lo, hi in ((5, len(o)), (0, len(o) - 11), (40, len(o) - 3), (36, 36 + 2 * 37),
+                   (3, 3 + 2 * 37 + 1)):
+        _check(fld, o[lo:hi], d[lo:hi], f"image rays {lo}:{hi}")
+    ref = algos.intersect("dda_maxmip", fld, o, d, outputs=OUTPUTS, threads=1)
+    for threads in (2, 3, 7):
+        got = algos.intersect("plane_maxmip", fld, o, d, outputs=OUTPUTS, threads=threads)
+        _assert_identical(ref, got, o, d, f"image on {threads} threads")
