@@ -14,9 +14,14 @@
  * ray whose range ends where that of a ray below that missed ends misses too. Where the
  * intervals might differ (a later entry t0, an end t1 before the hit cell) the ray tests
  * its own first cell, or walks on its own; bilinear cells (whose root solve is not shown
- * monotone) and every ray without a partner take dda_maxmip's per-ray walk. The proof
- * and its limits: docs/plane.md. Outputs (t, cell, normal) equal dda_maxmip's bit for
- * bit; the statistics count the work this kernel did. */
+ * monotone) and every ray without a partner take dda_maxmip's per-ray walk.
+ *
+ * A batch laid out as an image of plane columns (the level and orthographic cameras) is
+ * traced column by column, eight columns side by side, with no grouping; any other batch
+ * is grouped with a hash table. The rays of a plane share its set-up (the 2D clip, the
+ * hit record's and the walk's constants); each ray adds only what depends on its oz, dz
+ * and range. The proof, the design and its counts: docs/plane.md. Outputs (t, cell,
+ * normal) equal dda_maxmip's bit for bit; the statistics count the work this kernel did. */
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
