@@ -164,7 +164,7 @@ from .sky_view import _sin_of_positive_atan, sky_view_factor  # noqa: F401
 from .stats import TerrainStats
 from .tiled import halo_depth, tiled_product, tiled_viewshed, viewshed_window  # noqa: F401
 from .viewshed import viewshed
-from .walks import CHAIN_BLOCK_ROWS, CHAIN_MAX_DENOMINATOR, CHAIN_MAX_OFFSET, chain_neighbours, chain_strips, prepare_horizon_timed  # noqa: F401
+from .walks import CHAIN_BLOCK_ROWS, CHAIN_MAX_DENOMINATOR, CHAIN_MAX_OFFSET, chain_neighbours, prepare_horizon_timed  # noqa: F401
 
 __all__ = ["horizon", "shadows", "sky_view_factor", "openness", "viewshed",
            "rational_azimuths",
