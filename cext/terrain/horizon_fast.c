@@ -67,8 +67,7 @@ static int64_t clamp_index(int64_t v, int64_t lo, int64_t hi) {
  * the rounding margin of a lower bound taken at that point). */
 static double surface_point(const double *H, int64_t rows, int64_t cols, double x, double y,
                             double *corner_max) {
-    int64_t i = clamp_index((int64_t)floor(x), 0, cols - 2);
-    int64_t j = clamp_index((int64_t)floor(y), 0, rows - 2);
+    const int64_t i = hf_hz_clamped_floor(x, 0, cols - 2), j = hf_hz_clamped_floor(y, 0, rows - 2);
     const double *c = H + j * cols + i;
     double h00 = c[0], h10 = c[1], h01 = c[cols], h11 = c[cols + 1];
     double m = fabs(h00);
