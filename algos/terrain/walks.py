@@ -127,9 +127,10 @@ def chain_strips(h, d: Direction, width=CHAIN_STRIP_WIDTH, bin_length=CHAIN_STRI
     float64) that the chain walk skips along: ``(strips, ns)``, where ``strips`` is
     ``(data, offset, n_bins, width, bin_length)`` (``hf_hz_strips`` in
     cext/terrain/horizon_fast.h: strip k holds the lines at c = dx y - dy x in
-    [c_min + k width, c_min + (k + 1) width); its bin b at level l the largest corner
-    height of every cell those lines cross at a = dx x + dy y in
-    [a_min + b bin 2^l, a_min + (b + 1) bin 2^l)) and ``ns`` the build's C time."""
+    [c_min + k width, c_min + (k + 1) width); its bin b at level l, at
+    ``data[offset[l] + b * n_strips + k]``, the largest corner height of every cell those
+    lines cross at a = dx x + dy y in [a_min + b bin 2^l, a_min + (b + 1) bin 2^l)) and
+    ``ns`` the build's C time. ``bin_length`` must be a power of two."""
     rows, cols = h.shape
     _, _, n_strips, n_bins0 = _kernels.horizon_strips_frame(rows, cols, d.dx, d.dy, width,
                                                             bin_length)

@@ -172,22 +172,24 @@ void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double
             m = row[i + 1] > m ? row[i + 1] : m;
             m = row[i + cols] > m ? row[i + cols] : m;
             m = row[i + cols + 1] > m ? row[i + cols + 1] : m;
-            for (int64_t k = k0; k <= k1; k++) {
-                double *strip = data + k * nb0;
-                for (int64_t b = b0; b <= b1; b++) strip[b] = m > strip[b] ? m : strip[b];
+            for (int64_t b = b0; b <= b1; b++) {
+                double *bin = data + b * s->n_strips;
+                for (int64_t k = k0; k <= k1; k++) bin[k] = m > bin[k] ? m : bin[k];
             }
         }
     }
     /* each level above: the maximum of two bins below (a missing second one is -inf) */
     for (int32_t l = 1; l < s->n_levels; l++) {
-        const int64_t nb = s->n_bins[l], below = s->n_bins[l - 1];
-        for (int64_t k = 0; k < s->n_strips; k++) {
-            const double *src = data + s->offset[l - 1] + k * below;
-            double *dst = data + s->offset[l] + k * nb;
-            for (int64_t b = 0; b < nb; b++) {
-                double m = src[2 * b];
-                if (2 * b + 1 < below && src[2 * b + 1] > m) m = src[2 * b + 1];
-                dst[b] = m;
+        const int64_t nb = s->n_bins[l], below = s->n_bins[l - 1], ns = s->n_strips;
+        for (int64_t b = 0; b < nb; b++) {
+            const double *first = data + s->offset[l - 1] + 2 * b * ns;
+            double *dst = data + s->offset[l] + b * ns;
+            if (2 * b + 1 < below) {
+                const double *second = first + ns;
+                for (int64_t k = 0; k < ns; k++)
+                    dst[k] = second[k] > first[k] ? second[k] : first[k];
+            } else {
+                for (int64_t k = 0; k < ns; k++) dst[k] = first[k];
             }
         }
     }
@@ -205,7 +207,7 @@ static inline int chain_can_skip(const chain_best *b, double m, double t_in, dou
  * strip's row of bins at each level. */
 typedef struct {
     double along;
-    const double *row[62]; /* the strip's bins at each level */
+    const double *row[62]; /* the strip's first bin at each level (then every n_strips) */
 } chain_strip;
 
 /* Skip the longest stretch of the ray from t_in that bins of its strip prove below the
@@ -232,7 +234,7 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
         const double q = (v->along + t) * s->inv_bin;
         const int64_t bin0 = q < 0.0 ? 0 : q >= (double)last ? last : (int64_t)q;
         const int64_t slot = bin0 >> level;
-        const double m = v->row[level][slot];
+        const double m = v->row[level][slot * s->n_strips];
         const double t_stop = (double)((slot + 1) << level) * s->bin - v->along;
         (*tests)++;
         if (chain_can_skip(b, m, t, t_stop < t_end ? t_stop : t_end)) {
@@ -411,7 +413,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                     const int64_t k = strip_slot(strip_across(dx, dy, r.ox, r.oy), strips->c_min,
                                                  strips->width, strips->n_strips);
                     for (int32_t l = 0; l < strips->n_levels; l++)
-                        place.row[l] = strips->data + strips->offset[l] + k * strips->n_bins[l];
+                        place.row[l] = strips->data + strips->offset[l] + k;
                 }
                 place.along = strip_along(dx, dy, r.ox, r.oy) - strips->a_min;
                 chain_walk(H, rows, cols, strips, &r, &place, t_end, &b, stats);

@@ -43,7 +43,9 @@ typedef struct {
  * there (each cell's c and a ranges widened by HF_STRIP_SLACK against rounding), so it
  * bounds the two-triangle surface at every point of every ray of the strip in that range.
  * Level l + 1 is the pairwise maximum of level l; the top level has one bin. Levels are
- * concatenated in data, level l at offset[l], n_strips rows of n_bins[l] bins. */
+ * concatenated in data, level l at offset[l], n_bins[l] rows of n_strips values (bin b of
+ * strip k at offset[l] + b n_strips + k): the vertices of a grid row lie in neighbouring
+ * strips at almost the same distance along, so their walks read neighbouring values. */
 typedef struct {
     int32_t n_levels;
     int64_t n_strips;

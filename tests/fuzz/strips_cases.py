@@ -52,7 +52,7 @@ def check_strips(case: dict) -> None:
         (data, offset, n_bins, _, _, ), _ = chain_strips(h, d, width, bin_length)
         c_min, a_min, n_strips, _ = _kernels.horizon_strips_frame(rows, cols, d.dx, d.dy, width,
                                                                   bin_length)
-        levels = [data[offset[k]:offset[k] + n_strips * n_bins[k]].reshape(n_strips, -1)
+        levels = [data[offset[k]:offset[k] + n_strips * n_bins[k]].reshape(-1, n_strips).T
                   for k in range(len(n_bins))]
         assert levels[-1].shape == (n_strips, 1), "the top level is not one bin per strip"
         for below, above in zip(levels, levels[1:]):

@@ -79,7 +79,7 @@ def test_strip_bins_bound_the_surface(seed):
             (data, offset, n_bins, width, bin_length), _ = chain_strips(h, d, width, bin_length)
             c_min, a_min, n_strips, _ = _kernels.horizon_strips_frame(rows, cols, d.dx, d.dy,
                                                                       width, bin_length)
-            levels = [data[offset[k]:offset[k] + n_strips * n_bins[k]].reshape(n_strips, -1)
+            levels = [data[offset[k]:offset[k] + n_strips * n_bins[k]].reshape(-1, n_strips).T
                       for k in range(len(n_bins))]
             for below, above in zip(levels, levels[1:]):
                 pad = np.full((n_strips, 2 * above.shape[1]), -np.inf)
