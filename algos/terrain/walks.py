@@ -128,8 +128,8 @@ def chain_strips(h, d: Direction, width=CHAIN_STRIP_WIDTH, bin_length=CHAIN_STRI
     ``(data, offset, n_bins, width, bin_length)`` (``hf_hz_strips`` in
     cext/terrain/horizon_fast.h: strip k holds the lines at c = dx y - dy x in
     [c_min + k width, c_min + (k + 1) width); its bin b at level l, at
-    ``data[offset[l] + b * n_strips + k]``, the largest corner height of every cell those
-    lines cross at a = dx x + dy y in [a_min + b bin 2^l, a_min + (b + 1) bin 2^l)) and
+    ``data[offset[l] + b * n_strips + k]`` (float32, rounded up), the largest corner height
+    of every cell those lines cross at a = dx x + dy y in [a_min + b bin 2^l, a_min + (b + 1) bin 2^l)) and
     ``ns`` the build's C time. ``bin_length`` must be a power of two."""
     rows, cols = h.shape
     _, _, n_strips, n_bins0 = _kernels.horizon_strips_frame(rows, cols, d.dx, d.dy, width,
@@ -139,7 +139,7 @@ def chain_strips(h, d: Direction, width=CHAIN_STRIP_WIDTH, bin_length=CHAIN_STRI
         n_bins.append((n_bins[-1] + 1) // 2)
     n_bins = np.array(n_bins, dtype=np.int64)
     offset = np.concatenate([[0], np.cumsum(n_strips * n_bins[:-1])]).astype(np.int64)
-    data = np.empty(int(offset[-1]) + n_strips)
+    data = np.empty(int(offset[-1]) + n_strips, dtype=np.float32)
     strips = (data, offset, n_bins, float(width), float(bin_length))
     ns = _kernels.horizon_strips(h, strips, d.dx, d.dy)
     return strips, ns

@@ -439,7 +439,7 @@ static int is_power_of_two(double v) {
  * frame hf_horizon_strips_frame gives for this grid, so that every index the walk and the
  * build form lies inside data. */
 static int get_strips(PyObject *o_strips, int64_t rows, int64_t cols, double dx, double dy,
-                      int writable, hf_hz_strips *s, double **data_w) {
+                      int writable, hf_hz_strips *s, float **data_w) {
     PyObject *o_data, *o_off, *o_bins;
     npy_intp n_data, n_levels;
     int64_t n_bins0;
@@ -459,9 +459,9 @@ static int get_strips(PyObject *o_strips, int64_t rows, int64_t cols, double dx,
         return 0;
     }
     s->inv_bin = 1.0 / s->bin;
-    if (!hf_arg_array(o_data, "strips data", NPY_FLOAT64, -1, writable, 0, &p, &n_data)) return 0;
-    s->data = (const double *)p;
-    *data_w = (double *)p;
+    if (!hf_arg_array(o_data, "strips data", NPY_FLOAT32, -1, writable, 0, &p, &n_data)) return 0;
+    s->data = (const float *)p;
+    *data_w = (float *)p;
     if (!hf_arg_array(o_off, "strips offset", NPY_INT64, -1, 0, 0, &p, &n_levels)) return 0;
     s->offset = (const int64_t *)p;
     if (!hf_arg_array(o_bins, "strips n_bins", NPY_INT64, n_levels, 0, 0, &p, NULL)) return 0;
@@ -525,7 +525,8 @@ PyDoc_STRVAR(horizon_strips_doc,
 
 static PyObject *horizon_strips(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_strips;
-    double dx, dy, *data;
+    double dx, dy;
+    float *data;
     hf_hz_strips s;
     hf_timed_section section;
     long long elapsed_ns;
@@ -551,7 +552,8 @@ PyDoc_STRVAR(horizon_chain_doc,
 
 static PyObject *horizon_chain(PyObject *self, PyObject *args) {
     PyObject *o_h, *o_strips, *o_nx, *o_ny, *o_nd, *o_out, *o_occ;
-    double dx, dy, max_distance, *unused;
+    double dx, dy, max_distance;
+    float *unused;
     long long block_rows, block_start, block_stop;
     const double *nb_d;
     const int64_t *nb_x, *nb_y;

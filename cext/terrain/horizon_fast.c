@@ -147,7 +147,7 @@ static inline int64_t strip_slot(double v, double lo, double size, int64_t n) {
 }
 
 void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double dx, double dy,
-                             const hf_hz_strips *s, double *data) {
+                             const hf_hz_strips *s, float *data) {
     /* a cell's c and a ranges, relative to its corner (i, j): the extremes over its four
      * corners, widened by the slack */
     const double c_lo = (dx < 0 ? dx : 0.0) + (-dy < 0 ? -dy : 0.0) - HF_STRIP_SLACK;
@@ -157,12 +157,13 @@ void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double
     const int64_t nb0 = s->n_bins[0];
     for (int64_t k = 0; k < s->offset[s->n_levels - 1] + s->n_strips * s->n_bins[s->n_levels - 1];
          k++)
-        data[k] = -HF_HZ_INF;
+        data[k] = -HUGE_VALF;
     /* level 0: every cell into each strip and bin it reaches */
     for (int64_t j = 0; j + 1 < rows; j++) {
         const double *row = H + j * cols;
         for (int64_t i = 0; i + 1 < cols; i++) {
             double m = row[i];
+            float top;
             const double c = strip_across(dx, dy, (double)i, (double)j);
             const double a = strip_along(dx, dy, (double)i, (double)j);
             const int64_t k0 = strip_slot(c + c_lo, s->c_min, s->width, s->n_strips);
@@ -172,9 +173,12 @@ void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double
             m = row[i + 1] > m ? row[i + 1] : m;
             m = row[i + cols] > m ? row[i + cols] : m;
             m = row[i + cols + 1] > m ? row[i + cols + 1] : m;
+            /* in single precision, rounded up: still a bound, in half the memory */
+            top = (float)m;
+            if ((double)top < m) top = nextafterf(top, HUGE_VALF);
             for (int64_t b = b0; b <= b1; b++) {
-                double *bin = data + b * s->n_strips;
-                for (int64_t k = k0; k <= k1; k++) bin[k] = m > bin[k] ? m : bin[k];
+                float *bin = data + b * s->n_strips;
+                for (int64_t k = k0; k <= k1; k++) bin[k] = top > bin[k] ? top : bin[k];
             }
         }
     }
@@ -182,10 +186,10 @@ void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double
     for (int32_t l = 1; l < s->n_levels; l++) {
         const int64_t nb = s->n_bins[l], below = s->n_bins[l - 1], ns = s->n_strips;
         for (int64_t b = 0; b < nb; b++) {
-            const double *first = data + s->offset[l - 1] + 2 * b * ns;
-            double *dst = data + s->offset[l] + b * ns;
+            const float *first = data + s->offset[l - 1] + 2 * b * ns;
+            float *dst = data + s->offset[l] + b * ns;
             if (2 * b + 1 < below) {
-                const double *second = first + ns;
+                const float *second = first + ns;
                 for (int64_t k = 0; k < ns; k++)
                     dst[k] = second[k] > first[k] ? second[k] : first[k];
             } else {
@@ -207,7 +211,7 @@ static inline int chain_can_skip(const chain_best *b, double m, double t_in, dou
  * strip's row of bins at each level. */
 typedef struct {
     double along;
-    const double *row[62]; /* the strip's first bin at each level (then every n_strips) */
+    const float *row[62]; /* the strip's first bin at each level (then every n_strips) */
 } chain_strip;
 
 /* Skip the longest stretch of the ray from t_in that bins of its strip prove below the

@@ -51,7 +51,7 @@ typedef struct {
     int64_t n_strips;
     const int64_t *n_bins; /* (n_levels,) */
     const int64_t *offset; /* (n_levels,) */
-    const double *data;
+    const float *data;     /* rounded up from the heights: bounds still */
     double c_min, a_min, width, bin;
     double inv_bin; /* 1 / bin, exact: bin is a power of two */
 } hf_hz_strips;
@@ -71,7 +71,7 @@ int hf_horizon_strips_frame(int64_t rows, int64_t cols, double dx, double dy, do
 /* Fill the strips (s->data writable through `data`, the frame from
  * hf_horizon_strips_frame, offsets and bins per level as above). */
 void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double dx, double dy,
-                             const hf_hz_strips *s, double *data);
+                             const hf_hz_strips *s, float *data);
 
 /* Horizon tangents along the unit direction (dx, dy) (grid frame) by per-vertex walks over
  * the breakpoints, each skipping the stretches of its ray where the strips (above) prove
