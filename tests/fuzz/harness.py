@@ -29,6 +29,8 @@ output mode and option. :func:`check` runs it and asserts the invariants:
   rays and on vertical planes grown from them (tests/fuzz/plane_cases.py).
 * ``pitched_maxmip`` gives them too, on the case's rays and on the batch of one eye made
   from them (tests/fuzz/pitched_cases.py).
+* the chain walk's strips (``horizon_strips_frame``, ``horizon_strips``) of every horizon
+  case bound the surface on its rays, level by level (tests/fuzz/strips_cases.py).
 
 The decoder needs no fuzzer, so ``tests/fuzz/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -53,6 +55,7 @@ from .compact_cases import check_compact
 from .cone_cases import check_cone
 from .pitched_cases import check_pitched
 from .plane_cases import check_plane
+from .strips_cases import check_strips
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
 # (packet_maxmip, plane_maxmip and pitched_maxmip are not drawn on their own, which would
@@ -313,6 +316,7 @@ def _check(data: bytes) -> None:
         return
     if case["op"] in ("horizon", "viewshed"):
         _check_terrain(case, result)
+        check_strips(case)  # the chain walk's strips bound the surface (strips_cases.py)
         return
     if case["op"] == "traverse":
         if case["output"] == "cells":
