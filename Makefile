@@ -4,8 +4,8 @@
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests
 #   make bench-ci   the pytest-benchmark suite (pytest bench/benchmarks --benchmark-only)
 #   make terrain-bench  the terrain products' targets against the peers (results/terrain-bench)
-#   make targets    the kernel round's targets table, full tier (hftrace targets --full: results/targets;
-#                   an hour or more, on a quiet machine)
+#   make targets    the round's targets table, medium tier (hftrace targets --tier medium:
+#                   results/targets; about 20 minutes, on a quiet machine)
 #   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
 #   make regress-counts  instruction counts (callgrind) and the exact algorithmic counters against
 #                   bench/regress/instructions_baseline.json and counters_baseline.json
@@ -124,7 +124,7 @@ bench-intersect: $(STAMP)
 	$(BIN)/hftrace bench-intersect
 
 targets: $(STAMP)
-	$(BIN)/hftrace targets --full
+	$(BIN)/hftrace targets --tier medium
 
 bench-ci: $(STAMP)
 	$(BIN)/python -m pytest bench/benchmarks --benchmark-only -q

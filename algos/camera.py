@@ -21,13 +21,43 @@ import math
 
 import numpy as np
 
-__all__ = ["MAX_COORDINATE", "pinhole_frame", "primary_directions"]
+__all__ = ["MAX_COORDINATE", "check_camera", "pinhole_frame", "primary_directions"]
 
 #: largest |coordinate| of a camera position or look_at, in cells
 MAX_COORDINATE = 1e12
 
 #: a direction whose horizontal part is below this (relative) is taken as vertical
 _VERTICAL = 1e-12
+
+
+def check_camera(position, look_at, fov, width, height):
+    """``(position, look_at, fov, width, height)`` of any camera, checked and converted:
+    two float64 3-vectors of finite coordinates within ``MAX_COORDINATE``, ``fov`` a float
+    in (0, 180) degrees, each image side an int in [1, 2^24]. ValueError or TypeError
+    naming the argument and its value."""
+    points = []
+    for name, value in (("position", position), ("look_at", look_at)):
+        try:
+            point = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            point = None
+        if point is None or point.shape != (3,) or not np.all(np.abs(point) <= MAX_COORDINATE):
+            shown = value if point is None or point.shape != (3,) else point.tolist()
+            raise ValueError(f"{name}: expected a 3-vector of finite coordinates within "
+                             f"+-{MAX_COORDINATE:g} cells, got {shown!r}")
+        points.append(point)
+    try:
+        degrees = float(fov)
+    except (TypeError, ValueError):
+        degrees = math.nan
+    if not 0 < degrees < 180:
+        raise ValueError(f"fov: expected degrees in (0, 180), got {fov!r}")
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise TypeError(f"{name}: expected an integer, got {value!r}")
+        if not 1 <= int(value) <= 1 << 24:
+            raise ValueError(f"{name}: expected a size in [1, 2^24], got {value}")
+    return points[0], points[1], degrees, int(width), int(height)
 
 
 def pinhole_frame(position, look_at, fov, width, height, *, up=None):
@@ -64,24 +94,10 @@ def pinhole_frame(position, look_at, fov, width, height, *, up=None):
     TypeError
         ``width`` or ``height`` not an integer.
     """
-    position = np.asarray(position, dtype=np.float64)
-    look_at = np.asarray(look_at, dtype=np.float64)
-    for name, value in (("position", position), ("look_at", look_at)):
-        if value.shape != (3,) or not np.all(np.abs(value) <= MAX_COORDINATE):
-            raise ValueError(f"{name}: expected a 3-vector of finite coordinates within "
-                             f"+-{MAX_COORDINATE:g} cells, got {value.tolist()}")
+    position, look_at, fov, width, height = check_camera(position, look_at, fov, width, height)
     forward = look_at - position
     if not np.linalg.norm(forward) > 0:
         raise ValueError("look_at: must differ from position")
-    fov = float(fov)
-    if not 0 < fov < 180:
-        raise ValueError(f"fov: expected degrees in (0, 180), got {fov}")
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-            raise TypeError(f"{name}: expected an integer, got {value!r}")
-        if not 1 <= int(value) <= 1 << 24:
-            raise ValueError(f"{name}: expected a size in [1, 2^24], got {value}")
-    width, height = int(width), int(height)
     forward = forward / np.linalg.norm(forward)
     if up is None:
         world_up = np.array([0.0, 0.0, 1.0])

@@ -109,7 +109,9 @@ class HeightField:
     heights : array_like (rows, cols) or dask array
         ``heights[j, i]`` is the height of vertex ``(x=i, y=j)``. NumPy input is kept as
         C-contiguous float32 (not copied when it already is, so a memory-mapped file stays
-        mapped); a dask array stays lazy. NaN marks a void unless ``nodata_mask`` is given.
+        mapped); a dask array stays lazy. NaN marks a void unless ``nodata_mask`` is given;
+        a NumPy masked array's masked samples are voids too (its values there are never
+        read as heights). Finite float64 heights beyond float32's range (3.4e38) raise.
     name : str
     spacing : float or (dx, dy)
         Pixel size, positive lengths in ``unit`` (x along columns, y along rows). 1 means
@@ -165,7 +167,8 @@ class HeightField:
         ``HeightField(heights, name, spacing, unit)``, whose heights were in cell units.
     ValueError
         A shape outside [2, 2**24] per side, a bad spacing or transform, a unit outside
-        the accepted names or contradicting the CRS's, a geographic CRS.
+        the accepted names or contradicting the CRS's, a geographic CRS, a finite height
+        beyond float32's range that is not a void (naming the sample and its value).
     """
 
     heights: object
@@ -190,6 +193,12 @@ class HeightField:
                             "change it)")
         if is_dataarray(heights):
             raise TypeError("heights: an xarray.DataArray; use HeightField.from_dataarray")
+        declared = None  # voids the caller marked: a masked array's mask, nodata_mask
+        if np.ma.isMaskedArray(heights):
+            # the mask marks voids (rasterio's read(masked=True), np.ma.masked_equal): the
+            # values under it are placeholders, never heights
+            declared = np.ma.getmaskarray(heights)
+            heights = np.ma.getdata(heights)
         self.name = str(name)
         self.params = dict(params or {})
         self.lean = bool(lean)
@@ -226,6 +235,10 @@ class HeightField:
             self.heights = heights
         else:
             h = check_heights(heights, finite=False)
+            given = None if nodata_mask is None or is_dask(nodata_mask) else np.asarray(nodata_mask)
+            if given is not None and given.shape == h.shape and given.dtype == bool:
+                declared = given if declared is None else declared | given
+            _check_float32_range(heights, h, declared)
             if isinstance(heights, np.memmap) and h.dtype == heights.dtype and \
                     heights.flags.c_contiguous and np.shares_memory(h, heights):
                 h = heights  # a memory-mapped file stays a np.memmap: used in place
@@ -249,7 +262,7 @@ class HeightField:
         if self.height_unit == "cell" and dx != dy:
             raise ValueError(f"height_unit: 'cell' needs square pixels, got spacing "
                              f"({dx:g}, {dy:g}); give the heights in {self.unit!r}")
-        self.nodata_mask = self._mask(nodata_mask)
+        self.nodata_mask = self._mask(nodata_mask, declared)
         self.build_stats: dict[str, dict] = {}
         self._cache: dict[str, object] = {}
 
@@ -281,8 +294,12 @@ class HeightField:
         name = unit_name(unit)
         return name, LINEAR_UNITS.get(name)
 
-    def _mask(self, given):
-        """The void mask: given, else where numpy heights are not finite (None: none)."""
+    def _mask(self, given, declared=None):
+        """The void mask: given, else where numpy heights are not finite (None: none);
+        with a masked array's mask (``declared``) its masked samples too."""
+        if declared is not None and given is None:
+            mask = ~np.isfinite(self.heights) | declared
+            return mask if mask.any() else None
         if given is not None:
             if is_dask(given):
                 return given
@@ -290,6 +307,8 @@ class HeightField:
             if mask.shape != self.heights.shape or mask.dtype != bool:
                 raise ValueError(f"nodata_mask: expected a bool array of shape "
                                  f"{self.heights.shape}, got {mask.dtype} {mask.shape}")
+            if declared is not None:
+                mask = mask | declared
             return mask if mask.any() else None
         if is_dask(self.heights):
             return None
@@ -598,6 +617,30 @@ class HeightField:
 
 #: The same class under its first-hit name (kept: outside scripts import it).
 Field = HeightField
+
+#: The largest float32, the type heights are kept in
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _check_float32_range(source, stored, voids=None) -> None:
+    """ValueError naming the first sample that is finite in ``source`` (float64 or wider)
+    but beyond float32's range, so infinite in its float32 copy ``stored``, unless
+    ``voids`` (bool, the same shape) marks it; in bands of rows."""
+    source = np.asarray(source)
+    if source.dtype.kind != "f" or source.dtype.itemsize <= 4:
+        return
+    step = band_rows(stored.shape[1])
+    for r0 in range(0, stored.shape[0], step):
+        over = np.isinf(stored[r0:r0 + step]) & np.isfinite(source[r0:r0 + step])
+        if voids is not None:
+            over &= ~voids[r0:r0 + step]
+        if over.any():
+            row, col = (int(v) for v in np.argwhere(over)[0])
+            row += r0
+            raise ValueError(f"heights: sample (row {row}, col {col}) = {float(source[row, col])!r} "
+                             f"is beyond float32's range (|h| <= {FLOAT32_MAX:.6g}), the type "
+                             "heights are kept in; mark it as a void (NaN, nodata_mask, a "
+                             "masked array) or rescale the heights")
 
 
 def bound_kind(surface: str) -> str:

@@ -134,7 +134,9 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         by the square pixel size; rectangular pixels and voids are refused). Anything else
         raises TypeError naming ``heights`` and what is accepted.
     origins, directions : array_like, shape (N, 3)
-        Rays in (x, y, z); any real dtype and layout. Directions must not be zero.
+        Rays in (x, y, z); any real dtype and layout. Directions must not be zero: each
+        one's largest |component| lies in ``[2**-400, 2**400]`` (``t`` is in units of
+        ``d``), and ``|origins| <= 2**30``; rays outside raise ValueError naming the ray.
     surface : {"flat", "plane3", "triangles", "bilinear"}
     tmin, tmax : None, float or (N,) array
         Default ``[0, inf)``.
@@ -174,7 +176,11 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         raise ValueError(f"surface: {name} supports only {', '.join(algorithm.surfaces)}, not {surface!r}")
     if isinstance(outputs, str):
         outputs = (outputs,)
-    outputs = tuple(outputs)
+    try:
+        outputs = tuple(outputs)
+    except TypeError:
+        raise TypeError(f"outputs: expected an iterable of {', '.join(HIT_OUTPUTS)}, got "
+                        f"{outputs!r}") from None
     for out in outputs:
         if out not in HIT_OUTPUTS:
             raise ValueError(f"outputs: unknown output {out!r}; valid outputs are {', '.join(HIT_OUTPUTS)}")

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import plane_cameras
-from .camera import pinhole_frame, primary_directions
+from .camera import check_camera, pinhole_frame, primary_directions
 from .field import Field
 from .intersect import intersect
+from .lattice import MAX_ORIGIN
 from .registry import get_intersector
 
 __all__ = ["Rendering", "default_camera", "render", "shade", "PROJECTIONS"]
@@ -113,7 +114,8 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     fov : float
         Horizontal field of view in degrees, in (0, 180).
     fog : float
-        Height-fog density sigma0 per cell at the lowest point (0: none), for ``rgb``.
+        Height-fog density sigma0 per cell at the lowest point (0: none), for ``rgb``;
+        finite and >= 0.
     threads : int, optional
         As in ``algos.intersect`` (default every core); the image is bit-identical for
         every value.
@@ -135,26 +137,38 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     Raises
     ------
     ValueError
-        An unknown algorithm, surface or projection, bad heights, or a degenerate camera
-        (the message names the argument); a rasteriser with a projection other than
-        ``"pinhole"``. A field with rectangular pixels or with voids
+        An unknown algorithm, surface or projection, bad heights, a degenerate camera, a
+        negative or non-finite fog, or (for the tracers) a camera whose rays would start
+        beyond 2**30 cells (the message names the argument); a rasteriser with a
+        projection other than ``"pinhole"``. A field with rectangular pixels or with voids
         (nodata) is refused before any camera is computed, the message naming the pixel
         size or the first void sample (fill voids with ``HeightField.filled``).
     TypeError
-        A field holding a dask array (first hits need the heights in memory).
+        A field holding a dask array (first hits need the heights in memory), or an
+        image side that is not an integer.
     """
     field = heights_or_field if isinstance(heights_or_field, Field) else Field(heights_or_field)
     # cell units, as the kernels trace; refuses rectangular pixels and voids here, before
     # the default camera would be computed from metres or NaN
     heights = field.cell_heights
     cam, centre = default_camera(heights)
-    position = np.asarray(position if position is not None else cam, dtype=float)
-    look_at = np.asarray(look_at if look_at is not None else centre, dtype=float)
+    # one check for every camera, naming the argument and its value
+    position, look_at, fov, width, height = check_camera(
+        position if position is not None else cam, look_at if look_at is not None else centre,
+        fov, width, height)
+    if isinstance(fog, bool) or not isinstance(fog, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(fog) and fog >= 0):
+        raise ValueError(f"fog: expected a density >= 0 per cell (0: none), got {fog!r}")
     from . import raster
 
     if projection not in PROJECTIONS:
         raise ValueError(f"projection: expected one of {', '.join(PROJECTIONS)}, "
                          f"got {projection!r}")
+    tracing = algorithm not in raster.RASTERISERS
+    if tracing and np.max(np.abs(position)) > MAX_ORIGIN:
+        # the tracers' rays start at the eye: their origins' limit (algos.intersect)
+        raise ValueError(f"position: {position.tolist()} lies beyond 2**30 cells, the limit "
+                         "of a traced ray's origin; move the camera toward the field")
     if projection == "pinhole":
         frame, sx, sy = pinhole_frame(position, look_at, fov, width, height)
         directions = primary_directions(frame, sx, sy)
@@ -165,6 +179,12 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
     else:
         origins, directions = plane_cameras.orthographic_rays(position, look_at, fov, width,
                                                               height)
+        reach = float(np.max(np.abs(origins)))
+        if tracing and not reach <= MAX_ORIGIN:
+            raise ValueError(f"fov: the orthographic film (2 |look_at - position| "
+                             f"tan(fov / 2) cells wide) reaches a coordinate of {reach:.6g}, "
+                             "beyond 2**30 cells, the limit of a traced ray's origin; narrow "
+                             "fov or bring look_at closer")
     shape = (height, width)
     if algorithm in raster.RASTERISERS:
         if projection != "pinhole":

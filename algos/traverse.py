@@ -107,12 +107,36 @@ def _check_max_denominator(value, algorithm: Traversal) -> int:
     return int(value)
 
 
+#: The largest |direction component| a float walk can step by, per precision: beyond,
+#: 1/d (or the float32 copy of d) leaves the number range and the walk stops early
+FLOAT_DIRECTION_RANGE = {"float64": (2.0**-1000, 2.0**1000), "float32": (2.0**-100, 2.0**100)}
+
+
+def _check_float_range(algorithm: Traversal, directions: np.ndarray) -> None:
+    """ValueError naming the first non-zero direction whose largest component a float
+    walk cannot step by (the exact walks rescale d on their lattice and take any)."""
+    bounds = FLOAT_DIRECTION_RANGE.get(algorithm.precision)
+    if bounds is None or algorithm.plugin is not None or not len(directions):
+        return
+    largest = np.max(np.abs(directions), axis=1)
+    bad = (largest > 0) & ((largest < bounds[0]) | (largest > bounds[1]))
+    if bad.any():
+        k = int(np.argmax(bad))
+        low, high = (int(np.log2(b)) for b in bounds)
+        raise ValueError(
+            f"directions: ray {k} has a largest component {float(largest[k])!r}, outside "
+            f"[2**{low}, 2**{high}], where {algorithm.name} walks in {algorithm.precision} "
+            "(1/d would leave the range); scale the direction (no cell changes) or use an "
+            "exact kernel")
+
+
 class _Batch:
     """Validated inputs of one call, ready for the C kernels."""
 
     def __init__(self, name, origins, directions, shape, tmin, tmax, max_denominator):
         self.algorithm = get_traversal(name)
         self.origins, self.directions = check_rays(origins, directions, 2)
+        _check_float_range(self.algorithm, self.directions)
         self.n = len(self.origins)
         if isinstance(shape, HeightField):  # its grid of cells
             shape = (shape.cols - 1, shape.rows - 1)
@@ -185,7 +209,9 @@ def traverse(name, origins, directions, shape, tmin=None, tmax=None, *, output="
     origins, directions : array_like, shape (N, 2)
         Rays ``o + t d`` in (x, y); any real dtype, byte order or layout (converted to
         float64). Components must be finite, ``|origins| <= 2**30`` and
-        ``|directions| <= 2**1000``. A zero direction
+        ``|directions| <= 2**1000``; the float walks also need a non-zero direction's
+        largest component within :data:`FLOAT_DIRECTION_RANGE` (float64: ``2**-1000`` to
+        ``2**1000``, float32: ``2**-100`` to ``2**100``). A zero direction
         is a vertical ray and visits at most the cell under the origin.
     shape : (nx, ny) or HeightField
         Grid size in cells, (x, y) order; each side in ``[1, 2**24]``. A

@@ -73,9 +73,15 @@ def check_rays(origins, directions, width: int):
     return o, d
 
 
+#: The range of a first-hit direction's largest |component|: below it ``t`` can overflow
+#: (a hit past 2**1023 reads as a miss) and a bilinear cell's quadratic, whose leading
+#: coefficient scales as |d|^2, underflows; above it that coefficient overflows.
+MIN_HIT_DIRECTION, MAX_HIT_DIRECTION = 2.0 ** -400, 2.0 ** 400
+
+
 def check_rays3(origins, directions):
     """Validated (N, 3) float64 rays of a first-hit query: finite, no zero direction,
-    ``|origins| <= 2**30``."""
+    each direction's largest |component| in ``[2**-400, 2**400]``, ``|origins| <= 2**30``."""
     arrays = []
     for name, value in (("origins", origins), ("directions", directions)):
         array = as_float_array(value, name)
@@ -94,6 +100,13 @@ def check_rays3(origins, directions):
     if zero.any():
         k = int(np.argmax(zero))
         raise ValueError(f"directions: ray {k} is the zero vector")
+    largest = np.max(np.abs(d), axis=1) if len(d) else np.zeros(0)
+    scale = (largest < MIN_HIT_DIRECTION) | (largest > MAX_HIT_DIRECTION)
+    if scale.any():
+        k = int(np.argmax(scale))
+        raise ValueError(f"directions: ray {k} has a largest component max |directions[{k}, :]| = "
+                         f"{float(largest[k])!r} outside [2**-400, 2**400], the documented range "
+                         "(t is in units of d: scale the direction, and t with it)")
     far = np.abs(o) > MAX_ORIGIN
     if far.any():
         k, c = first_bad(far)

@@ -138,7 +138,9 @@ class RowWriter:
         self.rejected = []
         exists = append and os.path.exists(path) and os.path.getsize(path) > 0
         if exists:
-            with open(path, newline="") as f:
+            # as scan_csv reads it: a byte-order mark skipped, bytes that are not UTF-8
+            # replaced (binary garbage is then a header mismatch naming the file)
+            with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
                 header = next(csv.reader(f), [])
             if header != self.columns:
                 raise ValueError(

@@ -39,9 +39,10 @@ HORIZON_ALGORITHMS: dict[str, TerrainAlgorithm] = {a.name: a for a in (
                      "one shared breakpoint pattern per azimuth, a row of vertices at a time "
                      "(vectorised)"),
     TerrainAlgorithm("chain", True, False, True,
-                     "per-vertex max-mipmap walk started from a lower bound borrowed from a "
-                     "vertex further along almost the same line (continued-fraction "
-                     "convergents of the slope)", "Tevs et al. 2008"),
+                     "per-vertex breakpoint walk that skips along max-trees of strips "
+                     "parallel to the direction (one bound for every ray of a strip), started "
+                     "from a lower bound borrowed from a vertex further along almost the same "
+                     "line (continued-fraction convergents of the slope)", "Tevs et al. 2008"),
     TerrainAlgorithm("dda", True, False, True,
                      "per-vertex cell walk (Amanatides & Woo) over every breakpoint",
                      "Amanatides & Woo 1987"),

@@ -117,6 +117,10 @@ def _prepare(heights, spacing, *, name="heights") -> Grid:
         z_scale = divisor = dx
         raw = heights
         void = None
+        if np.ma.isMaskedArray(heights):  # the mask marks voids, as a HeightField's does
+            raw = np.ma.getdata(heights)
+            void = np.ma.getmaskarray(heights) | np.isnan(raw)
+            void = void if void.any() else None
         unit_metres = 1.0
     if isinstance(raw, np.ndarray) and raw.dtype.kind not in "fiub":
         raise TypeError(f"{name}: expected a real numeric array, got dtype {raw.dtype}")

@@ -62,7 +62,7 @@ def _horizon_angles(grid: Grid, azimuths, max_distance, kappa, *, algorithm, thr
         paths = [name] * len(directions)
     nthreads = resolve_threads(threads)
     stats = TerrainStats("+".join(dict.fromkeys(paths)), paths=tuple(paths))
-    mip = terrain_mipmap(h) if {"dda_maxmip", "chain"} & set(paths) else None
+    mip = terrain_mipmap(h) if "dda_maxmip" in paths else None
     out = np.empty((len(directions),) + h.shape)
     for k, d in enumerate(directions):
         out[k] = _horizon_one(h, d, paths[k], limits[k], nthreads, mip, stats, step,

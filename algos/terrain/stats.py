@@ -26,7 +26,9 @@ class TerrainStats:
     evaluated and max-mipmap tiles skipped. ``exact_resolved``: viewshed vertices the
     float walk left uncertain, settled in rational arithmetic.
     ``tile_tests``, ``bounded``: mipmap tiles tested, and vertices that started with a
-    borrowed lower bound (``chain``). ``snapped_azimuths``, ``snap_max_change_deg``: the
+    borrowed lower bound (``chain``). For ``chain``, ``skips`` and ``tile_tests`` count the
+    stretches of strip skipped and the strip bins tested, and ``cell_skips`` the cells
+    stepped past by their highest corner. ``snapped_azimuths``, ``snap_max_change_deg``: the
     azimuths actually used and the largest move, in degrees, when snapping was asked for
     (``snap_denominator``); empty and 0.0 otherwise."""
 
@@ -40,6 +42,7 @@ class TerrainStats:
     bounded: int = 0
     snapped_azimuths: tuple = ()
     snap_max_change_deg: float = 0.0
+    cell_skips: int = 0
 
     def with_snap(self, snap) -> TerrainStats:
         """Record the snapping ``snap`` = (azimuths used, largest change in degrees) of

@@ -17,8 +17,8 @@ from .grid import _prepare, _run_ranges
 from .patterns import PATTERN_STOP_EVERY, _pattern_arrays, _period_pattern, _shared_pattern
 from .stats import TerrainStats
 
-__all__ = ["chain_neighbours", "prepare_horizon_timed", "CHAIN_BLOCK_ROWS",
-           "CHAIN_MAX_DENOMINATOR", "CHAIN_MAX_OFFSET"]
+__all__ = ["chain_neighbours", "chain_strips", "prepare_horizon_timed", "CHAIN_BLOCK_ROWS",
+           "CHAIN_MAX_DENOMINATOR", "CHAIN_MAX_OFFSET", "CHAIN_STRIP_WIDTH", "CHAIN_STRIP_BIN"]
 
 
 def _sweep(hf, d: Direction, out, threads=1):
@@ -116,24 +116,56 @@ def chain_neighbours(d: Direction, max_denominator=CHAIN_MAX_DENOMINATOR,
             np.array([f[3] for f in found], dtype=np.float64))
 
 
-def _chain(h, d: Direction, max_distance, threads, mip, stats):
-    """The chain walk of every vertex (grid frame): ``hf_horizon_chain``. Returns the
-    tangents (rows, cols) and adds the walk's counts to ``stats``."""
+#: The chain walk's strips (cells): their width across the direction, and the length
+#: along it of a bin at the finest level.
+CHAIN_STRIP_WIDTH = 2.0
+CHAIN_STRIP_BIN = 2.0
+
+
+def chain_strips(h, d: Direction, width=CHAIN_STRIP_WIDTH, bin_length=CHAIN_STRIP_BIN):
+    """The strips of direction ``d`` over the heights ``h`` (cell units, (rows, cols)
+    float64) that the chain walk skips along: ``(strips, ns)``, where ``strips`` is
+    ``(data, offset, n_bins, width, bin_length)`` (``hf_hz_strips`` in
+    cext/terrain/horizon_fast.h: strip k holds the lines at c = dx y - dy x in
+    [c_min + k width, c_min + (k + 1) width); its bin b at level l, at
+    ``data[offset[l] + b * n_strips + k]`` (float32, rounded up), the largest corner height
+    of every cell those lines cross at a = dx x + dy y in [a_min + b bin 2^l, a_min + (b + 1) bin 2^l)) and
+    ``ns`` the build's C time. ``bin_length`` must be a power of two."""
+    rows, cols = h.shape
+    _, _, n_strips, n_bins0 = _kernels.horizon_strips_frame(rows, cols, d.dx, d.dy, width,
+                                                            bin_length)
+    n_bins = [n_bins0]
+    while n_bins[-1] > 1:
+        n_bins.append((n_bins[-1] + 1) // 2)
+    n_bins = np.array(n_bins, dtype=np.int64)
+    offset = np.concatenate([[0], np.cumsum(n_strips * n_bins[:-1])]).astype(np.int64)
+    data = np.empty(int(offset[-1]) + n_strips, dtype=np.float32)
+    strips = (data, offset, n_bins, float(width), float(bin_length))
+    ns = _kernels.horizon_strips(h, strips, d.dx, d.dy)
+    return strips, ns
+
+
+def _chain(h, d: Direction, max_distance, threads, stats):
+    """The chain walk of every vertex (grid frame): the strips, then ``hf_horizon_chain``.
+    Returns the tangents (rows, cols) and adds the walk's counts to ``stats``."""
     rows, cols = h.shape
     nb_x, nb_y, nb_d = chain_neighbours(d)
+    strips, ns = chain_strips(h, d)
+    stats.ns += ns
     out = np.empty(rows * cols)
     occ = np.full(rows * cols, np.nan)
     md = math.inf if max_distance is None else float(max_distance)
     n_blocks = -(-rows // CHAIN_BLOCK_ROWS)
-    for ns, cells, skips, tests, bounded in run_ranges(
+    for ns, cells, skips, tests, bounded, cell_skips in run_ranges(
             n_blocks, threads, lambda a, b: _kernels.horizon_chain(
-                h, mip, d.dx, d.dy, md, nb_x, nb_y, nb_d, CHAIN_BLOCK_ROWS, a, b, out, occ),
+                h, strips, d.dx, d.dy, md, nb_x, nb_y, nb_d, CHAIN_BLOCK_ROWS, a, b, out, occ),
             chunks_per_thread=1, min_chunk=1):
         stats.ns += ns
         stats.cells += cells
         stats.skips += skips
         stats.tile_tests += tests
         stats.bounded += bounded
+        stats.cell_skips += cell_skips
     return out.reshape(rows, cols)
 
 
@@ -141,7 +173,7 @@ def _horizon_one(h, d: Direction, algorithm, max_distance, threads, mip, stats, 
                  embree_tolerance, kappa=0.0):
     rows, cols = h.shape
     if algorithm == "chain":
-        return _chain(h, d, max_distance, threads, mip, stats)
+        return _chain(h, d, max_distance, threads, stats)
     if algorithm == "rows":
         out, ns = _rows_pattern(h, d, max_distance, threads)
         stats.ns += ns
@@ -204,12 +236,11 @@ def prepare_horizon_timed(heights, azimuth, algorithm, ranges=None, max_distance
     rows, cols = h.shape
     n_all = rows * cols
     if name in ("rows", "chain"):
-        mip = terrain_mipmap(h) if name == "chain" else None
         latest = [np.full((rows, cols), np.nan)]
 
         def run():
             stats = TerrainStats(name)
-            latest[0] = _horizon_one(h, d, name, max_distance, 1, mip, stats, march_step,
+            latest[0] = _horizon_one(h, d, name, max_distance, 1, None, stats, march_step,
                                      embree_tolerance)
             return stats.ns
         return run, (lambda: latest[0].ravel().copy()), n_all

@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import os
 import sys
+import tempfile
 
 
 def _setup(args):
     from ..compare import METRICS, Setup
 
     metrics = METRICS if args.metric == "all" else tuple(m.strip() for m in args.metric.split(",") if m.strip())
-    kernels = tuple(k.strip() for k in args.kernels.split(",") if k.strip()) if args.kernels else None
+    kernels = None
+    if args.kernels is not None:
+        kernels = tuple(k.strip() for k in args.kernels.split(",") if k.strip())
+        if not kernels:  # an unset variable in a script: not the default set by surprise
+            raise ValueError(f"--kernels: {args.kernels!r} names no kernel (give comma-separated "
+                             "first-hit kernels, or leave --kernels out for the default set)")
     setup = Setup(metrics=metrics, kernels=kernels, surface=args.surface, tolerance=args.tolerance,
                   repeats=args.repeats, budget=args.budget)
     setup.check()
@@ -51,8 +57,9 @@ def bisect(args):
 
 
 def _check_json(path):
-    """``ValueError`` naming ``--json`` when its folder does not exist or is not writable:
-    said before anything is built or measured, not after."""
+    """``ValueError`` naming ``--json`` when its folder does not exist or takes no new
+    file (a trial file is created and removed: access() passes /proc or a read-only bind
+    mount for root): said before anything is built or measured, not after."""
     if not path:
         return
     folder = os.path.dirname(os.path.abspath(path))
@@ -60,8 +67,12 @@ def _check_json(path):
         raise ValueError(f"--json: {path} is a directory; give a file name")
     if not os.path.isdir(folder):
         raise ValueError(f"--json: the folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise ValueError(f"--json: the folder {folder} is not writable")
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".hftrace-json-", suffix=".tmp"):
+            pass
+    except OSError as exc:
+        raise ValueError(f"--json: cannot create a file in {folder} "
+                         f"({exc.strerror or exc})") from None
 
 
 def _note(text):

@@ -155,14 +155,15 @@ def _diff_png(path, dz, ratio, a, b):
     plt.close(fig)
 
 
-def _check_renderer(name):
-    """An intersector or a rasteriser name, else ValueError listing both."""
+def _check_renderer(name, option="--algorithm"):
+    """An intersector or a rasteriser name, else ValueError naming ``option`` and listing
+    both."""
     if name in algos.raster.RASTERISERS:
         return
     try:
         algos.get_intersector(name)
     except ValueError:
-        raise ValueError(f"--algorithm: unknown renderer {name!r}; valid: "
+        raise ValueError(f"{option}: unknown renderer {name!r}; valid: "
                          f"{', '.join(algos.INTERSECTORS + tuple(algos.raster.RASTERISERS))}") from None
 
 
@@ -172,7 +173,7 @@ def render_command(args):
     load_plugins(args)
     _check_renderer(args.algorithm)
     for name in args.diff or ():
-        _check_renderer(name)
+        _check_renderer(name, "--diff")
     render_files(dataset=args.dataset, size=args.size, seed=args.seed, algorithm=args.algorithm,
                  surface=args.surface, width=args.width, height=args.height,
                  position=args.camera, look_at=args.look_at, fov=args.fov, fog=args.fog,

@@ -131,13 +131,26 @@ def raster_vs_trace(args):
 
 
 def targets(args):
-    """``hftrace targets``: bench.studies.targets.run."""
+    """``hftrace targets``: bench.studies.targets.run; exit status 1 when a row failed."""
     from ..studies import targets as study
 
+    if args.full and args.tier not in (None, "full"):
+        raise ValueError(f"--full: contradicts --tier {args.tier}")
+    tier = "full" if args.full else args.tier or ("medium" if args.publish else "quick")
+    if args.publish and tier == "quick":
+        raise ValueError("--publish: the quick tier judges nothing and is not published; "
+                         "use --tier medium (the default with --publish) or full")
+    only = None
+    if args.only:
+        only = [key.strip() for key in args.only.split(",") if key.strip()]
+        keys = [row.key for row in study.ROWS]
+        for key in only:
+            if key not in keys:
+                raise ValueError(f"--only: unknown row {key!r}; valid: {', '.join(keys)}")
     out = args.out or ("reports/targets" if args.publish else "results/targets")
-    study.run(out_dir=out, tier="full" if args.full else args.tier, regime=args.regime,
-              counts=not args.no_counts, packet_kernel=args.packet_kernel,
-              compact_kernel=args.compact_kernel)
+    record = study.run(out_dir=out, tier=tier, processes=args.processes, seed=args.seed,
+                       counts=not args.no_counts, resume=args.resume, only=only)
+    return 1 if any("error" in row for row in record["rows"].values()) else 0
 
 
 def compact(args):
@@ -251,29 +264,30 @@ def register(sub):
     add_out(p, "raster-vs-trace")
     p.set_defaults(func=raster_vs_trace)
 
-    p = sub.add_parser("targets", help="the performance targets table: best exact vs Embree "
-                       "(random and camera rays), packets vs dda_maxmip, runs_periodic vs "
-                       "runs, cache misses; one process, one thread")
-    p.add_argument("--full", action="store_true",
-                   help="the targets' full-size fields (fbm 2048^2 and 8192^2, Jacksboro "
-                        "2048, 1280x720; an hour or more, a quiet machine); default the quick "
-                        "tier")
-    p.add_argument("--tier", choices=("quick", "medium", "full"), default="quick",
-                   help="quick (checks that every row runs), medium (2048^2 fields, a 640x360 "
-                        "image: about 15 minutes) or full (= --full)")
-    p.add_argument("--regime", choices=("warm", "flushed"), default="warm",
-                   help="cache regime (docs/METHOD.md): each kernel warmed on its own rays, "
-                        "or caches flushed before every timed run")
-    p.add_argument("--packet-kernel", default="packet_maxmip",
-                   help="registry name of the packet traversal (row 3)")
-    p.add_argument("--compact-kernel", default="dda_compact",
-                   help="registry name of the compact hierarchy (row 5)")
-    p.add_argument("--no-counts", action="store_true", help="skip the callgrind row")
+    p = sub.add_parser("targets", help="the round's targets table: our best exact kernel "
+                       "against embreex and the C Embree 3 peer (random rays, level and "
+                       "pitched cameras, flushed and warm) and the 16-azimuth horizon; one "
+                       "process per row, one pinned CPU")
+    p.add_argument("--tier", choices=("quick", "medium", "full"), default=None,
+                   help="quick (tiny fields: checks that every row runs; the default), "
+                        "medium (the targets' sizes but 8192^2: about 20 minutes on a quiet "
+                        "machine; the default with --publish) or full (8192^2 too)")
+    p.add_argument("--full", action="store_true", help="the same as --tier full")
+    p.add_argument("--processes", type=positive_int, default=None,
+                   help="processes measuring the 2048^2 random rays, whose ratios' spread is "
+                        "reported (default: 2 quick, 3 medium, 5 full)")
+    p.add_argument("--only", default=None,
+                   help="comma-separated rows to measure: random2048, random4096, "
+                        "random8192, level, pitched, horizon16 (default: the tier's)")
+    p.add_argument("--seed", type=int, default=2008, help="seed of the random rays")
+    p.add_argument("--no-counts", action="store_true",
+                   help="skip the callgrind counts (instructions, last-level misses)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the rows the output's targets.json already holds")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--out", default=None, help="output directory (default results/targets)")
     where.add_argument("--publish", action="store_true", help="write reports/targets instead")
     p.set_defaults(func=targets)
-
 
     p = sub.add_parser("compact",
                        help="the cache-compact maximum tree (dda_compact) against dda_maxmip: "

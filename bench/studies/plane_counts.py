@@ -1,7 +1,9 @@
 """Instructions per ray of ``plane_maxmip`` against ``dda_maxmip`` on a level camera,
 counted with callgrind (docs/plane.md, "Instructions per ray").
 
-Each kernel runs in its own process under ``valgrind --tool=callgrind --branch-sim=yes``,
+Each kernel runs in its own process under ``valgrind --tool=callgrind --branch-sim=yes
+--cache-sim=yes``, with the fixed cache model of ``bench.studies.compact`` (32 KiB 8-way
+D1, 8 MiB 16-way LL, 64-byte lines, so the counts do not depend on the host),
 collecting only inside the C batch entry, on the same rays: a 640 x 360 level camera
 (``datasets_gen.rays.level_camera``, 60 degrees) low over an fBm field, looking at its
 centre at mid-height. Counts do not depend on machine load, so they may be taken on a
@@ -19,8 +21,11 @@ import tempfile
 
 import numpy as np
 
+from .compact import CACHE  # the simulated caches: (bytes, ways, line bytes)
+
 KERNELS = ("dda_maxmip", "plane_maxmip")
 ENTRY = "hf_intersect_batch"
+
 
 
 def camera_rays(size: int, width: int, height: int):
@@ -62,11 +67,14 @@ def _totals(path: str) -> dict:
 
 
 def count(kernel: str, size=2048, width=640, height=360) -> dict:
-    """{Ir, Bc, Bcm, ...} per ray of one kernel on the batch of :func:`camera_rays`."""
+    """{Ir, Bc, Bcm, D1mr, DLmr, ...} per ray of one kernel on the batch of
+    :func:`camera_rays` (callgrind's event names)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "callgrind.out")
+        cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
         cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
-               f"--toggle-collect={ENTRY}", "--branch-sim=yes", sys.executable, "-m",
+               f"--toggle-collect={ENTRY}", "--branch-sim=yes", "--cache-sim=yes", *cache,
+               "--dump-instr=no", "--collect-jumps=no", sys.executable, "-m",
                "bench.studies.plane_counts", "--trace", kernel, "--size", str(size),
                "--width", str(width), "--height", str(height)]
         subprocess.run(cmd, check=True, capture_output=True)
@@ -86,12 +94,15 @@ def main(argv=None) -> int:
     if args.trace:
         _trace(args.trace, args.size, args.width, args.height)
         return 0
-    print("| kernel | instructions / ray | conditional branches / ray | mispredicted / ray |")
-    print("|---|---|---|---|")
+    print("| kernel | instructions / ray | conditional branches / ray | mispredicted / ray "
+          "| D1 misses / ray | LL misses / ray |")
+    print("|---|---|---|---|---|---|")
     for kernel in KERNELS:
         c = count(kernel, args.size, args.width, args.height)
+        d1 = c.get("D1mr", 0) + c.get("D1mw", 0)
+        ll = c.get("DLmr", 0) + c.get("DLmw", 0)
         print(f"| `{kernel}` | {c.get('Ir', 0):.0f} | {c.get('Bc', 0):.0f} | "
-              f"{c.get('Bcm', 0):.1f} |")
+              f"{c.get('Bcm', 0):.1f} | {d1:.2f} | {ll:.2f} |")
     return 0
 
 

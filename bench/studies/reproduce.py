@@ -162,6 +162,8 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
         cfg.precision = float(precision)
     if publish and out_dir is not None:
         raise ValueError("out_dir: give either an output directory or publish, not both")
+    if out_dir is not None and not str(out_dir).strip():
+        raise ValueError("--out: an empty path; give a directory")
     if publish:
         # the committed reference is replaced on purpose (git keeps the former one)
         out_dir = os.path.join(REPOSITORY, "reports", PUBLISHED[name])

@@ -420,36 +420,158 @@ static PyObject *horizon_rows(PyObject *self, PyObject *args) {
     return stats_tuple(&st, elapsed_ns);
 }
 
+/* A unit direction (the strips' coordinates assume |d| = 1, to far below their slack). */
+static int check_unit_direction(double dx, double dy) {
+    if (!isfinite(dx) || !isfinite(dy) || !(fabs(dx * dx + dy * dy - 1.0) <= 1e-12)) {
+        PyErr_SetString(PyExc_ValueError, "direction: expected a finite unit vector (dx, dy)");
+        return 0;
+    }
+    return 1;
+}
+
+/* A power of two in [2^-20, 2^20] (a bin length: its inverse is exact). */
+static int is_power_of_two(double v) {
+    int e;
+    return isfinite(v) && v >= 0x1p-20 && v <= 0x1p20 && frexp(v, &e) == 0.5;
+}
+
+/* The strips of one direction: (data, offset, n_bins, width, bin), checked against the
+ * frame hf_horizon_strips_frame gives for this grid, so that every index the walk and the
+ * build form lies inside data. */
+static int get_strips(PyObject *o_strips, int64_t rows, int64_t cols, double dx, double dy,
+                      int writable, hf_hz_strips *s, float **data_w) {
+    PyObject *o_data, *o_off, *o_bins;
+    npy_intp n_data, n_levels;
+    int64_t n_bins0;
+    void *p;
+    if (!PyTuple_Check(o_strips)) {
+        PyErr_SetString(PyExc_TypeError,
+                        "strips: expected the tuple (data, offset, n_bins, width, bin)");
+        return 0;
+    }
+    if (!PyArg_ParseTuple(o_strips, "OOOdd", &o_data, &o_off, &o_bins, &s->width, &s->bin))
+        return 0;
+    if (!(isfinite(s->width) && s->width > 0 && is_power_of_two(s->bin)) ||
+        hf_horizon_strips_frame(rows, cols, dx, dy, s->width, s->bin, &s->c_min, &s->a_min,
+                                &s->n_strips, &n_bins0) != 0) {
+        PyErr_SetString(PyExc_ValueError, "strips: width must be positive and bin a power of "
+                                          "two, and the strips of this grid must fit in int64");
+        return 0;
+    }
+    s->inv_bin = 1.0 / s->bin;
+    if (!hf_arg_array(o_data, "strips data", NPY_FLOAT32, -1, writable, 0, &p, &n_data)) return 0;
+    s->data = (const float *)p;
+    *data_w = (float *)p;
+    if (!hf_arg_array(o_off, "strips offset", NPY_INT64, -1, 0, 0, &p, &n_levels)) return 0;
+    s->offset = (const int64_t *)p;
+    if (!hf_arg_array(o_bins, "strips n_bins", NPY_INT64, n_levels, 0, 0, &p, NULL)) return 0;
+    s->n_bins = (const int64_t *)p;
+    if (n_levels < 1 || n_levels > 62) {
+        PyErr_SetString(PyExc_ValueError, "strips: 1 to 62 levels");
+        return 0;
+    }
+    for (npy_intp l = 0; l < n_levels; l++) {
+        int64_t want_bins = l ? (s->n_bins[l - 1] + 1) / 2 : n_bins0;
+        int64_t want_off = l ? s->offset[l - 1] + s->n_strips * s->n_bins[l - 1] : 0;
+        if (s->n_bins[l] != want_bins || s->offset[l] != want_off ||
+            (l + 1 == n_levels) != (want_bins == 1)) {
+            PyErr_Format(PyExc_ValueError,
+                         "strips: level %ld does not match the grid's frame "
+                         "(%lld strips, %lld bins at level 0)",
+                         (long)l, (long long)s->n_strips, (long long)n_bins0);
+            return 0;
+        }
+    }
+    if (s->offset[n_levels - 1] + s->n_strips != n_data) {
+        PyErr_Format(PyExc_ValueError, "strips data: expected %lld values, got %ld",
+                     (long long)(s->offset[n_levels - 1] + s->n_strips), (long)n_data);
+        return 0;
+    }
+    s->n_levels = (int32_t)n_levels;
+    return 1;
+}
+
+PyDoc_STRVAR(horizon_strips_frame_doc,
+             "horizon_strips_frame(rows, cols, dx, dy, width, bin)\n"
+             "-> (c_min, a_min, n_strips, n_bins0)\n\n"
+             "The frame of the chain walk's strips for a grid and a unit direction.\n"
+             "Private: use algos.horizon.");
+
+static PyObject *horizon_strips_frame(PyObject *self, PyObject *args) {
+    long long rows, cols;
+    double dx, dy, width, bin, c_min, a_min;
+    int64_t n_strips, n_bins0;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "LLdddd", &rows, &cols, &dx, &dy, &width, &bin)) return NULL;
+    if (rows < 2 || cols < 2 || rows > ((long long)1 << 24) || cols > ((long long)1 << 24)) {
+        PyErr_SetString(PyExc_ValueError, "rows, cols: each in [2, 2^24]");
+        return NULL;
+    }
+    if (!check_unit_direction(dx, dy)) return NULL;
+    if (!(isfinite(width) && width > 0 && is_power_of_two(bin)) ||
+        hf_horizon_strips_frame(rows, cols, dx, dy, width, bin, &c_min, &a_min, &n_strips,
+                                &n_bins0) != 0) {
+        PyErr_SetString(PyExc_ValueError, "width, bin: width positive, bin a power of two in "
+                                          "[2^-20, 2^20], with a frame that fits in int64");
+        return NULL;
+    }
+    return Py_BuildValue("ddLL", c_min, a_min, (long long)n_strips, (long long)n_bins0);
+}
+
+PyDoc_STRVAR(horizon_strips_doc,
+             "horizon_strips(heights, strips, dx, dy) -> ns\n\n"
+             "Fill the chain walk's strips (data, offset, n_bins, width, bin) of a unit\n"
+             "direction. Private: use algos.horizon.");
+
+static PyObject *horizon_strips(PyObject *self, PyObject *args) {
+    PyObject *o_h, *o_strips;
+    double dx, dy;
+    float *data;
+    hf_hz_strips s;
+    hf_timed_section section;
+    long long elapsed_ns;
+    terrain_field f;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOdd", &o_h, &o_strips, &dx, &dy)) return NULL;
+    if (!get_field(o_h, 0, 0, 0, NULL, &f)) return NULL;
+    if (!check_unit_direction(dx, dy)) return NULL;
+    if (!get_strips(o_strips, f.rows, f.cols, dx, dy, 1, &s, &data)) return NULL;
+    hf_timed_begin(&section);
+    hf_horizon_strips_build(f.H, f.rows, f.cols, dx, dy, &s, data);
+    elapsed_ns = hf_timed_end(&section);
+    return PyLong_FromLongLong(elapsed_ns);
+}
+
 PyDoc_STRVAR(horizon_chain_doc,
-             "horizon_chain(heights, mip, dx, dy, max_distance, nb_x, nb_y, nb_d, block_rows,\n"
+             "horizon_chain(heights, strips, dx, dy, max_distance, nb_x, nb_y, nb_d, block_rows,\n"
              "              block_start, block_stop, out, occ)\n"
-             "-> (ns, cells, skips, tile_tests, bounded)\n\n"
-             "Per-vertex mipmap walks started from lower bounds borrowed along almost the\n"
-             "same line. Private: use algos.horizon.");
+             "-> (ns, cells, skips, tile_tests, bounded, cell_skips)\n\n"
+             "Per-vertex walks that skip along the direction's strips (horizon_strips),\n"
+             "started from lower bounds borrowed along almost the same line. Private: use\n"
+             "algos.horizon.");
 
 static PyObject *horizon_chain(PyObject *self, PyObject *args) {
-    PyObject *o_h, *o_mip, *o_nx, *o_ny, *o_nd, *o_out, *o_occ;
+    PyObject *o_h, *o_strips, *o_nx, *o_ny, *o_nd, *o_out, *o_occ;
     double dx, dy, max_distance;
+    float *unused;
     long long block_rows, block_start, block_stop;
     const double *nb_d;
     const int64_t *nb_x, *nb_y;
     int64_t n_blocks;
     npy_intp n_nb;
     void *p, *out, *occ;
-    hf_chain_stats st = {0, 0, 0, 0};
+    hf_chain_stats st = {0, 0, 0, 0, 0};
+    hf_hz_strips strips;
     hf_timed_section section;
     long long elapsed_ns;
     terrain_field f;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOdddOOOLLLOO", &o_h, &o_mip, &dx, &dy, &max_distance, &o_nx,
+    if (!PyArg_ParseTuple(args, "OOdddOOOLLLOO", &o_h, &o_strips, &dx, &dy, &max_distance, &o_nx,
                           &o_ny, &o_nd, &block_rows, &block_start, &block_stop, &o_out, &o_occ))
         return NULL;
-    if (!get_field(o_h, 0, 0, 0, o_mip, &f)) return NULL;
-    if (!f.has_mip) {
-        PyErr_SetString(PyExc_ValueError, "mip: the chain walk needs a mipmap");
-        return NULL;
-    }
-    if (!check_direction(dx, dy, max_distance)) return NULL;
+    if (!get_field(o_h, 0, 0, 0, NULL, &f)) return NULL;
+    if (!check_direction(dx, dy, max_distance) || !check_unit_direction(dx, dy)) return NULL;
+    if (!get_strips(o_strips, f.rows, f.cols, dx, dy, 0, &strips, &unused)) return NULL;
     if (block_rows < 1) {
         PyErr_SetString(PyExc_ValueError, "block_rows: expected >= 1");
         return NULL;
@@ -477,11 +599,11 @@ static PyObject *horizon_chain(PyObject *self, PyObject *args) {
     if (!get_vertex_out(o_out, "out", &f, NPY_FLOAT64, &out)) return NULL;
     if (!get_vertex_out(o_occ, "occ", &f, NPY_FLOAT64, &occ)) return NULL;
     hf_timed_begin(&section);
-    hf_horizon_chain(f.H, f.rows, f.cols, &f.mip, dx, dy, max_distance, n_nb, nb_x, nb_y, nb_d,
+    hf_horizon_chain(f.H, f.rows, f.cols, &strips, dx, dy, max_distance, n_nb, nb_x, nb_y, nb_d,
                      block_rows, block_start, block_stop, (double *)out, (double *)occ, &st);
     elapsed_ns = hf_timed_end(&section);
-    return Py_BuildValue("LLLLL", elapsed_ns, (long long)st.cells, (long long)st.skips,
-                         (long long)st.tile_tests, (long long)st.bounded);
+    return Py_BuildValue("LLLLLL", elapsed_ns, (long long)st.cells, (long long)st.skips,
+                         (long long)st.tile_tests, (long long)st.bounded, (long long)st.cell_skips);
 }
 
 PyDoc_STRVAR(viewshed_doc,
@@ -586,6 +708,8 @@ static PyMethodDef terrain_methods[] = {
     {"horizon_walk", horizon_walk, METH_VARARGS, horizon_walk_doc},
     {"horizon_rows", horizon_rows, METH_VARARGS, horizon_rows_doc},
     {"horizon_chain", horizon_chain, METH_VARARGS, horizon_chain_doc},
+    {"horizon_strips_frame", horizon_strips_frame, METH_VARARGS, horizon_strips_frame_doc},
+    {"horizon_strips", horizon_strips, METH_VARARGS, horizon_strips_doc},
     {"viewshed", viewshed, METH_VARARGS, viewshed_doc},
     {"viewshed_threshold", viewshed_threshold, METH_VARARGS, viewshed_threshold_doc},
     {"horizon_march", horizon_march, METH_VARARGS, horizon_march_doc},

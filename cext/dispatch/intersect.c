@@ -37,34 +37,18 @@ static int clip_to_box(const double o[3], const double d[3], double tmin, double
         }
     }
     if (!(t0 <= t1)) return 0; /* misses the footprint (or an empty [tmin, tmax]) */
-    /* Robust slab bounds: the z slab is widened by a hair, so that rounding in z(t) can
-     * never push a hit that lies exactly on hmin or hmax (a flat field has both) out of
-     * the interval; the widening only adds parameters that are tested exactly anyway. */
+    /* robust slab bounds: the z slab widened by a hair (hf_box_z_margin) */
     {
-        const double margin = 1e-9 * (1.0 + fabs(hmin) + fabs(hmax));
+        const double margin = hf_box_z_margin(hmin, hmax);
         hmin -= margin;
         hmax += margin;
     }
-    if (d[2] < 0) {
-        const double above = (hmax - o[2]) / d[2], below = (hmin - o[2]) / d[2];
-        if (above > t0) {
-            t0 = above;
-            axis = 2;
-        }
-        if (!(t0 <= t1)) return 0; /* still above hmax when it leaves */
-        /* at or below hmin the ray is inside the solid: the hit is no later than that
-         * (already below at t0: the hit is t0 itself) */
-        if (below < t1) t1 = below > t0 ? below : t0;
-    } else if (d[2] > 0) {
-        const double above = (hmax - o[2]) / d[2];
-        if (above < t1) t1 = above;
-    } else if (o[2] > hmax) {
-        return 0;
-    }
+    /* the z slab; at or below hmin the ray is inside the solid, which ends the interval */
+    if (!hf_box_clip_z(o[2], d[2], hmin, hmax, &t0, &t1, &axis)) return 0;
     *t0_out = t0;
     *t1_out = t1;
     *entry_axis = axis;
-    return t0 <= t1;
+    return 1;
 }
 
 /* ---- ray marching (approximate by design; the Hungarian lab's three variants) ---------- */

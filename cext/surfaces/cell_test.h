@@ -234,6 +234,38 @@ HF_HOT void hf_slab_clip(double a, double b, int face_axis, double *lo, double *
     if (b < *hi) *hi = b;
 }
 
+/* The hair by which the box's z slab [hmin, hmax] is widened: rounding in z(t) can then
+ * never push a hit that lies exactly on hmin or hmax (a flat field has both) out of the
+ * interval; the widening only adds parameters that are tested exactly anyway. */
+static inline double hf_box_z_margin(double hmin, double hmax) {
+    return 1e-9 * (1.0 + fabs(hmin) + fabs(hmax));
+}
+
+/* The field box's z slab [zlo, zhi] (widened by the caller) on [*t0, *t1] of a ray with
+ * height oz and slope dz: *axis becomes 2 when the top face raises *t0. Below zlo every
+ * point of the footprint is inside the solid, so the hit lies no later than where z
+ * reaches zlo, which ends the interval (at *t0 when the ray is already below). Returns 0
+ * when the interval is empty. Shared by the box clip of every ray (dispatch/intersect.c)
+ * and the per-ray part of a plane's clip (dispatch/plane.c), so both round alike. */
+HF_HOT int hf_box_clip_z(double oz, double dz, double zlo, double zhi, double *t0, double *t1,
+                         int *axis) {
+    if (dz < 0) {
+        const double above = (zhi - oz) / dz, below = (zlo - oz) / dz;
+        if (above > *t0) {
+            *t0 = above;
+            *axis = 2;
+        }
+        if (!(*t0 <= *t1)) return 0; /* still above zhi when it leaves */
+        if (below < *t1) *t1 = below > *t0 ? below : *t0;
+    } else if (dz > 0) {
+        const double above = (zhi - oz) / dz;
+        if (above < *t1) *t1 = above;
+    } else if (oz > zhi) {
+        return 0;
+    }
+    return *t0 <= *t1;
+}
+
 /* The parameter interval of the ray over cell (i, j), clipped to [t0, t1]; returns the
  * axis of the grid line crossed at ta (0, 1), or -1 when ta is t0 (then the box entry
  * face, if any, is h->entry_axis). Empty when *ta > *tb. */

@@ -97,7 +97,9 @@ static inline double hf_linear_root(double ta, double tb, double fa, double fb) 
  * bisection. */
 static inline double hf_quadratic_first(double a, double b, double c, double len) {
     const double scale = fabs(b) * fabs(b) + 4.0 * fabs(a * c);
-    const double slack = 1e-12 * (len > 1 ? len : 1);
+    /* a root within this of the ends is taken as at the end: relative to len, since tau is
+     * in units of the ray's d (an absolute slack spans whole cells once |d| >= 2^32) */
+    const double slack = 1e-12 * len;
     double best = -1.0;
     int k;
     if (fabs(a) * len <= 1e-14 * (fabs(b) + fabs(c) / (len > 0 ? len : 1.0))) {

@@ -67,8 +67,7 @@ static int64_t clamp_index(int64_t v, int64_t lo, int64_t hi) {
  * the rounding margin of a lower bound taken at that point). */
 static double surface_point(const double *H, int64_t rows, int64_t cols, double x, double y,
                             double *corner_max) {
-    int64_t i = clamp_index((int64_t)floor(x), 0, cols - 2);
-    int64_t j = clamp_index((int64_t)floor(y), 0, rows - 2);
+    const int64_t i = hf_hz_clamped_floor(x, 0, cols - 2), j = hf_hz_clamped_floor(y, 0, rows - 2);
     const double *c = H + j * cols + i;
     double h00 = c[0], h10 = c[1], h01 = c[cols], h11 = c[cols + 1];
     double m = fabs(h00);
@@ -106,49 +105,243 @@ static int64_t chain_first_index(double o, int s, int64_t n) {
     return i;
 }
 
-/* The horizon skip: every point of a tile with maximum m, crossed on [t_in, t_exit], has a
+/* ---- the strips ------------------------------------------------------------------------ */
+
+/* c (across) and a (along) of the point (x, y) for the unit direction (dx, dy). */
+static inline double strip_across(double dx, double dy, double x, double y) {
+    return dx * y - dy * x;
+}
+
+static inline double strip_along(double dx, double dy, double x, double y) {
+    return dx * x + dy * y;
+}
+
+int hf_horizon_strips_frame(int64_t rows, int64_t cols, double dx, double dy, double width,
+                            double bin, double *c_min, double *a_min, int64_t *n_strips,
+                            int64_t *n_bins0) {
+    const double nx = (double)(cols - 1), ny = (double)(rows - 1);
+    const double xs[4] = {0.0, nx, 0.0, nx}, ys[4] = {0.0, 0.0, ny, ny};
+    double c_lo = HF_HZ_INF, c_hi = -HF_HZ_INF, a_lo = HF_HZ_INF, a_hi = -HF_HZ_INF, ns, nb;
+    for (int k = 0; k < 4; k++) { /* the footprint's corners bound both coordinates */
+        const double c = strip_across(dx, dy, xs[k], ys[k]), a = strip_along(dx, dy, xs[k], ys[k]);
+        c_lo = c < c_lo ? c : c_lo;
+        c_hi = c > c_hi ? c : c_hi;
+        a_lo = a < a_lo ? a : a_lo;
+        a_hi = a > a_hi ? a : a_hi;
+    }
+    /* two strips and bins of margin each side: cells reach past the corners by the slack */
+    *c_min = c_lo - 2.0 * width;
+    *a_min = a_lo - 2.0 * bin;
+    ns = floor((c_hi - *c_min) / width) + 3.0;
+    nb = floor((a_hi - *a_min) / bin) + 3.0;
+    if (!(ns >= 1.0 && nb >= 1.0 && ns * nb < 4.0e18)) return -1;
+    *n_strips = (int64_t)ns;
+    *n_bins0 = (int64_t)nb;
+    return 0;
+}
+
+/* The index of coordinate v in slots of `size` from `lo`, clamped to [0, n - 1]. */
+static inline int64_t strip_slot(double v, double lo, double size, int64_t n) {
+    const double q = floor((v - lo) / size);
+    return q < 0.0 ? 0 : q > (double)(n - 1) ? n - 1 : (int64_t)q;
+}
+
+void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double dx, double dy,
+                             const hf_hz_strips *s, float *data) {
+    /* a cell's c and a ranges, relative to its corner (i, j): the extremes over its four
+     * corners, widened by the slack */
+    const double c_lo = (dx < 0 ? dx : 0.0) + (-dy < 0 ? -dy : 0.0) - HF_STRIP_SLACK;
+    const double c_hi = (dx > 0 ? dx : 0.0) + (-dy > 0 ? -dy : 0.0) + HF_STRIP_SLACK;
+    const double a_lo = (dx < 0 ? dx : 0.0) + (dy < 0 ? dy : 0.0) - HF_STRIP_SLACK;
+    const double a_hi = (dx > 0 ? dx : 0.0) + (dy > 0 ? dy : 0.0) + HF_STRIP_SLACK;
+    const int64_t nb0 = s->n_bins[0];
+    for (int64_t k = 0; k < s->offset[s->n_levels - 1] + s->n_strips * s->n_bins[s->n_levels - 1];
+         k++)
+        data[k] = -HUGE_VALF;
+    /* level 0: every cell into each strip and bin it reaches */
+    for (int64_t j = 0; j + 1 < rows; j++) {
+        const double *row = H + j * cols;
+        for (int64_t i = 0; i + 1 < cols; i++) {
+            double m = row[i];
+            float top;
+            const double c = strip_across(dx, dy, (double)i, (double)j);
+            const double a = strip_along(dx, dy, (double)i, (double)j);
+            const int64_t k0 = strip_slot(c + c_lo, s->c_min, s->width, s->n_strips);
+            const int64_t k1 = strip_slot(c + c_hi, s->c_min, s->width, s->n_strips);
+            const int64_t b0 = strip_slot(a + a_lo, s->a_min, s->bin, nb0);
+            const int64_t b1 = strip_slot(a + a_hi, s->a_min, s->bin, nb0);
+            m = row[i + 1] > m ? row[i + 1] : m;
+            m = row[i + cols] > m ? row[i + cols] : m;
+            m = row[i + cols + 1] > m ? row[i + cols + 1] : m;
+            /* in single precision, rounded up: still a bound, in half the memory */
+            top = (float)m;
+            if ((double)top < m) top = nextafterf(top, HUGE_VALF);
+            for (int64_t b = b0; b <= b1; b++) {
+                float *bin = data + b * s->n_strips;
+                for (int64_t k = k0; k <= k1; k++) bin[k] = top > bin[k] ? top : bin[k];
+            }
+        }
+    }
+    /* each level above: the maximum of two bins below (a missing second one is -inf) */
+    for (int32_t l = 1; l < s->n_levels; l++) {
+        const int64_t nb = s->n_bins[l], below = s->n_bins[l - 1], ns = s->n_strips;
+        for (int64_t b = 0; b < nb; b++) {
+            const float *first = data + s->offset[l - 1] + 2 * b * ns;
+            float *dst = data + s->offset[l] + b * ns;
+            if (2 * b + 1 < below) {
+                const float *second = first + ns;
+                for (int64_t k = 0; k < ns; k++)
+                    dst[k] = second[k] > first[k] ? second[k] : first[k];
+            } else {
+                for (int64_t k = 0; k < ns; k++) dst[k] = first[k];
+            }
+        }
+    }
+}
+
+/* ---- the chain walk --------------------------------------------------------------------- */
+
+/* The horizon skip: every point with surface at most m, crossed on [t_in, t_exit], has a
  * ratio at most (m - h) / t there, which is <= prune when this holds. */
 static inline int chain_can_skip(const chain_best *b, double m, double t_in, double t_exit) {
     return m - b->h <= b->prune * (b->prune >= 0 ? t_in : t_exit);
 }
 
-/* Skip the largest tile around cell (ci, cj) that the bound allows (as terrain.c's
- * try_skip): 0 none, 1 moved past a tile, 2 the rest of the ray is covered. */
-static int chain_try_skip(const double *H, int64_t rows, int64_t cols, const chain_ray *r,
-                          const hf_hz_mip *mip, int *level_io, int64_t *ci, int64_t *cj,
-                          double *t_in, double *s_in, double t_end, const chain_best *b,
-                          int64_t *tests) {
-    for (int level = hf_hz_skip_start(mip, *level_io); level >= 0; level--) {
-        const hf_hz_tile e = hf_hz_tile_at(r, mip, level, *ci, *cj, t_end);
+/* One vertex's place in the strips: its along coordinate relative to a_min and its
+ * strip's row of bins at each level. */
+typedef struct {
+    double along;
+    const float *row[62]; /* the strip's first bin at each level (then every n_strips) */
+} chain_strip;
+
+/* Skip the longest stretch of the ray from t_in that bins of its strip prove below the
+ * bound: from each certified point, the bin that holds it at one level above the last
+ * passed (down to level 0 on a failure), until level 0 fails or the end is covered; pure
+ * arithmetic on t. Then move the cell walk to the last grid line of the walk's major axis
+ * inside the stretch: there the cell entered is known on that axis exactly and on the
+ * other by the forward rule, as after a tile of the max mipmap (ray_walk.h). Returns 0
+ * (nothing skipped; *wait is where to try again), 1 (moved to (ci, cj) at *t_in with the
+ * surface *s_in there) or 2 (the rest of the ray is covered). */
+static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const chain_ray *r,
+                            int major_x, const hf_hz_strips *s, const chain_strip *v, int64_t *ci,
+                            int64_t *cj, double *t_in, double *s_in, double t_end,
+                            const chain_best *b, double *wait, int64_t *tests) {
+    const int top = s->n_levels - 1;
+    const int64_t last = s->n_bins[0] - 1;
+    double t = *t_in, t_line;
+    int level = 0, passed = 0;
+    int64_t ni, nj;
+    for (;;) {
+        /* the level-0 bin holding t, then its ancestor at this level (bin is a power of
+         * two, so the quotient rounds once; a slot off by one at a bin's edge lies within
+         * the slack the bins were widened by) */
+        const double q = (v->along + t) * s->inv_bin;
+        const int64_t bin0 = q < 0.0 ? 0 : q >= (double)last ? last : (int64_t)q;
+        const int64_t slot = bin0 >> level;
+        const double m = v->row[level][slot * s->n_strips];
+        const double t_stop = (double)((slot + 1) << level) * s->bin - v->along;
         (*tests)++;
-        if (!chain_can_skip(b, e.max, *t_in, e.t_exit)) continue;
-        *level_io = level;
-        *t_in = e.t_exit;
-        if (e.t_exit >= t_end) return 2;
-        hf_hz_tile_leave(H, rows, cols, r, &e, level, ci, cj, s_in);
-        return 1;
+        if (chain_can_skip(b, m, t, t_stop < t_end ? t_stop : t_end)) {
+            if (t_stop >= t_end) return 2;
+            /* never step backwards */
+            if (t_stop > t) {
+                t = t_stop;
+                passed = 1;
+            }
+            if (level < top) level++;
+            continue;
+        }
+        if (level > 0) {
+            level--;
+            continue;
+        }
+        if (!passed) {
+            *wait = t_stop;
+            return 0;
+        }
+        break;
     }
-    *level_io = 0;
-    return 0;
+    /* the last grid line of the major axis at or before t (rounding may put it a hair
+     * past: inside the slack the bins were widened by) */
+    if (major_x) {
+        const double x = r->ox + t * r->dx;
+        const double line = r->sx > 0 ? floor(x) : ceil(x);
+        t_line = (line - r->ox) * r->inv_dx;
+        ni = r->sx > 0 ? (int64_t)line : (int64_t)line - 1;
+        nj = hf_index_of(r->oy + t_line * r->dy, r->sy >= 0);
+        if (nj == r->ny && r->sy == 0) nj = r->ny - 1; /* along the far edge */
+    } else {
+        const double y = r->oy + t * r->dy;
+        const double line = r->sy > 0 ? floor(y) : ceil(y);
+        t_line = (line - r->oy) * r->inv_dy;
+        nj = r->sy > 0 ? (int64_t)line : (int64_t)line - 1;
+        ni = hf_index_of(r->ox + t_line * r->dx, r->sx >= 0);
+        if (ni == r->nx && r->sx == 0) ni = r->nx - 1;
+    }
+    /* no progress (the line lies behind the walk), or a cell the walk cannot be in: walk
+     * the cells up to t instead */
+    if (!(t_line > *t_in) || ni < 0 || ni >= r->nx || nj < 0 || nj >= r->ny ||
+        (r->sx > 0   ? ni < *ci
+         : r->sx < 0 ? ni > *ci
+                     : ni != *ci) ||
+        (r->sy > 0   ? nj < *cj
+         : r->sy < 0 ? nj > *cj
+                     : nj != *cj)) {
+        *wait = t;
+        return 0;
+    }
+    *s_in = major_x
+                ? hf_hz_exit_value(H, rows, cols, r, r->sx > 0 ? ni : ni + 1, 0, t_line, HF_HZ_INF)
+                : hf_hz_exit_value(H, rows, cols, r, 0, r->sy > 0 ? nj : nj + 1, HF_HZ_INF, t_line);
+    *ci = ni;
+    *cj = nj;
+    *t_in = t_line;
+    return 1;
 }
 
 /* One vertex's walk over the breakpoints in (0, t_end], the same points and expressions as
- * terrain.c's walk_ray_breakpoints with horizon_visit, skipping tiles below the bound. */
-static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip,
-                       const chain_ray *r, double t_end, chain_best *b, hf_chain_stats *st) {
+ * terrain.c's walk_ray_breakpoints with horizon_visit, skipping stretches of its strip
+ * below the bound. */
+static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_strips *s,
+                       const chain_ray *r, const chain_strip *v, double t_end, chain_best *b,
+                       hf_chain_stats *st) {
     int64_t ci = chain_first_index(r->ox, r->sx, r->nx),
             cj = chain_first_index(r->oy, r->sy, r->ny);
-    double t_in = 0.0, s_in = b->h, ddiag = r->dx - r->dy, c0 = r->ox - r->oy;
-    int level = 0;
+    double t_in = 0.0, s_in = b->h, ddiag = r->dx - r->dy, c0 = r->ox - r->oy, wait = 0.0;
+    const int major_x = fabs(r->dx) >= fabs(r->dy);
+    int s_in_known = 1;
+    hf_hz_cell entry = hf_hz_cell_faces(r, ci, cj); /* the last cell stepped past unseen */
     if (!(t_end > 0.0)) return;
     while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
         hf_hz_cell c;
         if (b->prune > -HF_HZ_INF) {
-            int moved = chain_try_skip(H, rows, cols, r, mip, &level, &ci, &cj, &t_in, &s_in, t_end,
-                                       b, &st->tile_tests);
-            if (moved) {
-                st->skips++;
-                if (moved == 2) break;
+            const double *corner;
+            double m;
+            if (t_in >= wait) {
+                int moved = chain_strip_skip(H, rows, cols, r, major_x, s, v, &ci, &cj, &t_in,
+                                             &s_in, t_end, b, &wait, &st->tile_tests);
+                if (moved) {
+                    st->skips++;
+                    s_in_known = 1;
+                    if (moved == 2) break;
+                    continue;
+                }
+            }
+            /* the cell alone: every point of it lies at most at its highest corner */
+            corner = H + cj * cols + ci;
+            m = corner[0];
+            m = corner[1] > m ? corner[1] : m;
+            m = corner[cols] > m ? corner[cols] : m;
+            m = corner[cols + 1] > m ? corner[cols + 1] : m;
+            c = hf_hz_cell_faces(r, ci, cj);
+            if (chain_can_skip(b, m, t_in, c.t_out < t_end ? c.t_out : t_end)) {
+                st->cell_skips++;
+                if (c.t_out >= t_end) break;
+                entry = c;
+                s_in_known = 0;
+                if (c.tX <= c.tY) ci += r->sx;
+                if (c.tY <= c.tX) cj += r->sy;
+                t_in = c.t_out;
                 continue;
             }
         }
@@ -156,12 +349,17 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
         c = hf_hz_cell_breakpoints(H, cols, r, ci, cj, t_in, ddiag, c0);
         if (c.crossed && c.td < t_end) chain_visit(b, c.td, c.sd, 0.0);
         if (c.t_out >= t_end) {
-            /* the end, interpolated on its piece from the nearer breakpoint (ray_walk.h) */
-            const hf_hz_point end = hf_hz_end_point(H, rows, cols, r, &c, t_in, s_in, t_end);
+            /* the end, interpolated on its piece from the nearer breakpoint (ray_walk.h); the
+             * surface where the cell was entered, unless already known */
+            hf_hz_point end;
+            if (!s_in_known)
+                s_in = hf_hz_exit_value(H, rows, cols, r, entry.X, entry.Y, entry.tX, entry.tY);
+            end = hf_hz_end_point(H, rows, cols, r, &c, t_in, s_in, t_end);
             chain_visit(b, end.t, end.s, end.delta);
             break;
         }
         s_in = hf_hz_exit_value(H, rows, cols, r, c.X, c.Y, c.tX, c.tY);
+        s_in_known = 1;
         chain_visit(b, c.t_out, s_in, 0.0);
         if (c.tX <= c.tY) ci += r->sx;
         if (c.tY <= c.tX) cj += r->sy;
@@ -169,12 +367,13 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
     }
 }
 
-void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_mip *mip, double dx,
-                      double dy, double max_distance, int64_t n_nb, const int64_t *nb_x,
+void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_strips *strips,
+                      double dx, double dy, double max_distance, int64_t n_nb, const int64_t *nb_x,
                       const int64_t *nb_y, const double *nb_d, int64_t block_rows,
                       int64_t block_start, int64_t block_stop, double *out, double *occ,
                       hf_chain_stats *stats) {
     chain_ray r;
+    chain_strip place;
     hf_hz_ray_direction(&r, rows, cols, dx, dy);
     for (int64_t block = block_start; block < block_stop; block++) {
         int64_t rank_lo = block * block_rows;
@@ -214,7 +413,14 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_m
                     if (bound > b.prune) b.prune = bound;
                 }
                 if (b.prune > -HF_HZ_INF) stats->bounded++;
-                chain_walk(H, rows, cols, mip, &r, t_end, &b, stats);
+                {
+                    const int64_t k = strip_slot(strip_across(dx, dy, r.ox, r.oy), strips->c_min,
+                                                 strips->width, strips->n_strips);
+                    for (int32_t l = 0; l < strips->n_levels; l++)
+                        place.row[l] = strips->data + strips->offset[l] + k;
+                }
+                place.along = strip_along(dx, dy, r.ox, r.oy) - strips->a_min;
+                chain_walk(H, rows, cols, strips, &r, &place, t_end, &b, stats);
                 out[v] = b.best;
                 occ[v] = b.t_best;
             }

@@ -95,15 +95,25 @@ typedef struct {
     int crossed;
 } hf_hz_cell;
 
-static inline hf_hz_cell hf_hz_cell_breakpoints(const double *H, int64_t cols, const hf_hz_ray *r,
-                                                int64_t ci, int64_t cj, double t_in, double ddiag,
-                                                double c0) {
+/* The exit faces of cell (ci, cj) alone (X, Y, tX, tY, t_out; no diagonal): what a walk
+ * needs to step past a cell it proves below its bound. */
+static inline hf_hz_cell hf_hz_cell_faces(const hf_hz_ray *r, int64_t ci, int64_t cj) {
     hf_hz_cell c;
     c.X = r->sx > 0 ? ci + 1 : ci;
     c.Y = r->sy > 0 ? cj + 1 : cj;
     c.tX = r->sx ? ((double)c.X - r->ox) * r->inv_dx : HF_HZ_INF;
     c.tY = r->sy ? ((double)c.Y - r->oy) * r->inv_dy : HF_HZ_INF;
     c.t_out = c.tX < c.tY ? c.tX : c.tY;
+    c.td = -HF_HZ_INF;
+    c.sd = 0.0;
+    c.crossed = 0;
+    return c;
+}
+
+static inline hf_hz_cell hf_hz_cell_breakpoints(const double *H, int64_t cols, const hf_hz_ray *r,
+                                                int64_t ci, int64_t cj, double t_in, double ddiag,
+                                                double c0) {
+    hf_hz_cell c = hf_hz_cell_faces(r, ci, cj);
     c.td = ddiag != 0.0 ? ((double)(ci - cj) - c0) / ddiag : -HF_HZ_INF;
     c.sd = 0.0;
     c.crossed = c.td > t_in && c.td < c.t_out;

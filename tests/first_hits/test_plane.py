@@ -287,3 +287,128 @@ def test_seeded_random_planes():
             tmin = rng.choice([0.0, 0.0, 1.5, 4.0], len(o))
             kw = dict(tmin=tmin, tmax=tmin + rng.choice([np.inf, 3.0, 9.0, 0.0], len(o)))
         _check(algos.Field(H), o, d, f"random planes, iteration {it}, {kind} {H.shape}", **kw)
+
+
+def _image(eye, directions2d, slopes, top_down=True):
+    """Rays laid out as a row-major image whose columns are planes, as the level camera
+    gives them: column c has direction directions2d[c], row r slope slopes[r], rows from
+    the steepest up (top_down) or from the lowest; every origin is ``eye``."""
+    slopes = np.sort(np.asarray(slopes, dtype=float))
+    slopes = slopes[::-1] if top_down else slopes
+    dirs = np.asarray(directions2d, dtype=float)
+    rows, width = len(slopes), len(dirs)
+    d = np.empty((rows, width, 3))
+    d[:, :, :2] = dirs[None, :, :]
+    d[:, :, 2] = slopes[:, None]
+    o = np.broadcast_to(np.asarray(eye, dtype=float), (rows * width, 3)).copy()
+    return o, d.reshape(-1, 3)
+
+
+def test_image_layout_equals_dda_maxmip():
+    """Batches in an image's layout (the column path: no grouping, each column traced
+    bottom up), listed top down and bottom up, from every eye (above, on a grid vertex,
+    outside the footprint, below the surface, far above), with rays going up, level and
+    down, against dda_maxmip bit for bit and against the brute force."""
+    for field_name in ("terraces", "fbm", "spike"):
+        H = first_hit_fields(SHAPE)[field_name]
+        fld = algos.Field(H)
+        for k, (eye_name, eye) in enumerate(_eyes(H).items()):
+            for top_down in (True, False):
+                o, d = _image(eye, _directions(20 + k, n=5), SLOPES, top_down)
+                what = f"image, {field_name}, eye {eye_name}, top_down={top_down}"
+                _check(fld, o, d, what)
+                if top_down:
+                    _check_brute(H, o, d, what, surfaces=("flat", "triangles"))
+
+
+def test_image_layout_tmin_tmax_and_misses():
+    """The column path with per-ray tmin and tmax (later starts, ends before the hit
+    cell, empty ranges), and columns that pass over the terrain (every ray a miss)."""
+    H = first_hit_fields(SHAPE)["terraces"]
+    fld = algos.Field(H)
+    rng = np.random.default_rng(31)
+    for k, eye in enumerate(_eyes(H).values()):
+        o, d = _image(eye, _directions(40 + k, n=4), SLOPES)
+        tmin = rng.choice([0.0, 0.0, 0.5, 3.0, 7.25], len(o))
+        tmax = tmin + rng.choice([np.inf, np.inf, 2.0, 10.0, 0.0], len(o))
+        _check(fld, o, d, f"image tmin/tmax, eye {k}", tmin=tmin, tmax=tmax)
+        _check_brute(H, o, d, f"image tmin/tmax, eye {k}", tmin=tmin, tmax=tmax)
+    top = float(H.max())
+    o, d = _image((2.5, 3.5, top + 5.0), _directions(50, n=3), np.geomspace(1e-6, 1e-2, 9))
+    hits = algos.intersect("plane_maxmip", fld, o, d)
+    assert np.isinf(hits.t).all()
+    _check(fld, o, d, "image of misses")
+
+
+def test_image_layout_broken_and_degenerate():
+    """Batches that start like an image but are not one further down (rays of other
+    planes, vertical rays and a shuffled column in later rows: each such ray is traced
+    alone, the others still chained), duplicated rays and rows, a single column, a
+    single row (every plane of one ray), and an orthographic image whose columns differ
+    in oz only."""
+    H = first_hit_fields(SHAPE)["fbm"]
+    fld = algos.Field(H)
+    eye = _eyes(H)["above"]
+    dirs = _directions(60, n=4)
+    o, d = _image(eye, dirs, SLOPES)
+    width = len(dirs)
+    rng = np.random.default_rng(61)
+    broken_o, broken_d = o.copy(), d.copy()
+    rows = rng.choice(np.arange(2, len(o) // width), 6, replace=False)
+    for r in rows[:3]:  # another plane's ray
+        broken_d[r * width + 1, :2] = (0.3, -0.9)
+    for r in rows[3:5]:  # a vertical ray
+        broken_d[r * width + 2] = (0.0, 0.0, -1.0)
+    broken_o[rows[5] * width + 3, :2] += 0.5  # another origin
+    _check(fld, broken_o, broken_d, "image broken below its first rows")
+    column = np.arange(width, len(o), width)  # column 0 but its first ray, shuffled
+    shuffled = np.arange(len(o))
+    shuffled[column] = rng.permutation(column)
+    _check(fld, o[shuffled], d[shuffled], "image with a column out of order")
+    twice_o = np.repeat(o.reshape(-1, width, 3), 2, axis=0).reshape(-1, 3)
+    twice_d = np.repeat(d.reshape(-1, width, 3), 2, axis=0).reshape(-1, 3)
+    _check(fld, twice_o, twice_d, "image with every row twice")
+    same_o, same_d = np.tile(o[:width], (5, 1)), np.tile(d[:width], (5, 1))
+    _check(fld, same_o, same_d, "image of one row repeated")
+    one_o, one_d = _image(eye, dirs[:1], SLOPES)
+    _check(fld, one_o, one_d, "one column")
+    _check(fld, o[:width], d[:width], "one row: planes of one ray")
+    ortho_o = np.array([(10.25, 20.5, z) for z in np.linspace(30.0, -3.0, 25)])
+    ortho_o = np.repeat(ortho_o, 3, axis=0)
+    ortho_o[1::3, 0] += 1.5
+    ortho_o[2::3, 1] -= 2.25
+    ortho_d = np.tile([0.6, 0.8, -0.3], (len(ortho_o), 1))
+    _check(fld, ortho_o, ortho_d, "orthographic image, three columns")
+
+
+def test_image_layout_resumes():
+    """The column path chains its rays: on a level camera it visits fewer cells than
+    dda_maxmip, and so does the same image listed bottom up."""
+    H = fields.generate("fbm", (129, 150), seed=5, amplitude=20.0, scale=32.0)
+    fld = algos.Field(H)
+    _, look_at = default_camera(H)
+    rs = raysets.level_camera((10.5, 12.25, float(H.max()) * 0.8), look_at, 70.0, 64, 36)
+    up = np.arange(len(rs.origins)).reshape(36, 64)[::-1].reshape(-1)
+    for what, o, d in (("top down", rs.origins, rs.directions),
+                       ("bottom up", rs.origins[up], rs.directions[up])):
+        _check(fld, o, d, f"level camera, {what}")
+        ref = algos.intersect("dda_maxmip", fld, o, d, outputs=("stats",), threads=1)
+        got = algos.intersect("plane_maxmip", fld, o, d, outputs=("stats",), threads=1)
+        assert got.stats["cells_visited"].sum() < 0.8 * ref.stats["cells_visited"].sum(), what
+
+
+def test_image_layout_partial_rows():
+    """A share of an image (what a thread gets): starting inside a row, ending inside
+    one, and the whole image on 1, 2, 3 and 7 threads; every way against dda_maxmip."""
+    H = fields.generate("fbm", (97, 97), seed=4, amplitude=15.0, scale=24.0)
+    fld = algos.Field(H)
+    position, look_at = default_camera(H)
+    rs = raysets.level_camera(position, look_at, 60.0, 37, 21)
+    o, d = rs.origins, rs.directions
+    for lo, hi in ((5, len(o)), (0, len(o) - 11), (40, len(o) - 3), (36, 36 + 2 * 37),
+                   (3, 3 + 2 * 37 + 1)):
+        _check(fld, o[lo:hi], d[lo:hi], f"image rays {lo}:{hi}")
+    ref = algos.intersect("dda_maxmip", fld, o, d, outputs=OUTPUTS, threads=1)
+    for threads in (2, 3, 7):
+        got = algos.intersect("plane_maxmip", fld, o, d, outputs=OUTPUTS, threads=threads)
+        _assert_identical(ref, got, o, d, f"image on {threads} threads")

@@ -31,6 +31,8 @@ output mode and option. :func:`check` runs it and asserts the invariants:
   from them (tests/fuzz/pitched_cases.py).
 * ``ring_maxmip`` gives them too (statistics included), on the case's rays and on a
   longer shuffled batch of them that refills and drains the ring (tests/fuzz/ring_cases.py).
+* the chain walk's strips (``horizon_strips_frame``, ``horizon_strips``) of every horizon
+  case bound the surface on its rays, level by level (tests/fuzz/strips_cases.py).
 
 The decoder needs no fuzzer, so ``tests/fuzz/test_fuzz.py`` replays the committed corpus
 (``tests/data/fuzz_corpus``; every finding is added there) in every test run.
@@ -56,6 +58,7 @@ from .cone_cases import check_cone
 from .pitched_cases import check_pitched
 from .plane_cases import check_plane
 from .ring_cases import check_ring
+from .strips_cases import check_strips
 
 TRAVERSALS = tuple(algos.TRAVERSAL_REGISTRY)
 # (packet_maxmip, plane_maxmip, pitched_maxmip and ring_maxmip are not drawn on their own,
@@ -316,6 +319,7 @@ def _check(data: bytes) -> None:
         return
     if case["op"] in ("horizon", "viewshed"):
         _check_terrain(case, result)
+        check_strips(case)  # the chain walk's strips bound the surface (strips_cases.py)
         return
     if case["op"] == "traverse":
         if case["output"] == "cells":

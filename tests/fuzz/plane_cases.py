@@ -2,11 +2,13 @@
 calls on every decoded first-hit case.
 
 ``plane_maxmip`` is not drawn by the decoder (that would remap the committed corpus).
-Instead every ``dda_maxmip`` case is run again with it, twice: on the case's own rays,
-and on a batch of vertical planes grown from them (each ray joined by copies with the
+Instead every ``dda_maxmip`` case is run again with it, three times: on the case's own
+rays; on a batch of vertical planes grown from them (each ray joined by copies with the
 same horizontal origin and direction, bit for bit, and other heights and slopes, in a
-shuffled order, with the case's tmin and tmax), where the chained walks resume. Both must
-give ``dda_maxmip``'s t, cell and normal bit for bit.
+shuffled order, with the case's tmin and tmax), where the chained walks resume; and on
+the same planes laid out as an image (row k holds copy k of every ray, as a camera lists
+its columns), which takes the column path. All must give ``dda_maxmip``'s t, cell and
+normal bit for bit.
 """
 from __future__ import annotations
 
@@ -36,6 +38,26 @@ def _plane_batch(case: dict) -> dict:
         value = case.get(key)
         if value is not None and np.ndim(value) == 1 and len(value) == n:
             out[key] = np.repeat(np.asarray(value, dtype=float), len(_COPIES))[order]
+    return out
+
+
+def _image_batch(case: dict) -> dict:
+    """The plane batch of :func:`_plane_batch` unshuffled and laid out as a row-major
+    image: column k is ray k's plane, row r its copy r (so heights and slopes come in no
+    particular order down a column)."""
+    o = np.asarray(case["origins"], dtype=float).reshape(-1, 3)
+    n, rows = len(o), len(_COPIES)
+    grown = _plane_batch(dict(case, origins=o, directions=case["directions"]))
+    # undo the shuffle, then list copy r of every ray as row r
+    order = np.random.default_rng(n).permutation(n * rows)
+    batch = np.empty(n * rows, dtype=int)
+    batch[order] = np.arange(n * rows)
+    image = batch.reshape(n, rows).T.reshape(-1)
+    out = dict(case, origins=grown["origins"][image], directions=grown["directions"][image])
+    for key in ("tmin", "tmax"):
+        value = grown.get(key)
+        if value is not case.get(key):
+            out[key] = np.asarray(value)[image]
     return out
 
 
@@ -101,5 +123,6 @@ def check_plane(case: dict, call) -> None:
     """
     if case.get("op") != "intersect" or case.get("kernel") != REFERENCE:
         return
-    compare_batches((("the case's rays", case), ("its plane batch", _plane_batch(case))),
+    compare_batches((("the case's rays", case), ("its plane batch", _plane_batch(case)),
+                     ("its plane batch as an image", _image_batch(case))),
                     call, "plane_maxmip")

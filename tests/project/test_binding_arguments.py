@@ -46,10 +46,12 @@ def _bad_outputs(dtype):
     ] + swapped
 
 
-def _mip():
-    """A valid horizon mipmap tuple (data, offset, rows, cols) over the 3 x 3 cells."""
-    return (np.zeros(9 + 4 + 1), np.array([0, 9, 13], np.int64), np.array([3, 2, 1], np.int64),
-            np.array([3, 2, 1], np.int64))
+def _strips(h):
+    """Valid chain-walk strips over the heights h for the direction (1, 0)."""
+    from algos.terrain import azimuth_direction
+    from algos.terrain.walks import chain_strips
+
+    return chain_strips(h, azimuth_direction(90.0))[0]
 
 
 def _terrain_calls():
@@ -69,10 +71,10 @@ def _terrain_calls():
         ("horizon_rows", np.float64, lambda out: _kernels.horizon_rows(
             h, one, *ints, one, ints[0], ints[0], 1, 1, 0, -1, 0.0, 0.0, 0, ROWS, out)),
         ("horizon_chain", np.float64, lambda out: _kernels.horizon_chain(
-            h, _mip(), 1.0, 0.0, math.inf, np.array([1], np.int64), np.array([0], np.int64),
+            h, _strips(h), 1.0, 0.0, math.inf, np.array([1], np.int64), np.array([0], np.int64),
             one, 2, 0, 1, out, np.zeros(VERTICES))),
         ("horizon_chain_occ", np.float64, lambda occ: _kernels.horizon_chain(
-            h, _mip(), 1.0, 0.0, math.inf, np.array([1], np.int64), np.array([0], np.int64),
+            h, _strips(h), 1.0, 0.0, math.inf, np.array([1], np.int64), np.array([0], np.int64),
             one, 2, 0, 1, np.zeros(VERTICES), occ)),
         ("viewshed", np.uint8, lambda out: _kernels.viewshed(
             h, None, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0, VERTICES, out)),

@@ -1,0 +1,80 @@
+"""Options a user gets slightly wrong on `hftrace compare` and `hftrace reproduce`: each
+is refused in one line naming the option, before anything is built or measured."""
+import os
+
+import pytest
+
+from bench.cli import main
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _run(capsys, *argv):
+    status = main(list(argv))
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+@pytest.fixture
+def no_builds(monkeypatch):
+    """compare must refuse before any revision is built."""
+    from bench.regress import revisions
+
+    monkeypatch.setattr(revisions, "build", lambda *a, **k: pytest.fail("built a revision"))
+
+
+@pytest.mark.parametrize("kernels", [",", " , ,"])
+def test_compare_kernels_naming_no_kernel_is_refused(no_builds, capsys, kernels):
+    """An empty list (a script's unset variable) measured the default kernels instead."""
+    status, out, err = _run(capsys, "compare", "HEAD", "--repo", ROOT, "--kernels", kernels,
+                            "--metric", "counters")
+    assert status == 2
+    assert err.strip().splitlines() == [
+        f"hftrace: error: --kernels: {kernels!r} names no kernel (give comma-separated "
+        "first-hit kernels, or leave --kernels out for the default set)"]
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_compare_json_in_a_folder_that_takes_no_files_is_refused_first(no_builds, capsys):
+    """/proc passes an access() check as root, and the verdict was lost after the measure
+    when the file could not be created; a trial file is now made before any build."""
+    status, out, err = _run(capsys, "compare", "HEAD", "--repo", ROOT, "--json",
+                            "/proc/hftrace-verdicts.json", "--metric", "counters")
+    assert status == 2
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("hftrace: error: --json: cannot create a file in /proc")
+
+
+def test_resume_on_a_binary_results_file_names_the_file(tmp_path):
+    """A results.csv that is not UTF-8 text (binary garbage) raised a bare
+    UnicodeDecodeError without the path; it is now the 'other version' refusal."""
+    from bench.report import RowWriter
+
+    path = tmp_path / "results.csv"
+    path.write_bytes(b"\x00\x01garbage\xff\n")
+    with pytest.raises(ValueError, match=rf"{path}: its columns .* differ from this version's"):
+        RowWriter(str(path), ["algorithm", "speedup"], append=True)
+
+
+def test_reproduce_empty_out_is_refused(capsys):
+    status, out, err = _run(capsys, "reproduce", "--out", "", "--kernels", "dda,runs",
+                            "--no-counts", "--no-progress")
+    assert status == 2
+    assert err.strip().splitlines()[-1] == "hftrace: error: --out: an empty path; give a directory"
+
+
+def test_render_diff_names_its_own_option(tmp_path, capsys):
+    """An unknown kernel on the --diff side was reported under --algorithm."""
+    status, out, err = _run(capsys, "render", "fbm", "--size", "16", "--width", "4",
+                            "--height", "2", "--diff", "runs", "nope",
+                            "--out", str(tmp_path / "x"))
+    assert status == 2
+    assert err.strip().splitlines()[-1].startswith("hftrace: error: --diff: unknown renderer 'nope'")
+
+
+def test_render_negative_fog_is_refused(tmp_path, capsys):
+    status, out, err = _run(capsys, "render", "fbm", "--size", "16", "--width", "4",
+                            "--height", "2", "--fog", "-1", "--out", str(tmp_path / "x"))
+    assert status == 2
+    assert "fog: expected a density >= 0" in err.strip().splitlines()[-1]
+    assert not list(tmp_path.iterdir())
