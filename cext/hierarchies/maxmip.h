@@ -88,21 +88,20 @@ typedef struct {
 
 static inline hf_mip_tile hf_mip_tile_of(const hf_mip_ray *r, int32_t tile_i, int32_t tile_j,
                                          double t_exit_x, double t_exit_y) {
-    /* The nearest of the x face, the y face and the ray's end, without branches (which
-     * face comes first is a coin flip for random rays): x leaves first if t_exit_x < t1,
-     * y if t_exit_y is below that, both on a tie with the x face. Each minimum is the
-     * select `a < b ? a : b` (one minsd) and the axis is integer arithmetic on the same
-     * comparisons the branches made, so the values are theirs bit for bit. */
-    const double t_x = t_exit_x < r->t1 ? t_exit_x : r->t1;
-    const int x_first = t_exit_x < r->t1;
-    const int y_first = t_exit_y < t_x;
-    const int both = x_first & (t_exit_y == t_x);
-    const int not_y = 2 * both + x_first - 1; /* -1 the end, 0 x, 2 both */
     hf_mip_tile e;
     e.tile_i = tile_i;
     e.tile_j = tile_j;
-    e.t_exit = t_exit_y < t_x ? t_exit_y : t_x;
-    e.axis = not_y + y_first * (1 - not_y);
+    e.t_exit = r->t1;
+    e.axis = -1;
+    if (t_exit_x < e.t_exit) {
+        e.t_exit = t_exit_x;
+        e.axis = 0;
+    }
+    if (t_exit_y < e.t_exit) {
+        e.t_exit = t_exit_y;
+        e.axis = 1;
+    } else if (t_exit_y == e.t_exit && e.axis == 0)
+        e.axis = 2;
     return e;
 }
 
@@ -149,18 +148,12 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
     const double ox = r->ox, oy = r->oy, oz = r->oz, dz = r->dz, inv_x = r->inv_x;
     const double inv_y = r->inv_y, t1 = r->t1, inf = (double)INFINITY;
     const int descending = r->descending, cull = r->cull;
-    const int32_t step[2] = {sx, sy}, exit_off[2] = {fx, fy};
-    const double origin[2] = {ox, oy}, inv[2] = {inv_x, inv_y};
-    int32_t cell[2], i = *ci, j = *cj;
-    double face[2];
+    int32_t i = *ci, j = *cj;
     double t_in = t_start;
     double mx = r->has_x ? ((double)(i + fx) - ox) * inv_x : inf;
     double my = r->has_y ? ((double)(j + fy) - oy) * inv_y : inf;
     for (;;) {
-        /* the cell's exit min(mx, my, t1): the same two selects as a branch on mx < my
-         * would make, written as minima (minsd) so that no branch is taken on it */
-        const double m = mx < my ? mx : my;
-        const double tb = m < t1 ? m : t1;
+        const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
         h->cells_visited += 1;
         if (!cull ||
             !(oz + (descending ? tb : t_in) * dz >
@@ -175,24 +168,15 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
             }
         }
         if (!(tb < t1)) return 0;
-        if (mx < my || my < mx) {
-            /* one axis steps: which one is a coin flip for random directions, so it
-             * indexes the per-axis state instead of choosing a branch (the same
-             * expressions on the same values as the branches it replaces) */
-            const int a = my < mx;
-            cell[0] = i;
-            cell[1] = j;
-            face[0] = mx;
-            face[1] = my;
-            t_in = face[a];
-            cell[a] += step[a];
-            face[a] = ((double)(cell[a] + exit_off[a]) - origin[a]) * inv[a];
-            i = cell[0];
-            j = cell[1];
-            mx = face[0];
-            my = face[1];
+        if (mx < my) {
+            i += sx;
+            t_in = mx;
+            mx = ((double)(i + fx) - ox) * inv_x;
+        } else if (my < mx) {
+            j += sy;
+            t_in = my;
+            my = ((double)(j + fy) - oy) * inv_y;
         } else {
-            /* both at once (a tie at a grid vertex; or a NaN, never seen) */
             i += sx;
             j += sy;
             t_in = mx;
