@@ -25,3 +25,18 @@ def _private_cache(tmp_path_factory):
     (inherited by the subprocesses the tests start)."""
     os.environ["HFTRACE_CACHE"] = str(tmp_path_factory.mktemp("hftrace-cache"))
     yield
+
+
+_START_AFFINITY = set(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
+
+
+@pytest.fixture(autouse=True)
+def _restore_cpu_affinity():
+    """A study or command run in-process pins this process to one CPU (as the command line
+    does): every test starts with the CPUs the session started with, so a test that
+    measures contention sees every CPU and not the one an earlier test left."""
+    if _START_AFFINITY is not None and set(os.sched_getaffinity(0)) != _START_AFFINITY:
+        os.sched_setaffinity(0, _START_AFFINITY)
+    yield
+    if _START_AFFINITY is not None and set(os.sched_getaffinity(0)) != _START_AFFINITY:
+        os.sched_setaffinity(0, _START_AFFINITY)
