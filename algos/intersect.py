@@ -135,7 +135,7 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         raises TypeError naming ``heights`` and what is accepted.
     origins, directions : array_like, shape (N, 3)
         Rays in (x, y, z); any real dtype and layout. Directions must not be zero: each
-        one's largest |component| lies in ``[2**-400, 2**400]`` (``t`` is in units of
+        one's largest absolute component lies in ``[2**-400, 2**400]`` (``t`` is in units of
         ``d``), and ``|origins| <= 2**30``; rays outside raise ValueError naming the ray.
     surface : {"flat", "plane3", "triangles", "bilinear"}
     tmin, tmax : None, float or (N,) array
