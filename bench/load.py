@@ -9,18 +9,24 @@ this process's own from ``/proc/self/stat``), and the 1-minute load average
 :data:`CONTENDED_CORES` cores on average while it ran (a busy loop on the other core of a
 2-core machine uses 1.0), or when the load average exceeded the CPUs this process may use.
 Where ``/proc`` cannot be read (not Linux) nothing is marked and the columns stay empty.
-The counters advance in clock ticks (10 ms): over a group of a few ticks the CPU figure
-is coarse, over the seconds of a real group it is not.
+The counters advance in clock ticks (10 ms): over a span of one or two ticks the figure
+reads 0 or 2 cores at random. :func:`snapshot_after` therefore closes a window no shorter
+than :data:`MIN_WINDOW_S`, waiting out the rest after a short group, so that a busy loop
+is never read as a quiet machine (an error of at most about two ticks, 0.2 cores).
 """
 from __future__ import annotations
 
 import os
 import time
 
-__all__ = ["snapshot", "contention", "CONTENDED_CORES", "load_average"]
+__all__ = ["snapshot", "snapshot_after", "contention", "CONTENDED_CORES", "MIN_WINDOW_S",
+           "load_average"]
 
 #: Other processes' average CPU use (in cores) above which a group is marked contended.
 CONTENDED_CORES = 0.5
+#: The shortest window (seconds) over which other processes' CPU use is read: ten clock
+#: ticks, so that the tick granularity moves the figure by at most about 0.2 cores.
+MIN_WINDOW_S = 0.1
 
 
 def load_average() -> float | None:
@@ -58,6 +64,16 @@ def snapshot() -> dict:
     process's CPU time and the load average."""
     return {"wall": time.monotonic(), "busy": _busy_seconds(), "own": _own_seconds(),
             "load": load_average()}
+
+
+def snapshot_after(before: dict, min_window_s: float = MIN_WINDOW_S) -> dict:
+    """The closing :func:`snapshot` of a window opened by ``before``, taken no earlier than
+    ``min_window_s`` seconds after it (this process sleeps out the rest, so only others'
+    work fills it)."""
+    rest = min_window_s - (time.monotonic() - before["wall"])
+    if rest > 0:
+        time.sleep(rest)
+    return snapshot()
 
 
 def contention(before: dict, after: dict) -> dict:

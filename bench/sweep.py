@@ -302,8 +302,8 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
         raise RuntimeError(f"{label} {workload} r={r}: the baseline {BASELINE} failed: "
                            f"{errors.get(BASELINE)}")
     timed = sum(float(np.nansum(v)) for v in times.values()) / 1e9
-    load = machine_load.contention(before, machine_load.snapshot())
-    wall = time.perf_counter() - wall0
+    wall = time.perf_counter() - wall0  # the group's own time, before any wait for the window
+    load = machine_load.contention(before, machine_load.snapshot_after(before))
     out = []
     for name in names:
         common = dict(algorithm=name, baseline=BASELINE, workload=workload, surface=surface,
