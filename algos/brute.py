@@ -114,9 +114,11 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         j, i = _cell_at_start(o, d, nx, ny, tmin)
         visited[j, i] = True
         ta[j, i] = tb[j, i] = t0
-    if d[0] == 0 and d[1] == 0 and not np.isfinite(t1):
-        # a vertical ray: end it where z has passed every possible surface height (plane3
-        # extrapolates to 2 min - max at worst); below them the ray is inside the solid
+    if not np.isfinite(t1):
+        # a vertical ray, or one whose horizontal components are so small that leaving
+        # the box overflows t: end it where z has passed every possible surface height
+        # (plane3 extrapolates to 2 min - max at worst); below them the ray is inside the
+        # solid
         lo_s = 2.0 * float(H.min()) - float(H.max()) - 1.0
         hi_s = 2.0 * float(H.max()) - float(H.min()) + 1.0
         end = ((lo_s if d[2] < 0 else hi_s) - o[2]) / d[2] if d[2] != 0 else t0
@@ -243,6 +245,9 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
     hi = np.full(n, np.inf) if tmax is None else np.broadcast_to(np.asarray(tmax, float), (n,))
     t = np.empty(n)
     cell = np.empty((n, 2), np.int32)
-    for k in range(n):
-        t[k], cell[k] = _first_hit_one(H, o[k], d[k], surface, lo[k], hi[k])
+    # a parameter beyond float64 (a subnormal direction component) overflows to +-inf,
+    # which is what the clip and the cell intervals mean by it
+    with np.errstate(over="ignore"):
+        for k in range(n):
+            t[k], cell[k] = _first_hit_one(H, o[k], d[k], surface, lo[k], hi[k])
     return t, cell

@@ -20,9 +20,9 @@
 /* ---- clipping ----------------------------------------------------------------------- */
 /* [t0, t1] of the ray inside the box; returns 0 when empty. entry_axis: the face that
  * set t0 (0 x, 1 y, 2 z) or -1 when t0 is tmin. */
-static int clip_to_box(const double o[3], const double d[3], double tmin, double tmax, double x_max,
-                       double y_max, double hmin, double hmax, double *t0_out, double *t1_out,
-                       int *entry_axis) {
+static int clip_to_box(const double o[3], const double d[3], const double inv[2], double tmin,
+                       double tmax, double x_max, double y_max, double hmin, double hmax,
+                       double *t0_out, double *t1_out, int *entry_axis) {
     double t0 = tmin, t1 = tmax;
     int axis = -1, k;
     const double hi[2] = {x_max, y_max};
@@ -30,8 +30,7 @@ static int clip_to_box(const double o[3], const double d[3], double tmin, double
         if (d[k] != 0) {
             /* the same expressions as hf_cell_interval, so a face parameter computed here
              * equals the one computed there bit for bit */
-            const double inv = 1.0 / d[k];
-            hf_slab_clip((0 - o[k]) * inv, (hi[k] - o[k]) * inv, k, &t0, &t1, &axis);
+            hf_slab_clip((0 - o[k]) * inv[k], (hi[k] - o[k]) * inv[k], k, &t0, &t1, &axis);
         } else if (!(o[k] >= 0 && o[k] <= hi[k])) {
             return 0;
         }
@@ -244,10 +243,12 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
     const double tmin = b->tmin ? b->tmin[ray] : 0.0;
     const double tmax = b->tmax ? b->tmax[ray] : (double)INFINITY;
+    /* the inverse direction, once: the clip and every walk's face parameters use it */
+    const double inv[2] = {hf_inverse(d[0]), hf_inverse(d[1])};
     double t0, t1;
     int entry_axis;
     memset(h, 0, sizeof *h);
-    if (!clip_to_box(o, d, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
+    if (!clip_to_box(o, d, inv, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
                      &entry_axis))
         return 0;
     h->heights = b->heights;
@@ -264,8 +265,8 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     h->dx = d[0];
     h->dy = d[1];
     h->dz = d[2];
-    h->inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
-    h->inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
+    h->inv_dx = inv[0];
+    h->inv_dy = inv[1];
     h->t0 = t0;
     h->t1 = t1;
     h->entry_axis = entry_axis;
@@ -298,8 +299,26 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
      * cell there; walk the last column (row) instead. Moving the 2D walk's origin
      * by 3/4 of a lattice unit keeps it in that column even after the exact
      * kernels' rounding; the surface tests still use the caller's ray. */
-    if (d[0] == 0 && o[0] == b->cols - 1) o2[0] = o[0] - 0.75 / HF_ONE;
-    if (d[1] == 0 && o[1] == b->rows - 1) o2[1] = o[1] - 0.75 / HF_ONE;
+    if ((kernel == HF_MIDPOINT || kernel == HF_RUNS || kernel == HF_RUNS_PERIODIC ||
+         kernel == HF_HIT_RUNS_MAXMIP) &&
+        (fabs(d[0]) * 0x1p29 < fabs(d[1]) || fabs(d[1]) * 0x1p29 < fabs(d[0]))) {
+        /* The exact kernels walk the ray rounded onto the lattice (walks/lattice.c), where
+         * a component below 2^-30 of the other (a subnormal one, or zero) becomes zero:
+         * only such rays are rounded here. One on a grid line then lies on the line, and
+         * reads the column its own sign gives, (k-1, k] when negative and the last column
+         * on the far face, as the caller's ray does; the clip and the surface tests use
+         * the caller's ray. */
+        double oq[2], dq[2];
+        int k;
+        hf_quantize_ray(o, d, oq, dq);
+        for (k = 0; k < 2; ++k)
+            if (dq[k] == 0 && oq[k] == floor(oq[k]) &&
+                (d[k] < 0 || oq[k] == (k ? b->rows : b->cols) - 1))
+                o2[k] = oq[k] - 0.75 / HF_ONE;
+    } else {
+        if (d[0] == 0 && o[0] == b->cols - 1) o2[0] = o[0] - 0.75 / HF_ONE;
+        if (d[1] == 0 && o[1] == b->rows - 1) o2[1] = o[1] - 0.75 / HF_ONE;
+    }
     b2.n_rays = 1;
     b2.origins = o2;
     b2.directions = d2;

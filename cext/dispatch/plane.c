@@ -106,7 +106,7 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     for (k = 0; k < 2; ++k) {
         s->moves[k] = d[k] != 0;
         if (s->moves[k]) {
-            const double inv = 1.0 / d[k];
+            const double inv = hf_inverse(d[k]);
             s->face_a[k] = (0 - o[k]) * inv;
             s->face_b[k] = (side[k] - o[k]) * inv;
         } else if (!(o[k] >= 0 && o[k] <= side[k])) {
@@ -129,8 +129,8 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     h->oy = o[1];
     h->dx = d[0];
     h->dy = d[1];
-    h->inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
-    h->inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
+    h->inv_dx = hf_inverse(d[0]);
+    h->inv_dy = hf_inverse(d[1]);
     hf_hit_prepare(h);
     /* the walk's constants (hf_mip_setup), but for oz, dz, descending and t1 */
     hf_mip_ray_of(h, &s->ray);

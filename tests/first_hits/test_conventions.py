@@ -251,3 +251,44 @@ def test_kernels_on_an_interior_grid_line_read_one_column(surface):
     wrong = [name for name in EXACT
              if algos.intersect(name, H, o, d, surface=surface).t[0] != ref[0]]
     assert not wrong, f"{wrong} hit column 24 along x = 25"
+
+
+def _subnormal_component_rays():
+    """Rays with one subnormal horizontal component (1 / d overflows to infinity), starting
+    on each box face, on a grid line inside, and inside a cell, each leaving or entering.
+    The first is the fuzzer's find: on the far x face, leaving it, the hierarchies read
+    0 * inf = NaN as 'no x face' and hit the cell behind it."""
+    tiny = 1.6e-309
+    o, d = [], []
+    for x0 in (4.0, 0.0, 2.0, 2.5):
+        for sx in (tiny, -tiny):
+            for dy, dz in ((-63.9, -64.0), (0.7, -0.2), (0.0, -1.0)):
+                o.append([x0, 4.0 if dy < 0 else 0.5, 4.0])
+                d.append([sx, dy, dz])
+                o.append([0.5 if dy >= 0 else 3.5, x0, 4.0])  # the same along y
+                d.append([dy, sx, dz])
+    return np.array(o), np.array(d)
+
+
+@pytest.mark.parametrize("surface", algos.SURFACES)
+def test_subnormal_direction_component_on_a_box_face(surface):
+    """Every exact and float64 kernel equals the brute force on rays whose x or y
+    component is subnormal, on a flat field and on steps. Fuzz find: flat 5x5, origin
+    (4, 4, 4), direction (1.6e-309, -63.9, -64) was a hit at t = 0.0625 for the
+    max-mipmap family, a miss for the brute force. The same set found the float64 walks
+    missing rays that leave the far face inward (an empty cell interval from 0 * inf),
+    the lattice walks reading the wrong side of a grid line (the component rounds to
+    zero), and the brute force missing rays whose exit parameter overflows."""
+    o, d = _subnormal_component_rays()
+    kernels = [n for n, a in INTERSECTOR_REGISTRY.items() if a.accuracy in ("exact", "float64")]
+    for H in (np.zeros((5, 5), np.float32), _steps((5, 5), 3)):
+        ref, _ = algos.brute_force_hits(H, o, d, surface)
+        assert np.isfinite(ref).sum() > len(o) // 3  # hits and misses both tested
+        for name in kernels:
+            got = algos.intersect(name, H, o, d, surface=surface).t
+            bad = np.nonzero(np.isfinite(ref) != np.isfinite(got))[0]
+            assert not len(bad), (f"{name}: {len(bad)} of {len(o)} rays differ; first: origin "
+                                  f"{o[bad[0]].tolist()} direction {d[bad[0]].tolist()}: brute "
+                                  f"{ref[bad[0]]}, got {got[bad[0]]}")
+            both = np.isfinite(ref)
+            assert np.allclose(got[both], ref[both], rtol=1e-9, atol=1e-9), name
