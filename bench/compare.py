@@ -212,6 +212,11 @@ def measure(base_build, head_build, base_pkg, head_pkg, setup: Setup, inputs=Non
     inputs = inputs if inputs is not None else make_inputs(size=setup.size, first_hit_rays=setup.rays,
                                                            traversal_rays=16, r=R, seed=SEED)
     kernels, new = _select(setup, base_pkg, head_pkg)
+    if not kernels:
+        raise CompareError(f"kernels: {', '.join(new)} {'is' if len(new) == 1 else 'are'} new "
+                           "in the head revision: the base has nothing to compare with "
+                           "(time a new kernel against the others with `hftrace sweep` or "
+                           "`hftrace targets`)")
     results = {k: KernelResult(k) for k in kernels}
     if "counters" in setup.metrics:
         cases = [(setup.surface, k) for k in kernels]
@@ -294,6 +299,17 @@ def compare(repo: str, base: str, head: str | None, setup: Setup, echo=print) ->
     for revision in (base, head):  # both named revisions exist before either is built
         if revision is not None:
             revisions.resolve(root, revision)
+    if head is None and setup.kernels:
+        # the working tree is the head: its registry is this process's, so a kernel it
+        # does not have is refused before the builds (minutes), not after them
+        import algos
+
+        known = intersector_names(algos)
+        unknown = [k for k in setup.kernels if k not in known]
+        if unknown:
+            what = "is not a C first-hit kernel" if len(unknown) == 1 else "are not C first-hit kernels"
+            raise CompareError(f"kernels: {', '.join(map(repr, unknown))} {what} of the working "
+                               f"tree (known: {', '.join(known)})")
     b = revisions.build(repo, base, echo=echo)
     h = revisions.build(repo, head, echo=echo)
     return measure(b, h, revisions.load(b, "base"), revisions.load(h, "head"), setup, echo=echo)

@@ -239,6 +239,34 @@ def test_a_missing_head_is_named_before_the_base_is_built(history, capsys, monke
         f"hftrace: error: revision: 'no-such-head' is not a commit of {repo}"]
 
 
+def test_an_unknown_kernel_of_the_working_tree_is_refused_before_the_builds(capsys, monkeypatch):
+    """With the working tree as head, its registry is this process's: a kernel it lacks is
+    refused at once (the builds take minutes)."""
+    from bench.regress import revisions
+
+    monkeypatch.setattr(revisions, "build", lambda *a, **k: pytest.fail("built despite the name"))
+    status, out, err = _run(capsys, "compare", "HEAD", "--repo", ROOT, "--kernels", "dda,bogus",
+                            "--metric", "counters")
+    last = err.strip().splitlines()[-1]
+    assert status == 2 and last.startswith("hftrace: error: kernels: 'bogus' is not a C "
+                                           "first-hit kernel of the working tree"), err
+
+
+def test_only_new_kernels_is_an_error_not_a_pass():
+    """Kernels that the base revision lacks have nothing to be compared with: refused,
+    where the command used to exit 0 having measured nothing."""
+    from algos.registry import INTERSECTOR_REGISTRY
+    from bench import compare as cmp
+
+    class Pkg:
+        def __init__(self, names):
+            self.INTERSECTOR_REGISTRY = {n: INTERSECTOR_REGISTRY[n] for n in names}
+
+    setup = cmp.Setup(metrics=("counters",), kernels=("ring_maxmip",))
+    with pytest.raises(cmp.CompareError, match="ring_maxmip is new in the head revision"):
+        cmp.measure(None, None, Pkg(["dda"]), Pkg(["dda", "ring_maxmip"]), setup, inputs=object())
+
+
 def test_an_unwritable_job_summary_keeps_the_verdict(history, capsys, monkeypatch):
     """Under GitHub Actions a job summary that cannot be written is a warning: the exit
     status stays the verdict's (1 for the counter regression), not the error status."""
