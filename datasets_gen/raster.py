@@ -82,12 +82,27 @@ def _georeferenced(ds) -> bool:
     return ds.crs is not None or not ds.transform.is_identity
 
 
-def _scaled(raw, mask, scale, offset, vertical_scale):
-    """Heights as float32: raw * scale + offset, times vertical_scale, voids NaN."""
+def _scaled(raw, mask, scale, offset, vertical_scale, where="the raster", origin=(0, 0)):
+    """Heights as float32: raw * scale + offset, times vertical_scale, voids NaN.
+
+    A sample that is not a void but whose height is finite in float64 and beyond float32
+    (|h| > 3.4e38) raises ``ValueError`` naming ``where``, its row and column (offset by
+    ``origin``, a window's corner) and its value: cast, it would become an infinity and
+    then a void without a word."""
     if scale == 1.0 and offset == 0.0 and vertical_scale == 1.0 and raw.dtype == np.float32:
         heights = np.array(raw, dtype=np.float32)
     else:
-        heights = ((raw.astype(np.float64) * scale + offset) * vertical_scale).astype(np.float32)
+        wide = (raw.astype(np.float64) * scale + offset) * vertical_scale
+        with np.errstate(over="ignore"):
+            heights = wide.astype(np.float32)
+        lost = np.isfinite(wide) & ~np.isfinite(heights) & ~mask
+        if lost.any():
+            r, c = (int(v) for v in np.argwhere(lost)[0])
+            raise ValueError(
+                f"{where}: the sample at row {r + origin[0]}, column {c + origin[1]} is "
+                f"{float(wide[r, c])!r} once scaled, beyond float32 (heights are held in float32, "
+                f"|h| <= 3.4e38); {int(lost.sum())} sample(s) in all. If it marks voids, "
+                f"declare it with nodata=; otherwise rescale with vertical_scale=")
     mask = mask | ~np.isfinite(heights)
     heights[mask] = np.nan
     return heights, mask
@@ -190,7 +205,7 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
         if ratio is not None:
             mixed = (band_units, ratio)
     heights, mask = _scaled(raw, mask, scale, offset,
-                            vertical_scale * (mixed[1] if mixed else 1.0))
+                            vertical_scale * (mixed[1] if mixed else 1.0), where=str(path))
     params = dict(path=path, band=band, scale=scale, offset=offset,
                   nodata=nodata if nodata is not None else file_nodata,
                   vertical_scale=vertical_scale,
@@ -429,7 +444,8 @@ class LazyRaster:
             mask = ds.read_masks(self.band, window=w) == 0
             scale = float(ds.scales[self.band - 1] if ds.scales else 1.0)
             offset = float(ds.offsets[self.band - 1] if ds.offsets else 0.0)
-        heights, _ = _scaled(raw, mask, scale, offset, self.scale)
+        heights, _ = _scaled(raw, mask, scale, offset, self.scale, where=str(self.path),
+                             origin=(rows.start, cols.start))
         return heights
 
     def __getstate__(self):

@@ -892,3 +892,21 @@ def test_algos_imports_nothing_from_datasets_gen_or_bench():
             upward += [f"{source.relative_to(root)}:{node.lineno} imports {n}" for n in names
                        if n.split(".")[0] in ("datasets_gen", "bench")]
     assert not upward, upward
+
+
+def test_float64_sample_beyond_float32_is_refused_with_its_place(tmp_path):
+    """A float64 DEM whose sample is finite but beyond float32 (here -DBL_MAX, a common
+    undeclared void marker) is refused with its row, column and value; declared as nodata
+    it is a void. Cast silently, it became -inf and then a void without a word."""
+    data = np.arange(30, dtype=np.float64).reshape(5, 6)
+    data[3, 4] = -np.finfo(np.float64).max
+    path = write_tif(tmp_path / "big.tif", data, dtype="float64")
+    with pytest.raises(ValueError, match=r"big\.tif: the sample at row 3, column 4 is "
+                                         r"-1\.79.*e\+308 once scaled, beyond float32.*nodata="):
+        raster.read_raster(path)
+    lazy = raster.LazyRaster(path)
+    with pytest.raises(ValueError, match=r"row 3, column 4"):
+        lazy[2:5, 1:6]
+    assert np.isfinite(lazy[0:3, 0:6]).all()  # a window without it reads
+    field = raster.read_raster(path, nodata=-np.finfo(np.float64).max)
+    assert field.nodata_mask[3, 4] and field.nodata_mask.sum() == 1
