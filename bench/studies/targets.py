@@ -27,9 +27,14 @@ whose hits agree with the exact reference (``runs``) on every ray, so a kernel
 registered later enters by itself. Embree is compared as two peers: embreex (single-ray triangle queries,
 its fastest, ``algos.peers.embree.embree_timed``), and the C Embree 3 peer at its fastest
 configuration in that regime (``algos.peers.embree3``: grid and triangle geometry, single
-rays and every native packet width, the coherent flag on camera rays). A ratio is the
-peer's time over ours: the geometric mean of the paired per-repeat ratios with Student's
-interval (``bench.timing.log_ratio_interval``).
+rays and every native packet width, the coherent flag on camera rays). The interleaved
+repeats only select: the best exact kernel and each peer's fastest configuration. A ratio
+(the peer's time over ours) is then measured afresh, in paired rounds of the two with the
+peer as baseline (``bench.timing.paired_rounds``) until its interval is ``precision``
+(2 %) wide on either side or ``confirm_budget_s`` is spent, and read as the median pair
+with its distribution-free interval (``bench.timing.median_ratio_interval``). Selecting
+and measuring on separate calls keeps out the winner's luck: the fastest of several
+equal kernels on the same few repeats is the luckiest of them.
 
 Counts: each contender (the best exact kernel, embreex and the C peer's fastest
 configuration of the warm regime) runs once more in a process of its own under
@@ -117,7 +122,8 @@ ROWS = (
 #: Tiers. ``sides``: row key -> field side (a row absent from it is not measured in the
 #: tier); ``rays``: random rays per row; ``image``: the cameras' width and height;
 #: ``repeats``: interleaved repeats per regime; ``processes``: processes of line 1;
-#: ``horizon_repeats``: timed calls of line 5; ``count_rays``: about the rays counted
+#: ``horizon_repeats``: timed calls of line 5; ``precision`` and ``confirm_budget_s``: when a
+#: confirmation's paired rounds stop (``targets_measure.confirm``); ``count_rays``: about the rays counted
 #: under callgrind, None for all (``targets_measure.counted_rays``); ``count_mesh_max_side``: the largest field whose
 #: triangle BVHs are built under valgrind for the counts; ``mesh_max_side``: larger
 #: triangle meshes are timed in a pair of their own with the best exact kernel (one mesh
@@ -128,17 +134,20 @@ ROWS = (
 TIERS = {
     "quick": dict(sides=dict(random2048=64, random4096=96, level=64, pitched=64, horizon16=64),
                   rays=300, image=(32, 18), repeats=3, processes=2, horizon_repeats=1,
+                  precision=0.02, confirm_budget_s=0.3,
                   count_rays=40, count_mesh_max_side=256, mesh_max_side=4096, judge=False, counts=False,
                   kernels=None, peers=None),
     # the targets' sizes but 8192^2: about 20 minutes on a quiet 2-core machine
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
                    rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=1,
+                   precision=0.02, confirm_budget_s=8.0,
                    count_rays=None, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
                    kernels=None, peers=None),
     "full": dict(sides=dict(random2048=2048, random4096=4096, random8192=8192, level=2048,
                             pitched=2048, horizon16=2048),
                  rays=4000, image=(640, 360), repeats=9, processes=5, horizon_repeats=3,
+                 precision=0.02, confirm_budget_s=15.0,
                  count_rays=None, count_mesh_max_side=4096, mesh_max_side=4096, judge=True, counts=True,
                  kernels=None, peers=None),
 }
@@ -483,8 +492,11 @@ def table(record, env, cfg, counts=True) -> str:
     tier = record["tier"]
     lines = [f"# Targets, {tier} tier", "",
              f"Our best exact kernel against Embree on the same rays, one CPU (pinned), one "
-             f"thread, interleaved, {cfg['repeats']} repeats per cache regime (flushed and "
-             f"warm, docs/METHOD.md), one process per row; line 1 in "
+             f"thread, one process per row, in two cache regimes (flushed and warm, "
+             f"docs/METHOD.md): {cfg['repeats']} interleaved repeats select our best kernel "
+             f"and each peer's fastest configuration, then paired rounds of the two measure "
+             f"the ratio afresh (median pair, distribution-free interval; until ±"
+             f"{100 * cfg.get('precision', 0.02):g} % or {cfg.get('confirm_budget_s', 10):g} s); line 1 in "
              f"{_processes(record['processes'])} (min-median-max of the ratio). Ratio = "
              f"Embree's time / ours (> 1: we are faster); [95 % interval]. Machine {env.get('cpu')}, commit "
              f"{env.get('git_commit')}; load averages (1, 5, 15 min) {env.get('load_before')} "

@@ -121,18 +121,57 @@ def row_rays(kind, side, cfg, seed):
     raise ValueError(f"kind: expected random, level or pitched, got {kind!r}")
 
 
+#: The cache state of a confirmation's paired rounds for each regime of
+#: ``bench.timing.REGIMES`` (``bench.timing.FLUSH_MODES``): flushed before every timed
+#: call, or warm (an untimed call, then timed calls).
+CONFIRM_FLUSH = {"flushed": "call", "warm": "warm"}
+
+
+def _prepare_alone(peer, label, prepare, field, o, d):
+    """A peer configuration timed apart (its triangle mesh too large to keep beside the
+    others): its job and output on a Field of its own, after one untimed call."""
+    import algos
+
+    own = algos.Field(field.heights)
+    job, out = prepare(own, o, d)
+    job()
+    return job, out, own
+
+
+def confirm(peer_job, label, our_job, best, n, regime, cfg, seed) -> dict:
+    """The ratio of a selected peer configuration to our selected kernel, measured afresh
+    in paired rounds with the peer as baseline (``bench.timing.paired_rounds``, until the
+    interval is ``cfg["precision"]`` wide on either side or ``cfg["confirm_budget_s"]`` is
+    spent) and read as the median pair with its distribution-free interval
+    (``bench.timing.median_ratio_interval``). Returns ``config``, ``ns`` (the peer's
+    median ns per ray), ``ours_ns``, ``ratio``, ``low``, ``high``, ``pairs`` and ``stop``
+    (``bench.timing.STOPS``)."""
+    from ..timing import WARM_TIMED_CALLS, median_ratio_interval, paired_rounds
+
+    flush = CONFIRM_FLUSH[regime]
+    m = paired_rounds({label: peer_job, best: our_job}, label,
+                      precision=cfg.get("precision", 0.02),
+                      budget_s=cfg.get("confirm_budget_s", 10.0), min_rounds=8,
+                      flush=flush, seed=seed)
+    calls = WARM_TIMED_CALLS if flush == "warm" else 1
+    ratio, low, high = median_ratio_interval(m.log_ratios[best])
+    return dict(config=label, ns=round(float(np.median(m.times[label])) / calls / n, 3),
+                ours_ns=round(float(np.median(m.times[best])) / calls / n, 3), ratio=ratio,
+                low=low, high=high, pairs=int(len(m.log_ratios[best])), stop=m.stop[best])
+
+
 def measure_rays(kind, side, cfg, seed, echo=print) -> dict:
     """Time a ray row in this process (pinned to one CPU): every strict kernel and every
     Embree configuration, interleaved, in each regime. Returns a JSON-ready dict:
     ``setting``, ``rays``, ``agree`` (name -> fraction of rays agreeing with the exact
     reference), ``missing`` (peer -> why absent), and per regime the ns per ray of every
     contender, the best exact kernel, and per peer its fastest configuration with the
-    ratio and interval."""
+    ratio and interval (:func:`confirm`)."""
     import algos
     from algos.intersect import prepare_timed_intersect
 
     from ..sweep import hit_agreement
-    from ..timing import REGIMES, log_ratio_interval, pin_to_one_cpu, timed_in_regime
+    from ..timing import REGIMES, pin_to_one_cpu, timed_in_regime
 
     cpu = pin_to_one_cpu()
     field, o, d, coherent, setting = row_rays(kind, side, cfg, seed)
@@ -168,38 +207,40 @@ def measure_rays(kind, side, cfg, seed, echo=print) -> dict:
             jobs[label]()
             agree[label] = hit_agreement(outs[label](), reference, 1e-4)
     for regime in REGIMES:
+        # selection: the interleaved repeats pick our best exact kernel and each peer's
+        # fastest configuration; the ratio is then measured afresh (confirmation), so the
+        # luck that made a contender look fastest does not enter its ratio
         times = timed_in_regime(jobs, cfg["repeats"], regime)
         ns = {k: float(np.median(v)) / n for k, v in times.items()}
         best = min(exact, key=ns.get) if exact else None
-        pairs, own = {}, {}
         for peer, label, prepare in alone if best is not None else ():
             # one peer's triangle mesh at a time, on a Field of its own (the C peer's
             # widths share its scene), freed before the next peer's
-            if peer not in own:
-                own.clear()
-                own[peer] = algos.Field(field.heights)
-            job, out = prepare(own[peer], o, d)
-            job()
+            job, out, own = _prepare_alone(peer, label, prepare, field, o, d)
             pair = timed_in_regime({best: jobs[best], label: job}, cfg["repeats"], regime)
-            pairs[label] = (pair[label], pair[best])
             ns[label] = float(np.median(pair[label])) / n
             agree[label] = hit_agreement(out(), reference, 1e-4)
-            del job, out
-        own.clear()
+            del job, out, own
         entry = dict(ns={k: round(v, 3) for k, v in ns.items()}, best=best, peers={},
-                     paired_apart=sorted(pairs))
+                     paired_apart=sorted(label for _, label, _ in alone))
         for peer in peers:
             labels = [lb for lb, p in result["configs"].items() if p == peer and lb in ns]
             if best is None or not labels:
                 continue
             label = min(labels, key=ns.get)
-            num, den = pairs.get(label, (times.get(label), times[best]))
-            ratio, low, high = log_ratio_interval(num, den)
-            entry["peers"][peer] = dict(config=label, ns=round(ns[label], 3), ratio=ratio,
-                                        low=low, high=high)
+            if label in jobs:
+                entry["peers"][peer] = confirm(jobs[label], label, jobs[best], best, n, regime,
+                                               cfg, seed)
+            else:
+                prepare = next(pr for pe, lb, pr in alone if lb == label)
+                job, out, own = _prepare_alone(peer, label, prepare, field, o, d)
+                entry["peers"][peer] = confirm(job, label, jobs[best], best, n, regime, cfg,
+                                               seed)
+                del job, out, own
         result["regimes"][regime] = entry
         echo(f"    {regime}: best {best}" + "".join(
-            f"; {p} {v['config']} {v['ratio']:.2f}x" for p, v in entry["peers"].items()))
+            f"; {p} {v['config']} {v['ratio']:.2f}x [{v['low']:.2f}, {v['high']:.2f}] "
+            f"({v['pairs']} pairs, {v['stop']})" for p, v in entry["peers"].items()))
     return result
 
 

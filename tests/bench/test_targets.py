@@ -12,6 +12,7 @@ import pytest
 
 import algos
 from bench.studies import targets, targets_counts, targets_measure
+from bench.timing import STOPS
 
 # The study runs each row in a child interpreter and counts under valgrind: neither runs
 # under the sanitizer's preloaded runtime (the kernels it times are in the sanitized
@@ -65,6 +66,11 @@ def test_quick_tier_writes_every_line_of_the_targets(tmp_path, monkeypatch):
             assert ns[best] == min(ns[k] for k in ns if k in algos.INTERSECTOR_REGISTRY
                                    and run["agree"][k] == 1.0)
             assert not set(run["left_out"]) & set(ns)
+            # the ratio is confirmed afresh in paired rounds (the selection's repeats only
+            # pick the contenders): at least 8 pairs, and why they stopped
+            for peer, e in run["regimes"][regime]["peers"].items():
+                assert e["pairs"] >= 8 and e["stop"] in STOPS, (peer, e)
+                assert e["ns"] > 0 and e["ours_ns"] > 0 and e["low"] <= e["ratio"] <= e["high"]
     # above mesh_max_side each triangle mesh is timed in a pair of its own with the best
     # exact kernel; below it, with everything
     for regime in ("flushed", "warm"):
