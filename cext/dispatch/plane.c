@@ -206,6 +206,23 @@ static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps, 
 }
 #endif
 
+/* The exact test of cell (i, j) (hf_hit_cell_exact) for a ray that starts in it later than
+ * the ray below (its interval is its own): a descending ray is first culled by z at the
+ * cell's exit, as the floor walk culls (maxmip.h: min(mx, my, t1) is the exact interval's
+ * tb, the same expressions), without building the interval; the exact test then skips
+ * its own, identical cull. Returns 1 on a hit. */
+static int plane_first_cell(hf_hit *h, const hf_mip_ray *r, int32_t i, int32_t j) {
+    h->cells_visited += 1;
+    if (r->cull && r->descending) {
+        const double mx = r->has_x ? ((double)(i + r->fx) - r->ox) * r->inv_x : (double)INFINITY;
+        const double my = r->has_y ? ((double)(j + r->fy) - r->oy) * r->inv_y : (double)INFINITY;
+        const double tb = mx < my ? (mx < r->t1 ? mx : r->t1) : (my < r->t1 ? my : r->t1);
+        if (r->oz + tb * r->dz > (double)h->cellmax[(int64_t)j * r->nx + i]) return 0;
+        return hf_hit_cell_exact_culled(h, i, j, 1);
+    }
+    return hf_hit_cell_exact(h, i, j);
+}
+
 /* What the rays below have cleared.
  * - A hit: a ray from height oz with slope dz, whose walk started at t_start, hit in cell
  *   (i, j), whose interval starts at t_enter; its walk stood at parameter t there. Every
@@ -274,11 +291,9 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
         /* A ray below missed over this very range but for a later start: every cell
          * after this ray's first has the same interval for both, so only the first one,
          * cut short by the later start, can hold a hit. */
-        if (t0 != chain->miss_t_start) {
-            h->cells_visited += 1;
-            status = hf_hit_cell_exact(h, hf_cell_at(h->ox, h->dx, t0, r.nx),
-                                       hf_cell_at(h->oy, h->dy, t0, r.ny));
-        }
+        if (t0 != chain->miss_t_start)
+            status = plane_first_cell(h, &r, hf_cell_at(h->ox, h->dx, t0, r.nx),
+                                      hf_cell_at(h->oy, h->dy, t0, r.ny));
         walked = 0;
     } else if (chain->valid && h->oz >= chain->oz && h->dz >= chain->dz && t0 >= chain->t_start &&
                t0 < chain->t && chain->t_enter < t1) {
@@ -294,10 +309,7 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
              * have the same intervals */
             const int32_t i = hf_cell_at(h->ox, h->dx, t0, r.nx);
             const int32_t j = hf_cell_at(h->oy, h->dy, t0, r.ny);
-            if (i != chain->i || j != chain->j) {
-                h->cells_visited += 1;
-                status = hf_hit_cell_exact(h, i, j);
-            }
+            if (i != chain->i || j != chain->j) status = plane_first_cell(h, &r, i, j);
         }
         if (!status) {
             w.i = chain->i;

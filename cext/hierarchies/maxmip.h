@@ -148,6 +148,10 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
     const double ox = r->ox, oy = r->oy, oz = r->oz, dz = r->dz, inv_x = r->inv_x;
     const double inv_y = r->inv_y, t1 = r->t1, inf = (double)INFINITY;
     const int descending = r->descending, cull = r->cull;
+    /* the exact test's own cull is this one when the ray descends (z at the cell's exit,
+     * tb: min(mx, my, t1) is the exact interval's tb, the same expressions) against the
+     * grid's cell maximum (leaf 0; the compact tree's leaf keeps its own) */
+    const int culled = !leaf && cull && descending;
     int32_t i = *ci, j = *cj;
     double t_in = t_start;
     double mx = r->has_x ? ((double)(i + fx) - ox) * inv_x : inf;
@@ -158,7 +162,7 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
         if (!cull ||
             !(oz + (descending ? tb : t_in) * dz >
               (double)(leaf ? maxima[((j & 3) << 2) | (i & 3)] : maxima[(int64_t)j * nx + i]))) {
-            if (hf_hit_cell_exact(h, i, j)) {
+            if (hf_hit_cell_exact_culled(h, i, j, culled)) {
                 /* the hit cell and the parameter the walk entered it at: where
                  * plane_maxmip resumes the ray above (dispatch/plane.c) */
                 *ci = i;

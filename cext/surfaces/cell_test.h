@@ -430,8 +430,11 @@ static inline double hf_cull_zlow(const hf_cull *c) {
     return z > c->zfloor ? z : c->zfloor;
 }
 
-/* One visited cell: the exact interval, cull, then test. Returns 1 on a hit. */
-static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
+/* One visited cell: the exact interval, cull, then test. Returns 1 on a hit. `culled`:
+ * the caller has already made this very cull (z at the interval's low-z end against the
+ * cell's maximum, the same expressions: a descending ray's floor walk, maxmip.h), so it is
+ * not made twice. */
+static inline int hf_hit_cell_exact_culled(hf_hit *h, int32_t i, int32_t j, int culled) {
     double ta, tb;
     const int axis = hf_cell_interval(h, i, j, &ta, &tb);
     int wall;
@@ -443,12 +446,16 @@ static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
         wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
     else
         wall = (h->surface == HF_FLAT || h->surface == HF_PLANE3) ? axis : -1;
-    if (h->cull_cells) {
+    if (h->cull_cells && !culled) {
         /* the ray's lowest z over the cell is above every corner: no hit */
         const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
         if ((za < zb ? za : zb) > (double)h->cellmax[(int64_t)j * (h->cols - 1) + i]) return 0;
     }
     return hf_surface_test(h, i, j, ta, tb, wall);
+}
+
+static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
+    return hf_hit_cell_exact_culled(h, i, j, 0);
 }
 
 /* One visited cell of a cell kernel: the cheap bound first (along the axis that crosses
