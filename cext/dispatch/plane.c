@@ -140,7 +140,7 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     return !hf_on_grid_line(h);
 }
 
-/* Ray `ray` of the plane: clip it, and fill h and r (copies of s->hit and s->ray) for it
+/* Ray `ray` of the plane: clip it, and fill h and r (s->hit and s->ray, in place) for it
  * as ray_begin and hf_mip_setup would (a debug build checks this field by field against
  * `steps`). Returns 1 when there is a walk to do, 0 when the ray misses the box (then h
  * is a miss, ready for the outputs). */
@@ -243,27 +243,21 @@ typedef struct {
  * that takes dda_maxmip's own set-up (a ray alone in its plane, a line on a grid line). */
 static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s, int64_t ray,
                      plane_chain *chain) {
-    /* local copies of the plane's set-up: the walk keeps their fields in registers */
-    hf_hit own, *const h = &own;
-    hf_mip_ray r;
+    /* the plane's records, updated in place: plane_begin rewrites every field that
+     * depends on the ray (copying them per ray cost 58 instructions a ray) */
+    hf_hit own, *const h = s ? &s->hit : &own;
+    hf_mip_ray own_r, *const r = s ? &s->ray : &own_r;
     hf_mip_walk w;
     double t0, t1;
     int entry_axis, status = 0, walked = 1, resumed = 0;
     int inside;
     if (s) {
-#ifdef HF_DEBUG
-        memset(h, 0, sizeof *h); /* the bytes past `found` too, for the field check */
-#endif
-        /* the record up to its result (plane_begin clears that): under 256 bytes, which
-         * the compiler copies with vector moves, not a string instruction */
-        memcpy(h, &s->hit, offsetof(hf_hit, found));
-        r = s->ray;
-        inside = plane_begin(b, s, ray, h, &r, &t0, &t1, &entry_axis);
+        inside = plane_begin(b, s, ray, h, r, &t0, &t1, &entry_axis);
     } else {
         inside = steps->begin(b, ray, h, &t0, &t1, &entry_axis);
     }
 #ifdef HF_DEBUG
-    if (s) plane_check_begin(b, steps, h, &r, ray, inside);
+    if (s) plane_check_begin(b, steps, h, r, ray, inside);
 #endif
     if (!inside) {
         steps->end(b, ray, h);
@@ -281,10 +275,10 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
          * the ray's entry */
         w.i = w.j = 0;
         w.t = t0;
-        w.level = hf_mip_restart_level(&r);
+        w.level = hf_mip_restart_level(r);
         w.guard = 0;
     } else {
-        hf_mip_setup(h, b, &r, &w);
+        hf_mip_setup(h, b, r, &w);
     }
     if (chain->miss_valid && h->oz >= chain->miss_oz && h->dz >= chain->miss_dz &&
         t0 >= chain->miss_t_start && t1 == chain->miss_t1) {
@@ -292,8 +286,8 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
          * after this ray's first has the same interval for both, so only the first one,
          * cut short by the later start, can hold a hit. */
         if (t0 != chain->miss_t_start)
-            status = plane_first_cell(h, &r, hf_cell_at(h->ox, h->dx, t0, r.nx),
-                                      hf_cell_at(h->oy, h->dy, t0, r.ny));
+            status = plane_first_cell(h, r, hf_cell_at(h->ox, h->dx, t0, r->nx),
+                                      hf_cell_at(h->oy, h->dy, t0, r->ny));
         walked = 0;
     } else if (chain->valid && h->oz >= chain->oz && h->dz >= chain->dz && t0 >= chain->t_start &&
                t0 < chain->t && chain->t_enter < t1) {
@@ -307,23 +301,23 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
             /* a later start cuts the first cell short: unless it is the chain's cell,
              * test it on this ray's interval; then the cells up to the chain's cell
              * have the same intervals */
-            const int32_t i = hf_cell_at(h->ox, h->dx, t0, r.nx);
-            const int32_t j = hf_cell_at(h->oy, h->dy, t0, r.ny);
-            if (i != chain->i || j != chain->j) status = plane_first_cell(h, &r, i, j);
+            const int32_t i = hf_cell_at(h->ox, h->dx, t0, r->nx);
+            const int32_t j = hf_cell_at(h->oy, h->dy, t0, r->ny);
+            if (i != chain->i || j != chain->j) status = plane_first_cell(h, r, i, j);
         }
         if (!status) {
             w.i = chain->i;
             w.j = chain->j;
             w.t = chain->t;
-            w.level = r.floor_level; /* the hit is near: start at the floor tile */
+            w.level = r->floor_level; /* the hit is near: start at the floor tile */
         }
     }
     if (!resumed && walked && s) {
         /* a fresh walk from the ray's entry, as hf_mip_setup starts it */
-        w.i = hf_cell_at(h->ox, h->dx, t0, r.nx);
-        w.j = hf_cell_at(h->oy, h->dy, t0, r.ny);
+        w.i = hf_cell_at(h->ox, h->dx, t0, r->nx);
+        w.j = hf_cell_at(h->oy, h->dy, t0, r->ny);
     }
-    if (!status && walked) status = hf_mip_walk_alone(h, b, &r, &w, 0);
+    if (!status && walked) status = hf_mip_walk_alone(h, b, r, &w, 0);
     if (status > 0) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;
@@ -336,7 +330,7 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
         chain->t = w.t;
         chain->i = h->i;
         chain->j = h->j;
-    } else if (!walked || w.guard <= r.guard_max) {
+    } else if (!walked || w.guard <= r->guard_max) {
         /* the whole range [t0, t1] is clear for this ray (a walk that gave up proves
          * nothing) */
         chain->miss_valid = t0 >= 0;
