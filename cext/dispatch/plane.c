@@ -137,6 +137,10 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     s->ray.top = b->mip_levels - 1;
     s->ray.floor_level = b->floor_level < s->ray.top ? b->floor_level : s->ray.top;
     s->ray.guard_max = 4 * ((int64_t)s->ray.nx + s->ray.ny) + 64;
+    /* after a floor tile the walk goes on at the floor level (dda_maxmip: one above): a
+     * resumed ray's hit is near, so the tile above is rarely skipped (-15 instructions
+     * a ray on the level row); a fresh walk starts one above (plane_ray) */
+    s->ray.restart = s->ray.floor_level;
     return !hf_on_grid_line(h);
 }
 
@@ -275,7 +279,7 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
          * the ray's entry */
         w.i = w.j = 0;
         w.t = t0;
-        w.level = hf_mip_restart_level(r);
+        w.level = r->floor_level + 1 < r->top ? r->floor_level + 1 : r->top;
         w.guard = 0;
     } else {
         hf_mip_setup(h, b, r, &w);

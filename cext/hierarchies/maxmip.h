@@ -24,6 +24,7 @@ typedef struct {
     int32_t sx, sy, fx, fy; /* travel direction; exit face of index k is k + f */
     double ox, oy, oz, dx, dy, dz, inv_x, inv_y, t1;
     int64_t guard_max; /* iterations after which the walk gives up (a miss) */
+    int restart;       /* the level a walk returns to after a floor tile */
 } hf_mip_ray;
 
 /* The state of one ray's walk: the current cell, the parameter where the walk is, the
@@ -37,7 +38,7 @@ typedef struct {
 
 /* The level a walk starts at, and returns to after a floor tile: one above the floor. */
 static inline int hf_mip_restart_level(const hf_mip_ray *r) {
-    return r->floor_level + 1 < r->top ? r->floor_level + 1 : r->top;
+    return r->restart;
 }
 
 /* The ray's constants that come from its clipped hf_hit alone (every field but top,
@@ -70,6 +71,7 @@ static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_r
     r->top = b->mip_levels - 1;
     r->floor_level = b->floor_level < r->top ? b->floor_level : r->top;
     r->guard_max = 4 * ((int64_t)r->nx + r->ny) + 64;
+    r->restart = r->floor_level + 1 < r->top ? r->floor_level + 1 : r->top;
     w->t = h->t0;
     w->i = hf_cell_at(h->ox, h->dx, w->t, r->nx);
     w->j = hf_cell_at(h->oy, h->dy, w->t, r->ny);
