@@ -205,6 +205,7 @@ static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps, 
     }
     HF_ASSERT(memcmp(&h, mine, sizeof h) == 0, "ray=%lld: the hit record differs", (long long)ray);
     hf_mip_setup(&h, b, &r, &w);
+    r.restart = mine_r->restart; /* the plane's own choice (plane_shared_init) */
     HF_ASSERT(memcmp(&r, mine_r, sizeof r) == 0, "ray=%lld: the walk's constants differ",
               (long long)ray);
 }
