@@ -241,7 +241,38 @@ typedef struct {
     int32_t i, j;
     int miss_valid;
     double miss_oz, miss_dz, miss_t_start, miss_t1;
+    /* the last triangles cell tested in a resumed ray's first floor tile (that of the
+     * hit, when there was one): the ray above tests that cell on the same interval, and
+     * reads its surface from here */
+    int cell_valid;
+    hf_tri_cell cell;
 } plane_chain;
+
+static int same_bits(double a, double b) {
+    uint64_t x, y;
+    memcpy(&x, &a, sizeof x);
+    memcpy(&y, &b, sizeof y);
+    return x == y;
+}
+
+/* The floor walk's cell test (hf_cell_test, maxmip.h) for a resumed ray: the exact test
+ * (hf_hit_cell_exact_culled), but a triangles cell's surface is read from the chain's
+ * record when that is of the same cell on the same interval bit for bit (the same float
+ * values, so the same hit), else built there first. `ctx`: the plane's chain. */
+static int plane_cell_test(hf_hit *h, int32_t i, int32_t j, int culled, void *ctx) {
+    plane_chain *chain = (plane_chain *)ctx;
+    hf_tri_cell *c = &chain->cell;
+    double ta, tb;
+    int wall;
+    if (!hf_hit_cell_open(h, i, j, culled, &ta, &tb, &wall)) return 0;
+    if (h->surface != HF_TRIANGLES) return hf_surface_test(h, i, j, ta, tb, wall);
+    if (!(chain->cell_valid && c->i == i && c->j == j && same_bits(c->ta, ta) &&
+          same_bits(c->tb, tb))) {
+        hf_tri_cell_build(h, i, j, ta, tb, c);
+        chain->cell_valid = 1;
+    }
+    return hf_tri_cell_test(h, c, wall);
+}
 
 /* One ray of a plane, above every ray the chain came from: its first hit, equal to
  * dda_maxmip's. Updates the chain. `s`: the plane's shared set-up, or NULL for a ray
@@ -311,10 +342,16 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
             if (i != chain->i || j != chain->j) status = plane_first_cell(h, r, i, j);
         }
         if (!status) {
+            /* the hit is near: walk the chain cell's floor tile first, with no tile test;
+             * then on */
             w.i = chain->i;
             w.j = chain->j;
             w.t = chain->t;
-            w.level = r->floor_level; /* the hit is near: start at the floor tile */
+            w.level = r->floor_level;
+            status = hf_mip_floor_walk_by(h, r, &w, w.i >> r->floor_level, w.j >> r->floor_level,
+                                          plane_cell_test, chain);
+            if (status == 0) walked = 0; /* the ray ended, or left the grid: a miss */
+            if (status < 0) status = 0;  /* it left the tile: walk on from there */
         }
     }
     if (!resumed && walked && s) {
@@ -322,7 +359,8 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
         w.i = hf_cell_at(h->ox, h->dx, t0, r->nx);
         w.j = hf_cell_at(h->oy, h->dy, t0, r->ny);
     }
-    if (!status && walked) status = hf_mip_walk_alone(h, b, r, &w, 0);
+    /* the cells are tested through the chain's record (plane_cell_test) */
+    if (!status && walked) status = hf_mip_walk_alone_by(h, b, r, &w, 0, plane_cell_test, chain);
     if (status > 0) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;
