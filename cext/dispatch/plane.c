@@ -137,10 +137,6 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     s->ray.top = b->mip_levels - 1;
     s->ray.floor_level = b->floor_level < s->ray.top ? b->floor_level : s->ray.top;
     s->ray.guard_max = 4 * ((int64_t)s->ray.nx + s->ray.ny) + 64;
-    /* after a floor tile the walk goes on at the floor level (dda_maxmip: one above): a
-     * resumed ray's hit is near, so the tile above is rarely skipped (-15 instructions
-     * a ray on the level row); a fresh walk starts one above (plane_ray) */
-    s->ray.restart = s->ray.floor_level;
     return !hf_on_grid_line(h);
 }
 
@@ -205,7 +201,6 @@ static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps, 
     }
     HF_ASSERT(memcmp(&h, mine, sizeof h) == 0, "ray=%lld: the hit record differs", (long long)ray);
     hf_mip_setup(&h, b, &r, &w);
-    r.restart = mine_r->restart; /* the plane's own choice (plane_shared_init) */
     HF_ASSERT(memcmp(&r, mine_r, sizeof r) == 0, "ray=%lld: the walk's constants differ",
               (long long)ray);
 }
@@ -274,48 +269,61 @@ static int plane_cell_test(hf_hit *h, int32_t i, int32_t j, int culled, void *ct
     return hf_tri_cell_test(h, c, wall);
 }
 
+/* A ray that shares no plane, or whose plane lies on a grid line (flat, plane3): the three
+ * steps of dda_maxmip. */
+static int plane_alone(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray) {
+    hf_hit h;
+    double t0, t1;
+    int entry_axis;
+    if (!steps->begin(b, ray, &h, &t0, &t1, &entry_axis)) {
+        /* misses the box */
+    } else if (t0 < t1 && !hf_on_grid_line(&h)) {
+        /* dda_maxmip's walk (maxmip_tight), here: its call through `solve` costs more */
+        hf_mip_ray r;
+        hf_mip_walk w;
+        hf_mip_setup(&h, b, &r, &w);
+        (void)hf_mip_walk_alone(&h, b, &r, &w, 0);
+    } else {
+        const int status = steps->solve(b, ray, &h, t0, t1, entry_axis);
+        if (status != HF_OK) return status;
+    }
+    steps->end(b, ray, &h);
+    return HF_OK;
+}
+
 /* One ray of a plane, above every ray the chain came from: its first hit, equal to
- * dda_maxmip's. Updates the chain. `s`: the plane's shared set-up, or NULL for a ray
- * that takes dda_maxmip's own set-up (a ray alone in its plane, a line on a grid line). */
+ * dda_maxmip's. Updates the chain. `s`: the plane's shared set-up. */
 static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s, int64_t ray,
                      plane_chain *chain) {
     /* the plane's records, updated in place: plane_begin rewrites every field that
      * depends on the ray (copying them per ray cost 58 instructions a ray) */
-    hf_hit own, *const h = s ? &s->hit : &own;
-    hf_mip_ray own_r, *const r = s ? &s->ray : &own_r;
+    hf_hit *const h = &s->hit;
+    hf_mip_ray *const r = &s->ray;
     hf_mip_walk w;
     double t0, t1;
     int entry_axis, status = 0, walked = 1, resumed = 0;
     int inside;
-    if (s) {
-        inside = plane_begin(b, s, ray, h, r, &t0, &t1, &entry_axis);
-    } else {
-        inside = steps->begin(b, ray, h, &t0, &t1, &entry_axis);
-    }
+    inside = plane_begin(b, s, ray, h, r, &t0, &t1, &entry_axis);
 #ifdef HF_DEBUG
-    if (s) plane_check_begin(b, steps, h, r, ray, inside);
+    plane_check_begin(b, steps, h, r, ray, inside);
 #endif
     if (!inside) {
         steps->end(b, ray, h);
         return HF_OK;
     }
-    if (!(t0 < t1) || (!s && hf_on_grid_line(h))) {
-        /* a single parameter, or a ray on a grid line: dda_maxmip's own per-ray paths */
+    if (!(t0 < t1)) {
+        /* a single parameter: dda_maxmip's own per-ray path */
         const int solved = steps->solve(b, ray, h, t0, t1, entry_axis);
         if (solved != HF_OK) return solved;
         steps->end(b, ray, h);
         return HF_OK;
     }
-    if (s) {
-        /* hf_mip_setup's start, but for the cell: set below, at the chain's cell or at
-         * the ray's entry */
-        w.i = w.j = 0;
-        w.t = t0;
-        w.level = r->floor_level + 1 < r->top ? r->floor_level + 1 : r->top;
-        w.guard = 0;
-    } else {
-        hf_mip_setup(h, b, r, &w);
-    }
+    /* hf_mip_setup's start, but for the cell: set below, at the chain's cell or at the
+     * ray's entry */
+    w.i = w.j = 0;
+    w.t = t0;
+    w.level = hf_mip_restart_level(r);
+    w.guard = 0;
     if (chain->miss_valid && h->oz >= chain->miss_oz && h->dz >= chain->miss_dz &&
         t0 >= chain->miss_t_start && t1 == chain->miss_t1) {
         /* A ray below missed over this very range but for a later start: every cell
@@ -354,7 +362,7 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
             if (status < 0) status = 0;  /* it left the tile: walk on from there */
         }
     }
-    if (!resumed && walked && s) {
+    if (!resumed && walked) {
         /* a fresh walk from the ray's entry, as hf_mip_setup starts it */
         w.i = hf_cell_at(h->ox, h->dx, t0, r->nx);
         w.j = hf_cell_at(h->oy, h->dy, t0, r->ny);
@@ -386,20 +394,18 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
     return HF_OK;
 }
 
-/* One plane being traced: its shared set-up (NULL when its rays take dda_maxmip's own,
- * on a grid line) and its chain. `head` is the ray it was set up from; `chained` is 0
- * when that ray shares no plane (then every candidate is traced alone). */
+/* One plane being traced: its shared set-up and its chain. `head` is the ray it was set
+ * up from; `s` is NULL when that ray shares no plane, or its plane lies on a grid line of
+ * flat or plane3 (then every ray is traced alone, plane_alone). */
 typedef struct {
     plane_shared shared, *s;
     plane_chain chain;
     int64_t head;
-    int chained;
 } plane_column;
 
 static void plane_column_init(const hf_hit_batch *b, int64_t head, plane_column *c) {
     c->head = head;
-    c->chained = plane_eligible(b, head);
-    c->s = c->chained && plane_shared_init(b, head, &c->shared) ? &c->shared : NULL;
+    c->s = plane_eligible(b, head) && plane_shared_init(b, head, &c->shared) ? &c->shared : NULL;
     memset(&c->chain, 0, sizeof c->chain);
 }
 
@@ -409,13 +415,11 @@ static void plane_column_init(const hf_hit_batch *b, int64_t head, plane_column 
 static int plane_column_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_column *c,
                             int64_t ray, int checked) {
     int status;
-    if (c->chained &&
+    if (c->s &&
         (checked || ray == c->head || (plane_eligible(b, ray) && same_plane(b, ray, c->head)))) {
         status = plane_ray(b, steps, c->s, ray, &c->chain);
     } else {
-        plane_chain alone;
-        memset(&alone, 0, sizeof alone);
-        status = plane_ray(b, steps, NULL, ray, &alone);
+        status = plane_alone(b, steps, ray);
     }
     if (status != HF_OK) b->bad_ray = ray;
     return status;
@@ -572,9 +576,7 @@ int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
             status = plane_trace(b, steps, members, count);
         } else if (last[ray] >= 0 || !plane_eligible(b, ray)) {
             /* a ray alone in its plane, or one that shares none: dda_maxmip's walk */
-            plane_chain alone;
-            memset(&alone, 0, sizeof alone);
-            status = plane_ray(b, steps, NULL, ray, &alone);
+            status = plane_alone(b, steps, ray);
             if (status != HF_OK) b->bad_ray = ray;
         }
     }

@@ -24,7 +24,6 @@ typedef struct {
     int32_t sx, sy, fx, fy; /* travel direction; exit face of index k is k + f */
     double ox, oy, oz, dx, dy, dz, inv_x, inv_y, t1;
     int64_t guard_max; /* iterations after which the walk gives up (a miss) */
-    int restart;       /* the level a walk returns to after a floor tile */
 } hf_mip_ray;
 
 /* The state of one ray's walk: the current cell, the parameter where the walk is, the
@@ -38,7 +37,7 @@ typedef struct {
 
 /* The level a walk starts at, and returns to after a floor tile: one above the floor. */
 static inline int hf_mip_restart_level(const hf_mip_ray *r) {
-    return r->restart;
+    return r->floor_level + 1 < r->top ? r->floor_level + 1 : r->top;
 }
 
 /* The ray's constants that come from its clipped hf_hit alone (every field but top,
@@ -71,7 +70,6 @@ static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_r
     r->top = b->mip_levels - 1;
     r->floor_level = b->floor_level < r->top ? b->floor_level : r->top;
     r->guard_max = 4 * ((int64_t)r->nx + r->ny) + 64;
-    r->restart = r->floor_level + 1 < r->top ? r->floor_level + 1 : r->top;
     w->t = h->t0;
     w->i = hf_cell_at(h->ox, h->dx, w->t, r->nx);
     w->j = hf_cell_at(h->oy, h->dy, w->t, r->ny);
@@ -207,8 +205,9 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
 /* Walk the floor tile (tile_i, tile_j) of the max mipmap (hf_floor_walk on the row-major
  * cell maxima). Returns 1 on a hit, 0 when the ray ends or leaves the grid, -1 when it
  * leaves the tile (the walk goes on from the cell it entered, one level above the floor). */
-HF_HOT int hf_mip_floor_walk_by(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w, int32_t tile_i,
-                                int32_t tile_j, hf_cell_test test, void *ctx) {
+static inline int hf_mip_floor_walk_by(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
+                                       int32_t tile_i, int32_t tile_j, hf_cell_test test,
+                                       void *ctx) {
     const int floor_level = r->floor_level;
     const int32_t nx = r->nx, ny = r->ny;
     const int32_t ilo = tile_i << floor_level, jlo = tile_j << floor_level;
@@ -222,7 +221,9 @@ HF_HOT int hf_mip_floor_walk_by(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w, 
     if (status == 0) return 0;
     w->t = t_in > w->t ? t_in : w->t; /* on a hit too: the state plane_maxmip resumes from */
     if (status > 0) return 1;
-    w->level = hf_mip_restart_level(r);
+    /* a walk with its own cell test (plane_maxmip's, whose hits are near) goes on at the
+     * floor level, the others one above */
+    w->level = test ? r->floor_level : hf_mip_restart_level(r);
     return -1;
 }
 
@@ -262,8 +263,9 @@ static inline int hf_mip_leave_tile(const hf_mip_ray *r, hf_mip_walk *w, const h
  * over its stretch in the tile, hf_tile_zlow, is above the tile's maximum): skip it and
  * climb, descend one level, or walk the floor tile. Returns 1 on a hit, 0 when the walk
  * ends without one, -1 when it goes on. */
-HF_HOT int hf_mip_iterate_by(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w, const hf_mip_tile *e,
-                             int skip, const int outline, hf_cell_test test, void *ctx) {
+static inline int hf_mip_iterate_by(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
+                                    const hf_mip_tile *e, int skip, const int outline,
+                                    hf_cell_test test, void *ctx) {
     int status;
     if (skip) {
         h->tiles_skipped += 1;
@@ -287,8 +289,9 @@ static inline int hf_mip_iterate(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
 /* The rest of one ray's walk from its state, alone: the per-ray kernel dda_maxmip, and a
  * ray that left its packet (`outline` 1: the floor walk out of line, as hf_mip_iterate).
  * Returns 1 on a hit. */
-HF_HOT int hf_mip_walk_alone_by(hf_hit *h, const hf_hit_batch *b, const hf_mip_ray *r,
-                                hf_mip_walk *w, const int outline, hf_cell_test test, void *ctx) {
+static inline int hf_mip_walk_alone_by(hf_hit *h, const hf_hit_batch *b, const hf_mip_ray *r,
+                                       hf_mip_walk *w, const int outline, hf_cell_test test,
+                                       void *ctx) {
     while (w->guard <= r->guard_max) {
         const hf_mip_tile e = hf_mip_tile_exit(r, w);
         const int skip = hf_tile_zlow(r->oz, r->dz, r->descending, w->t, e.t_exit) >
