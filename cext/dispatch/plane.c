@@ -117,20 +117,7 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     s->zhi = b->hmax + margin;
     /* the hit record as ray_begin fills it, but for oz, dz, the range and what
      * hf_hit_prepare derives from dz (plane_begin) */
-    h->heights = b->heights;
-    h->cellmax = b->cellmax;
-    h->rows = b->rows;
-    h->cols = b->cols;
-    h->row_max = b->cull_runs ? &b->row_max : NULL;
-    h->col_max = b->cull_runs ? &b->col_max : NULL;
-    h->surface = b->surface;
-    h->cull_cells = b->cull_cells;
-    h->ox = o[0];
-    h->oy = o[1];
-    h->dx = d[0];
-    h->dy = d[1];
-    h->inv_dx = d[0] != 0 ? 1.0 / d[0] : (double)INFINITY;
-    h->inv_dy = d[1] != 0 ? 1.0 / d[1] : (double)INFINITY;
+    hf_hit_fill(h, b, o, d);
     hf_hit_prepare(h);
     /* the walk's constants (hf_mip_setup), but for oz, dz, descending and t1 */
     hf_mip_ray_of(h, &s->ray);
