@@ -251,22 +251,9 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     if (!clip_to_box(o, d, inv, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
                      &entry_axis))
         return 0;
-    h->heights = b->heights;
-    h->cellmax = b->cellmax;
-    h->rows = b->rows;
-    h->cols = b->cols;
-    h->row_max = b->cull_runs ? &b->row_max : NULL;
-    h->col_max = b->cull_runs ? &b->col_max : NULL;
-    h->surface = b->surface;
-    h->cull_cells = b->cull_cells;
-    h->ox = o[0];
-    h->oy = o[1];
+    hf_hit_fill(h, b, o, d, inv);
     h->oz = o[2];
-    h->dx = d[0];
-    h->dy = d[1];
     h->dz = d[2];
-    h->inv_dx = inv[0];
-    h->inv_dy = inv[1];
     h->t0 = t0;
     h->t1 = t1;
     h->entry_axis = entry_axis;

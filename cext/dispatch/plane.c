@@ -117,20 +117,10 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     s->zhi = b->hmax + margin;
     /* the hit record as ray_begin fills it, but for oz, dz, the range and what
      * hf_hit_prepare derives from dz (plane_begin) */
-    h->heights = b->heights;
-    h->cellmax = b->cellmax;
-    h->rows = b->rows;
-    h->cols = b->cols;
-    h->row_max = b->cull_runs ? &b->row_max : NULL;
-    h->col_max = b->cull_runs ? &b->col_max : NULL;
-    h->surface = b->surface;
-    h->cull_cells = b->cull_cells;
-    h->ox = o[0];
-    h->oy = o[1];
-    h->dx = d[0];
-    h->dy = d[1];
-    h->inv_dx = hf_inverse(d[0]);
-    h->inv_dy = hf_inverse(d[1]);
+    {
+        const double inv[2] = {hf_inverse(d[0]), hf_inverse(d[1])};
+        hf_hit_fill(h, b, o, d, inv);
+    }
     hf_hit_prepare(h);
     /* the walk's constants (hf_mip_setup), but for oz, dz, descending and t1 */
     hf_mip_ray_of(h, &s->ray);
@@ -140,7 +130,7 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     return !hf_on_grid_line(h);
 }
 
-/* Ray `ray` of the plane: clip it, and fill h and r (copies of s->hit and s->ray) for it
+/* Ray `ray` of the plane: clip it, and fill h and r (s->hit and s->ray, in place) for it
  * as ray_begin and hf_mip_setup would (a debug build checks this field by field against
  * `steps`). Returns 1 when there is a walk to do, 0 when the ray misses the box (then h
  * is a miss, ready for the outputs). */
@@ -206,6 +196,23 @@ static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps, 
 }
 #endif
 
+/* The exact test of cell (i, j) (hf_hit_cell_exact) for a ray that starts in it later than
+ * the ray below (its interval is its own): a descending ray is first culled by z at the
+ * cell's exit, as the floor walk culls (maxmip.h: min(mx, my, t1) is the exact interval's
+ * tb, the same expressions), without building the interval; the exact test then skips
+ * its own, identical cull. Returns 1 on a hit. */
+static int plane_first_cell(hf_hit *h, const hf_mip_ray *r, int32_t i, int32_t j) {
+    h->cells_visited += 1;
+    if (r->cull && r->descending) {
+        const double mx = r->has_x ? ((double)(i + r->fx) - r->ox) * r->inv_x : (double)INFINITY;
+        const double my = r->has_y ? ((double)(j + r->fy) - r->oy) * r->inv_y : (double)INFINITY;
+        const double tb = mx < my ? (mx < r->t1 ? mx : r->t1) : (my < r->t1 ? my : r->t1);
+        if (r->oz + tb * r->dz > (double)h->cellmax[(int64_t)j * r->nx + i]) return 0;
+        return hf_hit_cell_exact_culled(h, i, j, 1);
+    }
+    return hf_hit_cell_exact(h, i, j);
+}
+
 /* What the rays below have cleared.
  * - A hit: a ray from height oz with slope dz, whose walk started at t_start, hit in cell
  *   (i, j), whose interval starts at t_enter; its walk stood at parameter t there. Every
@@ -219,66 +226,102 @@ typedef struct {
     int32_t i, j;
     int miss_valid;
     double miss_oz, miss_dz, miss_t_start, miss_t1;
+    /* the last triangles cell tested in a resumed ray's first floor tile (that of the
+     * hit, when there was one): the ray above tests that cell on the same interval, and
+     * reads its surface from here */
+    int cell_valid;
+    hf_tri_cell cell;
 } plane_chain;
 
+static int same_bits(double a, double b) {
+    uint64_t x, y;
+    memcpy(&x, &a, sizeof x);
+    memcpy(&y, &b, sizeof y);
+    return x == y;
+}
+
+/* The floor walk's cell test (hf_cell_test, maxmip.h) for a resumed ray: the exact test
+ * (hf_hit_cell_exact_culled), but a triangles cell's surface is read from the chain's
+ * record when that is of the same cell on the same interval bit for bit (the same float
+ * values, so the same hit), else built there first. `ctx`: the plane's chain. */
+static int plane_cell_test(hf_hit *h, int32_t i, int32_t j, int culled, void *ctx) {
+    plane_chain *chain = (plane_chain *)ctx;
+    hf_tri_cell *c = &chain->cell;
+    double ta, tb;
+    int wall;
+    if (!hf_hit_cell_open(h, i, j, culled, &ta, &tb, &wall)) return 0;
+    if (h->surface != HF_TRIANGLES) return hf_surface_test(h, i, j, ta, tb, wall);
+    if (!(chain->cell_valid && c->i == i && c->j == j && same_bits(c->ta, ta) &&
+          same_bits(c->tb, tb))) {
+        hf_tri_cell_build(h, i, j, ta, tb, c);
+        chain->cell_valid = 1;
+    }
+    return hf_tri_cell_test(h, c, wall);
+}
+
+/* A ray that shares no plane, or whose plane lies on a grid line (flat, plane3): the three
+ * steps of dda_maxmip. */
+static int plane_alone(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray) {
+    hf_hit h;
+    double t0, t1;
+    int entry_axis;
+    if (!steps->begin(b, ray, &h, &t0, &t1, &entry_axis)) {
+        /* misses the box */
+    } else if (t0 < t1 && !hf_on_grid_line(&h)) {
+        /* dda_maxmip's walk (maxmip_tight), here: its call through `solve` costs more */
+        hf_mip_ray r;
+        hf_mip_walk w;
+        hf_mip_setup(&h, b, &r, &w);
+        (void)hf_mip_walk_alone(&h, b, &r, &w, 0);
+    } else {
+        const int status = steps->solve(b, ray, &h, t0, t1, entry_axis);
+        if (status != HF_OK) return status;
+    }
+    steps->end(b, ray, &h);
+    return HF_OK;
+}
+
 /* One ray of a plane, above every ray the chain came from: its first hit, equal to
- * dda_maxmip's. Updates the chain. `s`: the plane's shared set-up, or NULL for a ray
- * that takes dda_maxmip's own set-up (a ray alone in its plane, a line on a grid line). */
+ * dda_maxmip's. Updates the chain. `s`: the plane's shared set-up. */
 static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s, int64_t ray,
                      plane_chain *chain) {
-    /* local copies of the plane's set-up: the walk keeps their fields in registers */
-    hf_hit own, *const h = &own;
-    hf_mip_ray r;
+    /* the plane's records, updated in place: plane_begin rewrites every field that
+     * depends on the ray (copying them per ray cost 58 instructions a ray) */
+    hf_hit *const h = &s->hit;
+    hf_mip_ray *const r = &s->ray;
     hf_mip_walk w;
     double t0, t1;
     int entry_axis, status = 0, walked = 1, resumed = 0;
     int inside;
-    if (s) {
+    inside = plane_begin(b, s, ray, h, r, &t0, &t1, &entry_axis);
 #ifdef HF_DEBUG
-        memset(h, 0, sizeof *h); /* the bytes past `found` too, for the field check */
-#endif
-        /* the record up to its result (plane_begin clears that): under 256 bytes, which
-         * the compiler copies with vector moves, not a string instruction */
-        memcpy(h, &s->hit, offsetof(hf_hit, found));
-        r = s->ray;
-        inside = plane_begin(b, s, ray, h, &r, &t0, &t1, &entry_axis);
-    } else {
-        inside = steps->begin(b, ray, h, &t0, &t1, &entry_axis);
-    }
-#ifdef HF_DEBUG
-    if (s) plane_check_begin(b, steps, h, &r, ray, inside);
+    plane_check_begin(b, steps, h, r, ray, inside);
 #endif
     if (!inside) {
         steps->end(b, ray, h);
         return HF_OK;
     }
-    if (!(t0 < t1) || (!s && hf_on_grid_line(h))) {
-        /* a single parameter, or a ray on a grid line: dda_maxmip's own per-ray paths */
+    if (!(t0 < t1)) {
+        /* a single parameter: dda_maxmip's own per-ray path */
         const int solved = steps->solve(b, ray, h, t0, t1, entry_axis);
         if (solved != HF_OK) return solved;
         steps->end(b, ray, h);
         return HF_OK;
     }
-    if (s) {
-        /* hf_mip_setup's start, but for the cell: set below, at the chain's cell or at
-         * the ray's entry */
-        w.i = w.j = 0;
-        w.t = t0;
-        w.level = hf_mip_restart_level(&r);
-        w.guard = 0;
-    } else {
-        hf_mip_setup(h, b, &r, &w);
-    }
+    /* hf_mip_setup's start, but for the cell: set below, at the chain's cell or at the
+     * ray's entry */
+    w.i = w.j = 0;
+    w.t = t0;
+    w.level = hf_mip_restart_level(r);
+    w.guard = 0;
     if (chain->miss_valid && h->oz >= chain->miss_oz && h->dz >= chain->miss_dz &&
         t0 >= chain->miss_t_start && t1 == chain->miss_t1) {
         /* A ray below missed over this very range but for a later start: every cell
          * after this ray's first has the same interval for both, so only the first one,
          * cut short by the later start, can hold a hit. */
-        if (t0 != chain->miss_t_start) {
-            h->cells_visited += 1;
-            status = hf_hit_cell_exact(h, hf_cell_at(h->ox, h->dx, t0, r.nx),
-                                       hf_cell_at(h->oy, h->dy, t0, r.ny));
-        }
+        if (t0 != chain->miss_t_start)
+            status = plane_first_cell(h, r, hf_cell_at(h->ox, h->dx, t0, r->nx),
+                                      hf_cell_at(h->oy, h->dy, t0, r->ny));
         walked = 0;
     } else if (chain->valid && h->oz >= chain->oz && h->dz >= chain->dz && t0 >= chain->t_start &&
                t0 < chain->t && chain->t_enter < t1) {
@@ -292,26 +335,30 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
             /* a later start cuts the first cell short: unless it is the chain's cell,
              * test it on this ray's interval; then the cells up to the chain's cell
              * have the same intervals */
-            const int32_t i = hf_cell_at(h->ox, h->dx, t0, r.nx);
-            const int32_t j = hf_cell_at(h->oy, h->dy, t0, r.ny);
-            if (i != chain->i || j != chain->j) {
-                h->cells_visited += 1;
-                status = hf_hit_cell_exact(h, i, j);
-            }
+            const int32_t i = hf_cell_at(h->ox, h->dx, t0, r->nx);
+            const int32_t j = hf_cell_at(h->oy, h->dy, t0, r->ny);
+            if (i != chain->i || j != chain->j) status = plane_first_cell(h, r, i, j);
         }
         if (!status) {
+            /* the hit is near: walk the chain cell's floor tile first, with no tile test;
+             * then on */
             w.i = chain->i;
             w.j = chain->j;
             w.t = chain->t;
-            w.level = r.floor_level; /* the hit is near: start at the floor tile */
+            w.level = r->floor_level;
+            status = hf_mip_floor_walk_by(h, r, &w, w.i >> r->floor_level, w.j >> r->floor_level,
+                                          plane_cell_test, chain);
+            if (status == 0) walked = 0; /* the ray ended, or left the grid: a miss */
+            if (status < 0) status = 0;  /* it left the tile: walk on from there */
         }
     }
-    if (!resumed && walked && s) {
+    if (!resumed && walked) {
         /* a fresh walk from the ray's entry, as hf_mip_setup starts it */
-        w.i = hf_cell_at(h->ox, h->dx, t0, r.nx);
-        w.j = hf_cell_at(h->oy, h->dy, t0, r.ny);
+        w.i = hf_cell_at(h->ox, h->dx, t0, r->nx);
+        w.j = hf_cell_at(h->oy, h->dy, t0, r->ny);
     }
-    if (!status && walked) status = hf_mip_walk_alone(h, b, &r, &w, 0);
+    /* the cells are tested through the chain's record (plane_cell_test) */
+    if (!status && walked) status = hf_mip_walk_alone_by(h, b, r, &w, 0, plane_cell_test, chain);
     if (status > 0) {
         /* the walk's state at the hit cell (maxmip.h records it) is the next start */
         double ta, tb;
@@ -324,7 +371,7 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
         chain->t = w.t;
         chain->i = h->i;
         chain->j = h->j;
-    } else if (!walked || w.guard <= r.guard_max) {
+    } else if (!walked || w.guard <= r->guard_max) {
         /* the whole range [t0, t1] is clear for this ray (a walk that gave up proves
          * nothing) */
         chain->miss_valid = t0 >= 0;
@@ -337,20 +384,18 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
     return HF_OK;
 }
 
-/* One plane being traced: its shared set-up (NULL when its rays take dda_maxmip's own,
- * on a grid line) and its chain. `head` is the ray it was set up from; `chained` is 0
- * when that ray shares no plane (then every candidate is traced alone). */
+/* One plane being traced: its shared set-up and its chain. `head` is the ray it was set
+ * up from; `s` is NULL when that ray shares no plane, or its plane lies on a grid line of
+ * flat or plane3 (then every ray is traced alone, plane_alone). */
 typedef struct {
     plane_shared shared, *s;
     plane_chain chain;
     int64_t head;
-    int chained;
 } plane_column;
 
 static void plane_column_init(const hf_hit_batch *b, int64_t head, plane_column *c) {
     c->head = head;
-    c->chained = plane_eligible(b, head);
-    c->s = c->chained && plane_shared_init(b, head, &c->shared) ? &c->shared : NULL;
+    c->s = plane_eligible(b, head) && plane_shared_init(b, head, &c->shared) ? &c->shared : NULL;
     memset(&c->chain, 0, sizeof c->chain);
 }
 
@@ -360,13 +405,11 @@ static void plane_column_init(const hf_hit_batch *b, int64_t head, plane_column 
 static int plane_column_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_column *c,
                             int64_t ray, int checked) {
     int status;
-    if (c->chained &&
+    if (c->s &&
         (checked || ray == c->head || (plane_eligible(b, ray) && same_plane(b, ray, c->head)))) {
         status = plane_ray(b, steps, c->s, ray, &c->chain);
     } else {
-        plane_chain alone;
-        memset(&alone, 0, sizeof alone);
-        status = plane_ray(b, steps, NULL, ray, &alone);
+        status = plane_alone(b, steps, ray);
     }
     if (status != HF_OK) b->bad_ray = ray;
     return status;
@@ -523,9 +566,7 @@ int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
             status = plane_trace(b, steps, members, count);
         } else if (last[ray] >= 0 || !plane_eligible(b, ray)) {
             /* a ray alone in its plane, or one that shares none: dda_maxmip's walk */
-            plane_chain alone;
-            memset(&alone, 0, sizeof alone);
-            status = plane_ray(b, steps, NULL, ray, &alone);
+            status = plane_alone(b, steps, ray);
             if (status != HF_OK) b->bad_ray = ray;
         }
     }

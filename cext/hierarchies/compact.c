@@ -201,7 +201,8 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
             const uint32_t iw = (uint32_t)(ilo + 4 < nx ? 4 : nx - ilo) - 1;
             const uint32_t jw = (uint32_t)(jlo + 4 < ny ? 4 : ny - jlo) - 1;
             double t_in;
-            const int status = hf_floor_walk(h, &ray, ilo, jlo, iw, jw, leaf, 1, &i, &j, t, &t_in);
+            const int status =
+                hf_floor_walk(h, &ray, ilo, jlo, iw, jw, leaf, 1, &i, &j, t, &t_in, NULL, NULL);
             if (status >= 0) return status;
             t = t_in > t ? t_in : t;
             level = compact_climb(1, climb, ilo, jlo, i, j);

@@ -129,6 +129,12 @@ static inline double hf_mip_tile_max(const hf_hit_batch *b, int level, int32_t t
     return (double)b->mip[level][(int64_t)tile_j * b->mip_cols[level] + tile_i];
 }
 
+/* A floor walk's cell test in place of hf_hit_cell_exact_culled (same arguments, and
+ * `ctx`), or NULL for that one: plane_maxmip's, which keeps the surface of the cell it
+ * hits for the ray above (dispatch/plane.c). At every call site the choice is a constant,
+ * and the walk is always inlined, so it folds away. */
+typedef int (*hf_cell_test)(hf_hit *h, int32_t i, int32_t j, int culled, void *ctx);
+
 /* The floor-tile walk, the one home of the cell walk inside a tile that a hierarchy could
  * not skip (dda_maxmip, packet_maxmip and dda_compact): from cell (*ci, *cj), entered at
  * t_start, cell by cell through the tile of cells [ilo, ilo + iw] x [jlo, jlo + jw]; mx, my:
@@ -143,11 +149,15 @@ static inline double hf_mip_tile_max(const hf_hit_batch *b, int level, int32_t t
  * (*ci, *cj) is the cell it entered and *t_entered the parameter where it did. */
 HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jlo, uint32_t iw,
                          uint32_t jw, const float *maxima, const int leaf, int32_t *ci, int32_t *cj,
-                         double t_start, double *t_entered) {
+                         double t_start, double *t_entered, hf_cell_test test, void *ctx) {
     const int32_t nx = r->nx, ny = r->ny, sx = r->sx, sy = r->sy, fx = r->fx, fy = r->fy;
     const double ox = r->ox, oy = r->oy, oz = r->oz, dz = r->dz, inv_x = r->inv_x;
     const double inv_y = r->inv_y, t1 = r->t1, inf = (double)INFINITY;
     const int descending = r->descending, cull = r->cull;
+    /* the exact test's own cull is this one when the ray descends (z at the cell's exit,
+     * tb: min(mx, my, t1) is the exact interval's tb, the same expressions) against the
+     * grid's cell maximum (leaf 0; the compact tree's leaf keeps its own) */
+    const int culled = !leaf && cull && descending;
     int32_t i = *ci, j = *cj;
     double t_in = t_start;
     double mx = r->has_x ? ((double)(i + fx) - ox) * inv_x : inf;
@@ -158,7 +168,7 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
         if (!cull ||
             !(oz + (descending ? tb : t_in) * dz >
               (double)(leaf ? maxima[((j & 3) << 2) | (i & 3)] : maxima[(int64_t)j * nx + i]))) {
-            if (hf_hit_cell_exact(h, i, j)) {
+            if (test ? test(h, i, j, culled, ctx) : hf_hit_cell_exact_culled(h, i, j, culled)) {
                 /* the hit cell and the parameter the walk entered it at: where
                  * plane_maxmip resumes the ray above (dispatch/plane.c) */
                 *ci = i;
@@ -195,8 +205,9 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
 /* Walk the floor tile (tile_i, tile_j) of the max mipmap (hf_floor_walk on the row-major
  * cell maxima). Returns 1 on a hit, 0 when the ray ends or leaves the grid, -1 when it
  * leaves the tile (the walk goes on from the cell it entered, one level above the floor). */
-static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w, int32_t tile_i,
-                                    int32_t tile_j) {
+static inline int hf_mip_floor_walk_by(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
+                                       int32_t tile_i, int32_t tile_j, hf_cell_test test,
+                                       void *ctx) {
     const int floor_level = r->floor_level;
     const int32_t nx = r->nx, ny = r->ny;
     const int32_t ilo = tile_i << floor_level, jlo = tile_j << floor_level;
@@ -206,12 +217,20 @@ static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk 
         (uint32_t)((((int64_t)tile_j + 1) << floor_level) < ny ? (1 << floor_level) : ny - jlo) - 1;
     double t_in;
     const int status =
-        hf_floor_walk(h, r, ilo, jlo, iw, jw, h->cellmax, 0, &w->i, &w->j, w->t, &t_in);
+        hf_floor_walk(h, r, ilo, jlo, iw, jw, h->cellmax, 0, &w->i, &w->j, w->t, &t_in, test, ctx);
     if (status == 0) return 0;
     w->t = t_in > w->t ? t_in : w->t; /* on a hit too: the state plane_maxmip resumes from */
     if (status > 0) return 1;
-    w->level = hf_mip_restart_level(r);
+    /* a walk with its own cell test (plane_maxmip's, whose hits are near) goes on at the
+     * floor level, the others one above */
+    w->level = test ? r->floor_level : hf_mip_restart_level(r);
     return -1;
+}
+
+/* hf_mip_floor_walk_by with the exact cell test (`test` NULL). */
+static inline int hf_mip_floor_walk(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w, int32_t tile_i,
+                                    int32_t tile_j) {
+    return hf_mip_floor_walk_by(h, r, w, tile_i, tile_j, NULL, NULL);
 }
 
 /* hf_mip_floor_walk kept out of line: the packet kernel's call (packet.c passes
@@ -244,8 +263,9 @@ static inline int hf_mip_leave_tile(const hf_mip_ray *r, hf_mip_walk *w, const h
  * over its stretch in the tile, hf_tile_zlow, is above the tile's maximum): skip it and
  * climb, descend one level, or walk the floor tile. Returns 1 on a hit, 0 when the walk
  * ends without one, -1 when it goes on. */
-static inline int hf_mip_iterate(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
-                                 const hf_mip_tile *e, int skip, const int outline) {
+static inline int hf_mip_iterate_by(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
+                                    const hf_mip_tile *e, int skip, const int outline,
+                                    hf_cell_test test, void *ctx) {
     int status;
     if (skip) {
         h->tiles_skipped += 1;
@@ -255,25 +275,37 @@ static inline int hf_mip_iterate(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
         status = -1;
     } else {
         status = outline ? hf_mip_floor_walk_outlined(h, r, w, e->tile_i, e->tile_j)
-                         : hf_mip_floor_walk(h, r, w, e->tile_i, e->tile_j);
+                         : hf_mip_floor_walk_by(h, r, w, e->tile_i, e->tile_j, test, ctx);
     }
     ++w->guard;
     return status;
 }
 
+static inline int hf_mip_iterate(hf_hit *h, const hf_mip_ray *r, hf_mip_walk *w,
+                                 const hf_mip_tile *e, int skip, const int outline) {
+    return hf_mip_iterate_by(h, r, w, e, skip, outline, NULL, NULL);
+}
+
 /* The rest of one ray's walk from its state, alone: the per-ray kernel dda_maxmip, and a
  * ray that left its packet (`outline` 1: the floor walk out of line, as hf_mip_iterate).
  * Returns 1 on a hit. */
-static inline int hf_mip_walk_alone(hf_hit *h, const hf_hit_batch *b, const hf_mip_ray *r,
-                                    hf_mip_walk *w, const int outline) {
+static inline int hf_mip_walk_alone_by(hf_hit *h, const hf_hit_batch *b, const hf_mip_ray *r,
+                                       hf_mip_walk *w, const int outline, hf_cell_test test,
+                                       void *ctx) {
     while (w->guard <= r->guard_max) {
         const hf_mip_tile e = hf_mip_tile_exit(r, w);
         const int skip = hf_tile_zlow(r->oz, r->dz, r->descending, w->t, e.t_exit) >
                          hf_mip_tile_max(b, w->level, e.tile_i, e.tile_j);
-        const int status = hf_mip_iterate(h, r, w, &e, skip, outline);
+        const int status = hf_mip_iterate_by(h, r, w, &e, skip, outline, test, ctx);
         if (status >= 0) return status;
     }
     return 0;
+}
+
+/* hf_mip_walk_alone_by with the exact cell test (`test` NULL). */
+static inline int hf_mip_walk_alone(hf_hit *h, const hf_hit_batch *b, const hf_mip_ray *r,
+                                    hf_mip_walk *w, const int outline) {
+    return hf_mip_walk_alone_by(h, b, r, w, outline, NULL, NULL);
 }
 
 #endif

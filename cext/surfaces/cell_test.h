@@ -130,6 +130,30 @@ static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_
     return 1;
 }
 
+/* The triangles surface's two pieces on [ta, tb] of cell (i, j) with corner heights
+ * h00 .. h11, from the 2D ray alone: the slopes of the triangle the ray is over at ta
+ * (lower: u >= v) and of the other one, and the parameter where the ray crosses the
+ * diagonal u = v inside (ta, tb) (tb when it does not). ua, va (ub, vb): u, v at ta (tb). */
+static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double h01, double h11,
+                                 double ta, double tb, double ua, double va, double ub, double vb,
+                                 double *su1, double *sv1, double *su2, double *sv2,
+                                 double *t_split) {
+    const int lower_first = (ua - va) > 0 || ((ua - va) == 0 && (ub - vb) >= 0);
+    const double w = (h->dx - h->dy);
+    if (lower_first) {
+        hf_lower_triangle_slopes(h00, h10, h11, su1, sv1);
+        hf_upper_triangle_slopes(h00, h01, h11, su2, sv2);
+    } else {
+        hf_upper_triangle_slopes(h00, h01, h11, su1, sv1);
+        hf_lower_triangle_slopes(h00, h10, h11, su2, sv2);
+    }
+    *t_split = tb;
+    if (w != 0) {
+        const double ts = ta - (ua - va) / w;
+        if (ts > ta && ts < tb) *t_split = ts;
+    }
+}
+
 /* Test cell (i, j) on [ta, tb]. `wall` is the axis of the vertical wall the ray meets
  * at ta if it is already below the surface there (0 x, 1 y), or -1 when that is not a
  * wall (a start inside the solid). Returns 1 on a hit. */
@@ -159,23 +183,9 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
         return 0;
     }
     case HF_TRIANGLES: {
-        /* the first triangle the ray is over at ta (lower: u >= v), then the other one
-         * past the diagonal u = v */
-        const int lower_first = (ua - va) > 0 || ((ua - va) == 0 && (ub - vb) >= 0);
-        const double w = (h->dx - h->dy);
-        double su1, sv1, su2, sv2, t_split = tb, f_split, fa;
-        if (lower_first) {
-            hf_lower_triangle_slopes(h00, h10, h11, &su1, &sv1);
-            hf_upper_triangle_slopes(h00, h01, h11, &su2, &sv2);
-        } else {
-            hf_upper_triangle_slopes(h00, h01, h11, &su1, &sv1);
-            hf_lower_triangle_slopes(h00, h10, h11, &su2, &sv2);
-        }
-        /* where the ray crosses the diagonal u = v inside (ta, tb) */
-        if (w != 0) {
-            const double ts = ta - (ua - va) / w;
-            if (ts > ta && ts < tb) t_split = ts;
-        }
+        double su1, sv1, su2, sv2, t_split, f_split, fa;
+        hf_tri_pieces(h, h00, h10, h01, h11, ta, tb, ua, va, ub, vb, &su1, &sv1, &su2, &sv2,
+                      &t_split);
         fa = za - hf_plane_height(h00, su1, sv1, ua, va);
         if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, su1, sv1);
         {
@@ -217,6 +227,63 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
         return hf_hit_at(h, t, i, j, -1, q.a + q.c * v, q.b + q.c * u);
     }
     }
+}
+
+/* A triangles cell's test split in two (plane_maxmip, dispatch/plane.c): what depends on
+ * the cell and on the 2D ray over [ta, tb] alone (the pieces, and each piece's heights at
+ * its ends, hf_surface_test's very expressions) is kept in a record, which serves every
+ * ray of the same 2D line over the same interval, bit for bit; hf_tri_cell_test then
+ * adds what depends on the ray's z, and decides as hf_surface_test does. */
+typedef struct {
+    int32_t i, j;
+    double ta, tb;             /* the interval the record was built on */
+    double t_split;            /* where the first piece ends (tb: one piece) */
+    double su1, sv1, su2, sv2; /* the slopes of the first and the second piece */
+    double p1a, p1s, p2s, p2b; /* piece 1 at ta and t_split, piece 2 at t_split and tb */
+} hf_tri_cell;
+
+static inline void hf_tri_cell_build(const hf_hit *h, int32_t i, int32_t j, double ta, double tb,
+                                     hf_tri_cell *c) {
+    const double h00 = hf_height(h, i, j), h10 = hf_height(h, i + 1, j);
+    const double h01 = hf_height(h, i, j + 1), h11 = hf_height(h, i + 1, j + 1);
+    const double ua = h->ox + ta * h->dx - i, va = h->oy + ta * h->dy - j;
+    const double ub = h->ox + tb * h->dx - i, vb = h->oy + tb * h->dy - j;
+    double us, vs;
+    hf_tri_pieces(h, h00, h10, h01, h11, ta, tb, ua, va, ub, vb, &c->su1, &c->sv1, &c->su2, &c->sv2,
+                  &c->t_split);
+    us = h->ox + c->t_split * h->dx - i;
+    vs = h->oy + c->t_split * h->dy - j;
+    c->i = i;
+    c->j = j;
+    c->ta = ta;
+    c->tb = tb;
+    c->p1a = hf_plane_height(h00, c->su1, c->sv1, ua, va);
+    c->p1s = hf_plane_height(h00, c->su1, c->sv1, us, vs);
+    c->p2s = hf_plane_height(h00, c->su2, c->sv2, us, vs);
+    c->p2b = hf_plane_height(h00, c->su2, c->sv2, ub, vb);
+}
+
+/* hf_surface_test's triangles case on the record's cell and interval [ta, tb] (the
+ * record's own, bit for bit), `wall` as there. Returns 1 on a hit. */
+static inline int hf_tri_cell_test(hf_hit *h, const hf_tri_cell *c, int wall) {
+    const double ta = c->ta, tb = c->tb, t_split = c->t_split;
+    const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz, zs = h->oz + t_split * h->dz;
+    const double fa = za - c->p1a;
+    double f_split;
+    h->cells_tested += 1;
+    if (fa <= 0) return hf_hit_at(h, ta, c->i, c->j, wall, c->su1, c->sv1);
+    f_split = zs - c->p1s;
+    if (f_split <= 0)
+        return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), c->i, c->j, -1, c->su1,
+                         c->sv1);
+    if (t_split < tb) {
+        const double f_split2 = zs - c->p2s, fb = zb - c->p2b;
+        if (f_split2 <= 0) return hf_hit_at(h, t_split, c->i, c->j, -1, c->su2, c->sv2);
+        if (fb <= 0)
+            return hf_hit_at(h, hf_linear_root(t_split, tb, f_split2, fb), c->i, c->j, -1, c->su2,
+                             c->sv2);
+    }
+    return 0;
 }
 
 /* Slab clipping, the one step every interval of the ray is built from (the field's box,
@@ -446,8 +513,25 @@ static inline double hf_cull_zlow(const hf_cull *c) {
     return z > c->zfloor ? z : c->zfloor;
 }
 
-/* One visited cell: the exact interval, cull, then test. Returns 1 on a hit. */
-static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
+static inline int hf_hit_cell_open(const hf_hit *h, int32_t i, int32_t j, int culled,
+                                   double *ta_out, double *tb_out, int *wall_out);
+
+/* One visited cell: the exact interval, cull, then test. Returns 1 on a hit. `culled`:
+ * the caller has already made this very cull (z at the interval's low-z end against the
+ * cell's maximum, the same expressions: a descending ray's floor walk, maxmip.h), so it is
+ * not made twice. */
+static inline int hf_hit_cell_exact_culled(hf_hit *h, int32_t i, int32_t j, int culled) {
+    double ta, tb;
+    int wall;
+    if (!hf_hit_cell_open(h, i, j, culled, &ta, &tb, &wall)) return 0;
+    return hf_surface_test(h, i, j, ta, tb, wall);
+}
+
+/* hf_hit_cell_exact_culled up to its surface test: the exact interval [*ta, *tb], the wall
+ * and the cull. Returns 1 when the surface must be tested there, 0 when the cell is
+ * rejected. */
+static inline int hf_hit_cell_open(const hf_hit *h, int32_t i, int32_t j, int culled,
+                                   double *ta_out, double *tb_out, int *wall_out) {
     double ta, tb;
     const int axis = hf_cell_interval(h, i, j, &ta, &tb);
     int wall;
@@ -459,12 +543,19 @@ static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
         wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
     else
         wall = (h->surface == HF_FLAT || h->surface == HF_PLANE3) ? axis : -1;
-    if (h->cull_cells) {
+    if (h->cull_cells && !culled) {
         /* the ray's lowest z over the cell is above every corner: no hit */
         const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
         if ((za < zb ? za : zb) > (double)h->cellmax[(int64_t)j * (h->cols - 1) + i]) return 0;
     }
-    return hf_surface_test(h, i, j, ta, tb, wall);
+    *ta_out = ta;
+    *tb_out = tb;
+    *wall_out = wall;
+    return 1;
+}
+
+static inline int hf_hit_cell_exact(hf_hit *h, int32_t i, int32_t j) {
+    return hf_hit_cell_exact_culled(h, i, j, 0);
 }
 
 /* One visited cell of a cell kernel: the cheap bound first (along the axis that crosses

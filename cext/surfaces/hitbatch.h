@@ -2,6 +2,7 @@
 #ifndef HFTRACE_HITBATCH_H
 #define HFTRACE_HITBATCH_H
 
+#include <math.h>
 #include <stdint.h>
 #include "surfaces/cell_test.h"
 
@@ -54,5 +55,28 @@ typedef struct {
 } hf_hit_batch;
 
 int hf_intersect_batch(int kernel, hf_hit_batch *batch);
+
+/* The fields of a hit record that come from the batch and from the ray's 2D line (origin
+ * o, direction d, each (x, y, z), and the inverse horizontal direction inv, hf_inverse):
+ * the one fill of dda_maxmip's per-ray set-up
+ * (dispatch/intersect.c) and of a plane's shared set-up (dispatch/plane.c). The caller
+ * sets oz, dz, the range and entry axis, then calls hf_hit_prepare. */
+static inline void hf_hit_fill(hf_hit *h, const hf_hit_batch *b, const double *o, const double *d,
+                               const double inv[2]) {
+    h->heights = b->heights;
+    h->cellmax = b->cellmax;
+    h->rows = b->rows;
+    h->cols = b->cols;
+    h->row_max = b->cull_runs ? &b->row_max : NULL;
+    h->col_max = b->cull_runs ? &b->col_max : NULL;
+    h->surface = b->surface;
+    h->cull_cells = b->cull_cells;
+    h->ox = o[0];
+    h->oy = o[1];
+    h->dx = d[0];
+    h->dy = d[1];
+    h->inv_dx = inv[0];
+    h->inv_dy = inv[1];
+}
 
 #endif
