@@ -53,8 +53,12 @@
  * 640 x 360 pinhole pitched 2.6 degrees over fBm 2048^2 (bench/studies/pitched_counts.py;
  * dda_maxmip: 2189): 64 rays per square coarse pixel 2048; 16 rays, 4 times more rows
  * than columns (8 x 2 rays) 1963; 8 x 1 rays 1955; 16 rays, 4 x taller, with boxes at the
- * floor level instead of one above it 2015 (the tighter bound costs more boxes). */
-#define COARSE_RAYS           16   /* rays per coarse pixel, about */
+ * floor level instead of one above it 2015 (the tighter bound costs more boxes). Again on
+ * the targets' pitched row (all its rays, warm call), with the sky's early miss: 16 rays,
+ * 4 x taller 1902; 12 rays, 6 x taller 1890; 8 rays, 4 x taller 1886 (kept); 8 rays, 8 x
+ * taller 1884; 4 rays, 4 x taller 1878 (LL misses 1.42 against 1.41: an image of 57600
+ * pixels). */
+#define COARSE_RAYS           8    /* rays per coarse pixel, about */
 #define COARSE_TALL           4.0  /* ray rows per coarse pixel: 1 / this of its ray columns */
 #define BOX_LEVEL_ABOVE_FLOOR 1    /* the largest boxes: this many levels above the floor */
 #define COARSE_MAX            2048 /* the coarse image's longest side, in pixels */
