@@ -250,3 +250,30 @@ def test_many_boxes_fall_back():
                                 fine_level=0) for k in ("dda_maxmip", "pitched_maxmip"))
     for name in ("cells_visited", "tiles_skipped"):
         assert np.array_equal(ref.stats[name], got.stats[name]), name
+
+
+def test_sky_and_side_wall_rays():
+    """The rays that skip the box clip (level or rising, tmin >= 0, meeting no box) and
+    the descending rays that must not: rays from outside the field that pass below hmin
+    before they reach its side hit the side wall at a single parameter, below every tile
+    box. Both camera halves, with tmin 0, positive and negative, give dda_maxmip's
+    outputs bit for bit."""
+    H = FIELDS["fbm"]
+    fld = algos.Field(H)
+    rows, cols = H.shape
+    hmin, top = float(H.min()), float(H.max())
+    # eye outside the -x side, looking at the field level with the side's bottom: the
+    # lower rows pass hmin before x = 0, the upper rows rise over the field
+    position = (-6.0, rows / 2, hmin + 0.3 * (top - hmin))
+    rs = raysets.pinhole(position, (cols / 2, rows / 2, hmin + 0.3 * (top - hmin)), 100.0, 40,
+                         30)
+    o, d = rs.origins, rs.directions
+    ref = algos.intersect("dda_maxmip", fld, o, d, outputs=OUTPUTS, threads=1)
+    z = o[:, 2] + ref.t * d[:, 2]
+    assert np.sum(np.isfinite(ref.t) & (z < hmin)) > 0, "no ray hits the side below hmin"
+    assert np.sum(~np.isfinite(ref.t) & (d[:, 2] > 0)) > 0, "no rising ray misses"
+    for tmin in (None, 0.5, -2.0):
+        lo = None if tmin is None else np.full(len(o), tmin)
+        ref = algos.intersect("dda_maxmip", fld, o, d, tmin=lo, outputs=OUTPUTS, threads=1)
+        got = algos.intersect("pitched_maxmip", fld, o, d, tmin=lo, outputs=OUTPUTS, threads=1)
+        _assert_identical(ref, got, o, d, f"side wall and sky, tmin={tmin}")
