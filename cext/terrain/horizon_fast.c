@@ -227,25 +227,30 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
                             int64_t *cj, double *t_in, double *s_in, double t_end,
                             const chain_best *b, double *wait, int64_t *tests) {
     const int top = s->n_levels - 1;
-    const int64_t last = s->n_bins[0] - 1;
+    const int64_t last = s->n_bins[0] - 1, stride = s->n_strips;
+    const double along = v->along, bin = s->bin;
     double t = *t_in, t_line;
     int level = 0, passed = 0;
     int64_t ni, nj;
+    /* the level-0 bin holding t (bin is a power of two, so the quotient rounds once; a
+     * slot off by one at a bin's edge lies within the slack the bins were widened by);
+     * after a pass, the next bin follows by integer arithmetic: the point reached is that
+     * bin's first edge, up to a rounding far inside the slack */
+    const double q = (along + t) * s->inv_bin;
+    int64_t bin0 = q < 0.0 ? 0 : q >= (double)last ? last : (int64_t)q;
     for (;;) {
-        /* the level-0 bin holding t, then its ancestor at this level (bin is a power of
-         * two, so the quotient rounds once; a slot off by one at a bin's edge lies within
-         * the slack the bins were widened by) */
-        const double q = (v->along + t) * s->inv_bin;
-        const int64_t bin0 = q < 0.0 ? 0 : q >= (double)last ? last : (int64_t)q;
+        /* its ancestor at this level */
         const int64_t slot = bin0 >> level;
-        const double m = v->row[level][slot * s->n_strips];
-        const double t_stop = (double)((slot + 1) << level) * s->bin - v->along;
+        const double m = v->row[level][slot * stride];
+        const int64_t next = (slot + 1) << level;
+        const double t_stop = (double)next * bin - along;
         (*tests)++;
         if (chain_can_skip(b, m, t, t_stop < t_end ? t_stop : t_end)) {
             if (t_stop >= t_end) return 2;
             /* never step backwards */
             if (t_stop > t) {
                 t = t_stop;
+                bin0 = next < last ? next : last;
                 passed = 1;
             }
             if (level < top) level++;
@@ -310,10 +315,11 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
     double t_in = 0.0, s_in = b->h, ddiag = r->dx - r->dy, c0 = r->ox - r->oy, wait = 0.0;
     const int major_x = fabs(r->dx) >= fabs(r->dy);
     int s_in_known = 1;
-    hf_hz_cell entry = hf_hz_cell_faces(r, ci, cj); /* the last cell stepped past unseen */
+    /* the faces of the current cell, stepped along incrementally (hf_hz_cell_step), and
+     * of the last cell stepped past unseen */
+    hf_hz_cell c = hf_hz_cell_faces(r, ci, cj), entry = c;
     if (!(t_end > 0.0)) return;
     while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
-        hf_hz_cell c;
         if (b->prune > -HF_HZ_INF) {
             const double *corner;
             double m;
@@ -324,6 +330,7 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
                     st->skips++;
                     s_in_known = 1;
                     if (moved == 2) break;
+                    c = hf_hz_cell_faces(r, ci, cj);
                     continue;
                 }
             }
@@ -333,20 +340,18 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
             m = corner[1] > m ? corner[1] : m;
             m = corner[cols] > m ? corner[cols] : m;
             m = corner[cols + 1] > m ? corner[cols + 1] : m;
-            c = hf_hz_cell_faces(r, ci, cj);
             if (chain_can_skip(b, m, t_in, c.t_out < t_end ? c.t_out : t_end)) {
                 st->cell_skips++;
                 if (c.t_out >= t_end) break;
                 entry = c;
                 s_in_known = 0;
-                if (c.tX <= c.tY) ci += r->sx;
-                if (c.tY <= c.tX) cj += r->sy;
                 t_in = c.t_out;
+                hf_hz_cell_step(r, &c, &ci, &cj);
                 continue;
             }
         }
         st->cells++;
-        c = hf_hz_cell_breakpoints(H, cols, r, ci, cj, t_in, ddiag, c0);
+        hf_hz_cell_diagonal(H, cols, r, &c, ci, cj, t_in, ddiag, c0);
         if (c.crossed && c.td < t_end) chain_visit(b, c.td, c.sd, 0.0);
         if (c.t_out >= t_end) {
             /* the end, interpolated on its piece from the nearer breakpoint (ray_walk.h); the
@@ -361,9 +366,8 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
         s_in = hf_hz_exit_value(H, rows, cols, r, c.X, c.Y, c.tX, c.tY);
         s_in_known = 1;
         chain_visit(b, c.t_out, s_in, 0.0);
-        if (c.tX <= c.tY) ci += r->sx;
-        if (c.tY <= c.tX) cj += r->sy;
         t_in = c.t_out;
+        hf_hz_cell_step(r, &c, &ci, &cj);
     }
 }
 
