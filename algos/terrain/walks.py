@@ -118,7 +118,7 @@ def chain_neighbours(d: Direction, max_denominator=CHAIN_MAX_DENOMINATOR,
 
 #: The chain walk's strips (cells): their width across the direction, and the length
 #: along it of a bin at the finest level.
-CHAIN_STRIP_WIDTH = 2.0
+CHAIN_STRIP_WIDTH = 1.0
 CHAIN_STRIP_BIN = 2.0
 
 
