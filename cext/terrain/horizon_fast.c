@@ -67,8 +67,7 @@ static int64_t clamp_index(int64_t v, int64_t lo, int64_t hi) {
 static double surface_point(const double *H, int64_t rows, int64_t cols, double x, double y) {
     const int64_t i = hf_hz_clamped_floor(x, 0, cols - 2), j = hf_hz_clamped_floor(y, 0, rows - 2);
     const double *c = H + j * cols + i;
-    return hf_triangles_barycentric(c[0], c[1], c[cols], c[cols + 1], x - (double)i,
-                                    y - (double)j);
+    return hf_triangles_barycentric(c[0], c[1], c[cols], c[cols + 1], x - (double)i, y - (double)j);
 }
 
 /* The ray from one vertex (terrain/ray_walk.h). */
@@ -206,9 +205,9 @@ typedef struct {
     double along;
     const float *row[62]; /* the strip's first bin at each level (then every n_strips) */
     /* the strips' shape, copied once per direction: a walk's stores cannot alias them */
-    int top;                    /* the top level */
-    int64_t last, stride;       /* the last level-0 bin; n_strips */
-    double bin, inv_bin;        /* a level-0 bin's length and its inverse */
+    int top;              /* the top level */
+    int64_t last, stride; /* the last level-0 bin; n_strips */
+    double bin, inv_bin;  /* a level-0 bin's length and its inverse */
 } chain_strip;
 
 /* Skip the longest stretch of the ray from t_in that bins of its strip prove below the
