@@ -63,11 +63,19 @@ static int64_t clamp_index(int64_t v, int64_t lo, int64_t hi) {
     return v < lo ? lo : v > hi ? hi : v;
 }
 
-/* The surface at any point of the footprint. */
-static double surface_point(const double *H, int64_t rows, int64_t cols, double x, double y) {
+/* The surface at any point of the footprint, and the largest corner magnitude there (for
+ * the rounding margin of a lower bound taken at that point). */
+static double surface_point(const double *H, int64_t rows, int64_t cols, double x, double y,
+                            double *corner_max) {
     const int64_t i = hf_hz_clamped_floor(x, 0, cols - 2), j = hf_hz_clamped_floor(y, 0, rows - 2);
     const double *c = H + j * cols + i;
-    return hf_triangles_barycentric(c[0], c[1], c[cols], c[cols + 1], x - (double)i, y - (double)j);
+    double h00 = c[0], h10 = c[1], h01 = c[cols], h11 = c[cols + 1];
+    double m = fabs(h00);
+    m = fabs(h10) > m ? fabs(h10) : m;
+    m = fabs(h01) > m ? fabs(h01) : m;
+    m = fabs(h11) > m ? fabs(h11) : m;
+    *corner_max = m;
+    return hf_triangles_barycentric(h00, h10, h01, h11, x - (double)i, y - (double)j);
 }
 
 /* The ray from one vertex (terrain/ray_walk.h). */
@@ -400,10 +408,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                       hf_chain_stats *stats) {
     chain_ray r;
     chain_strip place;
-    double z_abs = 0.0;
     hf_hz_ray_direction(&r, rows, cols, dx, dy);
-    /* the largest height magnitude, for the rounding margin of the borrowed bounds */
-    for (int64_t k = 0; k < rows * cols; k++) z_abs = fabs(H[k]) > z_abs ? fabs(H[k]) : z_abs;
     place.top = strips->n_levels - 1;
     place.last = strips->n_bins[0] - 1;
     place.stride = strips->n_strips;
@@ -417,7 +422,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
             int64_t j = r.sy > 0 ? rows - 1 - rank : rank;
             for (int64_t step = 0; step < cols; step++) {
                 int64_t i = r.sx > 0 ? cols - 1 - step : step, v = j * cols + i;
-                double t_end, eps;
+                double t_end;
                 chain_best b;
                 r.ox = (double)i;
                 r.oy = (double)j;
@@ -426,16 +431,10 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                 b.h = H[v];
                 b.best = b.prune = -HF_HZ_INF;
                 b.t_best = NAN;
-                /* the rounding margin of a borrowed bound: a few ulps of the heights, and the
-                 * surface's slope times the rounding of the point's position, at any point
-                 * of the ray inside the footprint (x <= nx, y <= ny, t <= t_end; both far
-                 * below it) */
-                eps = 1e-14 * (z_abs + fabs(b.h) + 1.0) *
-                      ((double)r.nx + (double)r.ny + (t_end < HF_HZ_INF ? t_end : 0.0) + 16.0);
                 /* borrow: the neighbour's occluder, seen on v's own ray */
                 for (int64_t k = 0; k < n_nb; k++) {
                     int64_t wi = i + nb_x[k], wj = j + nb_y[k], w_rank;
-                    double t, x, y, rise;
+                    double t, x, y, s, corner_max, eps, rise;
                     if (wi < 0 || wi >= cols || wj < 0 || wj >= rows) continue;
                     w_rank = r.sy > 0 ? rows - 1 - wj : wj;
                     if (w_rank < rank_lo) continue; /* in another block: maybe not done */
@@ -445,7 +444,11 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                     x = r.ox + t * dx;
                     y = r.oy + t * dy;
                     if (x < 0.0 || y < 0.0 || x > (double)r.nx || y > (double)r.ny) continue;
-                    rise = surface_point(H, rows, cols, x, y) - b.h - eps;
+                    s = surface_point(H, rows, cols, x, y, &corner_max);
+                    /* rounding margin: a few ulps of the heights, and the surface's slope
+                     * times the rounding of the point's position (both far below it) */
+                    eps = 1e-14 * (corner_max + fabs(b.h) + 1.0) * (fabs(x) + fabs(y) + t + 16.0);
+                    rise = s - b.h - eps;
                     /* divide only for a better bound (a rounding the compare misses only
                      * leaves the bound lower: still a bound) */
                     if (rise > b.prune * t) {
