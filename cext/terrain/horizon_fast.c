@@ -212,6 +212,10 @@ static inline int chain_can_skip(const chain_best *b, double m, double t_in, dou
 typedef struct {
     double along;
     const float *row[62]; /* the strip's first bin at each level (then every n_strips) */
+    /* the strips' shape, copied once per direction: a walk's stores cannot alias them */
+    int top;              /* the top level */
+    int64_t last, stride; /* the last level-0 bin; n_strips */
+    double bin, inv_bin;  /* a level-0 bin's length and its inverse */
 } chain_strip;
 
 /* Skip the longest stretch of the ray from t_in that bins of its strip prove below the
@@ -223,29 +227,39 @@ typedef struct {
  * (nothing skipped; *wait is where to try again), 1 (moved to (ci, cj) at *t_in with the
  * surface *s_in there) or 2 (the rest of the ray is covered). */
 static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const chain_ray *r,
-                            int major_x, const hf_hz_strips *s, const chain_strip *v, int64_t *ci,
-                            int64_t *cj, double *t_in, double *s_in, double t_end,
-                            const chain_best *b, double *wait, int64_t *tests) {
-    const int top = s->n_levels - 1;
-    const int64_t last = s->n_bins[0] - 1;
+                            int major_x, const chain_strip *v, int64_t *ci, int64_t *cj,
+                            double *t_in, double *s_in, double t_end, const chain_best *b,
+                            double *wait, int64_t *wait_bin, int64_t *tests) {
+    const int top = v->top;
+    const int64_t last = v->last, stride = v->stride;
+    const double along = v->along, bin = v->bin;
     double t = *t_in, t_line;
     int level = 0, passed = 0;
-    int64_t ni, nj;
+    int64_t ni, nj, bin0;
+    /* the level-0 bin holding t: the one after the last failed, when t lies before its
+     * end, or else the quotient (bin is a power of two, so it rounds once; a slot off by
+     * one at a bin's edge lies within the slack the bins were widened by); after a pass,
+     * the next bin follows by integer arithmetic: the point reached is that bin's first
+     * edge, up to a rounding far inside the slack */
+    if (*wait_bin >= 0 && t < *wait + bin) {
+        bin0 = *wait_bin;
+    } else {
+        const double q = (along + t) * v->inv_bin;
+        bin0 = q < 0.0 ? 0 : q >= (double)last ? last : (int64_t)q;
+    }
     for (;;) {
-        /* the level-0 bin holding t, then its ancestor at this level (bin is a power of
-         * two, so the quotient rounds once; a slot off by one at a bin's edge lies within
-         * the slack the bins were widened by) */
-        const double q = (v->along + t) * s->inv_bin;
-        const int64_t bin0 = q < 0.0 ? 0 : q >= (double)last ? last : (int64_t)q;
+        /* its ancestor at this level */
         const int64_t slot = bin0 >> level;
-        const double m = v->row[level][slot * s->n_strips];
-        const double t_stop = (double)((slot + 1) << level) * s->bin - v->along;
+        const double m = v->row[level][slot * stride];
+        const int64_t next = (slot + 1) << level;
+        const double t_stop = (double)next * bin - along;
         (*tests)++;
         if (chain_can_skip(b, m, t, t_stop < t_end ? t_stop : t_end)) {
             if (t_stop >= t_end) return 2;
             /* never step backwards */
             if (t_stop > t) {
                 t = t_stop;
+                bin0 = next < last ? next : last;
                 passed = 1;
             }
             if (level < top) level++;
@@ -257,6 +271,7 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
         }
         if (!passed) {
             *wait = t_stop;
+            *wait_bin = next <= last ? next : -1;
             return 0;
         }
         break;
@@ -288,6 +303,7 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
          : r->sy < 0 ? nj > *cj
                      : nj != *cj)) {
         *wait = t;
+        *wait_bin = -1;
         return 0;
     }
     *s_in = major_x
@@ -302,51 +318,66 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
 /* One vertex's walk over the breakpoints in (0, t_end], the same points and expressions as
  * terrain.c's walk_ray_breakpoints with horizon_visit, skipping stretches of its strip
  * below the bound. */
-static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_strips *s,
-                       const chain_ray *r, const chain_strip *v, double t_end, chain_best *b,
-                       hf_chain_stats *st) {
+static void chain_walk(const double *H, int64_t rows, int64_t cols, const chain_ray *r,
+                       const chain_strip *v, double t_end, chain_best *b, hf_chain_stats *st) {
     int64_t ci = chain_first_index(r->ox, r->sx, r->nx),
             cj = chain_first_index(r->oy, r->sy, r->ny);
     double t_in = 0.0, s_in = b->h, ddiag = r->dx - r->dy, c0 = r->ox - r->oy, wait = 0.0;
     const int major_x = fabs(r->dx) >= fabs(r->dy);
     int s_in_known = 1;
-    hf_hz_cell entry = hf_hz_cell_faces(r, ci, cj); /* the last cell stepped past unseen */
+    int64_t wait_bin = -1; /* the level-0 bin that starts at wait, after a failed test */
+    int64_t n_cells = 0, n_skips = 0, n_tests = 0, n_cell_skips = 0;
+    /* the faces of the current cell, stepped along incrementally (hf_hz_cell_step), and
+     * of the last cell stepped past unseen */
+    hf_hz_cell c = hf_hz_cell_faces(r, ci, cj), entry = c;
     if (!(t_end > 0.0)) return;
     while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
-        hf_hz_cell c;
         if (b->prune > -HF_HZ_INF) {
             const double *corner;
             double m;
             if (t_in >= wait) {
-                int moved = chain_strip_skip(H, rows, cols, r, major_x, s, v, &ci, &cj, &t_in,
-                                             &s_in, t_end, b, &wait, &st->tile_tests);
+                int moved;
+                if (wait_bin >= 0 && t_in < wait + v->bin) {
+                    /* the level-0 bin after the last failed one, tested first here: it
+                     * fails most often, near the vertex and the occluder */
+                    const double m0 = v->row[0][wait_bin * v->stride];
+                    const double t_stop = (double)(wait_bin + 1) * v->bin - v->along;
+                    if (!chain_can_skip(b, m0, t_in, t_stop < t_end ? t_stop : t_end)) {
+                        n_tests++;
+                        wait = t_stop;
+                        wait_bin = wait_bin + 1 <= v->last ? wait_bin + 1 : -1;
+                        goto cell;
+                    }
+                }
+                moved = chain_strip_skip(H, rows, cols, r, major_x, v, &ci, &cj, &t_in, &s_in,
+                                         t_end, b, &wait, &wait_bin, &n_tests);
                 if (moved) {
-                    st->skips++;
+                    n_skips++;
                     s_in_known = 1;
                     if (moved == 2) break;
+                    c = hf_hz_cell_faces(r, ci, cj);
                     continue;
                 }
             }
+        cell:
             /* the cell alone: every point of it lies at most at its highest corner */
             corner = H + cj * cols + ci;
             m = corner[0];
             m = corner[1] > m ? corner[1] : m;
             m = corner[cols] > m ? corner[cols] : m;
             m = corner[cols + 1] > m ? corner[cols + 1] : m;
-            c = hf_hz_cell_faces(r, ci, cj);
             if (chain_can_skip(b, m, t_in, c.t_out < t_end ? c.t_out : t_end)) {
-                st->cell_skips++;
+                n_cell_skips++;
                 if (c.t_out >= t_end) break;
                 entry = c;
                 s_in_known = 0;
-                if (c.tX <= c.tY) ci += r->sx;
-                if (c.tY <= c.tX) cj += r->sy;
                 t_in = c.t_out;
+                hf_hz_cell_step(r, &c, &ci, &cj);
                 continue;
             }
         }
-        st->cells++;
-        c = hf_hz_cell_breakpoints(H, cols, r, ci, cj, t_in, ddiag, c0);
+        n_cells++;
+        hf_hz_cell_diagonal(H, cols, r, &c, ci, cj, t_in, ddiag, c0);
         if (c.crossed && c.td < t_end) chain_visit(b, c.td, c.sd, 0.0);
         if (c.t_out >= t_end) {
             /* the end, interpolated on its piece from the nearer breakpoint (ray_walk.h); the
@@ -361,10 +392,13 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const hf_hz_
         s_in = hf_hz_exit_value(H, rows, cols, r, c.X, c.Y, c.tX, c.tY);
         s_in_known = 1;
         chain_visit(b, c.t_out, s_in, 0.0);
-        if (c.tX <= c.tY) ci += r->sx;
-        if (c.tY <= c.tX) cj += r->sy;
         t_in = c.t_out;
+        hf_hz_cell_step(r, &c, &ci, &cj);
     }
+    st->cells += n_cells;
+    st->skips += n_skips;
+    st->tile_tests += n_tests;
+    st->cell_skips += n_cell_skips;
 }
 
 void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_strips *strips,
@@ -375,6 +409,11 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
     chain_ray r;
     chain_strip place;
     hf_hz_ray_direction(&r, rows, cols, dx, dy);
+    place.top = strips->n_levels - 1;
+    place.last = strips->n_bins[0] - 1;
+    place.stride = strips->n_strips;
+    place.bin = strips->bin;
+    place.inv_bin = strips->inv_bin;
     for (int64_t block = block_start; block < block_stop; block++) {
         int64_t rank_lo = block * block_rows;
         int64_t rank_hi = rank_lo + block_rows < rows ? rank_lo + block_rows : rows;
@@ -395,7 +434,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                 /* borrow: the neighbour's occluder, seen on v's own ray */
                 for (int64_t k = 0; k < n_nb; k++) {
                     int64_t wi = i + nb_x[k], wj = j + nb_y[k], w_rank;
-                    double t, x, y, s, corner_max, eps, bound;
+                    double t, x, y, s, corner_max, eps, rise;
                     if (wi < 0 || wi >= cols || wj < 0 || wj >= rows) continue;
                     w_rank = r.sy > 0 ? rows - 1 - wj : wj;
                     if (w_rank < rank_lo) continue; /* in another block: maybe not done */
@@ -409,8 +448,13 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                     /* rounding margin: a few ulps of the heights, and the surface's slope
                      * times the rounding of the point's position (both far below it) */
                     eps = 1e-14 * (corner_max + fabs(b.h) + 1.0) * (fabs(x) + fabs(y) + t + 16.0);
-                    bound = (s - b.h - eps) / t;
-                    if (bound > b.prune) b.prune = bound;
+                    rise = s - b.h - eps;
+                    /* divide only for a better bound (a rounding the compare misses only
+                     * leaves the bound lower: still a bound) */
+                    if (rise > b.prune * t) {
+                        const double bound = rise / t;
+                        if (bound > b.prune) b.prune = bound;
+                    }
                 }
                 if (b.prune > -HF_HZ_INF) stats->bounded++;
                 {
@@ -420,7 +464,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                         place.row[l] = strips->data + strips->offset[l] + k;
                 }
                 place.along = strip_along(dx, dy, r.ox, r.oy) - strips->a_min;
-                chain_walk(H, rows, cols, strips, &r, &place, t_end, &b, stats);
+                chain_walk(H, rows, cols, &r, &place, t_end, &b, stats);
                 out[v] = b.best;
                 occ[v] = b.t_best;
             }

@@ -110,21 +110,47 @@ static inline hf_hz_cell hf_hz_cell_faces(const hf_hz_ray *r, int64_t ci, int64_
     return c;
 }
 
+/* Step from cell (*ci, *cj), whose faces c holds, to the next cell along the ray, and
+ * update c to the new cell's faces: only the face parameters of the axes stepped along
+ * change, each by the expression of hf_hz_cell_faces (so the values are the same bits). */
+static inline void hf_hz_cell_step(const hf_hz_ray *r, hf_hz_cell *c, int64_t *ci, int64_t *cj) {
+    const int step_x = c->tX <= c->tY, step_y = c->tY <= c->tX;
+    if (step_x) {
+        *ci += r->sx;
+        c->X += r->sx;
+        c->tX = ((double)c->X - r->ox) * r->inv_dx;
+    }
+    if (step_y) {
+        *cj += r->sy;
+        c->Y += r->sy;
+        c->tY = ((double)c->Y - r->oy) * r->inv_dy;
+    }
+    c->t_out = c->tX < c->tY ? c->tX : c->tY;
+}
+
+/* The diagonal crossing of cell (ci, cj) entered at t_in, into c, which holds the cell's
+ * faces (hf_hz_cell_faces). */
+static inline void hf_hz_cell_diagonal(const double *H, int64_t cols, const hf_hz_ray *r,
+                                       hf_hz_cell *c, int64_t ci, int64_t cj, double t_in,
+                                       double ddiag, double c0) {
+    c->td = ddiag != 0.0 ? ((double)(ci - cj) - c0) / ddiag : -HF_HZ_INF;
+    c->sd = 0.0;
+    c->crossed = c->td > t_in && c->td < c->t_out;
+    if (c->crossed) {
+        double u = r->ox + c->td * r->dx - (double)ci;
+        const double *corner = H + cj * cols + ci;
+        u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
+        c->sd = hf_lerp(corner[0], corner[cols + 1], u);
+    } else {
+        c->td = -HF_HZ_INF;
+    }
+}
+
 static inline hf_hz_cell hf_hz_cell_breakpoints(const double *H, int64_t cols, const hf_hz_ray *r,
                                                 int64_t ci, int64_t cj, double t_in, double ddiag,
                                                 double c0) {
     hf_hz_cell c = hf_hz_cell_faces(r, ci, cj);
-    c.td = ddiag != 0.0 ? ((double)(ci - cj) - c0) / ddiag : -HF_HZ_INF;
-    c.sd = 0.0;
-    c.crossed = c.td > t_in && c.td < c.t_out;
-    if (c.crossed) {
-        double u = r->ox + c.td * r->dx - (double)ci;
-        const double *corner = H + cj * cols + ci;
-        u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
-        c.sd = hf_lerp(corner[0], corner[cols + 1], u);
-    } else {
-        c.td = -HF_HZ_INF;
-    }
+    hf_hz_cell_diagonal(H, cols, r, &c, ci, cj, t_in, ddiag, c0);
     return c;
 }
 

@@ -9,6 +9,7 @@ import pytest
 import algos.terrain as T
 from algos import _kernels
 from algos.terrain.reference import horizon_reference
+from algos.terrain.walks import CHAIN_MAX_NEIGHBOURS
 
 #: RVT's default: 16 equally spaced azimuths; the odd ones (22.5 + k 45) are irrational
 SIXTEEN = [22.5 * k for k in range(16)]
@@ -113,6 +114,12 @@ def test_chain_neighbours_are_convergents_near_the_ray():
             assert t == pytest.approx(x * d.dx + y * d.dy) and t > 0
     gx, gy, dist = T.chain_neighbours(T.azimuth_direction(math.degrees(math.atan2(2, 5))))
     assert (abs(gx[0]), abs(gy[0])) == (2, 5)  # a rational direction: its own period
+    assert len(gx) == CHAIN_MAX_NEIGHBOURS + 1  # ... besides the two of smallest q
+    # an irrational direction: the convergents of smallest q (1/1 and 2/1 of 22.5 degrees,
+    # not 5/2, 12/5, ... further along)
+    gx, gy, dist = T.chain_neighbours(T.azimuth_direction(22.5))
+    assert sorted((abs(int(x)), abs(int(y))) for x, y in zip(gx, gy)) == [(0, 1), (1, 2)]
+    assert len(T.chain_neighbours(T.azimuth_direction(22.5), max_neighbours=9)[0]) == 9
 
 
 def test_snap_azimuths():

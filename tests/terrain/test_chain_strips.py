@@ -65,6 +65,36 @@ def test_chain_bit_identical_to_cell_walk():
                               T.horizon(h, azimuths, algorithm="dda"))
 
 
+@pytest.mark.parametrize("width, bin_length", [(1.0, 2.0), (2.0, 2.0), (0.5, 1.0), (3.0, 4.0),
+                                               (1.0, 8.0)])
+def test_chain_bit_identical_for_every_strip_shape(monkeypatch, width, bin_length):
+    """Whatever the strips' width and bin length, the walk evaluates the same expressions:
+    its climb (the next bin by integer arithmetic after a pass, the level-0 bin after a
+    failed one retested in the walk) and its cells stepped along incrementally give the
+    cell walk's angles bit for bit, with and without max_distance, on a Jacksboro crop,
+    terraces, a tilted plane (lattice-aligned rays run along its level lines), a flat
+    field and isolated spikes (ties everywhere)."""
+    import functools
+
+    from algos.terrain import walks
+
+    datasets_gen = pytest.importorskip("datasets_gen")
+    monkeypatch.setattr(walks, "chain_strips", functools.partial(
+        chain_strips, width=width, bin_length=bin_length))
+    rng = np.random.default_rng(11)
+    crop = np.asarray(datasets_gen.load("jacksboro", size=256).heights, dtype=float)[60:96, 20:50]
+    terraces = np.floor(np.add.outer(np.arange(24), 3 * np.arange(21)) / 7.0)
+    plane = np.add.outer(0.25 * np.arange(17), 0.5 * np.arange(19))
+    spikes = np.zeros((16, 18))
+    spikes[rng.integers(0, 16, 6), rng.integers(0, 18, 6)] = rng.uniform(1, 9, 6)
+    azimuths = SIXTEEN + RANDOM
+    for h in (crop, terraces, plane, np.full((10, 12), 2.5), spikes):
+        for md in (None, 6.5):
+            got = T.horizon(h, azimuths, md, algorithm="chain")
+            want = T.horizon(h, azimuths, md, algorithm="dda")
+            assert np.array_equal(got, want), (width, bin_length, h.shape, md)
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_strip_bins_bound_the_surface(seed):
     """Every point of a vertex ray lies at most at the bin of the ray's strip that holds
