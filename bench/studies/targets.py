@@ -271,8 +271,11 @@ def _summarise_rays(line, runs, cfg):
             out[key] = dict(status=status, target=target, ratio=med, low=low, high=high,
                             spread=[lo, med, hi], processes=len(entries),
                             ours=_most_common(bests),
-                            ours_ns=float(np.median([r["regimes"][regime]["ns"][b]
-                                                     for r, b in zip(ok, bests) if b])),
+                            # ours beside the peer: from the same paired rounds as its ratio
+                            ours_ns=float(np.median([
+                                e["ours_ns"] if "ours_ns" in e else r["regimes"][regime]["ns"][b]
+                                for r, b in zip(ok, bests)
+                                for e in [r["regimes"][regime]["peers"].get(peer)] if e and b])),
                             config=_most_common([e["config"] for e in entries]),
                             peer_ns=float(np.median([e["ns"] for e in entries])))
     return out
