@@ -5,7 +5,7 @@
 #   make bench-ci   the pytest-benchmark suite (pytest bench/benchmarks --benchmark-only)
 #   make terrain-bench  the terrain products' targets against the peers (results/terrain-bench)
 #   make targets    the round's targets table, medium tier (hftrace targets --tier medium:
-#                   results/targets; about 20 minutes, on a quiet machine)
+#                   results/targets; about 25 minutes, on a quiet machine)
 #   make regress    re-measure the speedup ratios against bench/regress/time_baseline.json
 #   make regress-counts  instruction counts (callgrind) and the exact algorithmic counters against
 #                   bench/regress/instructions_baseline.json and counters_baseline.json

@@ -137,7 +137,7 @@ TIERS = {
                   precision=0.02, confirm_budget_s=0.3,
                   count_rays=40, count_mesh_max_side=256, mesh_max_side=4096, judge=False, counts=False,
                   kernels=None, peers=None),
-    # the targets' sizes but 8192^2: about 20 minutes on a quiet 2-core machine
+    # the targets' sizes but 8192^2: about 25 minutes on a quiet 2-core machine (23 min 23 s at 3d143b9)
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
                    rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=1,
