@@ -85,24 +85,37 @@ def _georeferenced(ds) -> bool:
 def _scaled(raw, mask, scale, offset, vertical_scale, where="the raster", origin=(0, 0)):
     """Heights as float32: raw * scale + offset, times vertical_scale, voids NaN.
 
-    A sample that is not a void but whose height is finite in float64 and beyond float32
-    (|h| > 3.4e38) raises ``ValueError`` naming ``where``, its row and column (offset by
-    ``origin``, a window's corner) and its value: cast, it would become an infinity and
-    then a void without a word."""
+    A sample that is not a void (``mask``) raises ``ValueError`` naming ``where``, its row
+    and column (offset by ``origin``, a window's corner) and its value when it is
+    infinite in the file, or finite in the file but infinite once scaled and held in
+    float32 (|h| > 3.4e38, or beyond float64 by the scale): it would otherwise become a
+    void without a word. NaN samples are voids."""
+    raw = np.asarray(raw)
     if scale == 1.0 and offset == 0.0 and vertical_scale == 1.0 and raw.dtype == np.float32:
         heights = np.array(raw, dtype=np.float32)
+        wide = heights
     else:
-        wide = (raw.astype(np.float64) * scale + offset) * vertical_scale
-        with np.errstate(over="ignore"):
+        with np.errstate(over="ignore", invalid="ignore"):
+            wide = (raw.astype(np.float64) * scale + offset) * vertical_scale
             heights = wide.astype(np.float32)
-        lost = np.isfinite(wide) & ~np.isfinite(heights) & ~mask
-        if lost.any():
-            r, c = (int(v) for v in np.argwhere(lost)[0])
+    if raw.dtype.kind == "f":
+        given = np.isinf(raw) & ~mask
+        if given.any():
+            r, c = (int(v) for v in np.argwhere(given)[0])
             raise ValueError(
                 f"{where}: the sample at row {r + origin[0]}, column {c + origin[1]} is "
-                f"{float(wide[r, c])!r} once scaled, beyond float32 (heights are held in float32, "
-                f"|h| <= 3.4e38); {int(lost.sum())} sample(s) in all. If it marks voids, "
-                f"declare it with nodata=; otherwise rescale with vertical_scale=")
+                f"{float(raw[r, c])!r}, an infinite height; {int(given.sum())} sample(s) in "
+                f"all. If it marks voids, declare it as the nodata value; otherwise mend "
+                f"the file")
+    lost = np.isfinite(raw) & ~np.isfinite(heights) & ~mask
+    if lost.any():
+        r, c = (int(v) for v in np.argwhere(lost)[0])
+        raise ValueError(
+            f"{where}: the sample at row {r + origin[0]}, column {c + origin[1]} is "
+            f"{float(wide[r, c])!r} once scaled (in the file {raw[r, c].item()!r}), beyond "
+            f"float32 (heights are held in float32, |h| <= 3.4e38); {int(lost.sum())} "
+            f"sample(s) in all. If it marks voids, declare it as the nodata value; "
+            f"otherwise rescale the heights")
     mask = mask | ~np.isfinite(heights)
     heights[mask] = np.nan
     return heights, mask
@@ -427,9 +440,12 @@ class LazyRaster:
 
     def __getitem__(self, key):
         if self._is_npy():
-            data = np.load(self.path, mmap_mode="r", allow_pickle=False)[key]
-            window = np.asarray(data, dtype=np.float64) * self.scale
-            return window.astype(np.float32)
+            window = np.asarray(np.load(self.path, mmap_mode="r", allow_pickle=False)[key])
+            corner = tuple(k.indices(n)[0] if isinstance(k, slice) else int(k)
+                           for k, n in zip(key, self.shape))
+            heights, _ = _scaled(window, np.zeros(window.shape, bool), 1.0, 0.0, self.scale,
+                                 where=self.path, origin=corner)
+            return heights
         import rasterio
         from rasterio.windows import Window
 

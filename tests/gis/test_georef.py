@@ -902,7 +902,7 @@ def test_float64_sample_beyond_float32_is_refused_with_its_place(tmp_path):
     data[3, 4] = -np.finfo(np.float64).max
     path = write_tif(tmp_path / "big.tif", data, dtype="float64")
     with pytest.raises(ValueError, match=r"big\.tif: the sample at row 3, column 4 is "
-                                         r"-1\.79.*e\+308 once scaled, beyond float32.*nodata="):
+                                         r"-1\.79.*e\+308 once scaled .*beyond float32.*nodata value"):
         raster.read_raster(path)
     lazy = raster.LazyRaster(path)
     with pytest.raises(ValueError, match=r"row 3, column 4"):
@@ -910,3 +910,31 @@ def test_float64_sample_beyond_float32_is_refused_with_its_place(tmp_path):
     assert np.isfinite(lazy[0:3, 0:6]).all()  # a window without it reads
     field = raster.read_raster(path, nodata=-np.finfo(np.float64).max)
     assert field.nodata_mask[3, 4] and field.nodata_mask.sum() == 1
+
+
+def test_infinite_or_overflowing_samples_are_refused_not_voided(tmp_path):
+    """Found by a new user's trial: a float64 sample that overflows float64 once scaled
+    (1e300 with a scale tag of 1e10), an infinite sample without a nodata tag, and 1e39 in
+    a .npy read window by window all became voids without a word."""
+    data = np.arange(30, dtype=np.float64).reshape(5, 6)
+    data[1, 2] = 1e300
+    path = write_tif(tmp_path / "e300.tif", data, dtype="float64")
+    with rasterio.open(path, "r+") as ds:
+        ds.scales = (1e10,)
+    with pytest.raises(ValueError, match=r"e300\.tif: the sample at row 1, column 2 is inf "
+                                         r"once scaled \(in the file 1e\+300\)"):
+        raster.read_raster(path)
+    data[1, 2] = np.inf
+    path = write_tif(tmp_path / "inf.tif", data, dtype="float64")
+    with pytest.raises(ValueError, match=r"inf\.tif: the sample at row 1, column 2 is inf, "
+                                         r"an infinite height"):
+        raster.read_raster(path)
+    data[1, 2] = 1e39
+    npy = tmp_path / "e39.npy"
+    np.save(npy, data)
+    with pytest.raises(ValueError, match=r"e39\.npy: the sample at row 1, column 2 is 1e\+39"):
+        raster.LazyRaster(npy)[0:3, 0:6]
+    data[1, 2] = np.nan  # NaN stays a void
+    np.save(npy, data)
+    window = raster.LazyRaster(npy)[0:3, 0:6]
+    assert np.isnan(window[1, 2]) and np.isfinite(window).sum() == 17
