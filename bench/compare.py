@@ -299,17 +299,21 @@ def compare(repo: str, base: str, head: str | None, setup: Setup, echo=print) ->
     for revision in (base, head):  # both named revisions exist before either is built
         if revision is not None:
             revisions.resolve(root, revision)
-    if head is None and setup.kernels:
-        # the working tree is the head: its registry is this process's, so a kernel it
-        # does not have is refused before the builds (minutes), not after them
+    if head is None:
+        # the working tree is the head: its registry is this process's, so a kernel or a
+        # surface it does not have is refused before the builds (minutes), not after them
         import algos
 
         known = intersector_names(algos)
-        unknown = [k for k in setup.kernels if k not in known]
+        unknown = [k for k in setup.kernels or () if k not in known]
         if unknown:
             what = "is not a C first-hit kernel" if len(unknown) == 1 else "are not C first-hit kernels"
             raise CompareError(f"kernels: {', '.join(map(repr, unknown))} {what} of the working "
                                f"tree (known: {', '.join(known)})")
+        surfaces = sorted({sf for k in known for sf in algos.INTERSECTOR_REGISTRY[k].surfaces})
+        if setup.surface not in surfaces:
+            raise CompareError(f"surface: {setup.surface!r} is not a cell surface of the working "
+                               f"tree (known: {', '.join(surfaces)})")
     b = revisions.build(repo, base, echo=echo)
     h = revisions.build(repo, head, echo=echo)
     return measure(b, h, revisions.load(b, "base"), revisions.load(h, "head"), setup, echo=echo)

@@ -141,9 +141,12 @@ def targets(args):
         raise ValueError("--publish: the quick tier judges nothing and is not published; "
                          "use --tier medium (the default with --publish) or full")
     only = None
-    if args.only:
+    if args.only is not None:
         only = [key.strip() for key in args.only.split(",") if key.strip()]
         keys = [row.key for row in study.ROWS]
+        if not only:
+            raise ValueError(f"--only: expected one or more rows, got {args.only!r}; valid: "
+                             f"{', '.join(keys)}")
         for key in only:
             if key not in keys:
                 raise ValueError(f"--only: unknown row {key!r}; valid: {', '.join(keys)}")

@@ -243,6 +243,8 @@ def test_command_line_validates_its_options(tmp_path, capsys):
     assert "--processes" in capsys.readouterr().err
     assert main(["targets", "--only", "random2048,nope", "--out", str(tmp_path)]) == 2
     assert "--only: unknown row 'nope'" in capsys.readouterr().err
+    assert main(["targets", "--only", " , ", "--out", str(tmp_path)]) == 2  # not every row
+    assert "--only: expected one or more rows, got ' , '" in capsys.readouterr().err
     assert main(["targets", "--full", "--tier", "quick", "--out", str(tmp_path)]) == 2
     assert "--full: contradicts --tier quick" in capsys.readouterr().err
     assert main(["targets", "--publish", "--tier", "quick"]) == 2

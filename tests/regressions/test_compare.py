@@ -250,6 +250,11 @@ def test_an_unknown_kernel_of_the_working_tree_is_refused_before_the_builds(caps
     last = err.strip().splitlines()[-1]
     assert status == 2 and last.startswith("hftrace: error: kernels: 'bogus' is not a C "
                                            "first-hit kernel of the working tree"), err
+    status, out, err = _run(capsys, "compare", "HEAD", "--repo", ROOT, "--surface", "voxels",
+                            "--metric", "counters")
+    last = err.strip().splitlines()[-1]
+    assert status == 2 and last.startswith("hftrace: error: surface: 'voxels' is not a cell "
+                                           "surface of the working tree (known: "), err
 
 
 def test_only_new_kernels_is_an_error_not_a_pass():
