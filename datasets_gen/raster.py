@@ -82,6 +82,16 @@ def _georeferenced(ds) -> bool:
     return ds.crs is not None or not ds.transform.is_identity
 
 
+def _refuse(bad, where, origin, what, otherwise):
+    """``ValueError`` naming ``where``, the first sample of the boolean array ``bad`` (its row
+    and column offset by ``origin``), ``what(r, c)`` says of it, and how many there are."""
+    if bad.any():
+        r, c = (int(v) for v in np.argwhere(bad)[0])
+        raise ValueError(f"{where}: the sample at row {r + origin[0]}, column {c + origin[1]} "
+                         f"is {what(r, c)}; {int(bad.sum())} sample(s) in all. If it marks "
+                         f"voids, declare it as the nodata value; {otherwise}")
+
+
 def _scaled(raw, mask, scale, offset, vertical_scale, where="the raster", origin=(0, 0)):
     """Heights as float32: raw * scale + offset, times vertical_scale, voids NaN.
 
@@ -99,23 +109,14 @@ def _scaled(raw, mask, scale, offset, vertical_scale, where="the raster", origin
             wide = (raw.astype(np.float64) * scale + offset) * vertical_scale
             heights = wide.astype(np.float32)
     if raw.dtype.kind == "f":
-        given = np.isinf(raw) & ~mask
-        if given.any():
-            r, c = (int(v) for v in np.argwhere(given)[0])
-            raise ValueError(
-                f"{where}: the sample at row {r + origin[0]}, column {c + origin[1]} is "
-                f"{float(raw[r, c])!r}, an infinite height; {int(given.sum())} sample(s) in "
-                f"all. If it marks voids, declare it as the nodata value; otherwise mend "
-                f"the file")
-    lost = np.isfinite(raw) & ~np.isfinite(heights) & ~mask
-    if lost.any():
-        r, c = (int(v) for v in np.argwhere(lost)[0])
-        raise ValueError(
-            f"{where}: the sample at row {r + origin[0]}, column {c + origin[1]} is "
-            f"{float(wide[r, c])!r} once scaled (in the file {raw[r, c].item()!r}), beyond "
-            f"float32 (heights are held in float32, |h| <= 3.4e38); {int(lost.sum())} "
-            f"sample(s) in all. If it marks voids, declare it as the nodata value; "
-            f"otherwise rescale the heights")
+        _refuse(np.isinf(raw) & ~mask, where, origin,
+                lambda r, c: f"{float(raw[r, c])!r}, an infinite height",
+                "otherwise mend the file")
+    _refuse(np.isfinite(raw) & ~np.isfinite(heights) & ~mask, where, origin,
+            lambda r, c: (f"{float(wide[r, c])!r} once scaled (in the file "
+                          f"{raw[r, c].item()!r}), beyond float32 (heights are held in "
+                          f"float32, |h| <= 3.4e38)"),
+            "otherwise rescale the heights")
     mask = mask | ~np.isfinite(heights)
     heights[mask] = np.nan
     return heights, mask
