@@ -100,15 +100,15 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
     const double side[2] = {b->cols - 1, b->rows - 1};
     const double margin = hf_box_z_margin(b->hmin, b->hmax);
+    const double inv[2] = {hf_inverse(d[0]), hf_inverse(d[1])};
     hf_hit *h = &s->hit;
     int k;
     memset(s, 0, sizeof *s);
     for (k = 0; k < 2; ++k) {
         s->moves[k] = d[k] != 0;
         if (s->moves[k]) {
-            const double inv = hf_inverse(d[k]);
-            s->face_a[k] = (0 - o[k]) * inv;
-            s->face_b[k] = (side[k] - o[k]) * inv;
+            s->face_a[k] = (0 - o[k]) * inv[k];
+            s->face_b[k] = (side[k] - o[k]) * inv[k];
         } else if (!(o[k] >= 0 && o[k] <= side[k])) {
             s->outside = 1;
         }
@@ -117,10 +117,7 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     s->zhi = b->hmax + margin;
     /* the hit record as ray_begin fills it, but for oz, dz, the range and what
      * hf_hit_prepare derives from dz (plane_begin) */
-    {
-        const double inv[2] = {hf_inverse(d[0]), hf_inverse(d[1])};
-        hf_hit_fill(h, b, o, d, inv);
-    }
+    hf_hit_fill(h, b, o, d, inv);
     hf_hit_prepare(h);
     /* the walk's constants (hf_mip_setup), but for oz, dz, descending and t1 */
     hf_mip_ray_of(h, &s->ray);
