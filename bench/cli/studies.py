@@ -150,7 +150,7 @@ def targets(args):
         for key in only:
             if key not in keys:
                 raise ValueError(f"--only: unknown row {key!r}; valid: {', '.join(keys)}")
-    out = args.out or ("reports/targets" if args.publish else "results/targets")
+    out = args.out or (study.PUBLISH_OUT if args.publish else study.DEFAULT_OUT)
     record = study.run(out_dir=out, tier=tier, processes=args.processes, seed=args.seed,
                        counts=not args.no_counts, resume=args.resume, only=only)
     return 1 if any("error" in row for row in record["rows"].values()) else 0

@@ -333,7 +333,11 @@ def measure_row(row, cfg, seed, processes, counts, echo=print) -> dict:
     return record
 
 
-def run(out_dir="results/targets", tier="quick", processes=None, seed=2008, counts=True,
+#: where ``hftrace targets`` writes by default, and with ``--publish``
+DEFAULT_OUT, PUBLISH_OUT = "results/targets", "reports/targets"
+
+
+def run(out_dir=DEFAULT_OUT, tier="quick", processes=None, seed=2008, counts=True,
         resume=False, only=None, echo=print) -> dict:
     """Measure the targets table; write ``targets.csv``, ``targets.json``,
     ``targets.md`` and ``env.json`` to ``out_dir`` after every row, and return the
@@ -355,7 +359,8 @@ def run(out_dir="results/targets", tier="quick", processes=None, seed=2008, coun
             raise ValueError(f"only: unknown row {key!r}; valid: {', '.join(keys)}")
     os.makedirs(out_dir, exist_ok=True)
     path = os.path.join(out_dir, "targets.json")
-    record = dict(tier=tier, processes=processes, seed=seed, rows={})
+    record = dict(tier=tier, processes=processes, seed=seed,
+                  only=list(only) if only else None, out=out_dir, rows={})
     if resume and os.path.exists(path):
         with open(path) as f:
             previous = json.load(f)
@@ -527,8 +532,8 @@ def table(record, env, cfg, counts=True) -> str:
                      f"{line_status(statuses)} |")
     lines += ["", "## Detail", "",
               "| row | regime | peer (fastest configuration) | ours | ours ns/ray | peer ns/ray "
-              "| ratio | target | status | instructions / ray (ours, peer) | LL misses / ray "
-              "(ours, peer) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| ratio | pairs (stop) | target | status | instructions / ray (ours, peer) "
+              "| LL misses / ray (ours, peer) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     notes = []
     for row in ROWS:
         rec = record["rows"].get(row.key)
@@ -543,6 +548,7 @@ def table(record, env, cfg, counts=True) -> str:
             ns = (f"{s['ours_ns']:.0f}", f"{s['peer_ns']:.0f}") if "ours_ns" in s else ("", "")
             lines.append(f"| {rec['setting']} | {regime} | {peer} ({s.get('config', '-')}) | "
                          f"`{s.get('ours')}` | {ns[0]} | {ns[1]} | {_ratio_text(s)} | "
+                         f"{_pairs_text(rec, regime, peer)} | "
                          f"{_target_text(s.get('target'), key)} | {s['status']} | {instr} | "
                          f"{misses} |")
         for who, entry in c.items():
@@ -565,12 +571,43 @@ def table(record, env, cfg, counts=True) -> str:
             notes.append(f"- {row.key}: failed: {rec['error'][-300:]}")
     if notes:
         lines += ["", "Notes:", ""] + notes
+    lines_pairs = ("Pairs (stop): the paired rounds behind each process's ratio, and why "
+                   "they stopped (`precision`: the interval reached the precision asked; "
+                   "`budget`: the time budget was spent first; docs/METHOD.md).")
     which = ("every ray of the row" if cfg["count_rays"] is None else
              f"an even subsample of about {cfg['count_rays']} of the row's rays")
-    lines += ["", "Counts: callgrind's cache simulation (I1/D1 32 KiB 8-way, LL 8 MiB 16-way) on "
+    lines += ["", lines_pairs, "", "Counts: callgrind's cache simulation (I1/D1 32 KiB 8-way, LL 8 MiB 16-way) on "
               f"{which}, collected inside our C batch entry or Embree's rtcIntersect calls "
               "only; flushed = after a cache flush, warm = right after its own call.", "",
-              "Command: `hftrace targets --tier " + tier
-              + (f" --processes {record['processes']}" if record["processes"] != cfg["processes"]
-                 else "") + ("" if counts else " --no-counts") + "`", ""]
+              "Command: `" + command_line(record, cfg, counts) + "`", ""]
     return "\n".join(lines)
+
+
+def _pairs_text(rec, regime, peer):
+    """The paired rounds of one ratio, per process: "173 (precision)", or
+    "173, 99, 120 (precision, budget, precision)" over several processes."""
+    found = [r["regimes"][regime]["peers"][peer] for r in rec.get("runs", ())
+             if "error" not in r and peer in r.get("regimes", {}).get(regime, {}).get("peers", {})]
+    found = [f for f in found if "pairs" in f]
+    if not found:
+        return "-"
+    return (", ".join(str(f["pairs"]) for f in found) + " ("
+            + ", ".join(str(f.get("stop", "?")) for f in found) + ")")
+
+
+def command_line(record, cfg, counts=True) -> str:
+    """The ``hftrace targets`` command that reproduces ``record``: tier, processes,
+    rows (``--only``), output directory (``--out``) and ``--no-counts`` as they were."""
+    words = ["hftrace targets --tier", record["tier"]]
+    if record["processes"] != cfg["processes"]:
+        words.append(f"--processes {record['processes']}")
+    if record.get("only"):
+        words.append("--only " + ",".join(record["only"]))
+    out = os.path.normpath(record.get("out") or DEFAULT_OUT)
+    if out == os.path.normpath(PUBLISH_OUT):
+        words.append("--publish")
+    elif out != os.path.normpath(DEFAULT_OUT):
+        words.append(f"--out {record['out']}")
+    if not counts:
+        words.append("--no-counts")
+    return " ".join(words)

@@ -84,6 +84,12 @@ def test_quick_tier_writes_every_line_of_the_targets(tmp_path, monkeypatch):
     for line in targets.LINES:
         assert f"| {line.rays} | {line.today} |" in text
     assert "min-median-max over 2 processes" in text
+    # the detail gives each ratio's pairs and why they stopped, and the command names
+    # the output directory it wrote
+    e = line1["runs"][0]["regimes"]["warm"]["peers"]["embreex"]
+    other = line1["runs"][1]["regimes"]["warm"]["peers"]["embreex"]
+    assert f"| {e['pairs']}, {other['pairs']} ({e['stop']}, {other['stop']}) |" in text
+    assert f"Command: `hftrace targets --tier quick --out {tmp_path}`" in text
     assert "8192^2: not measured (quick tier; `--tier full`)" in text
     assert "no counts in the quick tier" in (tmp_path / "targets.json").read_text()
     rows = _csv(tmp_path)
@@ -224,6 +230,19 @@ def test_resume_keeps_the_measured_rows(tmp_path, tiny, monkeypatch):
     monkeypatch.setitem(targets.TIERS, "other", TINY)
     with pytest.raises(ValueError, match="resume: .* holds the tiny tier, not other"):
         targets.run(out_dir=str(tmp_path), tier="other", resume=True, echo=lambda *_: None)
+
+
+def test_command_line_of_a_record_reproduces_it():
+    cfg = targets.TIERS["medium"]
+    record = dict(tier="medium", processes=cfg["processes"], only=None, out="reports/targets")
+    assert targets.command_line(record, cfg) == "hftrace targets --tier medium --publish"
+    record.update(processes=5, only=["level", "pitched"], out="/tmp/x")
+    assert targets.command_line(record, cfg, counts=False) == (
+        "hftrace targets --tier medium --processes 5 --only level,pitched --out /tmp/x "
+        "--no-counts")
+    # a record written before these keys existed: the default output
+    assert targets.command_line(dict(tier="quick", processes=targets.TIERS["quick"]["processes"]),
+                                targets.TIERS["quick"]) == "hftrace targets --tier quick"
 
 
 def test_bad_arguments_name_themselves(tmp_path):
