@@ -37,7 +37,7 @@ from algos.validate import check_spacing
 
 from .cache import cached_array
 from .fields import det_cos
-from .raster import LazyRaster, read_raster
+from .raster import LazyRaster, _refuse, read_raster
 
 __all__ = ["HeightField", "LoaderError", "load_file", "jacksboro", "resample_bilinear",
            "NODATA_POLICIES", "open_lazy", "LazyRaster", "RASTER_EXTENSIONS"]
@@ -244,11 +244,22 @@ def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_po
         raise ValueError(f"{path}: a height field needs at least 2 x 2 samples, got {data.shape}")
     if data.dtype.kind not in "fiu":
         raise ValueError(f"{path}: heights must be real numbers, got dtype {data.dtype}")
-    heights = data.astype(np.float64) * vertical_scale
+    with np.errstate(over="ignore"):
+        heights = data.astype(np.float64) * vertical_scale
+        stored = heights.astype(np.float32)
     mask = ~np.isfinite(heights)
     if nodata is not None:
         check_nodata(nodata, data.dtype, None, path)
         mask |= data == nodata
+    # a finite sample beyond float32 would become inf in the stored heights: refused here,
+    # naming the file, as read_raster does
+    _refuse(np.isinf(stored) & ~mask, str(path), (0, 0),
+            lambda r, c: (f"{float(heights[r, c])!r}"
+                          + (f" once scaled (in the file {data[r, c].item()!r})"
+                             if vertical_scale != 1.0 else "")
+                          + ", beyond float32 (heights are held in float32, |h| <= 3.4e38)"),
+            "otherwise rescale the heights")
+    del stored
     heights, mask = _apply_nodata(heights, path, mask, nodata_policy, fill_value)
     return HeightField(heights, os.path.basename(path), spacing=spacing,
                        nodata_mask=mask,

@@ -203,6 +203,11 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
         if geographic:
             if reproject is None:
                 check_crs(crs, path, bounds=ds.bounds, pixel=(ds.transform.a, ds.transform.e))
+            # the file's own samples are checked before the resampling blends them into
+            # their neighbours, so a refusal quotes the file's sample, row and column
+            vertical = vertical_unit(ds.crs)
+            _scaled(raw, mask, scale, offset, vertical_scale * (vertical[1] if vertical else 1.0),
+                    where=str(path))
             raw, mask, transform, crs = _to_utm(ds, raw, mask, band)
         # heights in another unit than the lengths (a compound CRS): converted here; a
         # geographic one was reprojected onto a metre grid

@@ -934,7 +934,34 @@ def test_infinite_or_overflowing_samples_are_refused_not_voided(tmp_path):
     np.save(npy, data)
     with pytest.raises(ValueError, match=r"e39\.npy: the sample at row 1, column 2 is 1e\+39"):
         raster.LazyRaster(npy)[0:3, 0:6]
+    # read whole into memory, the same sample is refused naming the file too, and with a
+    # vertical scale, the value the file holds
+    with pytest.raises(ValueError, match=r"e39\.npy: the sample at row 1, column 2 is 1e\+39, "
+                                         r"beyond float32"):
+        datasets_gen.load_file(npy)
+    data[1, 2] = 1e38
+    np.save(npy, data)
+    with pytest.raises(ValueError, match=r"e39\.npy: the sample at row 1, column 2 is 1e\+39 "
+                                         r"once scaled \(in the file 1e\+38\)"):
+        datasets_gen.load_file(npy, vertical_scale=10.0)
     data[1, 2] = np.nan  # NaN stays a void
     np.save(npy, data)
     window = raster.LazyRaster(npy)[0:3, 0:6]
     assert np.isnan(window[1, 2]) and np.isfinite(window).sum() == 17
+
+
+def test_a_bad_sample_of_a_reprojected_raster_is_named_as_in_the_file(tmp_path):
+    """Found by a new user's trial: with reproject="utm" an infinite sample was refused
+    at a bilinear blend of it on the UTM grid, not at the file's row and column."""
+    dem = np.full((12, 12), 100.0)
+    dem[3, 7] = np.inf
+    path = write_tif(tmp_path / "geo_inf.tif", dem, dtype="float64", crs="EPSG:4326",
+                     transform=Affine(1 / 1200, 0, -84.0, 0, -1 / 1200, 46.01))
+    with pytest.raises(ValueError, match=r"geo_inf\.tif: the sample at row 3, column 7 is inf, "
+                                         r"an infinite height; 1 sample\(s\) in all"):
+        datasets_gen.load_file(path, reproject="utm")
+    dem[3, 7] = 120.0  # the same file mended reprojects
+    path = write_tif(tmp_path / "geo_ok.tif", dem, dtype="float64", crs="EPSG:4326",
+                     transform=Affine(1 / 1200, 0, -84.0, 0, -1 / 1200, 46.01))
+    field = datasets_gen.load_file(path, reproject="utm")
+    assert field.crs.to_epsg() == 32617 and np.nanmax(field.heights) <= 120.0
