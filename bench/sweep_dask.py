@@ -53,8 +53,31 @@ def dask_client(address: str, memory_limit=None):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=None,
                                **({"memory_limit": memory_limit} if memory_limit else {}))
-        return Client(cluster), cluster
+        client = Client(cluster)
+        # a task's exception reaches the driver, which reports it in one line: the local
+        # workers' own "Compute Failed" log (the task, its arguments and the traceback)
+        # would print the same error first as a dump
+        client.run(quiet_task_failures)
+        return client, cluster
     return Client(address), None
+
+
+class _NotTaskFailures:
+    """A logging filter that drops a Dask worker's "Compute Failed" records."""
+
+    def filter(self, record) -> bool:
+        return not str(record.msg).startswith("Compute Failed")
+
+
+def quiet_task_failures() -> None:
+    """On a worker of our own LocalCluster: stop logging the failed tasks whose
+    exceptions the driver re-raises (every other worker message is kept)."""
+    import logging
+
+    for name in ("distributed.worker", "distributed.worker.state_machine"):
+        log = logging.getLogger(name)
+        if not any(isinstance(f, _NotTaskFailures) for f in log.filters):
+            log.addFilter(_NotTaskFailures())
 
 
 def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, progress=True,

@@ -113,9 +113,10 @@ def _scaled(raw, mask, scale, offset, vertical_scale, where="the raster", origin
                 lambda r, c: f"{float(raw[r, c])!r}, an infinite height",
                 "otherwise mend the file")
     _refuse(np.isfinite(raw) & ~np.isfinite(heights) & ~mask, where, origin,
-            lambda r, c: (f"{float(wide[r, c])!r} once scaled (in the file "
-                          f"{raw[r, c].item()!r}), beyond float32 (heights are held in "
-                          f"float32, |h| <= 3.4e38)"),
+            lambda r, c: (f"{float(wide[r, c])!r}"
+                          + ("" if float(wide[r, c]) == float(raw[r, c]) else
+                             f" once scaled (in the file {raw[r, c].item()!r})")
+                          + ", beyond float32 (heights are held in float32, |h| <= 3.4e38)"),
             "otherwise rescale the heights")
     mask = mask | ~np.isfinite(heights)
     heights[mask] = np.nan

@@ -902,7 +902,7 @@ def test_float64_sample_beyond_float32_is_refused_with_its_place(tmp_path):
     data[3, 4] = -np.finfo(np.float64).max
     path = write_tif(tmp_path / "big.tif", data, dtype="float64")
     with pytest.raises(ValueError, match=r"big\.tif: the sample at row 3, column 4 is "
-                                         r"-1\.79.*e\+308 once scaled .*beyond float32.*nodata value"):
+                                         r"-1\.79.*e\+308, beyond float32.*nodata value"):
         raster.read_raster(path)
     lazy = raster.LazyRaster(path)
     with pytest.raises(ValueError, match=r"row 3, column 4"):

@@ -220,6 +220,27 @@ def test_dask_south_up_equals_in_memory_and_halo_may_exceed_the_raster(tmp_path)
         np.testing.assert_array_equal(src.read(), want.astype(np.float32))
 
 
+def test_dask_bad_sample_is_one_line_without_the_workers_task_dump(tmp_path):
+    """Found by a new user's trial: a sample beyond float32 in a .npy read window by
+    window was refused, but the local workers first logged the failed task with its
+    arguments and traceback. Now stderr is the one error line, naming the file's sample."""
+    heights = np.zeros((64, 64))
+    heights[10, 20] = 1e39
+    path = tmp_path / "e39.npy"
+    np.save(path, heights)
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    done = subprocess.run([sys.executable, "-m", "bench.cli", "horizon", str(path), "--dask",
+                           "local:1", "--max-distance", "5", "--chunk", "32", "--azimuths", "90",
+                           "--out", str(tmp_path / "hz"), "--no-progress"], cwd=root,
+                          capture_output=True, text=True)
+    assert done.returncode == 2, done.stderr[-3000:]
+    lines = [x for x in done.stderr.splitlines() if x.strip()]
+    assert lines == [f"hftrace: error: {path}: the sample at row 10, column 20 is 1e+39, beyond "
+                     "float32 (heights are held in float32, |h| <= 3.4e38); 1 sample(s) in all. "
+                     "If it marks voids, declare it as the nodata value; otherwise rescale the "
+                     "heights"], done.stderr[-3000:]
+
+
 def test_out_never_overwrites_the_input_and_takes_names_or_folders(tmp_path, capsys):
     path = write_tif(tmp_path / "dem.tif", dem())
     code, _, stderr = run(["svf", path, "--n-azimuths", "4", "--out", str(tmp_path / "dem")],
