@@ -149,9 +149,12 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
     fa = gap(ta)
     best = np.where(fa <= 0, ta, np.inf)
     if surface in ("flat", "plane3"):
-        # linear along the ray inside a cell
+        # linear along the ray inside a cell. These surfaces jump at cell borders, where a
+        # point belongs to the cell the ray enters: a cell's interval is [ta, tb), closed
+        # only where tb ends the range, so a touch exactly at its exit (z = s at tb, above
+        # before) is not a hit of this cell; the next cell's surface decides that point
         fb = gap(tb)
-        cross = (fa > 0) & (fb <= 0)
+        cross = (fa > 0) & ((fb < 0) | ((fb == 0) & (tb >= t1)))
         with np.errstate(divide="ignore", invalid="ignore"):
             root = ta + (tb - ta) * fa / (fa - fb)
         best = np.where(cross, np.minimum(best, np.clip(root, ta, tb)), best)
@@ -226,7 +229,8 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
     Same conventions as ``algos.intersect`` (docs/CONVENTIONS.md, "The first hit"),
     points on a cell border included: each is tested against the one cell that holds it
     for the ray's direction (a zero component takes the ``+`` side; the box's far side
-    and a one-point range take the nearest cell of the grid). A
+    and a one-point range take the nearest cell of the grid). On ``flat`` and ``plane3``
+    a touch exactly at a cell's exit is therefore the next cell's to decide. A
     :class:`algos.HeightField` gives its cell heights.
 
     Returns

@@ -165,20 +165,32 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
     h->cells_tested += 1;
     switch (h->surface) {
+    /* flat and plane3 jump at cell borders, where a point belongs to the cell the ray
+     * enters (docs/CONVENTIONS.md, "Points on a cell border"): the cell's interval is
+     * [ta, tb) unless tb ends the ray's range (the closed end, clamped into the grid).
+     * So a cell the ray only touches at one point before t1 (a side cell of a vertex
+     * crossing) is not hit, and neither is a touch exactly at its exit: the next cell's
+     * surface decides that point. */
     case HF_FLAT: {
         const double c = hf_flat_height(h00, h10, h01, h11);
+        const int closed = tb >= h->t1;
+        if (!(ta < tb || closed)) return 0;
         if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
-        if (zb <= c) return hf_hit_at(h, hf_linear_root(ta, tb, za - c, zb - c), i, j, -1, 0, 0);
+        if (zb < c || (zb == c && closed))
+            return hf_hit_at(h, hf_linear_root(ta, tb, za - c, zb - c), i, j, -1, 0, 0);
         return 0;
     }
     case HF_PLANE3: {
         double a, b;
+        const int closed = tb >= h->t1;
+        if (!(ta < tb || closed)) return 0;
         hf_plane3_slopes(h00, h10, h01, &a, &b);
         {
             const double fa = za - hf_plane_height(h00, a, b, ua, va);
             const double fb = zb - hf_plane_height(h00, a, b, ub, vb);
             if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, a, b);
-            if (fb <= 0) return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, a, b);
+            if (fb < 0 || (fb == 0 && closed))
+                return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, a, b);
         }
         return 0;
     }

@@ -11,7 +11,7 @@ import pytest
 import algos
 from algos.registry import INTERSECTOR_REGISTRY
 
-from ..helpers import JUMPING_SURFACES
+from ..helpers import JUMPING_SURFACES, exact_first_hit
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SHARED = os.path.join(ROOT, "..", "shared", "spec", "CONVENTIONS.md")
@@ -19,6 +19,7 @@ OURS = os.path.join(ROOT, "docs", "CONVENTIONS.md")
 #: The heading after which this copy states its own readings; above it, word for word.
 OWN_PART = "\n## How this repository reads the conventions"
 EXACT = [n for n, a in INTERSECTOR_REGISTRY.items() if a.accuracy == "exact"]
+STRICT = [n for n, a in INTERSECTOR_REGISTRY.items() if a.accuracy in ("exact", "float64")]
 
 
 @pytest.mark.skipif(not os.path.isfile(SHARED), reason="no shared reference beside the repository")
@@ -124,6 +125,79 @@ def test_diagonal_vertex_crossing_enters_the_diagonal_cell():
     assert _brute(H, (4.5, 5.5, 7.0), (1.0, -1.0, 0.0)) == (np.inf, (-1, -1))
     assert _brute(H, (5.5, 4.5, 7.0), (-1.0, 1.0, 0.0)) == (np.inf, (-1, -1))
     assert _brute(H, (4.5, 5.5, 5.0), (1.0, -1.0, 0.0)) == (0.5, (5, 4))
+
+
+def test_a_touch_at_a_cells_exit_belongs_to_the_next_cell():
+    """flat: cell (0, 0) stands 1 high, cell (1, 0) 0. The ray reaches z = 1 exactly where
+    it leaves (0, 0), at x = 1; that point belongs to (1, 0), which is lower, so it is not
+    a hit: the ray hits (1, 0)'s top at the box's far side x = 2, t = 1.5 (the range's
+    closed end). Before, the brute force and every kernel took the touch, t = 0.5. The
+    exact reference agrees."""
+    H = np.array([[2, 0, 0], [2, 0, 0]], np.float32)
+    o, d = (0.5, 0.5, 1.5), (1.0, 0.0, -1.0)
+    assert exact_first_hit(H, o, d, "flat") == (1.5, (1, 0))
+    assert _brute(H, o, d) == (1.5, (1, 0))
+    for name in STRICT:
+        hits = algos.intersect(name, H, [o], [d], surface="flat")
+        assert (float(hits.t[0]), tuple(int(v) for v in hits.cell[0])) == (1.5, (1, 0)), name
+    # the same ray a hair lower does go below (0, 0)'s top inside it
+    lower = (0.5, 0.5, 1.25)
+    assert _brute(H, lower, d) == (0.25, (0, 0)) == exact_first_hit(H, lower, d, "flat")
+
+
+def test_a_side_cell_of_a_vertex_crossing_is_not_hit_by_any_strict_kernel():
+    """flat: cell (4, 3) stands 6 high, its neighbours lower. The ray from outside the box
+    crosses the vertex (5, 4) at t = 2, z = 2.5, from (5, 3) into the diagonal cell (4, 4)
+    (2 high): (4, 3) only touches it there, so it is not hit, and the ray misses. dda
+    computed both crossings of that vertex as t = 2, stepped through (4, 3) with the one-
+    point interval [2, 2] and took it as a hit."""
+    H = np.zeros((9, 10), np.float32)
+    H[3, 4] = H[3, 5] = H[4, 4] = 8.0
+    o, d = (11.0, 2.0, 3.5), (-3.0, 1.0, -0.5)
+    assert _brute(H, o, d) == (np.inf, (-1, -1))
+    assert exact_first_hit(H, o, d, "flat") == (np.inf, None)
+    for name in STRICT:
+        assert algos.intersect(name, H, [o], [d], surface="flat").t[0] == np.inf, name
+
+
+def _dyadic_rays(shape, seed, n=240):
+    """Rays whose every breakpoint and flat root is a dyadic rational, so float64 decides
+    each touch as exact arithmetic does: origins on a 1/4 lattice (some outside the box),
+    horizontal components in {0, +-1, +-2, +-4}, dz in {-2, -1, -1/2, -1/4, 0, 1/4}."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    rows, cols = shape
+    o = np.column_stack([rng.integers(-4, 4 * cols + 4, n) / 4, rng.integers(-4, 4 * rows + 4, n) / 4,
+                         rng.integers(0, 19, n) / 4])
+    d = np.column_stack([rng.choice([0.0, 1, -1, 2, -2, 4, -4], (n, 2)),
+                         rng.choice([-2.0, -1, -0.5, -0.25, 0.0, 0.25], n)])
+    vertical = (d[:, 0] == 0) & (d[:, 1] == 0)
+    d[vertical, 0] = 1.0
+    return o, d
+
+
+@pytest.mark.parametrize("surface", ["flat", "plane3", "triangles"])
+def test_brute_force_and_strict_kernels_equal_the_exact_reference_on_terraces(surface):
+    """Every touch decided as the conventions say. On terraces (integer and quarter-integer
+    steps) and dyadic rays, the brute force and every exact and float64 kernel give the
+    rational reference's t (to 1e-12, the rounding of a root), hit or miss alike."""
+    shape = (9, 10)
+    rng = np.random.Generator(np.random.PCG64(5))
+    fields = {"integers": rng.integers(0, 4, shape).astype(np.float32),
+              "quarters": (rng.integers(0, 13, shape) / 4).astype(np.float32)}
+    for fname, H in fields.items():
+        o, d = _dyadic_rays(shape, seed=len(fname))
+        want = np.array([exact_first_hit(H, o[k], d[k], surface)[0] for k in range(len(o))])
+        got = {"brute force": algos.brute_force_hits(H, o, d, surface)[0]}
+        got.update((name, algos.intersect(name, H, o, d, surface=surface).t) for name in STRICT)
+        for name, t in got.items():
+            # a root inside a plane3 or triangles piece is not dyadic: its last bit may
+            # round either way
+            bad = np.nonzero(~(np.isclose(t, want, rtol=1e-12, atol=0)
+                               | (np.isinf(t) & np.isinf(want))))[0]
+            assert not len(bad), (
+                f"{name} on {surface}/{fname}: {len(bad)} of {len(o)} rays differ from the "
+                f"exact reference; first: origin={o[bad[0]].tolist()} "
+                f"direction={d[bad[0]].tolist()} exact t={want[bad[0]]!r} got {t[bad[0]]!r}")
 
 
 def test_ray_on_the_grid_line_leaves_continuous_surfaces_unchanged():
