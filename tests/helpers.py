@@ -1,6 +1,8 @@
 """Helpers shared by the tests: the exact expectation for a batch, and reproducers."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 import algos
@@ -75,19 +77,19 @@ def first_hit_fields(shape):
 JUMPING_SURFACES = ("flat", "plane3")
 
 
-def exact_first_hit(heights, origin, direction, surface):
+def exact_first_hit(heights, origin, direction, surface, tmin=0.0, tmax=math.inf):
     """The first hit of one non-vertical ray on ``flat``, ``plane3`` or ``triangles``, in
     rational arithmetic (fractions.Fraction on the float64 inputs), read straight from
     docs/CONVENTIONS.md: the smallest t in [t0, t1] with z(t) <= s(x(t), y(t)), where a
     point on a cell border takes the surface of the cell the ray enters there (the
     half-open rule) and the end t1 that of the last cell (the closed end, clamped into the
-    grid). Returns ``(t, (i, j))`` as float and ints, or ``(inf, None)``; independent of
+    grid); ``[t0, t1]`` is ``[tmin, tmax]`` clipped to the box. Returns ``(t, (i, j))`` as
+    float and ints, or ``(inf, None)``; independent of
     algos.brute_force_hits, which it checks.
 
     Between consecutive breakpoints (grid lines, and for triangles the diagonals u = v)
     the ray stays in one cell and one plane, where z - s is linear: its first zero there
     is a hit when it lies before the segment's end, or at the end t1 itself."""
-    import math
     from fractions import Fraction
 
     H = np.asarray(heights)
@@ -97,7 +99,8 @@ def exact_first_hit(heights, origin, direction, surface):
     d = [Fraction(float(v)) for v in direction]
     if d[0] == 0 and d[1] == 0:
         raise ValueError("direction: a vertical ray (not covered here)")
-    t0, t1 = Fraction(0), None
+    t0 = Fraction(float(tmin))
+    t1 = None if math.isinf(tmax) else Fraction(float(tmax))
     for axis, top in ((0, nx), (1, ny)):
         if d[axis] == 0:
             if not 0 <= o[axis] <= top:

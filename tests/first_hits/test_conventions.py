@@ -186,9 +186,15 @@ def test_brute_force_and_strict_kernels_equal_the_exact_reference_on_terraces(su
               "quarters": (rng.integers(0, 13, shape) / 4).astype(np.float32)}
     for fname, H in fields.items():
         o, d = _dyadic_rays(shape, seed=len(fname))
-        want = np.array([exact_first_hit(H, o[k], d[k], surface)[0] for k in range(len(o))])
-        got = {"brute force": algos.brute_force_hits(H, o, d, surface)[0]}
-        got.update((name, algos.intersect(name, H, o, d, surface=surface).t) for name in STRICT)
+        # the default range, then dyadic [tmin, tmax] (a touch at tmax: the closed end)
+        lo = np.concatenate([np.zeros(len(o)), rng.integers(0, 8, len(o)) / 4])
+        hi = np.concatenate([np.full(len(o), np.inf), lo[len(o):] + rng.integers(0, 12, len(o)) / 4])
+        o, d = np.concatenate([o, o]), np.concatenate([d, d])
+        want = np.array([exact_first_hit(H, o[k], d[k], surface, lo[k], hi[k])[0]
+                         for k in range(len(o))])
+        got = {"brute force": algos.brute_force_hits(H, o, d, surface, tmin=lo, tmax=hi)[0]}
+        got.update((name, algos.intersect(name, H, o, d, surface=surface, tmin=lo, tmax=hi).t)
+                   for name in STRICT)
         for name, t in got.items():
             # a root inside a plane3 or triangles piece is not dyadic: its last bit may
             # round either way
@@ -197,7 +203,8 @@ def test_brute_force_and_strict_kernels_equal_the_exact_reference_on_terraces(su
             assert not len(bad), (
                 f"{name} on {surface}/{fname}: {len(bad)} of {len(o)} rays differ from the "
                 f"exact reference; first: origin={o[bad[0]].tolist()} "
-                f"direction={d[bad[0]].tolist()} exact t={want[bad[0]]!r} got {t[bad[0]]!r}")
+                f"direction={d[bad[0]].tolist()} range=[{lo[bad[0]]}, {hi[bad[0]]}] exact "
+                f"t={want[bad[0]]!r} got {t[bad[0]]!r}")
 
 
 def test_ray_on_the_grid_line_leaves_continuous_surfaces_unchanged():
