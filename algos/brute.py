@@ -88,7 +88,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         else:
             a, b = sorted(((0 - o[axis]) / d[axis], (top - o[axis]) / d[axis]))
             t0, t1 = max(t0, a), min(t1, b)
-    if not t0 <= t1:
+    if not t0 <= t1 or t0 == np.inf:  # t0 = inf: it enters the box beyond float64
         return np.inf, (-1, -1)
     xa, xb = _axis_intervals(o[0], d[0], nx)
     ya, yb = _axis_intervals(o[1], d[1], ny)

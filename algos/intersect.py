@@ -213,13 +213,17 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         return hits
 
     scale = _subnormal_scale(d)
+    asked = outputs
     if scale is not None:
         o, d, lo, hi = _rescaled(scale, o, d, lo, hi)
+        outputs = tuple(outputs) + ("t",)  # to tell a hit beyond the float range
     run = prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts, nthreads)
     hits.elapsed_ns = run()
     hits.t, hits.cell, hits.normal, stats = run.outputs
-    if scale is not None and hits.t is not None:
-        hits.t = np.ldexp(hits.t, scale)
+    if scale is not None:
+        hits.t, hits.cell, hits.normal = _scaled_back(scale, hits.t, hits.cell, hits.normal)
+        if "t" not in asked:
+            hits.t = None
     if stats is not None:
         hits.stats = {k: stats[:, i].copy() for i, k in enumerate(STATS)}
     return hits
@@ -254,6 +258,22 @@ def _rescaled(k, o, d, lo, hi):
     lo = None if lo is None else np.ldexp(lo, -k)
     hi = None if hi is None else np.ldexp(hi, -k)
     return o, d, lo, hi
+
+
+def _scaled_back(k, t, cell, normal):
+    """The hit records of the rays ``_rescaled`` gave: ``t * 2**k``. A hit whose ``t``
+    then passes the float64 range (an origin outside the box entering it with
+    ``|dx| = 5e-324`` at ``t = 5e323``) is a miss, as the brute force reports it."""
+    hit = np.isfinite(t)
+    with np.errstate(over="ignore"):
+        t = np.ldexp(t, k)
+    lost = hit & ~np.isfinite(t)
+    if lost.any():
+        if cell is not None:
+            cell[lost] = -1
+        if normal is not None:
+            normal[lost] = np.nan
+    return t, cell, normal
 
 
 class _Prepared:

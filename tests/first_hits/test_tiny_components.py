@@ -161,3 +161,25 @@ def test_brute_force_level_ray_crossing_a_grid_line_at_2e307(surface):
     assert want is not None and want > Fraction(2 * 10 ** 307)
     t, at = algos.brute_force_hits(H, [o], [d], surface)
     assert _close(t[0], want) and tuple(at[0]) == cell
+
+
+@pytest.mark.parametrize("surface", ["flat", "triangles"])
+def test_a_hit_beyond_the_float_range_is_a_miss(surface):
+    """From x = 1.25, outside a one-column field, with dx = -5e-324 the ray enters at
+    t = 0.25 / 5e-324 = 5.06e323 (exact), past float64: the brute force reports a miss
+    (before, with warnings from inf * 0), and so does every strict kernel, cell and normal
+    included (their scaled t, 1.1e307, overflows when scaled back; before the scaling
+    they gave t = 0.25 * DBL_MAX in cell (0, 0))."""
+    H = np.zeros((6, 2), np.float32)
+    o, d = (1.25, 0.0, 4.7), (-5e-324, 0.0, -1.0)
+    want, _ = exact_first_hit(H, o, d, surface)
+    assert want == Fraction(1, 4) / Fraction(5e-324) and want > Fraction(np.finfo(float).max)
+    with np.errstate(all="raise"):
+        t, cell = algos.brute_force_hits(H, [o], [d], surface)
+    assert t[0] == np.inf and tuple(cell[0]) == (-1, -1)
+    for name in STRICT:
+        r = algos.intersect(name, H, [o], [d], surface=surface, outputs=("t", "cell", "normal"))
+        assert r.t[0] == np.inf and tuple(r.cell[0]) == (-1, -1), name
+        assert np.isnan(r.normal[0]).all(), name
+        assert tuple(algos.intersect(name, H, [o], [d], surface=surface,
+                                     outputs=("cell",)).cell[0]) == (-1, -1), name
