@@ -88,7 +88,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         else:
             a, b = sorted(((0 - o[axis]) / d[axis], (top - o[axis]) / d[axis]))
             t0, t1 = max(t0, a), min(t1, b)
-    if not t0 <= t1:
+    if not t0 <= t1 or t0 == np.inf:  # t0 = inf: it enters the box beyond float64
         return np.inf, (-1, -1)
     xa, xb = _axis_intervals(o[0], d[0], nx)
     ya, yb = _axis_intervals(o[1], d[1], ny)
@@ -114,15 +114,20 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         j, i = _cell_at_start(o, d, nx, ny, tmin)
         visited[j, i] = True
         ta[j, i] = tb[j, i] = t0
-    if not np.isfinite(t1):
-        # a vertical ray, or one whose horizontal components are so small that leaving
-        # the box overflows t: end it where z has passed every possible surface height
-        # (plane3 extrapolates to 2 min - max at worst); below them the ray is inside the
-        # solid
+    if not np.isfinite(t1) or (d[2] != 0 and not (t1 - t0) * abs(d[2]) < 2.0 ** 900):
+        # a vertical ray, or one whose horizontal components are so small (subnormal) that
+        # leaving the box takes a parameter near or beyond the float64 range, where z(t)
+        # may overflow (dx = -2.2e-308, dy = 0: one cell's interval is [0, 4.5e307)): end
+        # it where z has passed every possible surface height (plane3 extrapolates to
+        # 2 min - max at worst). Below them the ray is inside the solid of the cell it is
+        # over, above them it can hit nothing more, so a cell entered later is dropped
+        # (its surface, extrapolated to a parameter outside it, means nothing)
         lo_s = 2.0 * float(H.min()) - float(H.max()) - 1.0
         hi_s = 2.0 * float(H.max()) - float(H.min()) + 1.0
         end = ((lo_s if d[2] < 0 else hi_s) - o[2]) / d[2] if d[2] != 0 else t0
-        tb = np.minimum(tb, max(end, t0))
+        end = max(end, t0)
+        visited &= ta <= end
+        tb = np.minimum(tb, end)
     jj, ii = np.nonzero(visited)
     ta, tb = ta[visited], tb[visited]
     h00, h10 = H[jj, ii].astype(np.float64), H[jj, ii + 1].astype(np.float64)
@@ -156,7 +161,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         fb = gap(tb)
         cross = (fa > 0) & ((fb < 0) | ((fb == 0) & (tb >= t1)))
         with np.errstate(divide="ignore", invalid="ignore"):
-            root = ta + (tb - ta) * fa / (fa - fb)
+            root = ta + (tb - ta) * (fa / (fa - fb))
         best = np.where(cross, np.minimum(best, np.clip(root, ta, tb)), best)
     elif surface == "triangles":
         # split at the diagonal u = v, then linear on each piece
@@ -172,8 +177,8 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         fs1, fs2 = gap(ts, lower1), gap(ts, lower2)
         fb = gap(tb, lower2)
         with np.errstate(divide="ignore", invalid="ignore"):
-            r1 = ta + (ts - ta) * fa / (fa - fs1)
-            r2 = ts + (tb - ts) * fs2 / (fs2 - fb)
+            r1 = ta + (ts - ta) * (fa / (fa - fs1))
+            r2 = ts + (tb - ts) * (fs2 / (fs2 - fb))
         first = (fa > 0) & (fs1 <= 0)
         at_split = (fa > 0) & (fs1 > 0) & (fs2 <= 0) & (ts < tb)
         second = (fa > 0) & (fs1 > 0) & (fs2 > 0) & (fb <= 0)

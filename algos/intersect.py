@@ -212,12 +212,68 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
             hits.stats = {k: np.zeros(n, np.int64) for k in STATS}
         return hits
 
+    scale = _subnormal_scale(d)
+    asked = outputs
+    if scale is not None:
+        o, d, lo, hi = _rescaled(scale, o, d, lo, hi)
+        outputs = tuple(outputs) + ("t",)  # to tell a hit beyond the float range
     run = prepare_intersect(algorithm, fld, surface, o, d, lo, hi, outputs, opts, nthreads)
     hits.elapsed_ns = run()
     hits.t, hits.cell, hits.normal, stats = run.outputs
+    if scale is not None:
+        hits.t, hits.cell, hits.normal = _scaled_back(scale, hits.t, hits.cell, hits.normal)
+        if "t" not in asked:
+            hits.t = None
     if stats is not None:
         hits.stats = {k: stats[:, i].copy() for i, k in enumerate(STATS)}
     return hits
+
+
+def _subnormal_scale(d):
+    """Per ray, the power of two ``k`` (int (n,) array) that makes every nonzero horizontal
+    component of ``2**k d`` normal, or None when no ray has a subnormal one.
+
+    The C walks take ``+-DBL_MAX`` for ``1 / d`` where it overflows (``hf_inverse``,
+    cext/surfaces/cell_test.h): right for a face the ray starts on (``t = 0``) and for
+    faces it never reaches, but a face it does reach, at ``t = offset / |d|`` in the float
+    range (an origin outside the box, within 4 cells of its face, moving in with
+    ``|dx| < 2**-1022``), came out at ``offset * DBL_MAX``: up to ``2**52`` times too early
+    or too late. ``o + t d = o + (t / 2**k) (2**k d)``, and scaling by a power of two is
+    exact, so the scaled ray hits at ``t / 2**k``, which is scaled back. ``k <= 52``; the
+    rays' largest component stays below ``2**452``."""
+    small = np.abs(d[:, :2])
+    sub = (small > 0) & (small < np.finfo(np.float64).tiny)
+    if not sub.any():
+        return None
+    k = np.zeros(len(d), np.int64)
+    rows = sub.any(axis=1)
+    _, e = np.frexp(np.where(sub, small, np.inf).min(axis=1)[rows])  # m = f 2**e, f >= 1/2
+    k[rows] = -1021 - e  # f 2**-1021 >= 2**-1022
+    return k
+
+
+def _rescaled(k, o, d, lo, hi):
+    """The rays ``o + t (2**k d)`` on ``[tmin, tmax] / 2**k`` (None stays None)."""
+    d = np.ldexp(d, k[:, None])
+    lo = None if lo is None else np.ldexp(lo, -k)
+    hi = None if hi is None else np.ldexp(hi, -k)
+    return o, d, lo, hi
+
+
+def _scaled_back(k, t, cell, normal):
+    """The hit records of the rays ``_rescaled`` gave: ``t * 2**k``. A hit whose ``t``
+    then passes the float64 range (an origin outside the box entering it with
+    ``|dx| = 5e-324`` at ``t = 5e323``) is a miss, as the brute force reports it."""
+    hit = np.isfinite(t)
+    with np.errstate(over="ignore"):
+        t = np.ldexp(t, k)
+    lost = hit & ~np.isfinite(t)
+    if lost.any():
+        if cell is not None:
+            cell[lost] = -1
+        if normal is not None:
+            normal[lost] = np.nan
+    return t, cell, normal
 
 
 class _Prepared:

@@ -131,26 +131,34 @@ static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_
 }
 
 /* The triangles surface's two pieces on [ta, tb] of cell (i, j) with corner heights
- * h00 .. h11, from the 2D ray alone: the slopes of the triangle the ray is over at ta
- * (lower: u >= v) and of the other one, and the parameter where the ray crosses the
- * diagonal u = v inside (ta, tb) (tb when it does not). ua, va (ub, vb): u, v at ta (tb). */
+ * h00 .. h11, from the 2D ray alone: the slopes of the triangle the ray is over just after
+ * ta (lower: u >= v) and of the other one, and the parameter where the ray crosses the
+ * diagonal u = v inside (ta, tb) (tb when it does not). ua, va (ub, vb): u, v at ta (tb).
+ * A crossing that rounds onto ta (ua - va and the heading w of opposite signs, |ua - va|
+ * a few ulps of ta times |w|: a ray with a tiny dx entering by the lower edge at u = 0+)
+ * leaves no first piece: the ray is over the triangle it heads into for all of (ta, tb],
+ * and at ta itself both planes agree to rounding (the surface is continuous). */
 static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double h01, double h11,
                                  double ta, double tb, double ua, double va, double ub, double vb,
                                  double *su1, double *sv1, double *su2, double *sv2,
                                  double *t_split) {
-    const int lower_first = (ua - va) > 0 || ((ua - va) == 0 && (ub - vb) >= 0);
+    int lower_first = (ua - va) > 0 || ((ua - va) == 0 && (ub - vb) >= 0);
     const double w = (h->dx - h->dy);
+    *t_split = tb;
+    if (w != 0) {
+        const double ts = ta - (ua - va) / w;
+        if (ts > ta) {
+            if (ts < tb) *t_split = ts;
+        } else if ((ua - va) != 0) {
+            lower_first = w > 0; /* the side it heads into (unchanged unless ts rounded) */
+        }
+    }
     if (lower_first) {
         hf_lower_triangle_slopes(h00, h10, h11, su1, sv1);
         hf_upper_triangle_slopes(h00, h01, h11, su2, sv2);
     } else {
         hf_upper_triangle_slopes(h00, h01, h11, su1, sv1);
         hf_lower_triangle_slopes(h00, h10, h11, su2, sv2);
-    }
-    *t_split = tb;
-    if (w != 0) {
-        const double ts = ta - (ua - va) / w;
-        if (ts > ta && ts < tb) *t_split = ts;
     }
 }
 

@@ -1,0 +1,107 @@
+"""First hits in exact rational arithmetic (fractions.Fraction), for the piecewise linear
+surfaces (flat, plane3, triangles): the arbiter when the brute force and the kernels
+disagree. It reads docs/CONVENTIONS.md directly: the half-open visited cells of the ray
+clipped to the box, each tested on its closed parameter interval with its own surface (the
+triangles split where the ray crosses u = v, each piece on the triangle holding its
+interior), the smallest t at or below the surface. Slow; a few hundred rays at most."""
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import numpy as np
+
+
+def _q(x) -> Fraction:
+    return Fraction(float(x))
+
+
+def _visited(org, dirn, t0, t1, nx, ny):
+    """(i, j, ta, tb) of every visited cell (tb None: unbounded); the one cell at t0
+    (clamped into the grid) when the range is one point."""
+    def axis(a, k, n):
+        if dirn[a] == 0:
+            return None if (k <= org[a] < k + 1 or (k == n - 1 and org[a] == n)) else False
+        near, far = (k, k + 1) if dirn[a] > 0 else (k + 1, k)
+        return (near - org[a]) / dirn[a], (far - org[a]) / dirn[a]
+    cells = []
+    for j in range(ny):
+        for i in range(nx):
+            lo, hi, ok = t0, t1, True
+            for a, k, n in ((0, i, nx), (1, j, ny)):
+                iv = axis(a, k, n)
+                if iv is False:
+                    ok = False
+                    break
+                if iv is not None:
+                    lo, hi = max(lo, iv[0]), iv[1] if hi is None else min(hi, iv[1])
+            if ok and (hi is None or lo < hi):
+                cells.append((i, j, lo, hi))
+    if not cells:
+        index = []
+        for a, n in ((0, nx), (1, ny)):
+            x = org[a] + t0 * dirn[a]
+            k = math.ceil(x) - 1 if dirn[a] < 0 else math.floor(x)
+            index.append(min(max(k, 0), n - 1))
+        cells = [(index[0], index[1], t0, t0)]
+    return cells
+
+
+def exact_first_hit(heights, origin, direction, surface, tmin=0.0):
+    """(t as a Fraction or None on a miss, (i, j) or (-1, -1)) of one ray; heights are
+    taken at float32, as the kernels and the brute force read them."""
+    if surface not in ("flat", "plane3", "triangles"):
+        raise ValueError(f"surface: {surface!r} is not piecewise linear")
+    H = np.asarray(heights, np.float32)
+    nx, ny = H.shape[1] - 1, H.shape[0] - 1
+    org, dirn = [_q(v) for v in origin], [_q(v) for v in direction]
+    t0, t1 = _q(tmin), None
+    for a, top in ((0, nx), (1, ny)):
+        if dirn[a] == 0:
+            if not 0 <= org[a] <= top:
+                return None, (-1, -1)
+        else:
+            lo, hi = sorted(((0 - org[a]) / dirn[a], (top - org[a]) / dirn[a]))
+            t0, t1 = max(t0, lo), hi if t1 is None else min(t1, hi)
+    if t1 is not None and t0 > t1:
+        return None, (-1, -1)
+    best = None
+    for i, j, ta, tb in _visited(org, dirn, t0, t1, nx, ny):
+        h00, h10 = _q(H[j, i]), _q(H[j, i + 1])
+        h01, h11 = _q(H[j + 1, i]), _q(H[j + 1, i + 1])
+        u0, v0 = org[0] - i, org[1] - j
+
+        def first(a, b, s0, su, sv):
+            """Smallest t in [a, b] with z - (s0 + su u + sv v) <= 0 (linear in t)."""
+            g0 = org[2] - s0 - su * u0 - sv * v0
+            g1 = dirn[2] - su * dirn[0] - sv * dirn[1]
+            if g0 + g1 * a <= 0:
+                return a
+            if g1 < 0 and (b is None or -g0 / g1 <= b):
+                return -g0 / g1
+            return None
+
+        if surface == "flat":
+            pieces = [(ta, tb, (h00 + h10 + h01 + h11) / 4, 0, 0)]
+        elif surface == "plane3":
+            pieces = [(ta, tb, h00, h10 - h00, h01 - h00)]
+        else:
+            lower, upper = (h00, h10 - h00, h11 - h10), (h00, h11 - h01, h01 - h00)
+
+            def plane(a, b):  # the triangle holding the piece's interior (u >= v: lower)
+                m = a + 1 if b is None else (a + b) / 2
+                return lower if u0 + m * dirn[0] >= v0 + m * dirn[1] else upper
+
+            w = dirn[0] - dirn[1]
+            ts = (v0 - u0) / w if w != 0 else None
+            if ts is not None and ts > ta and (tb is None or ts < tb):
+                pieces = [(ta, ts) + plane(ta, ts), (ts, tb) + plane(ts, tb)]
+            else:
+                pieces = [(ta, tb) + plane(ta, tb)]
+        for piece in pieces:
+            t = first(*piece)
+            if t is not None:
+                if best is None or t < best[0]:
+                    best = (t, (i, j))
+                break
+    return (None, (-1, -1)) if best is None else best
