@@ -1,9 +1,13 @@
 """First hits in exact rational arithmetic (fractions.Fraction), for the piecewise linear
 surfaces (flat, plane3, triangles): the arbiter when the brute force and the kernels
 disagree. It reads docs/CONVENTIONS.md directly: the half-open visited cells of the ray
-clipped to the box, each tested on its closed parameter interval with its own surface (the
-triangles split where the ray crosses u = v, each piece on the triangle holding its
-interior), the smallest t at or below the surface. Slow; a few hundred rays at most."""
+clipped to the box, each tested with its own surface (the triangles split where the ray
+crosses u = v, each piece on the triangle holding its interior), the smallest t at or below
+the surface. A point on a cell border belongs to the cell the ray enters there, so on flat
+and plane3 (which jump at borders) a cell's interval is open at its exit unless that exit
+ends the range [t0, t1]; triangles are continuous, and a touch there is found at the same t
+by both cells (the first in row-major order is reported, as by the brute force). Slow; a
+few hundred rays at most."""
 from __future__ import annotations
 
 import math
@@ -47,15 +51,16 @@ def _visited(org, dirn, t0, t1, nx, ny):
     return cells
 
 
-def exact_first_hit(heights, origin, direction, surface, tmin=0.0):
-    """(t as a Fraction or None on a miss, (i, j) or (-1, -1)) of one ray; heights are
-    taken at float32, as the kernels and the brute force read them."""
+def exact_first_hit(heights, origin, direction, surface, tmin=0.0, tmax=math.inf):
+    """(t as a Fraction or None on a miss, (i, j) or (-1, -1)) of one ray on [tmin, tmax]
+    (the closed range, clipped to the box); heights are taken at float32, as the kernels
+    and the brute force read them."""
     if surface not in ("flat", "plane3", "triangles"):
         raise ValueError(f"surface: {surface!r} is not piecewise linear")
     H = np.asarray(heights, np.float32)
     nx, ny = H.shape[1] - 1, H.shape[0] - 1
     org, dirn = [_q(v) for v in origin], [_q(v) for v in direction]
-    t0, t1 = _q(tmin), None
+    t0, t1 = _q(tmin), (None if math.isinf(tmax) else _q(tmax))
     for a, top in ((0, nx), (1, ny)):
         if dirn[a] == 0:
             if not 0 <= org[a] <= top:
@@ -72,12 +77,14 @@ def exact_first_hit(heights, origin, direction, surface, tmin=0.0):
         u0, v0 = org[0] - i, org[1] - j
 
         def first(a, b, s0, su, sv):
-            """Smallest t in [a, b] with z - (s0 + su u + sv v) <= 0 (linear in t)."""
+            """Smallest t in [a, b] with z - (s0 + su u + sv v) <= 0 (linear in t); b
+            itself only where it ends the range, or inside a triangles cell."""
             g0 = org[2] - s0 - su * u0 - sv * v0
             g1 = dirn[2] - su * dirn[0] - sv * dirn[1]
             if g0 + g1 * a <= 0:
                 return a
-            if g1 < 0 and (b is None or -g0 / g1 <= b):
+            closed = b is None or b == t1 or surface == "triangles"
+            if g1 < 0 and (closed and (b is None or -g0 / g1 <= b) or not closed and -g0 / g1 < b):
                 return -g0 / g1
             return None
 

@@ -11,7 +11,8 @@ import pytest
 import algos
 from algos.registry import INTERSECTOR_REGISTRY
 
-from ..helpers import JUMPING_SURFACES, exact_first_hit
+from ..helpers import JUMPING_SURFACES
+from .exact_hits import exact_first_hit
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SHARED = os.path.join(ROOT, "..", "shared", "spec", "CONVENTIONS.md")
@@ -135,7 +136,7 @@ def test_a_touch_at_a_cells_exit_belongs_to_the_next_cell():
     exact reference agrees."""
     H = np.array([[2, 0, 0], [2, 0, 0]], np.float32)
     o, d = (0.5, 0.5, 1.5), (1.0, 0.0, -1.0)
-    assert exact_first_hit(H, o, d, "flat") == (1.5, (1, 0))
+    assert exact_first_hit(H, o, d, "flat") == (1.5, (1, 0))  # (a Fraction equals 1.5)
     assert _brute(H, o, d) == (1.5, (1, 0))
     for name in STRICT:
         hits = algos.intersect(name, H, [o], [d], surface="flat")
@@ -155,7 +156,7 @@ def test_a_side_cell_of_a_vertex_crossing_is_not_hit_by_any_strict_kernel():
     H[3, 4] = H[3, 5] = H[4, 4] = 8.0
     o, d = (11.0, 2.0, 3.5), (-3.0, 1.0, -0.5)
     assert _brute(H, o, d) == (np.inf, (-1, -1))
-    assert exact_first_hit(H, o, d, "flat") == (np.inf, None)
+    assert exact_first_hit(H, o, d, "flat") == (None, (-1, -1))
     for name in STRICT:
         assert algos.intersect(name, H, [o], [d], surface="flat").t[0] == np.inf, name
 
@@ -190,8 +191,8 @@ def test_brute_force_and_strict_kernels_equal_the_exact_reference_on_terraces(su
         lo = np.concatenate([np.zeros(len(o)), rng.integers(0, 8, len(o)) / 4])
         hi = np.concatenate([np.full(len(o), np.inf), lo[len(o):] + rng.integers(0, 12, len(o)) / 4])
         o, d = np.concatenate([o, o]), np.concatenate([d, d])
-        want = np.array([exact_first_hit(H, o[k], d[k], surface, lo[k], hi[k])[0]
-                         for k in range(len(o))])
+        exact = [exact_first_hit(H, o[k], d[k], surface, lo[k], hi[k])[0] for k in range(len(o))]
+        want = np.array([np.inf if t is None else float(t) for t in exact])
         got = {"brute force": algos.brute_force_hits(H, o, d, surface, tmin=lo, tmax=hi)[0]}
         got.update((name, algos.intersect(name, H, o, d, surface=surface, tmin=lo, tmax=hi).t)
                    for name in STRICT)
