@@ -170,3 +170,22 @@ def test_lattice_rays_do_not_pay_for_the_band():
         ref_t, _ = algos.brute_force_hits(H, off, d)
         assert np.allclose(b.t, ref_t, rtol=1e-9, atol=1e-9), name
         assert np.array_equal(a.stats["cells_visited"], b.stats["cells_visited"]), name
+
+
+@pytest.mark.parametrize("surface", algos.SURFACES)
+def test_rounded_ray_outside_the_box_or_parallel_to_an_axis(surface):
+    """Rays whose rounded ray meets no cell of the grid while the caller's ray does (it
+    creeps into the box along an edge: the rounded origin lies 1.5e-5 outside and its
+    rounded slope enters only beyond the far side), and rays whose rounded direction is
+    parallel to an axis (a component below 2^-31 of the other, 1e-13) 3e-6 below a grid
+    line: every exact kernel equals the brute force."""
+    H = fields.generate("terraces", (24, 31), seed=4, amplitude=6.0, scale=16.0)
+    o = np.array([[-1.0, -8e-6, 9.0], [31.0, 23 + 8e-6, 9.0], [-1.0, 5.0 - 3e-6, 9.0],
+                  [12.5 - 3e-6, 25.0, 9.0]])
+    d = np.array([[1.0, 3e-7, -0.3], [-1.0, -3e-7, -0.3], [1.0, 1e-13, -0.3], [-1e-13, -1.0, -0.3]])
+    ref_t, ref_cell = algos.brute_force_hits(H, o, d, surface)
+    assert np.all(np.isfinite(ref_t))
+    for name in EXACT:
+        hits = algos.intersect(name, H, o, d, surface=surface, outputs=("t", "cell"))
+        assert np.allclose(hits.t, ref_t, rtol=1e-9, atol=1e-9), (name, hits.t, ref_t)
+        assert np.array_equal(hits.cell, ref_cell), (name, hits.cell, ref_cell)
