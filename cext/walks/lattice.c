@@ -246,11 +246,13 @@ HF_INLINE int line_from_direction(const hf_direction *dir, const double origin[2
         L->slope_minor = 0;
         L->a0 = L->a1 = (int32_t)i;
         L->b0 = L->b1 = (int32_t)j;
+        L->scale = 0;
         return 1;
     }
 
     /* the direction's share, from the set-up */
     scale = dir->scale;
+    L->scale = scale;
     major = dir->swap;
     L->swap = major;
     L->n_major = n[major];

@@ -26,9 +26,9 @@
  * The runs of a line with B = slope_minor > 0, from its start-clipped first run to its
  * last. Shared by runs and by runs_periodic for rays too short for a pattern to pay. */
 HF_INLINE int runs_recurrence(hf_sink *s, const int mode, hf_cull *cull, const hf_line *L,
-                              const hf_frame *f) {
+                              const hf_frame *f, const hf_band *bd, const int band) {
     int32_t row, first, last;
-    int64_t column, R;
+    int64_t column, R, R_in = INT64_MAX; /* R_in: the row's own crossing (none for b0) */
     const int64_t W = L->slope_minor * HF_ONE;
     const int64_t short_length = L->slope_major / L->slope_minor;
     const int64_t rem = (L->slope_major % L->slope_minor) * HF_ONE;
@@ -41,12 +41,19 @@ HF_INLINE int runs_recurrence(hf_sink *s, const int mode, hf_cull *cull, const h
         R = (int64_t)(N - c * W);
     }
     first = L->a0;
+    /* off the lattice (first hits): the band rows before the walk's, and each run widened
+     * where its crossings lie within the band's reach of a column line (walk.h) */
+    if (band && hf_band_start(s, f, L, bd)) return HF_OK;
     for (row = L->b0; row < L->b1; ++row) {
         last = (int32_t)(R == 0 ? column - 1 : column);
         HF_ASSERT(last >= first && last <= L->a1, "row=%d first=%d last=%d a1=%d", row, first, last,
                   L->a1);
+        if (band && R_in < bd->thr && hf_band_left(s, f, bd, row, first, first, R_in)) return HF_OK;
         if (hf_visit_reduced_run(s, mode, cull, f, row, first, last)) return HF_OK;
+        if (band && (R == 0 || R > bd->right_cut) && hf_band_right(s, f, bd, row, last, column, R))
+            return HF_OK;
         first = (int32_t)column;
+        if (band) R_in = R;
         column += short_length;
         R += rem;
         if (R >= W) {
@@ -55,21 +62,38 @@ HF_INLINE int runs_recurrence(hf_sink *s, const int mode, hf_cull *cull, const h
         }
     }
     if (first > L->a1) return HF_ERR_INTERNAL;
-    hf_visit_reduced_run(s, mode, cull, f, L->b1, first, L->a1);
+    if (band && R_in < bd->thr && hf_band_left(s, f, bd, L->b1, first, first, R_in)) return HF_OK;
+    if (hf_visit_reduced_run(s, mode, cull, f, L->b1, first, L->a1)) return HF_OK;
+    if (band) hf_band_end(s, f, L, bd);
     return HF_OK;
+}
+
+/* First hits of a ray off the lattice (bd->on) over the walk's line: the band (walk.h). */
+HF_INLINE int runs_band(hf_sink *s, hf_cull *cull, const hf_line *L, const hf_frame *f,
+                        const hf_band *bd) {
+    if (L->slope_minor == 0) {
+        hf_band_straight(s, f, bd);
+        return HF_OK;
+    }
+    return runs_recurrence(s, HF_MODE_HIT, cull, L, f, bd, 1);
 }
 
 HF_INLINE int walk_runs(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
     hf_line L;
     hf_frame f;
     hf_cull cull;
+    hf_band bd;
     int status;
     (void)ctx;
     if (!hf_exact_begin(b, ray, s, mode, 0, 1, &L, &f, &cull, &status)) return status;
-    if (L.slope_minor == 0)
+    bd.on = 0;
+    if (mode == HF_MODE_HIT) hf_band_init(&bd, s->hit, &L);
+    if (mode == HF_MODE_HIT && bd.on)
+        status = runs_band(s, &cull, &L, &f, &bd);
+    else if (L.slope_minor == 0)
         hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
     else
-        status = runs_recurrence(s, mode, &cull, &L, &f);
+        status = runs_recurrence(s, mode, &cull, &L, &f, NULL, 0);
     hf_cull_end(&cull, s, mode);
     return status;
 }
@@ -94,6 +118,7 @@ typedef struct {
     const hf_line *L;
     int32_t row, first, last, pos; /* the current run (reduced) and the current cell   */
     int64_t column, R;             /* the crossing into row + 1: column, remainder     */
+    int64_t R_in;                  /* the row's own crossing remainder (b0: none, max) */
     int64_t W, short_length, rem;  /* the recurrence's constants                       */
 } run_walker;
 
@@ -111,6 +136,7 @@ HF_INLINE void walker_set_last(run_walker *w) {
 }
 
 HF_INLINE void walker_next_row(run_walker *w) {
+    w->R_in = w->R;
     w->row += 1;
     w->first = (int32_t)w->column;
     w->pos = w->first;
@@ -127,6 +153,7 @@ HF_INLINE void walker_next_row(run_walker *w) {
 static void walker_seek(run_walker *w, int32_t k, int32_t pos) {
     int64_t c, R;
     walker_crossing(w->L, k, w->W, &c, &R);
+    w->R_in = R;
     w->row = k;
     w->first = (int32_t)c;
     walker_crossing(w->L, (int64_t)k + 1, w->W, &w->column, &w->R);
@@ -143,8 +170,15 @@ static int32_t walker_row_of_column(const run_walker *w, int32_t P) {
 }
 
 /* Move the walker to its first cell past the tile whose last reduced column and row are
- * cmax and rmax (the walker is inside it). Returns 1 when the line ends inside the tile. */
-static int walker_leave(run_walker *w, int32_t cmax, int32_t rmax) {
+ * cmax and rmax (the walker is inside it). Returns 1 when the line ends inside the tile,
+ * 2 when a cell of the band (bd != NULL: a first hit off the lattice) was hit, else 0.
+ * The tile's cull covers every cell of the caller's ray inside the tile; the band's cells
+ * outside it that the skipped rows reach are tested here (the band is narrow, thr < W: a
+ * run widens by at most one cell at each end, so only the row after the walker's entry
+ * row can reach left of the tile, and only the row the walker leaves the tile from can
+ * reach right of it, past cmax). */
+static int walker_leave(run_walker *w, int32_t cmax, int32_t rmax, hf_sink *s, const hf_frame *f,
+                        const hf_band *bd) {
     const hf_line *L = w->L;
     for (;;) {
         if (w->last > cmax) {
@@ -153,23 +187,55 @@ static int walker_leave(run_walker *w, int32_t cmax, int32_t rmax) {
         }
         if (w->row >= L->b1) return 1;
         if ((int64_t)rmax - w->row > HF_SEEK_ROWS) {
+            /* the next row's start, skipped over below */
+            if (bd && w->R < bd->thr &&
+                hf_band_left(s, f, bd, w->row + 1, (int32_t)w->column, w->column, w->R))
+                return 2;
             if (rmax >= L->b1) {
                 /* the line's last row lies in the tile: it leaves only if it passes cmax */
-                if (L->a1 <= cmax) return 1;
+                if (L->a1 <= cmax) {
+                    /* the row before the last may end on cmax (the last one: hf_band_end) */
+                    if (bd) {
+                        int64_t c, R;
+                        walker_crossing(L, L->b1, w->W, &c, &R);
+                        if ((R == 0 || R > bd->right_cut) &&
+                            hf_band_right(s, f, bd, L->b1 - 1, (int32_t)(R == 0 ? c - 1 : c), c, R))
+                            return 2;
+                    }
+                    return 1;
+                }
             } else {
                 int64_t c, R;
                 walker_crossing(L, (int64_t)rmax + 1, w->W, &c, &R);
                 if (c <= cmax) {
+                    if (bd && (R == 0 || R > bd->right_cut) &&
+                        hf_band_right(s, f, bd, rmax, (int32_t)(R == 0 ? c - 1 : c), c, R))
+                        return 2;
                     walker_seek(w, rmax + 1, (int32_t)c);
                     return 0;
                 }
             }
-            /* through the tile's major face: column cmax + 1, in the row it enters it */
+            /* through the tile's major face: column cmax + 1, in the row it enters it; the
+             * row before that one may end on cmax */
             walker_seek(w, walker_row_of_column(w, cmax + 1), cmax + 1);
+            if (bd && (w->R_in == 0 || w->R_in > bd->right_cut) &&
+                hf_band_right(s, f, bd, w->row - 1, w->R_in == 0 ? w->first - 1 : w->first,
+                              w->first, w->R_in))
+                return 2;
             return 0;
         }
-        walker_next_row(w);
-        if (w->row > rmax || w->first > cmax) return 0;
+        {
+            const int32_t row = w->row, last = w->last;
+            const int64_t column = w->column, R = w->R;
+            walker_next_row(w);
+            if (bd && (R == 0 || R > bd->right_cut) &&
+                hf_band_right(s, f, bd, row, last, column, R))
+                return 2;
+            if (w->row > rmax || w->first > cmax) return 0;
+            if (bd && w->R_in < bd->thr &&
+                hf_band_left(s, f, bd, w->row, w->first, w->first, w->R_in))
+                return 2;
+        }
     }
 }
 
@@ -178,6 +244,8 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
     hf_frame f;
     hf_cull cull;
     run_walker w;
+    hf_band bd;
+    const hf_band *band;
     hf_hit *h = s->hit;
     int status, level, floor_level;
     int64_t guard;
@@ -188,12 +256,26 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
     const double inf = (double)INFINITY;
     double t = h->t0;
     if (!hf_exact_begin(b, 0, s, HF_MODE_HIT, 0, 1, &L, &f, &cull, &status)) return status;
+    hf_band_init(&bd, h, &L);
+    if (bd.on && (bd.wide || bd.full || L.slope_minor == 0)) {
+        /* off the lattice with a band wider than a cell (or a straight line): the run walk
+         * over the band, unskipped (walk.h) */
+        status = runs_band(s, &cull, &L, &f, &bd);
+        hf_cull_end(&cull, s, HF_MODE_HIT);
+        return status;
+    }
+    band = bd.on ? &bd : NULL;
+    if (band && hf_band_start(s, &f, &L, band)) {
+        hf_cull_end(&cull, s, HF_MODE_HIT);
+        return HF_OK;
+    }
     floor_level = m->floor_level < top ? m->floor_level : top;
     w.L = &L;
     w.row = L.b0;
     w.first = w.pos = L.a0;
     w.W = L.slope_minor * HF_ONE;
     w.column = w.R = 0;
+    w.R_in = INT64_MAX;
     w.short_length = w.rem = 0;
     if (L.slope_minor != 0) {
         w.short_length = L.slope_major / L.slope_minor;
@@ -236,15 +318,32 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
                                  : f.base_minor - lo_minor);
         }
         if (hf_tile_zlow(h->oz, h->dz, descending, t, t_exit) > (double)tile_max) {
+            int left;
             h->tiles_skipped += 1;
-            if (walker_leave(&w, cmax, rmax)) break;
+            /* a row starting here: its band cells left of it may lie outside the tile */
+            if (band && w.pos == w.first && w.R_in < band->thr &&
+                hf_band_left(s, &f, band, w.row, w.first, w.first, w.R_in)) {
+                hf_cull_end(&cull, s, HF_MODE_HIT);
+                return HF_OK;
+            }
+            left = walker_leave(&w, cmax, rmax, s, &f, band);
+            if (left == 2) {
+                hf_cull_end(&cull, s, HF_MODE_HIT);
+                return HF_OK;
+            }
+            if (left) break;
             if (level < top) ++level;
         } else {
             /* the floor tile: its segment of each run */
             int ended = 0;
             for (;;) {
                 const int32_t seg_last = w.last < cmax ? w.last : cmax;
-                if (hf_visit_reduced_run(s, HF_MODE_HIT, &cull, &f, w.row, w.pos, seg_last)) {
+                if ((band && w.pos == w.first && w.R_in < band->thr &&
+                     hf_band_left(s, &f, band, w.row, w.first, w.first, w.R_in)) ||
+                    hf_visit_reduced_run(s, HF_MODE_HIT, &cull, &f, w.row, w.pos, seg_last) ||
+                    (band && seg_last == w.last && w.row < L.b1 &&
+                     (w.R == 0 || w.R > band->right_cut) &&
+                     hf_band_right(s, &f, band, w.row, w.last, w.column, w.R))) {
                     hf_cull_end(&cull, s, HF_MODE_HIT);
                     return HF_OK;
                 }
@@ -264,6 +363,7 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
         }
         t = t_exit > t ? t_exit : t;
     }
+    if (band) hf_band_end(s, &f, &L, band);
     hf_cull_end(&cull, s, HF_MODE_HIT);
     return HF_OK;
 }
@@ -302,19 +402,56 @@ static void build_pattern(hf_pattern *pattern, int64_t p, int64_t q) {
     pattern->position_step = inverse_mod(q_mod_p, p);
 }
 
+/* The pattern loop from the first crossing (column, remainder R0); `band`: widened runs
+ * for a first hit off the lattice (walk.h), the remainder R then carried per run. */
+HF_INLINE int periodic_loop(hf_sink *s, const int mode, hf_cull *cull, const hf_line *L,
+                            const hf_frame *f, const int32_t *lengths, int64_t p, int64_t column,
+                            int64_t delta, int64_t position, int64_t R0, const hf_band *bd,
+                            const int band) {
+    int32_t row, first, last;
+    int64_t R = R0, R_in = INT64_MAX;
+    const int64_t W = p * HF_ONE, rem = (L->slope_major % p) * HF_ONE;
+    first = L->a0;
+    if (band && hf_band_start(s, f, L, bd)) return HF_OK;
+    for (row = L->b0; row < L->b1; ++row) {
+        last = (int32_t)((position == 0 && delta == 0) ? column - 1 : column);
+        if (band && R_in < bd->thr && hf_band_left(s, f, bd, row, first, first, R_in)) return HF_OK;
+        if (hf_visit_reduced_run(s, mode, cull, f, row, first, last)) return HF_OK;
+        if (band) {
+            if ((R == 0 || R > bd->right_cut) && hf_band_right(s, f, bd, row, last, column, R))
+                return HF_OK;
+            R_in = R;
+            R += rem;
+            if (R >= W) R -= W;
+        }
+        first = (int32_t)column;
+        column += lengths[position];
+        if (++position == p) position = 0;
+    }
+    if (first > L->a1) return HF_ERR_INTERNAL;
+    if (band && R_in < bd->thr && hf_band_left(s, f, bd, L->b1, first, first, R_in)) return HF_OK;
+    if (hf_visit_reduced_run(s, mode, cull, f, L->b1, first, L->a1)) return HF_OK;
+    if (band) hf_band_end(s, f, L, bd);
+    return HF_OK;
+}
+
 HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int mode, void *ctx) {
     hf_pattern *pattern = (hf_pattern *)ctx;
     hf_line L;
     hf_frame f;
-    int32_t row, first, last;
-    int64_t p, column, delta, position;
+    int64_t p, column, delta, position, R0;
     hf_cull cull;
-    const int32_t *lengths;
+    hf_band bd;
     int status;
     if (!hf_exact_begin(b, ray, s, mode, b->max_denominator, 1, &L, &f, &cull, &status))
         return status;
+    bd.on = 0;
+    if (mode == HF_MODE_HIT) hf_band_init(&bd, s->hit, &L);
     if (L.slope_minor == 0) {
-        hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
+        if (mode == HF_MODE_HIT && bd.on)
+            hf_band_straight(s, &f, &bd);
+        else
+            hf_visit_reduced_run(s, mode, &cull, &f, L.b0, L.a0, L.a1);
         hf_cull_end(&cull, s, mode);
         return HF_OK;
     }
@@ -324,13 +461,14 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
      * runs than that, on a slope whose pattern is not already built, takes the plain
      * recurrence on the same rational line: the same runs, exactly. */
     if ((pattern->p != p || pattern->q != L.slope_major) && (int64_t)L.b1 - L.b0 < p) {
-        const int done = runs_recurrence(s, mode, &cull, &L, &f);
+        const int done = mode == HF_MODE_HIT && bd.on
+                             ? runs_recurrence(s, mode, &cull, &L, &f, &bd, 1)
+                             : runs_recurrence(s, mode, &cull, &L, &f, NULL, 0);
         hf_cull_end(&cull, s, mode);
         return done;
     }
     /* parallel rays share one pattern; a new slope builds a new one */
     if (pattern->p != p || pattern->q != L.slope_major) build_pattern(pattern, p, L.slope_major);
-    lengths = pattern->lengths;
     {
         /* start clipping gives the phase: the first crossing, exactly */
         const hf_i128 W = (hf_i128)p * HF_ONE;
@@ -340,6 +478,7 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
         const int64_t R = (int64_t)(N - c * W);
         column = (int64_t)c;
         delta = R % HF_ONE;
+        R0 = R;
         /* the residue R / 2^16 and position_step are both below p <= slope_major < 2^31
          * (the rounded direction's scale), so their product is below 2^62: a 64-bit
          * modulo, not a 128-bit one, per ray */
@@ -348,21 +487,12 @@ HF_INLINE int walk_runs_periodic(hf_batch *b, int64_t ray, hf_sink *s, const int
                   (long long)pattern->position_step);
         position = (R / HF_ONE) * pattern->position_step % p;
     }
-    first = L.a0;
-    for (row = L.b0; row < L.b1; ++row) {
-        last = (int32_t)((position == 0 && delta == 0) ? column - 1 : column);
-        if (hf_visit_reduced_run(s, mode, &cull, &f, row, first, last)) {
-            hf_cull_end(&cull, s, mode);
-            return HF_OK;
-        }
-        first = (int32_t)column;
-        column += lengths[position];
-        if (++position == p) position = 0;
-    }
-    if (first > L.a1) return HF_ERR_INTERNAL;
-    hf_visit_reduced_run(s, mode, &cull, &f, L.b1, first, L.a1);
+    status = mode == HF_MODE_HIT && bd.on ? periodic_loop(s, mode, &cull, &L, &f, pattern->lengths,
+                                                          p, column, delta, position, R0, &bd, 1)
+                                          : periodic_loop(s, mode, &cull, &L, &f, pattern->lengths,
+                                                          p, column, delta, position, R0, NULL, 0);
     hf_cull_end(&cull, s, mode);
-    return HF_OK;
+    return status;
 }
 
 HF_DEFINE_BATCH(hf_batch_runs_periodic, walk_runs_periodic)

@@ -26,6 +26,9 @@
 #endif
 __extension__ typedef __int128 hf_i128;
 
+/* Floor division for 128-bit integers, den > 0 (defined at the end). */
+HF_INLINE hf_i128 hf_floor_div(hf_i128 num, hf_i128 den);
+
 /* Debug builds (HFTRACE_DEBUG=1) check invariants and print the values that broke them. */
 #ifdef HF_DEBUG
 #define HF_ASSERT(cond, fmt, ...)                                                         \
@@ -59,6 +62,7 @@ typedef struct {
     int64_t slope_major;      /* A > 0                                            */
     int64_t slope_minor;      /* B, 0 <= B <= A                                   */
     int32_t a0, b0, a1, b1;   /* first and last visited cell, reduced indices     */
+    int scale;                /* the direction's lattice scale s: D = d 2^s rounded */
 } hf_line;
 
 /* Set up the exact line of one ray. max_denominator > 0 selects the runs_periodic slope
@@ -376,6 +380,253 @@ HF_INLINE int hf_ray_end(hf_batch *b, int64_t ray, hf_sink *s, const int mode) {
     return HF_OK;
 }
 
+/* ---- first hits of rays off the lattice: the band ----------------------------------
+ * The exact walks enumerate the cells of the ray rounded onto the lattice (lattice.c);
+ * the surface tests clip the caller's ray to each cell, and the first hit is defined on
+ * the caller's ray (docs/CONVENTIONS.md, "Exactness", "The first hit"). Where the two
+ * rays lie on different sides of a grid line, a cell the caller's ray crosses may be
+ * missing from the walk. In the reduced frame (major x, minor y, the walked line
+ * y(x) = y0 + (x - x0) B/A), the caller's ray p + t q deviates from the walked line at
+ * its own major coordinate by
+ *     y_c(t) - y(x_c(t)) = [(p_y - y0) - (p_x - x0) B/A] + t [q_y - q_x B/A],
+ * so |deviation| <= eps = |first| + max(|t0|, |t1|) |second| over the walk's [t0, t1]
+ * (computed in float64 and inflated by a bound on its own rounding). Every cell the
+ * caller's ray crosses therefore lies in the band: cells (a, b) with some x in [a, a+1)
+ * where y(x) is within eps of [b, b+1], and inside the rectangle [alo, ahi] x [blo, bhi]
+ * that holds the caller's ray itself (its own clipped end points, padded by their
+ * rounding). Row b of the band is the run
+ *     [floor((N(b) - thr) / W), floor((N(b+1) + thr) / W)],   thr >= eps A 2^16,
+ * with N(b) / W the walked line's crossing of y = b (runs.c's exact crossing, W = B 2^16).
+ * It is the walk's run of row b widened at each end; the widening is non-empty only where
+ * the crossing's remainder R is within thr of a column line (R < thr on the left;
+ * R == 0 or R > W - thr on the right), which the walks test per run (per row step in
+ * midpoint): one to three compares per run when the ray is off the lattice, none when it
+ * is on it (eps == 0: the band is off and the walks are the lattice walks, bit for bit).
+ *
+ * Order. The caller's ray crosses the rows in increasing b (B > 0 implies q_y > 0 in the
+ * reduced frame) and the columns of a row in increasing a, so listing the band row by
+ * row, each row from left to right, lists the cells the caller's ray crosses in order of
+ * t; a listed cell the caller's ray does not cross has an empty interval and is not hit.
+ * So the first hit found is still the first hit, and the walks stop there: no earlier
+ * cell of the caller's ray can remain untested, because every one of them lies in an
+ * earlier row of the band or earlier in the same row, both listed before.
+ * A rounded ray parallel to the major axis (B == 0, a vertical ray too) lists the
+ * rectangle row by row in the caller's own direction along y. A rounded ray that meets
+ * no cell lists the caller's rectangle in grid order (hf_band_empty). */
+typedef struct {
+    int on;            /* 0: the caller's ray is the walked line                        */
+    int full;          /* eps too wide for the thresholds: every row's band is [alo, ahi] */
+    int rows_down;     /* B == 0: the caller's y decreases in the reduced frame          */
+    int wide;          /* thr >= W: a row's band reaches past its neighbouring columns   */
+    int64_t thr;       /* eps A 2^16 rounded up, in the units of the crossing N          */
+    int64_t W;         /* B 2^16                                                         */
+    int64_t right_cut; /* W - thr: a larger end remainder widens a run */
+    int32_t alo, ahi, blo, bhi; /* the caller's rectangle, reduced indices      */
+} hf_band;
+
+/* floor(x) clamped into [0, n - 1] (NaN: 0), without a libm call: x is positive and
+ * below n - 1 where it truncates. */
+HF_INLINE int32_t hf_band_floor(double x, int32_t n) {
+    if (!(x > 0)) return 0;
+    return x >= (double)(n - 1) ? n - 1 : (int32_t)x;
+}
+
+/* The caller's cells along one axis (n cells): [*lo, *hi], from its clipped ends padded
+ * by their rounding; an exact start (t0 == 0) and a zero component by the forward rule
+ * ([k, k+1) moving forward or standing, (k, k+1] moving back). */
+HF_INLINE void hf_band_axis(double p, double q, double t0, double t1, int32_t n, int32_t *lo,
+                            int32_t *hi) {
+    if (q == 0) {
+        *lo = *hi = hf_band_floor(p, n);
+        return;
+    }
+    {
+        const double x0 = p + t0 * q, x1 = p + t1 * q;
+        const double mu = (fabs(p) + fabs(t0 * q) + fabs(t1 * q)) * 0x1p-48;
+        *lo = hf_band_floor((x0 < x1 ? x0 : x1) - mu, n);
+        *hi = hf_band_floor((x0 < x1 ? x1 : x0) + mu, n);
+        if (t0 == 0 && q > 0) *lo = hf_band_floor(p, n);
+        if (t0 == 0 && q < 0) {
+            /* (k, k+1]: p itself when it is an integer k + 1 > 0 */
+            const int32_t k = hf_band_floor(p, n);
+            *hi = (p > 0 && p < (double)n && p == (double)k) ? (k > 0 ? k - 1 : 0) : k;
+        }
+        if (*hi < *lo) *hi = *lo;
+    }
+}
+
+/* The band of the caller's ray (h) around the walked line L (non-empty). */
+HF_COLD void hf_band_init(hf_band *bd, const hf_hit *h, const hf_line *L) {
+    const int M = L->swap;
+    const double sM = L->mirror_major ? -1.0 : 1.0, sm = L->mirror_minor ? -1.0 : 1.0;
+    const double pM = M ? h->oy : h->ox, pm = M ? h->ox : h->oy;
+    const double qM = (M ? h->dy : h->dx) * sM, qm = (M ? h->dx : h->dy) * sm;
+    const double unit = 1.0 / (double)HF_ONE;
+    /* the walked origin, unmirrored (exact: integers below 2^53, scaled by 2^-16) */
+    const double OM =
+        (double)(L->mirror_major ? (int64_t)L->n_major * HF_ONE - L->o_major : L->o_major) * unit;
+    const double Om =
+        (double)(L->mirror_minor ? (int64_t)L->n_minor * HF_ONE - L->o_minor : L->o_minor) * unit;
+    const double dM = (pM - OM) * sM, dm = (pm - Om) * sm;
+    const double A = (double)L->slope_major, B = (double)L->slope_minor, k = B / A;
+    const double T = fabs(h->t0) > fabs(h->t1) ? fabs(h->t0) : fabs(h->t1);
+    double eps, scaled;
+    int32_t ilo, ihi, jlo, jhi;
+    bd->on = 0;
+    if (dM == 0 && dm == 0) {
+        /* on the lattice when the direction is the walked one exactly: q 2^s integers
+         * with q_x 2^s = time_major and q_y 2^s / (q_x 2^s) = B / A */
+        const double DM = ldexp(qM, L->scale), Dm = ldexp(qm, L->scale);
+        if (DM == (double)L->time_major && fabs(Dm) < 0x1p53 && Dm == (double)(int64_t)Dm &&
+            (hf_i128)(int64_t)Dm * L->slope_major == (hf_i128)L->slope_minor * L->time_major)
+            return;
+        if (qM == 0 && qm == 0) return; /* vertical, on the lattice */
+    }
+    bd->on = 1;
+    eps = fabs(dm - dM * k) + T * fabs(qm - qM * k);
+    eps += (fabs(dm) + fabs(dM) * k + T * (fabs(qm) + fabs(qM) * k)) * 0x1p-46 + 0x1p-1000;
+    scaled = eps * A * (double)HF_ONE; /* thr */
+    bd->W = L->slope_minor * HF_ONE;
+    bd->full = !(scaled < 0x1p60);
+    bd->thr = bd->full ? ((int64_t)1 << 61) : (int64_t)scaled + 2; /* > scaled */
+    bd->wide = bd->thr >= bd->W;
+    bd->right_cut = bd->W - bd->thr;
+    bd->rows_down = qm < 0;
+    hf_band_axis(h->ox, h->dx, h->t0, h->t1, h->cols - 1, &ilo, &ihi);
+    hf_band_axis(h->oy, h->dy, h->t0, h->t1, h->rows - 1, &jlo, &jhi);
+    {
+        const int32_t lo_M = M ? jlo : ilo, hi_M = M ? jhi : ihi;
+        const int32_t lo_m = M ? ilo : jlo, hi_m = M ? ihi : jhi;
+        bd->alo = L->mirror_major ? L->n_major - 1 - hi_M : lo_M;
+        bd->ahi = L->mirror_major ? L->n_major - 1 - lo_M : hi_M;
+        bd->blo = L->mirror_minor ? L->n_minor - 1 - hi_m : lo_m;
+        bd->bhi = L->mirror_minor ? L->n_minor - 1 - lo_m : hi_m;
+    }
+}
+
+/* Reduced cells lo..hi of row b, each by the general cell path. Returns 1 on a hit. */
+HF_COLD int hf_band_cells(hf_sink *s, const hf_frame *f, int32_t b, int32_t lo, int32_t hi) {
+    int32_t a;
+    for (a = lo; a <= hi; ++a) {
+        const int32_t major = f->base_major + f->sign_major * a;
+        const int32_t minor = f->base_minor + f->sign_minor * b;
+        if (f->swap ? hf_hit_cell(s->hit, minor, major) : hf_hit_cell(s->hit, major, minor))
+            return 1;
+    }
+    return 0;
+}
+
+HF_INLINE int64_t hf_floor_div64(int64_t n, int64_t d) {
+    const int64_t q = n / d;
+    return (n % d != 0 && n < 0) ? q - 1 : q;
+}
+
+/* Row b's band widened to the left of `first`, the row's crossing being column c with
+ * remainder R (N(b) = c W + R). Returns 1 on a hit. */
+HF_COLD int hf_band_left(hf_sink *s, const hf_frame *f, const hf_band *bd, int32_t b, int32_t first,
+                         int64_t c, int64_t R) {
+    int64_t lo = bd->full ? bd->alo : c + hf_floor_div64(R - bd->thr, bd->W);
+    if (lo < bd->alo) lo = bd->alo;
+    return lo < first ? hf_band_cells(s, f, b, (int32_t)lo, first - 1) : 0;
+}
+
+/* Row b's band widened to the right of `last`, the crossing into row b + 1 being column
+ * c with remainder R. Returns 1 on a hit. */
+HF_COLD int hf_band_right(hf_sink *s, const hf_frame *f, const hf_band *bd, int32_t b, int32_t last,
+                          int64_t c, int64_t R) {
+    int64_t hi = bd->full ? bd->ahi : c + hf_floor_div64(R + bd->thr, bd->W);
+    if (hi > bd->ahi) hi = bd->ahi;
+    return hi > last ? hf_band_cells(s, f, b, last + 1, (int32_t)hi) : 0;
+}
+
+/* The crossing of the walked line into row b: N(b) = c W + R. */
+HF_INLINE void hf_band_crossing(const hf_line *L, int64_t b, int64_t *c, int64_t *R) {
+    const hf_i128 W = (hf_i128)L->slope_minor * HF_ONE;
+    const hf_i128 N =
+        (hf_i128)L->o_major * L->slope_minor + ((hf_i128)b * HF_ONE - L->o_minor) * L->slope_major;
+    const hf_i128 q = hf_floor_div(N, W);
+    *c = (int64_t)q;
+    *R = (int64_t)(N - q * W);
+}
+
+/* The whole band row b (outside the walk's rows). Returns 1 on a hit. */
+HF_COLD int hf_band_row(hf_sink *s, const hf_frame *f, const hf_line *L, const hf_band *bd,
+                        int32_t b) {
+    int64_t c, R, lo = bd->alo, hi = bd->ahi;
+    if (!bd->full) {
+        hf_band_crossing(L, b, &c, &R);
+        lo = c + hf_floor_div64(R - bd->thr, bd->W);
+        hf_band_crossing(L, (int64_t)b + 1, &c, &R);
+        hi = c + hf_floor_div64(R + bd->thr, bd->W);
+    }
+    if (lo < bd->alo) lo = bd->alo;
+    if (hi > bd->ahi) hi = bd->ahi;
+    return lo <= hi ? hf_band_cells(s, f, b, (int32_t)lo, (int32_t)hi) : 0;
+}
+
+/* Before the walk's first run (B > 0): the band rows below b0, then row b0 left of a0. */
+HF_COLD int hf_band_start_cold(hf_sink *s, const hf_frame *f, const hf_line *L, const hf_band *bd) {
+    int32_t b;
+    int64_t c, R;
+    for (b = bd->blo; b < L->b0; ++b)
+        if (hf_band_row(s, f, L, bd, b)) return 1;
+    if (bd->alo >= L->a0) return 0;
+    hf_band_crossing(L, L->b0, &c, &R);
+    return hf_band_left(s, f, bd, L->b0, L->a0, c, R);
+}
+
+/* After the walk's last run (B > 0): row b1 right of a1, then the band rows above b1. */
+HF_COLD int hf_band_end_cold(hf_sink *s, const hf_frame *f, const hf_line *L, const hf_band *bd) {
+    int32_t b;
+    if (bd->ahi > L->a1) {
+        int64_t c, R;
+        hf_band_crossing(L, (int64_t)L->b1 + 1, &c, &R);
+        if (hf_band_right(s, f, bd, L->b1, L->a1, c, R)) return 1;
+    }
+    for (b = L->b1 + 1; b <= bd->bhi; ++b)
+        if (hf_band_row(s, f, L, bd, b)) return 1;
+    return 0;
+}
+
+/* The two above, out of line only when the caller's rectangle reaches past the walk's
+ * first (last) cell: a compare or two per ray otherwise. */
+HF_INLINE int hf_band_start(hf_sink *s, const hf_frame *f, const hf_line *L, const hf_band *bd) {
+    return (bd->blo < L->b0 || bd->alo < L->a0) && hf_band_start_cold(s, f, L, bd);
+}
+
+HF_INLINE int hf_band_end(hf_sink *s, const hf_frame *f, const hf_line *L, const hf_band *bd) {
+    return (bd->bhi > L->b1 || bd->ahi > L->a1) && hf_band_end_cold(s, f, L, bd);
+}
+
+/* A walked line parallel to the major axis (B == 0; a vertical ray too): the caller's
+ * rectangle, row by row in its own direction along the minor axis. */
+HF_COLD void hf_band_straight(hf_sink *s, const hf_frame *f, const hf_band *bd) {
+    int32_t b;
+    if (bd->rows_down) {
+        for (b = bd->bhi; b >= bd->blo; --b)
+            if (hf_band_cells(s, f, b, bd->alo, bd->ahi)) return;
+    } else {
+        for (b = bd->blo; b <= bd->bhi; ++b)
+            if (hf_band_cells(s, f, b, bd->alo, bd->ahi)) return;
+    }
+}
+
+/* A rounded ray that meets no cell while the caller's ray (h) may: unless the caller's
+ * ray is the rounded one, its rectangle cell by cell, rows in its direction along y and
+ * columns along x (the order of t, as above). `origin`: the walk's 2D origin. */
+HF_COLD void hf_band_empty(hf_hit *h) {
+    const double o[2] = {h->ox, h->oy}, d[2] = {h->dx, h->dy};
+    double oq[2], dq[2];
+    int32_t ilo, ihi, jlo, jhi, i, j;
+    hf_quantize_ray(o, d, oq, dq);
+    if (oq[0] == o[0] && oq[1] == o[1] && dq[0] == d[0] && dq[1] == d[1]) return;
+    hf_band_axis(h->ox, h->dx, h->t0, h->t1, h->cols - 1, &ilo, &ihi);
+    hf_band_axis(h->oy, h->dy, h->t0, h->t1, h->rows - 1, &jlo, &jhi);
+    for (j = h->dy < 0 ? jhi : jlo; h->dy < 0 ? j >= jlo : j <= jhi; j += h->dy < 0 ? -1 : 1)
+        for (i = h->dx < 0 ? ihi : ilo; h->dx < 0 ? i >= ilo : i <= ihi; i += h->dx < 0 ? -1 : 1)
+            if (hf_hit_cell(h, i, j)) return;
+}
+
 /* The shared start of the exact walks: the exact line (max_denominator > 0: the
  * runs_periodic slope), the sink, the frame and, in HF_MODE_HIT, the carried bound at the
  * first cell. Returns 1 with *status = HF_OK to walk; 0 to return *status (an error, or a
@@ -391,13 +642,18 @@ HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mod
             : hf_line_exact(b->origins + 2 * ray, b->directions + 2 * ray, hf_tmin(b, ray),
                             hf_tmax(b, ray), b->nx, b->ny, max_denominator, L);
     *status = hf_ray_begin(b, ray, s, mode, !L->swap);
-    if (*status != HF_OK || !nonempty) return 0;
+    if (*status != HF_OK) return 0;
+    if (!nonempty) {
+        /* the rounded ray meets no cell: the caller's ray may still (hf_band_empty) */
+        if (mode == HF_MODE_HIT) hf_band_empty(s->hit);
+        return 0;
+    }
     *f = hf_frame_of(L);
     hf_cull_begin_reduced(c, s, mode, f, L->a0, L->b0, runs);
     return 1;
 }
 
-#define HF_DEFINE_BATCH(NAME, WALK)                                        \
+#define HF_DEFINE_BATCH_MODES(NAME, WALK)                                  \
     HF_INLINE int NAME##_loop(hf_batch *b, const int mode, void *ctx) {    \
         int64_t ray;                                                       \
         int status = HF_OK;                                                \
@@ -417,9 +673,6 @@ HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mod
         b->direction_cache = caller_cache;                                 \
         return status;                                                     \
     }                                                                      \
-    int NAME##_hit(hf_batch *b, hf_sink *sink, void *ctx) {                \
-        return WALK(b, 0, sink, HF_MODE_HIT, ctx);                         \
-    }                                                                      \
     int NAME(hf_batch *b, int mode, void *ctx) {                           \
         switch (mode) {                                                    \
         case HF_MODE_COUNT: return NAME##_loop(b, HF_MODE_COUNT, ctx);     \
@@ -429,6 +682,15 @@ HF_INLINE int hf_exact_begin(hf_batch *b, int64_t ray, hf_sink *s, const int mod
         case HF_MODE_RUNFOLD: return NAME##_loop(b, HF_MODE_RUNFOLD, ctx); \
         default: return HF_ERR_ARGUMENT;                                   \
         }                                                                  \
+    }
+
+/* HF_DEFINE_BATCH: the modes above and NAME_hit, the walk in HF_MODE_HIT. A kernel whose
+ * first-hit walk is written apart (midpoint.c) takes HF_DEFINE_BATCH_MODES alone and
+ * defines NAME_hit itself, so that its other modes compile exactly as before. */
+#define HF_DEFINE_BATCH(NAME, WALK)                         \
+    HF_DEFINE_BATCH_MODES(NAME, WALK)                       \
+    int NAME##_hit(hf_batch *b, hf_sink *sink, void *ctx) { \
+        return WALK(b, 0, sink, HF_MODE_HIT, ctx);          \
     }
 
 int hf_batch_dda(hf_batch *b, int mode, void *ctx);
