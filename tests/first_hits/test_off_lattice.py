@@ -129,27 +129,13 @@ def test_off_lattice_rays_match_the_brute_force(field_rays, surface):
             same = np.isfinite(hits.t) == np.isfinite(ref_t)
             both = np.isfinite(hits.t) & np.isfinite(ref_t)
             same[both] &= np.abs(hits.t[both] - ref_t[both]) <= 1e-9 * (1 + np.abs(ref_t[both]))
-            if surface in ("flat", "plane3"):
-                # A run kernel tests a cell of the rounded run that the caller's ray
-                # passes a vertex beside by ~1e-8 on a one-point interval [tb, tb]
-                # (hf_run_cell clamps the previous exit to the span's end); these jumping
-                # surfaces then report the side cell's wall at the vertex. That is the
-                # border rule ("Points on a cell border"), the same with or without the
-                # band, not this change: tolerate only such hits, earlier than the brute
-                # force's, at a point within 1e-7 of a vertex, on a few rays.
-                p = o[:, :2] + np.where(np.isfinite(hits.t), hits.t, 0)[:, None] * d[:, :2]
-                touch = np.all(np.abs(p - np.round(p)) < 1e-7, axis=1) & (hits.t < ref_t)
-                assert (touch & ~same).sum() <= 2, (name, fname, surface)
-                same |= touch
+            # (a run kernel may still meet a side cell of a vertex the caller's ray passes
+            # by ~1e-8 on a one-point interval: the cell test does not take such a cell,
+            # docs/CONVENTIONS.md, "Points on a cell border")
             bad = np.nonzero(~same)[0]
             assert not len(bad), (name, fname, surface, o[bad[0]].tolist(), d[bad[0]].tolist(),
                                   ref_t[bad[0]], hits.t[bad[0]])
             skip = tie.copy()
-            if surface in ("flat", "plane3"):
-                # the same one-point border touches (above), and a hit on the very wall
-                # point where a run kernel's one-point interval lies: the t is right, the
-                # side cell's is reported
-                skip |= touch | (np.any(np.abs(p - np.round(p)) < 1e-6, axis=1) & same)
             cell_bad = np.nonzero(np.any(hits.cell != ref_cell, axis=1) & ~skip)[0]
             assert not len(cell_bad), (name, fname, surface, o[cell_bad[0]].tolist(),
                                        d[cell_bad[0]].tolist(), ref_cell[cell_bad[0]],
