@@ -2,6 +2,7 @@
  * walk (any direction, any distance). See horizon_fast.h for the contracts and
  * algos/terrain.py for the maths. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include "terrain/horizon_fast.h"
 #include "terrain/ray_walk.h"
@@ -331,7 +332,18 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const chain_
      * of the last cell stepped past unseen */
     hf_hz_cell c = hf_hz_cell_faces(r, ci, cj), entry = c;
     if (!(t_end > 0.0)) return;
-    while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
+    /* No footprint test per cell: the walk stays inside. Its first cell is (t_end > 0);
+     * a strip skip moves only to a cell it checks; and a step leaves the footprint only
+     * through a border face, whose parameter is the footprint exit's (the same expression,
+     * so the same bits), at least t_end: the walk ends there before stepping. */
+    for (;;) {
+#ifdef HF_DEBUG
+        if (ci < 0 || ci >= r->nx || cj < 0 || cj >= r->ny) {
+            fprintf(stderr, "hftrace: chain walk left the footprint at cell (%lld, %lld)\n",
+                    (long long)ci, (long long)cj);
+            abort();
+        }
+#endif
         if (b->prune > -HF_HZ_INF) {
             const double *corner;
             double m;
