@@ -209,10 +209,11 @@ static inline int chain_can_skip(const chain_best *b, double m, double t_in, dou
 }
 
 /* One vertex's place in the strips: its along coordinate relative to a_min and its
- * strip's row of bins at each level. */
+ * strip's first level-0 bin; bin b of that strip at level l is base[off[l] + b stride]. */
 typedef struct {
     double along;
-    const float *row[62]; /* the strip's first bin at each level (then every n_strips) */
+    const float *base; /* the strip's first bin at level 0 (then every n_strips) */
+    int64_t off[62];   /* each level's start relative to level 0's, set once per direction */
     /* the strips' shape, copied once per direction: a walk's stores cannot alias them */
     int top;              /* the top level */
     int64_t last, stride; /* the last level-0 bin; n_strips */
@@ -251,7 +252,7 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
     for (;;) {
         /* its ancestor at this level */
         const int64_t slot = bin0 >> level;
-        const double m = v->row[level][slot * stride];
+        const double m = v->base[v->off[level] + slot * stride];
         const int64_t next = (slot + 1) << level;
         const double t_stop = (double)next * bin - along;
         (*tests)++;
@@ -352,7 +353,7 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const chain_
                 if (wait_bin >= 0 && t_in < wait + v->bin) {
                     /* the level-0 bin after the last failed one, tested first here: it
                      * fails most often, near the vertex and the occluder */
-                    const double m0 = v->row[0][wait_bin * v->stride];
+                    const double m0 = v->base[wait_bin * v->stride];
                     const double t_stop = (double)(wait_bin + 1) * v->bin - v->along;
                     if (!chain_can_skip(b, m0, t_in, t_stop < t_end ? t_stop : t_end)) {
                         n_tests++;
@@ -426,6 +427,8 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
     place.stride = strips->n_strips;
     place.bin = strips->bin;
     place.inv_bin = strips->inv_bin;
+    for (int32_t l = 0; l < strips->n_levels; l++)
+        place.off[l] = strips->offset[l] - strips->offset[0];
     for (int64_t block = block_start; block < block_stop; block++) {
         int64_t rank_lo = block * block_rows;
         int64_t rank_hi = rank_lo + block_rows < rows ? rank_lo + block_rows : rows;
@@ -472,8 +475,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                 {
                     const int64_t k = strip_slot(strip_across(dx, dy, r.ox, r.oy), strips->c_min,
                                                  strips->width, strips->n_strips);
-                    for (int32_t l = 0; l < strips->n_levels; l++)
-                        place.row[l] = strips->data + strips->offset[l] + k;
+                    place.base = strips->data + strips->offset[0] + k;
                 }
                 place.along = strip_along(dx, dy, r.ox, r.oy) - strips->a_min;
                 chain_walk(H, rows, cols, &r, &place, t_end, &b, stats);
