@@ -141,10 +141,11 @@ int hf_horizon_strips_frame(int64_t rows, int64_t cols, double dx, double dy, do
     return 0;
 }
 
-/* The index of coordinate v in slots of `size` from `lo`, clamped to [0, n - 1]. */
+/* The index of coordinate v in slots of `size` from `lo`, clamped to [0, n - 1]: floor of
+ * the quotient, by truncation (no libm call): the two differ only below 1, clamped to 0. */
 static inline int64_t strip_slot(double v, double lo, double size, int64_t n) {
-    const double q = floor((v - lo) / size);
-    return q < 0.0 ? 0 : q > (double)(n - 1) ? n - 1 : (int64_t)q;
+    const double q = (v - lo) / size;
+    return q < 1.0 ? 0 : q >= (double)(n - 1) ? n - 1 : (int64_t)q;
 }
 
 void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double dx, double dy,
