@@ -221,6 +221,15 @@ typedef struct {
     double bin, inv_bin;  /* a level-0 bin's length and its inverse */
 } chain_strip;
 
+/* floor(x) (forward) or ceil(x), by truncation (no libm call; |x| far below 2^63 here: a
+ * point of the footprint, give or take a rounding). A zero comes out as +0, where
+ * floor(-0.0) is -0: the walk uses the line only through t_line > t_in >= 0 and the
+ * integer index, alike for both. */
+static inline double chain_line(double x, int forward) {
+    const int64_t k = (int64_t)x;
+    return forward ? (double)(k - ((double)k > x)) : (double)(k + ((double)k < x));
+}
+
 /* Skip the longest stretch of the ray from t_in that bins of its strip prove below the
  * bound: from each certified point, the bin that holds it at one level above the last
  * passed (down to level 0 on a failure), until level 0 fails or the end is covered; pure
@@ -283,14 +292,14 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
      * past: inside the slack the bins were widened by) */
     if (major_x) {
         const double x = r->ox + t * r->dx;
-        const double line = r->sx > 0 ? floor(x) : ceil(x);
+        const double line = chain_line(x, r->sx > 0);
         t_line = (line - r->ox) * r->inv_dx;
         ni = r->sx > 0 ? (int64_t)line : (int64_t)line - 1;
         nj = hf_index_of(r->oy + t_line * r->dy, r->sy >= 0);
         if (nj == r->ny && r->sy == 0) nj = r->ny - 1; /* along the far edge */
     } else {
         const double y = r->oy + t * r->dy;
-        const double line = r->sy > 0 ? floor(y) : ceil(y);
+        const double line = chain_line(y, r->sy > 0);
         t_line = (line - r->oy) * r->inv_dy;
         nj = r->sy > 0 ? (int64_t)line : (int64_t)line - 1;
         ni = hf_index_of(r->ox + t_line * r->dx, r->sx >= 0);
