@@ -206,7 +206,9 @@ void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double
 /* The horizon skip: every point with surface at most m, crossed on [t_in, t_exit], has a
  * ratio at most (m - h) / t there, which is <= prune when this holds. */
 static inline int chain_can_skip(const chain_best *b, double m, double t_in, double t_exit) {
-    return m - b->h <= b->prune * (b->prune >= 0 ? t_in : t_exit);
+    const double rise = m - b->h;
+    if (b->prune >= 0) return rise <= b->prune * t_in;
+    return rise <= b->prune * t_exit;
 }
 
 /* One vertex's place in the strips: its along coordinate relative to a_min and its
