@@ -2,6 +2,7 @@
  * walk (any direction, any distance). See horizon_fast.h for the contracts and
  * algos/terrain.py for the maths. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include "terrain/horizon_fast.h"
 #include "terrain/ray_walk.h"
@@ -140,10 +141,11 @@ int hf_horizon_strips_frame(int64_t rows, int64_t cols, double dx, double dy, do
     return 0;
 }
 
-/* The index of coordinate v in slots of `size` from `lo`, clamped to [0, n - 1]. */
+/* The index of coordinate v in slots of `size` from `lo`, clamped to [0, n - 1]: floor of
+ * the quotient, by truncation (no libm call): the two differ only below 1, clamped to 0. */
 static inline int64_t strip_slot(double v, double lo, double size, int64_t n) {
-    const double q = floor((v - lo) / size);
-    return q < 0.0 ? 0 : q > (double)(n - 1) ? n - 1 : (int64_t)q;
+    const double q = (v - lo) / size;
+    return q < 1.0 ? 0 : q >= (double)(n - 1) ? n - 1 : (int64_t)q;
 }
 
 void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double dx, double dy,
@@ -204,19 +206,31 @@ void hf_horizon_strips_build(const double *H, int64_t rows, int64_t cols, double
 /* The horizon skip: every point with surface at most m, crossed on [t_in, t_exit], has a
  * ratio at most (m - h) / t there, which is <= prune when this holds. */
 static inline int chain_can_skip(const chain_best *b, double m, double t_in, double t_exit) {
-    return m - b->h <= b->prune * (b->prune >= 0 ? t_in : t_exit);
+    const double rise = m - b->h;
+    if (b->prune >= 0) return rise <= b->prune * t_in;
+    return rise <= b->prune * t_exit;
 }
 
 /* One vertex's place in the strips: its along coordinate relative to a_min and its
- * strip's row of bins at each level. */
+ * strip's first level-0 bin; bin b of that strip at level l is base[off[l] + b stride]. */
 typedef struct {
     double along;
-    const float *row[62]; /* the strip's first bin at each level (then every n_strips) */
+    const float *base; /* the strip's first bin at level 0 (then every n_strips) */
+    int64_t off[62];   /* each level's start relative to level 0's, set once per direction */
     /* the strips' shape, copied once per direction: a walk's stores cannot alias them */
     int top;              /* the top level */
     int64_t last, stride; /* the last level-0 bin; n_strips */
     double bin, inv_bin;  /* a level-0 bin's length and its inverse */
 } chain_strip;
+
+/* floor(x) (forward) or ceil(x), by truncation (no libm call; |x| far below 2^63 here: a
+ * point of the footprint, give or take a rounding). A zero comes out as +0, where
+ * floor(-0.0) is -0: the walk uses the line only through t_line > t_in >= 0 and the
+ * integer index, alike for both. */
+static inline double chain_line(double x, int forward) {
+    const int64_t k = (int64_t)x;
+    return forward ? (double)(k - ((double)k > x)) : (double)(k + ((double)k < x));
+}
 
 /* Skip the longest stretch of the ray from t_in that bins of its strip prove below the
  * bound: from each certified point, the bin that holds it at one level above the last
@@ -250,7 +264,7 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
     for (;;) {
         /* its ancestor at this level */
         const int64_t slot = bin0 >> level;
-        const double m = v->row[level][slot * stride];
+        const double m = v->base[v->off[level] + slot * stride];
         const int64_t next = (slot + 1) << level;
         const double t_stop = (double)next * bin - along;
         (*tests)++;
@@ -280,14 +294,14 @@ static int chain_strip_skip(const double *H, int64_t rows, int64_t cols, const c
      * past: inside the slack the bins were widened by) */
     if (major_x) {
         const double x = r->ox + t * r->dx;
-        const double line = r->sx > 0 ? floor(x) : ceil(x);
+        const double line = chain_line(x, r->sx > 0);
         t_line = (line - r->ox) * r->inv_dx;
         ni = r->sx > 0 ? (int64_t)line : (int64_t)line - 1;
         nj = hf_index_of(r->oy + t_line * r->dy, r->sy >= 0);
         if (nj == r->ny && r->sy == 0) nj = r->ny - 1; /* along the far edge */
     } else {
         const double y = r->oy + t * r->dy;
-        const double line = r->sy > 0 ? floor(y) : ceil(y);
+        const double line = chain_line(y, r->sy > 0);
         t_line = (line - r->oy) * r->inv_dy;
         nj = r->sy > 0 ? (int64_t)line : (int64_t)line - 1;
         ni = hf_index_of(r->ox + t_line * r->dx, r->sx >= 0);
@@ -331,7 +345,18 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const chain_
      * of the last cell stepped past unseen */
     hf_hz_cell c = hf_hz_cell_faces(r, ci, cj), entry = c;
     if (!(t_end > 0.0)) return;
-    while (ci >= 0 && ci < r->nx && cj >= 0 && cj < r->ny) {
+    /* No footprint test per cell: the walk stays inside. Its first cell is (t_end > 0);
+     * a strip skip moves only to a cell it checks; and a step leaves the footprint only
+     * through a border face, whose parameter is the footprint exit's (the same expression,
+     * so the same bits), at least t_end: the walk ends there before stepping. */
+    for (;;) {
+#ifdef HF_DEBUG
+        if (ci < 0 || ci >= r->nx || cj < 0 || cj >= r->ny) {
+            fprintf(stderr, "hftrace: chain walk left the footprint at cell (%lld, %lld)\n",
+                    (long long)ci, (long long)cj);
+            abort();
+        }
+#endif
         if (b->prune > -HF_HZ_INF) {
             const double *corner;
             double m;
@@ -340,7 +365,7 @@ static void chain_walk(const double *H, int64_t rows, int64_t cols, const chain_
                 if (wait_bin >= 0 && t_in < wait + v->bin) {
                     /* the level-0 bin after the last failed one, tested first here: it
                      * fails most often, near the vertex and the occluder */
-                    const double m0 = v->row[0][wait_bin * v->stride];
+                    const double m0 = v->base[wait_bin * v->stride];
                     const double t_stop = (double)(wait_bin + 1) * v->bin - v->along;
                     if (!chain_can_skip(b, m0, t_in, t_stop < t_end ? t_stop : t_end)) {
                         n_tests++;
@@ -414,6 +439,8 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
     place.stride = strips->n_strips;
     place.bin = strips->bin;
     place.inv_bin = strips->inv_bin;
+    for (int32_t l = 0; l < strips->n_levels; l++)
+        place.off[l] = strips->offset[l] - strips->offset[0];
     for (int64_t block = block_start; block < block_stop; block++) {
         int64_t rank_lo = block * block_rows;
         int64_t rank_hi = rank_lo + block_rows < rows ? rank_lo + block_rows : rows;
@@ -460,8 +487,7 @@ void hf_horizon_chain(const double *H, int64_t rows, int64_t cols, const hf_hz_s
                 {
                     const int64_t k = strip_slot(strip_across(dx, dy, r.ox, r.oy), strips->c_min,
                                                  strips->width, strips->n_strips);
-                    for (int32_t l = 0; l < strips->n_levels; l++)
-                        place.row[l] = strips->data + strips->offset[l] + k;
+                    place.base = strips->data + strips->offset[0] + k;
                 }
                 place.along = strip_along(dx, dy, r.ox, r.oy) - strips->a_min;
                 chain_walk(H, rows, cols, &r, &place, t_end, &b, stats);
