@@ -89,9 +89,11 @@ typedef struct {
 static inline hf_mip_tile hf_mip_tile_of(const hf_mip_ray *r, int32_t tile_i, int32_t tile_j,
                                          double t_exit_x, double t_exit_y) {
     hf_mip_tile e;
+    int exits;
     e.tile_i = tile_i;
     e.tile_j = tile_j;
-    e.t_exit = hf_tile_exit(t_exit_x, t_exit_y, r->t1, &e.exits);
+    e.t_exit = hf_tile_exit(t_exit_x, t_exit_y, r->t1, &exits);
+    e.exits = exits;
     return e;
 }
 
