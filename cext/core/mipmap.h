@@ -37,6 +37,21 @@ static inline double hf_face_t(int64_t face, double o, double inv) {
     return ((double)face - o) * inv;
 }
 
+/* Which faces of a tile the ray leaves by, and where: t_exit_x, t_exit_y are its exit
+ * parameters through the x and y exit faces (inf along an axis it does not move on) and
+ * t1 the end of its range. Returns t_exit, the first of the three (x before the end, y
+ * before both, ties to the earlier one as written), and sets *exits: bit 0 when it leaves
+ * through the x face, bit 1 through the y face (both at a corner), 0 when the range ends
+ * first. Written with selects and comparisons only: which face a random ray leaves by is
+ * a coin toss, and a conditional jump on it is mispredicted about every other tile. */
+static inline double hf_tile_exit(double t_exit_x, double t_exit_y, double t1, int *exits) {
+    const int ax = t_exit_x < t1;
+    const double m = ax ? t_exit_x : t1;
+    const int ay = t_exit_y < m, both = ax & (t_exit_y == m);
+    *exits = (ax & !ay) | ((ay | both) << 1);
+    return ay ? t_exit_y : m;
+}
+
 /* The ray's lowest z over a tile it crosses on [t_in, t_exit]: z at the exit when it
  * descends, else z at the entry. The tile is skipped when this is above its maximum. */
 static inline double hf_tile_zlow(double oz, double dz, int descending, double t_in,

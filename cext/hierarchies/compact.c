@@ -138,13 +138,23 @@ void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *record
 /* ---- the walk ---------------------------------------------------------------------------- */
 /* The level to test next after moving from cell (oi, oj) to (ni, nj) at `level`: up to the
  * coarsest tile that changed (below the first common ancestor), at most `climb`. A tile
- * the walk has not entered before is never one whose test already failed. */
+ * the walk has not entered before is never one whose test already failed. The tile of
+ * level L changed when the indices differ above bit 2L + 2, so the level is half the
+ * highest differing bit (a count of leading zeros where the compiler has one), not a loop
+ * whose every test is a jump on the ray's path. */
 static inline int compact_climb(int level, int climb, int64_t oi, int64_t oj, int64_t ni,
                                 int64_t nj) {
-    while (level < climb &&
-           (((oi ^ ni) >> (2 * level + 2)) != 0 || ((oj ^ nj) >> (2 * level + 2)) != 0))
-        ++level;
-    return level;
+    const uint64_t diff = (uint64_t)((oi ^ ni) | (oj ^ nj));
+#if defined(__GNUC__) || defined(__clang__)
+    const int top_bit = diff ? 63 - __builtin_clzll(diff) : 0;
+#else
+    int top_bit = 0;
+    uint64_t rest = diff;
+    while (rest >>= 1) ++top_bit;
+#endif
+    const int changed = top_bit >> 1; /* the coarsest level whose tile changed, but 0 */
+    const int up = changed > level ? changed : level;
+    return up < climb ? up : climb;
 }
 
 static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
@@ -177,17 +187,8 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
                 ? hf_compact_bound(hf_compact_node_at(c, level + 1, tile_i >> 2, tile_j >> 2),
                                    hf_compact_slot(tile_i, tile_j))
                 : inf;
-        double t_exit = t1;
-        int axis = -1;
-        if (t_exit_x < t_exit) {
-            t_exit = t_exit_x;
-            axis = 0;
-        }
-        if (t_exit_y < t_exit) {
-            t_exit = t_exit_y;
-            axis = 1;
-        } else if (t_exit_y == t_exit && axis == 0)
-            axis = 2;
+        int exits;
+        const double t_exit = hf_tile_exit(t_exit_x, t_exit_y, t1, &exits);
         if (hf_tile_zlow(oz, dz, descending, t, t_exit) > bound) {
             h->tiles_skipped += 1;
         } else if (level > 1) {
@@ -211,11 +212,11 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
         if (!(t_exit < t1)) return 0;
         {
             /* into the next tile at this level, then up to the coarsest tile that changed */
-            const int64_t ni = hf_tile_next_cell(axis == 0 || axis == 2, tile_i, shift, nx,
-                                                 h->dx >= 0, ox + t_exit * h->dx);
-            const int64_t nj = hf_tile_next_cell(axis == 1 || axis == 2, tile_j, shift, ny,
-                                                 h->dy >= 0, oy + t_exit * h->dy);
-            if (axis < 0 || ni < 0 || ni >= nx || nj < 0 || nj >= ny) return 0;
+            const int64_t ni =
+                hf_tile_next_cell(exits & 1, tile_i, shift, nx, h->dx >= 0, ox + t_exit * h->dx);
+            const int64_t nj =
+                hf_tile_next_cell(exits >> 1, tile_j, shift, ny, h->dy >= 0, oy + t_exit * h->dy);
+            if ((uint64_t)ni >= (uint64_t)nx || (uint64_t)nj >= (uint64_t)ny) return 0;
             level = compact_climb(level, climb, tile_i << shift, tile_j << shift, ni, nj);
             i = (int32_t)ni;
             j = (int32_t)nj;

@@ -78,30 +78,22 @@ static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_r
 }
 
 /* The tile around the walk's cell at its level: its indices, the parameter where the ray
- * leaves it (clipped to t1) and the face it leaves by (0 x, 1 y, 2 both at once, -1 the
- * ray ends first). */
+ * leaves it (clipped to t1) and the faces it leaves by (hf_tile_exit: bit 0 x, bit 1 y,
+ * 0 when the ray ends first). */
 typedef struct {
     int32_t tile_i, tile_j;
     double t_exit;
-    int axis;
+    int exits;
 } hf_mip_tile;
 
 static inline hf_mip_tile hf_mip_tile_of(const hf_mip_ray *r, int32_t tile_i, int32_t tile_j,
                                          double t_exit_x, double t_exit_y) {
     hf_mip_tile e;
+    int exits;
     e.tile_i = tile_i;
     e.tile_j = tile_j;
-    e.t_exit = r->t1;
-    e.axis = -1;
-    if (t_exit_x < e.t_exit) {
-        e.t_exit = t_exit_x;
-        e.axis = 0;
-    }
-    if (t_exit_y < e.t_exit) {
-        e.t_exit = t_exit_y;
-        e.axis = 1;
-    } else if (t_exit_y == e.t_exit && e.axis == 0)
-        e.axis = 2;
+    e.t_exit = hf_tile_exit(t_exit_x, t_exit_y, r->t1, &exits);
+    e.exits = exits;
     return e;
 }
 
@@ -246,12 +238,13 @@ HF_COLD int hf_mip_floor_walk_outlined(hf_hit *h, const hf_mip_ray *r, hf_mip_wa
  * when the ray ends or leaves the grid, else -1 (the walk goes on, one level coarser). */
 static inline int hf_mip_leave_tile(const hf_mip_ray *r, hf_mip_walk *w, const hf_mip_tile *e) {
     int64_t ni, nj;
+    /* (the range ends first exactly when no face is left: then t_exit is t1) */
     if (!(e->t_exit < r->t1)) return 0;
-    ni = hf_tile_next_cell(e->axis == 0 || e->axis == 2, e->tile_i, w->level, r->nx, r->dx >= 0,
+    ni = hf_tile_next_cell(e->exits & 1, e->tile_i, w->level, r->nx, r->dx >= 0,
                            r->ox + e->t_exit * r->dx);
-    nj = hf_tile_next_cell(e->axis == 1 || e->axis == 2, e->tile_j, w->level, r->ny, r->dy >= 0,
+    nj = hf_tile_next_cell(e->exits >> 1, e->tile_j, w->level, r->ny, r->dy >= 0,
                            r->oy + e->t_exit * r->dy);
-    if (e->axis < 0 || ni < 0 || ni >= r->nx || nj < 0 || nj >= r->ny) return 0;
+    if ((uint64_t)ni >= (uint64_t)r->nx || (uint64_t)nj >= (uint64_t)r->ny) return 0;
     w->i = (int32_t)ni;
     w->j = (int32_t)nj;
     w->t = e->t_exit > w->t ? e->t_exit : w->t;
