@@ -83,6 +83,11 @@ struct hf_direction {
 };
 typedef struct hf_direction hf_direction;
 
+/* The rounding of a ray onto the lattice (lattice.c; also declared in core/hftrace.h,
+ * where the bindings take it): what the walks' band compares the caller's ray with. */
+void hf_quantize_ray(const double origin[2], const double direction[2], double origin_out[2],
+                     double direction_out[2]);
+
 /* hf_line_exact with the direction's share kept in `shared` (lattice.c). */
 int hf_line_shared(hf_direction *shared, const double origin[2], const double direction[2],
                    double tmin, double tmax, int32_t nx, int32_t ny, int64_t max_denominator,

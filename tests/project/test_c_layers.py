@@ -127,15 +127,29 @@ class Source:
         """Top-level invocations of this file's function-defining macros (a batch driver
         such as HF_DEFINE_BATCH(name, walk)): the functions they define, and their
         arguments as uses."""
-        for name, (params, body) in self.known_macros.items():
+        for name in self.known_macros:
             for m in re.finditer(rf"\b{name}\s*\(([^()]*)\)", text):
                 args = [a.strip() for a in m.group(1).split(",")]
-                for param, arg in zip(params, args):
-                    for suffix in re.findall(rf"\b{param}\s*##\s*(\w+)\s*\(", body):
-                        self.defined.add(arg + suffix)
-                    if re.search(rf"\bint\s+{param}\s*\(", body):
-                        self.defined.add(arg)
+                self._macro_defines(name, args)
                 self.bodies.append(" ".join(args))
+
+    def _macro_defines(self, name: str, args: list, depth: int = 0):
+        """The functions macro ``name`` defines with ``args``, through the function-
+        defining macros its body invokes in turn (HF_DEFINE_BATCH invokes
+        HF_DEFINE_BATCH_MODES)."""
+        params, body = self.known_macros[name]
+        for param, arg in zip(params, args):
+            for suffix in re.findall(rf"\b{param}\s*##\s*(\w+)\s*\(", body):
+                self.defined.add(arg + suffix)
+            if re.search(rf"\bint\s+{param}\s*\(", body):
+                self.defined.add(arg)
+        if depth >= 4:
+            return
+        for inner in self.known_macros:
+            for m in re.finditer(rf"\b{inner}\s*\(([^()]*)\)", body):
+                value = dict(zip(params, args))
+                inner_args = [value.get(a.strip(), a.strip()) for a in m.group(1).split(",")]
+                self._macro_defines(inner, inner_args, depth + 1)
 
     def used(self) -> set[str]:
         """Identifiers named in bodies, initialisers and macro bodies."""
