@@ -240,7 +240,14 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
         double tau, t, u, v;
         if (fa <= 0) { return hf_hit_at(h, ta, i, j, wall, q.a + q.c * va, q.b + q.c * ua); }
         tau = hf_quadratic_first(qa, qb, fa, tb - ta);
-        if (tau < 0) return 0;
+        if (tau < 0) {
+            /* the range's closed end t1 at or below the surface: on a hair-thin interval
+             * (the z clip's) the local polynomial may round it a hair above; the direct
+             * gap decides there, as the brute force's does */
+            if (tb >= h->t1 && zb <= hf_bilinear_height(h00, &q, ub, vb))
+                return hf_hit_at(h, tb, i, j, -1, q.a + q.c * vb, q.b + q.c * ub);
+            return 0;
+        }
         t = ta + tau;
         u = h->ox + t * h->dx - i;
         v = h->oy + t * h->dy - j;
