@@ -273,7 +273,7 @@ def register(sub):
                        "process per row, one pinned CPU")
     p.add_argument("--tier", choices=("quick", "medium", "full"), default=None,
                    help="quick (tiny fields: checks that every row runs; the default), "
-                        "medium (the targets' sizes but 8192^2: about 20 minutes on a quiet "
+                        "medium (the targets' sizes but 8192^2: about 25 minutes on a quiet "
                         "machine; the default with --publish) or full (8192^2 too)")
     p.add_argument("--full", action="store_true", help="the same as --tier full")
     p.add_argument("--processes", type=positive_int, default=None,
