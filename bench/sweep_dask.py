@@ -23,7 +23,7 @@ from .sweep import (
 from .sweep_config import SweepConfig
 from .timing import environment, write_json
 
-__all__ = ["run_sweep_dask", "dask_client", "measure_task"]
+__all__ = ["run_sweep_dask", "dask_client", "close_client", "measure_task"]
 
 
 def measure_task(ds, label, workload, surface, r, names, rays, repeats, seed, **design):
@@ -80,6 +80,54 @@ def quiet_task_failures() -> None:
             log.addFilter(_NotTaskFailures())
 
 
+def _distributed_levels(level):
+    """Set every "distributed" logger that has a level of its own (the package's config
+    gives some, e.g. distributed.client) to ``level``; return the levels it had."""
+    import logging
+
+    names = ["distributed"] + [n for n in logging.root.manager.loggerDict
+                               if n.startswith("distributed.")]
+    before = {}
+    for name in names:
+        log = logging.getLogger(name)
+        if name == "distributed" or log.level != logging.NOTSET:
+            before[name] = log.level
+            log.setLevel(level)
+    return before
+
+
+def _quiet_teardown() -> None:
+    """On a worker of our own LocalCluster that is about to be closed: log only critical
+    records. A heartbeat in flight when the cluster closes logs "Failed to communicate with
+    scheduler" with a traceback; it is shutdown noise, not a fault of the run."""
+    import logging
+
+    _distributed_levels(logging.CRITICAL)
+
+
+def close_client(client, cluster) -> None:
+    """Close ``client`` and, when :func:`dask_client` started it, ``cluster``. Our own local
+    cluster is closed quietly (its workers, and the scheduler in this process, log only
+    critical records while they shut down), so an error the driver reports stays one line;
+    a remote scheduler's logging is left alone."""
+    import logging
+
+    if cluster is None:
+        client.close()
+        return
+    try:
+        client.run(_quiet_teardown)
+    except Exception:  # a worker already gone: nothing of it left to quiet
+        pass
+    before = _distributed_levels(logging.CRITICAL)
+    try:
+        client.close()
+        cluster.close()
+    finally:
+        for name, level in before.items():
+            logging.getLogger(name).setLevel(level)
+
+
 def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, progress=True,
                    echo=print):
     """The sweep with each group as one task on a Dask worker (single-threaded workers:
@@ -127,8 +175,6 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
         if echo and todo:
             echo(f"{len(todo)} groups measured on {address} in {time.perf_counter() - start:.1f} s")
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        close_client(client, cluster)
     write_json(os.path.join(out_dir, "env.json"), env)
     return read_rows(csv_path)

@@ -72,7 +72,7 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
 
     from datasets_gen.raster import create_product
 
-    from ..sweep_dask import dask_client
+    from ..sweep_dask import close_client, dask_client
 
     if max_distance is None:
         raise ValueError("--max-distance: a tiled (dask) product needs a finite distance "
@@ -132,9 +132,7 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
             da.store(lazy, GeoTiffTarget(path, band), lock=lock, compute=True)
         seconds = time.perf_counter() - start
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        close_client(client, cluster)
     shown = preview_png(path, out + ".png", product=product, units=units, params=params or {},
                         cmap=cmap, border=border)
     if band_names:
