@@ -247,13 +247,15 @@ def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_po
     with np.errstate(over="ignore"):
         heights = data.astype(np.float64) * vertical_scale
         stored = heights.astype(np.float32)
-    mask = ~np.isfinite(heights)
+    # the file's own non-finite samples are the voids; a finite one that the scale takes
+    # beyond float32 (or float64) is refused below, as the window-by-window reader does
+    mask = ~np.isfinite(data) if data.dtype.kind == "f" else np.zeros(data.shape, bool)
     if nodata is not None:
         check_nodata(nodata, data.dtype, None, path)
         mask |= data == nodata
     # a finite sample beyond float32 would become inf in the stored heights: refused here,
     # naming the file, as read_raster does
-    _refuse(np.isinf(stored) & ~mask, str(path), (0, 0),
+    _refuse(~np.isfinite(stored) & ~mask, str(path), (0, 0),
             lambda r, c: (f"{float(heights[r, c])!r}"
                           + (f" once scaled (in the file {data[r, c].item()!r})"
                              if vertical_scale != 1.0 else "")

@@ -414,7 +414,8 @@ class LazyRaster:
     ``dask.array.from_array`` wraps so that each task reads only its own chunk. Pickles as
     its path and options (workers open the file themselves). Heights come out as float32
     in the file's unit (scale, offset and ``vertical_scale`` applied), NaN at voids; a
-    ``.npy`` file is memory-mapped instead."""
+    ``.npy`` file is memory-mapped instead, its NaN and infinite samples voids (as
+    ``load_file``'s default ``nodata_policy="void"``)."""
 
     def __init__(self, path, scale=1.0, band=1):
         self.path = os.fspath(path)
@@ -450,8 +451,12 @@ class LazyRaster:
             window = np.asarray(np.load(self.path, mmap_mode="r", allow_pickle=False)[key])
             corner = tuple(k.indices(n)[0] if isinstance(k, slice) else int(k)
                            for k, n in zip(key, self.shape))
-            heights, _ = _scaled(window, np.zeros(window.shape, bool), 1.0, 0.0, self.scale,
-                                 where=self.path, origin=corner)
+            # a .npy declares no nodata: its NaN and infinite samples are the voids, as
+            # load_file's default nodata_policy "void" reads them in memory
+            voids = ~np.isfinite(window) if window.dtype.kind == "f" else \
+                np.zeros(window.shape, bool)
+            heights, _ = _scaled(window, voids, 1.0, 0.0, self.scale, where=self.path,
+                                 origin=corner)
             return heights
         import rasterio
         from rasterio.windows import Window

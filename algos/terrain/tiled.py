@@ -130,13 +130,25 @@ def viewshed_window(x, y, max_distance, pixel, shape):
             max(0, int(math.floor(x)) - depth_x), min(cols, int(math.ceil(x)) + depth_x + 1))
 
 
-def _window_viewshed(viewshed, wrap, x, y, r0, c0, row_cuts, col_cuts, options, blocks):
-    """One observer's in-memory viewshed on its window. ``blocks`` are the input chunks the
-    window overlaps (rows of chunks, each a list of columns); ``row_cuts[a]`` and
-    ``col_cuts[b]`` cut chunk (a, b) to the window."""
+#: The in-memory viewshed's refusal of an observer on a void, as it begins
+_ON_A_VOID = ") stands on a cell touching a void (nodata) vertex"
+
+
+def _window_viewshed(viewshed, wrap, x, y, r0, c0, row_cuts, col_cuts, options, blocks, k=0):
+    """Observer ``k``'s in-memory viewshed on its window. ``blocks`` are the input chunks
+    the window overlaps (rows of chunks, each a list of columns); ``row_cuts[a]`` and
+    ``col_cuts[b]`` cut chunk (a, b) to the window. An observer on a void is refused as
+    in memory: by its index and its coordinates in the whole array, not the window's."""
     window = np.block([[np.asarray(block)[rows, cols] for block, cols in zip(line, col_cuts)]
                        for line, rows in zip(blocks, row_cuts)])
-    return viewshed(wrap(np.ascontiguousarray(window)), (x - c0, y - r0), **options)
+    try:
+        return viewshed(wrap(np.ascontiguousarray(window)), (x - c0, y - r0), **options)
+    except ValueError as exc:
+        text = str(exc)
+        if not (text.startswith("observer[0]: (") and _ON_A_VOID in text):
+            raise
+        raise ValueError(f"observer[{k}]: ({x:g}, {y:g}{text[text.index(_ON_A_VOID):]}") \
+            from None
 
 
 def _viewshed_chunk(shape, dtype, cuts, *seen):
@@ -215,7 +227,7 @@ def tiled_viewshed(viewshed, heights, observer, max_distance, spacing, **kwargs)
         blocks = [[(arr.name, a, b) for b in chunk_cols] for a in chunk_rows]
         window_layer[(window_name, k)] = (
             partial(_window_viewshed, viewshed, wrap, float(x), float(y), r0, c0, row_cuts,
-                    col_cuts, options), blocks)
+                    col_cuts, options, k=k), blocks)
         # where the window lands in each output chunk it overlaps; a window over several
         # chunks is cut into one piece per chunk (a task beside it), so that each chunk's
         # task receives its part of the window, not all of it

@@ -1,6 +1,7 @@
 """``hftrace horizon|shadows|svf|openness|viewshed``: the terrain products of ``algos.terrain`` on a
 dataset or on any raster GDAL reads, written as a georeferenced GeoTIFF, a PNG with a colour
-bar and an EXR.
+bar and an EXR (``--dask``: the GeoTIFF and the PNG; the EXR writer takes the whole product
+in memory).
 
 What a user's file gets (docs/CONVENTIONS.md, "Terrain products"):
 
@@ -51,6 +52,7 @@ from .terrain_options import (
     azimuths_option,
     check_options,
     observers,
+    observers_tag,
     output_prefix,
     product_options,
     spacing_arg,
@@ -172,8 +174,7 @@ def terrain_product(args):
         with bar:
             result = _viewshed(args, field, obs, common, progress)
         marks = [(c, r) for c, r, _ in obs]
-        params["observers"] = [[round(c, 6), round(r, 6)] + ([h] if h is not None else [])
-                               for c, r, h in obs]
+        params["observers"] = observers_tag(obs)
         product = "viewshed"
         units = "1 = visible" if len(obs) == 1 else "observers that see the vertex"
         cmap = "Greens"
@@ -250,12 +251,15 @@ def register(sub):
                             "jacksboro); default unlimited")
         default = os.path.join(results_dir(kind), kind)
         p.add_argument("--out", default=default,
-                       help=f"output path prefix: PREFIX.tif, .png, .exr (default {default})")
+                       help=f"output path prefix: PREFIX.tif, .png, .exr (--dask: .tif and "
+                            f".png only) (default {default})")
         p.add_argument("--no-progress", action="store_true")
         p.add_argument("--dask", default=None, metavar="ADDRESS",
                        help="tile by tile on a Dask cluster (a scheduler address, or local:N "
                             "for N single-threaded local workers); needs --max-distance; "
-                            "files are read window by window, so they may exceed memory")
+                            "files are read window by window, so they may exceed memory; "
+                            "writes the GeoTIFF and the PNG but no EXR (an EXR is written "
+                            "from the whole product in memory)")
         p.add_argument("--chunk", type=positive_int, default=2048,
                        help="--dask: tile side in samples (default 2048)")
         p.add_argument("--worker-memory", default=None, metavar="BYTES",

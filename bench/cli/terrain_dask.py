@@ -7,7 +7,12 @@ and every finished tile is written straight into the output GeoTIFF by the worke
 computed it (``datasets_gen.raster.create_product`` and ``write_window``, one
 ``distributed.Lock`` per file, since GDAL rewrites whole compressed tiles); nothing of
 field size passes through the driver. The file has the input's grid, CRS, geotransform
-and nodata, as in memory; a PNG preview is drawn from a decimated read.
+and nodata, as in memory; a PNG preview is drawn from a decimated read. No EXR is
+written: the OpenEXR writer takes the whole product as one array in memory, which this
+path never holds (the GeoTIFF has the same values; in memory the EXR is the float32 of
+the GeoTIFF's bands). The files' tags are the in-memory ones, but for ``paths`` (each
+azimuth's algorithm, a statistic of an in-memory call; ``--snap-denominator`` is
+refused here).
 """
 from __future__ import annotations
 
@@ -18,9 +23,17 @@ import time
 import numpy as np
 
 import algos
+from algos.validate import check_length
 
 from .terrain_field import load_terrain
-from .terrain_options import azimuths_option, check_options, observers, output_prefix, product_options
+from .terrain_options import (
+    azimuths_option,
+    check_options,
+    observers,
+    observers_tag,
+    output_prefix,
+    product_options,
+)
 
 __all__ = ["GeoTiffTarget", "run_product", "terrain_product_dask"]
 
@@ -65,8 +78,9 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
     """Compute one product of the lazy ``field`` on the cluster at ``address``
     (``local:N``: a LocalCluster of N single-threaded workers, each limited to
     ``worker_memory``); write ``out``.tif (a band per azimuth for horizons) and
-    ``out``.png. ``observers`` are ``(col, row, height or None)`` in grid coordinates.
-    Returns the paths written."""
+    ``out``.png, no EXR (module docstring). ``observers`` are ``(col, row, height or
+    None)`` in grid coordinates. A failed run removes the GeoTIFF it began. Returns the
+    paths written."""
     import dask.array as da
     from distributed import Lock
 
@@ -74,9 +88,12 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
 
     from ..sweep_dask import close_client, dask_client
 
-    if max_distance is None:
+    if max_distance is not None:
+        check_length(max_distance, "max_distance")  # NaN, negative: the in-memory message
+    if max_distance is None or not math.isfinite(max_distance):
         raise ValueError("--max-distance: a tiled (dask) product needs a finite distance "
-                         "(it is the tiles' halo)")
+                         "(it is the tiles' halo)"
+                         + ("" if max_distance is None else f", got {max_distance}"))
     common = dict(algorithm=algorithm, threads=1)  # one thread per worker
     curve = dict(curvature=curvature, refraction=refraction)
     band_names = border = None
@@ -115,10 +132,12 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
         cmap = "Greens"
     client, cluster = dask_client(address, memory_limit=worker_memory)
     path = out + ".tif"
+    created = False
     try:
         dtype = np.float32 if layers[0].dtype.kind == "f" else layers[0].dtype
         create_product(path, field, dtype=dtype, product=product, units=units, params=params,
                        count=len(layers))
+        created = True
         start = time.perf_counter()
         lock = Lock(os.path.abspath(path))
         # voids (NaN heights of a lazy file, or the field's mask) are written as nodata
@@ -131,6 +150,11 @@ def run_product(kind, field, out, address, *, max_distance, azimuths=(0.0,), n_a
                 lazy = lazy[::-1]
             da.store(lazy, GeoTiffTarget(path, band), lock=lock, compute=True)
         seconds = time.perf_counter() - start
+    except BaseException:
+        # a failed run leaves no half-written GeoTIFF (the in-memory path writes nothing)
+        if created and os.path.exists(path):
+            os.remove(path)
+        raise
     finally:
         close_client(client, cluster)
     shown = preview_png(path, out + ".png", product=product, units=units, params=params or {},
@@ -179,7 +203,9 @@ def terrain_product_dask(args):
     elif kind == "shadows":
         options.update(azimuth=args.azimuth, elevation=args.elevation)
     else:
-        options.update(observers=observers(args, field), observer_height=args.observer_height,
+        obs = observers(args, field)
+        options["params"]["observers"] = observers_tag(obs)  # as in memory
+        options.update(observers=obs, observer_height=args.observer_height,
                        target_height=args.target_height, curvature=args.curvature,
                        refraction=args.refraction)
     if kind != "viewshed":

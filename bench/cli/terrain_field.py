@@ -51,15 +51,16 @@ def load_terrain(args, lazy_chunks=None):
                 if getattr(args, option) is not None:
                     raise ValueError(f"--{option}: not available with --dask (prepare the file "
                                      "first, e.g. with gdalwarp, and give it as it is)")
-            return datasets_gen.open_lazy(source, chunks=lazy_chunks, band=args.band,
-                                          spacing=args.spacing, unit=args.unit,
-                                          vertical_scale=args.vertical_scale)
-        field = datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
-                                       unit=args.unit,
-                                       vertical_scale=args.vertical_scale,
-                                       reproject=args.reproject, nodata_policy=policy,
-                                       fill_value=fill_value)
-        if field.unit == "cell":
+            field = datasets_gen.open_lazy(source, chunks=lazy_chunks, band=args.band,
+                                           spacing=args.spacing, unit=args.unit,
+                                           vertical_scale=args.vertical_scale)
+        else:
+            field = datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
+                                           unit=args.unit,
+                                           vertical_scale=args.vertical_scale,
+                                           reproject=args.reproject, nodata_policy=policy,
+                                           fill_value=fill_value)
+        if field.unit == "cell":  # in memory and with --dask alike
             import sys
 
             print(f"hftrace: note: {source} has no georeferencing and no --spacing: its "

@@ -11,7 +11,7 @@ import algos
 from algos.georef import LINEAR_UNITS, UNIT_ALIASES
 
 __all__ = ["PRODUCTS", "UNIT_CHOICES", "spacing_arg", "viewshed_values", "check_options",
-           "output_prefix", "observers", "azimuths_option", "product_options"]
+           "output_prefix", "observers", "observers_tag", "azimuths_option", "product_options"]
 
 #: The products: command -> help text
 PRODUCTS = (("horizon", "horizon angles (degrees) along azimuths"),
@@ -110,6 +110,12 @@ def observers(args, field):
         raise ValueError("--observer: give at least one observer (--observer X,Y in map "
                          "coordinates, --observer-pixel COL,ROW, or --observers FILE.csv)")
     return out
+
+
+def observers_tag(obs):
+    """The ``observers`` tag of a viewshed's files: ``[[col, row(, height)]]`` of
+    :func:`observers` (grid coordinates; the height when one was given)."""
+    return [[round(c, 6), round(r, 6)] + ([h] if h is not None else []) for c, r, h in obs]
 
 
 def azimuths_option(args):

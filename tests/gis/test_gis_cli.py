@@ -223,7 +223,8 @@ def test_dask_south_up_equals_in_memory_and_halo_may_exceed_the_raster(tmp_path)
 def test_dask_bad_sample_is_one_line_without_the_workers_task_dump(tmp_path):
     """Found by a new user's trial: a sample beyond float32 in a .npy read window by
     window was refused, but the local workers first logged the failed task with its
-    arguments and traceback. Now stderr is the one error line, naming the file's sample."""
+    arguments and traceback. Now stderr is the one error line, naming the file's sample
+    (after the note on a file without georeferencing, which both paths print)."""
     heights = np.zeros((64, 64))
     heights[10, 20] = 1e39
     path = tmp_path / "e39.npy"
@@ -235,7 +236,11 @@ def test_dask_bad_sample_is_one_line_without_the_workers_task_dump(tmp_path):
                           capture_output=True, text=True)
     assert done.returncode == 2, done.stderr[-3000:]
     lines = [x for x in done.stderr.splitlines() if x.strip()]
-    assert lines == [f"hftrace: error: {path}: the sample at row 10, column 20 is 1e+39, beyond "
+    # the note the in-memory path prints on loading a file without georeferencing (the
+    # lazy load reads no sample, so it comes before the error), then the one error line
+    assert lines[0] == (f"hftrace: note: {path} has no georeferencing and no --spacing: its "
+                        "heights are taken in multiples of the pixel size (cell units)")
+    assert lines[1:] == [f"hftrace: error: {path}: the sample at row 10, column 20 is 1e+39, beyond "
                      "float32 (heights are held in float32, |h| <= 3.4e38); 1 sample(s) in all. "
                      "If it marks voids, declare it as the nodata value; otherwise rescale the "
                      "heights"], done.stderr[-3000:]

@@ -116,10 +116,18 @@ def test_voids(fbm):
     for md in (12.0, 60.0, None):
         _same(algos.viewshed(lazy, many, max_distance=md),
               algos.viewshed(holes, many, max_distance=md), f"voids, max_distance {md}")
-    # an observer on a void is refused when the heights are read, with the in-memory message
-    seen = algos.viewshed(lazy, [(50.0, 30.0), (64.5, 40.5)], max_distance=12.0)
-    with pytest.raises(ValueError, match="stands on a cell touching a void"):
+    # an observer on a void is refused when the heights are read, with the in-memory
+    # message: its index and coordinates in the whole array, not in its window (a new
+    # user's trial saw "observer[0]: (6, 6)" for observer 1 at (64.5, 40.5))
+    observers = [(50.0, 30.0), (64.5, 40.5)]
+    seen = algos.viewshed(lazy, observers, max_distance=12.0)
+    with pytest.raises(ValueError) as lazy_error:
         seen.compute()
+    with pytest.raises(ValueError) as memory_error:
+        algos.viewshed(holes, observers, max_distance=12.0)
+    assert str(lazy_error.value) == str(memory_error.value)
+    assert str(lazy_error.value).startswith("observer[1]: (64.5, 40.5) stands on a cell "
+                                            "touching a void")
 
 
 def test_bad_observers_and_distances_are_refused_at_once():
