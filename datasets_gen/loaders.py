@@ -37,7 +37,7 @@ from algos.validate import check_spacing
 
 from .cache import cached_array
 from .fields import det_cos
-from .raster import LazyRaster, _refuse, read_raster
+from .raster import LazyRaster, _refuse, is_line, read_raster, thicken_line, too_small
 
 __all__ = ["HeightField", "LoaderError", "load_file", "jacksboro", "resample_bilinear",
            "NODATA_POLICIES", "open_lazy", "LazyRaster", "RASTER_EXTENSIONS"]
@@ -113,7 +113,7 @@ def _read_exr(path, channel):
 
 def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_policy="void",
               fill_value=None, key=None, channel=None, band=1, reproject=None,
-              unit=None) -> HeightField:
+              unit=None, lines=False) -> HeightField:
     """Read a height field from a raster GDAL reads (``.tif``/``.tiff``/``.vrt`` and the
     other :data:`RASTER_EXTENSIONS`, through :func:`datasets_gen.raster.read_raster`),
     ``.npy``, ``.npz``, 8/16-bit grayscale ``.png``/``.jpg``/``.jpeg`` or single-channel
@@ -148,6 +148,12 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
         such as "metre"). Default none: cell units, or "map unit" with a ``spacing``,
         which curvature refuses. A georeferenced file's CRS gives its unit; a ``unit``
         that contradicts it raises.
+    lines : bool
+        Accept a one-row or one-column file (a line, which only :func:`algos.viewshed`
+        takes): the field holds the line twice, as two rows (columns), and
+        ``params["line"]`` gives the file's shape and the rows and columns of the field
+        that are its own samples (:func:`datasets_gen.raster.thicken_line`). Default
+        False: such a file raises (a height field needs 2 x 2 samples).
 
     Returns
     -------
@@ -166,7 +172,7 @@ def load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_pol
     return with_unit(_load_file(path, spacing=spacing, vertical_scale=vertical_scale,
                                 nodata=nodata, nodata_policy=nodata_policy,
                                 fill_value=fill_value, key=key, channel=channel, band=band,
-                                reproject=reproject, unit=unit), unit)
+                                reproject=reproject, unit=unit, lines=lines), unit)
 
 
 def with_unit(field, unit):
@@ -182,7 +188,7 @@ def with_unit(field, unit):
 
 def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_policy="void",
                fill_value=None, key=None, channel=None, band=1, reproject=None,
-               unit=None) -> HeightField:
+               unit=None, lines=False) -> HeightField:
     """The body of :func:`load_file` (without the unit change)."""
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -198,7 +204,7 @@ def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_po
     ext = os.path.splitext(path)[1].lower()
     if ext in RASTER_EXTENSIONS:
         field = read_raster(path, band=band, spacing=spacing, vertical_scale=vertical_scale,
-                            nodata=nodata, reproject=reproject)
+                            nodata=nodata, reproject=reproject, lines=lines)
         if nodata_policy != "void" and field.nodata_mask is not None:
             heights, _ = _apply_nodata(field.heights, path, field.nodata_mask, nodata_policy,
                                        fill_value)
@@ -240,8 +246,11 @@ def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_po
     data = np.asarray(data)
     if data.ndim != 2:
         raise ValueError(f"{path}: expected a 2D height array, got shape {data.shape}")
+    line = None
+    if lines and is_line(data.shape):
+        data, _, line = thicken_line(data, np.zeros(data.shape, bool))
     if data.shape[0] < 2 or data.shape[1] < 2:
-        raise ValueError(f"{path}: a height field needs at least 2 x 2 samples, got {data.shape}")
+        raise too_small(path, data.shape)
     if data.dtype.kind not in "fiu":
         raise ValueError(f"{path}: heights must be real numbers, got dtype {data.dtype}")
     with np.errstate(over="ignore"):
@@ -266,7 +275,8 @@ def _load_file(path, *, spacing=None, vertical_scale=1.0, nodata=None, nodata_po
     return HeightField(heights, os.path.basename(path), spacing=spacing,
                        nodata_mask=mask,
                        params=dict(path=path, spacing=spacing, vertical_scale=vertical_scale,
-                                   nodata=nodata, nodata_policy=nodata_policy))
+                                   nodata=nodata, nodata_policy=nodata_policy,
+                                   **({} if line is None else {"line": line})))
 
 
 def _mapped(path, ext, spacing, vertical_scale, nodata, policy):
@@ -397,6 +407,8 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
     if not (math.isfinite(vertical_scale) and vertical_scale != 0):
         raise ValueError(f"vertical_scale: must be a non-zero finite number, got {vertical_scale}")
     raster = LazyRaster(path, scale=vertical_scale, band=band)
+    if min(raster.shape) < 2:  # as load_file says it
+        raise too_small(path, raster.shape)
     heights = da.from_array(raster, chunks=chunks, asarray=False, lock=False, fancy=False)
     params = dict(path=path, spacing=spacing, vertical_scale=vertical_scale, lazy=True,
                   chunks=chunks, band=band)

@@ -23,7 +23,8 @@ def pixel_to_grid(field, col, row, *, what=None):
     """Grid ``(col, row)`` of the stored array from a pixel counted from the north-west
     corner (north-up rows); raises ValueError echoing ``what`` outside the footprint."""
     typed = what if what is not None else f"{col},{row}"
-    rows, cols = field.shape
+    # a line (load_file(lines=True)) is held twice; its pixels are the file's own
+    rows, cols = field.params.get("line", {}).get("shape", field.shape)
     if not (0 <= col <= cols - 1 and 0 <= row <= rows - 1):
         raise ValueError(f"observer pixel {typed}: outside {field.name}, whose columns are "
                          f"0..{cols - 1} and rows 0..{rows - 1} (row 0 north)")

@@ -59,7 +59,8 @@ from algos.georef import (
 )
 
 __all__ = ["read_raster", "check_crs", "crs_unit", "write_product", "create_product", "write_window",
-           "product_nodata", "save_product", "LazyRaster", "REPROJECT"]
+           "product_nodata", "save_product", "LazyRaster", "REPROJECT", "thicken_line", "is_line",
+           "too_small"]
 
 #: What ``reproject=`` accepts: None (refuse a geographic CRS) or "utm".
 REPROJECT = (None, "utm")
@@ -123,8 +124,42 @@ def _scaled(raw, mask, scale, offset, vertical_scale, where="the raster", origin
     return heights, mask
 
 
+def thicken_line(raw, mask, *, before=False):
+    """A one-row or one-column raster (``raw`` and its void ``mask``) as a field: the line
+    repeated to two rows (columns), ``before`` (a one-row raster stored south-up) with the
+    copy first so that the line is the northern row. Returns ``(raw, mask, line)``, where
+    ``line`` says where the file's own samples are: ``{"shape": (rows, cols), "rows": (r0,
+    r1), "cols": (c0, c1)}``. Along the line the surface of the doubled field is the
+    polyline through its samples, as :func:`algos.viewshed` reads a one-row array."""
+    rows, cols = raw.shape
+    axis = 0 if rows == 1 else 1
+    order = (1, 0) if before else (0, 1)
+    raw2 = np.concatenate([raw, raw], axis=axis)
+    mask2 = np.concatenate([mask, mask], axis=axis)
+    start = order[0]
+    line = {"shape": (rows, cols),
+            "rows": (start, start + 1) if axis == 0 else (0, rows),
+            "cols": (0, cols) if axis == 0 else (0, 1)}
+    return raw2, mask2, line
+
+
+def is_line(shape):
+    """Whether ``shape`` is a one-row or one-column raster of at least two samples."""
+    return len(shape) == 2 and min(shape) == 1 and max(shape) >= 2
+
+
+def too_small(path, shape):
+    """The ValueError of a file with fewer than 2 x 2 samples (every reader's, in memory
+    and window by window); a line is told where it is taken."""
+    text = f"{path}: a height field needs at least 2 x 2 samples, got {tuple(shape)}"
+    if is_line(shape):
+        text += ("; a one-row or one-column file is a line, which only the viewshed takes, "
+                 "in memory (load_file(lines=True); hftrace viewshed without --dask)")
+    return ValueError(text)
+
+
 def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
-                reproject=None) -> HeightField:
+                reproject=None, lines=False) -> HeightField:
     """A HeightField from any raster GDAL reads (see the module docstring).
 
     Parameters
@@ -144,6 +179,10 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
     reproject : None or "utm"
         What to do with a geographic CRS: refuse (None) or reproject to the UTM zone of
         the centre.
+    lines : bool
+        Accept a one-row or one-column raster (a line, which only the viewshed takes):
+        the field holds it twice (:func:`thicken_line`) and ``params["line"]`` says where
+        its own samples are. Default False: such a raster raises.
 
     Returns
     -------
@@ -224,6 +263,18 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
         ratio = height_units_factor(band_units, unit) if mixed is None else None
         if ratio is not None:
             mixed = (band_units, ratio)
+    line = None
+    if lines and is_line(raw.shape):
+        # a one-row raster stored south-up keeps its line the northern row, its place on
+        # the map unchanged (the copy one pixel south of it)
+        south_up = georef and raw.shape[0] == 1 and transform.e > 0
+        raw, mask, line = thicken_line(raw, mask, before=south_up)
+        if south_up:
+            from affine import Affine
+
+            transform = transform @ Affine.translation(0, -1)
+    if min(raw.shape) < 2:
+        raise too_small(path, raw.shape)
     heights, mask = _scaled(raw, mask, scale, offset,
                             vertical_scale * (mixed[1] if mixed else 1.0), where=str(path))
     params = dict(path=path, band=band, scale=scale, offset=offset,
@@ -232,6 +283,8 @@ def read_raster(path, *, band=1, spacing=None, vertical_scale=1.0, nodata=None,
                   reprojected=reproject if geographic else None)
     if mixed:
         params.update(heights_converted_from=mixed[0], heights_factor=mixed[1])
+    if line is not None:
+        params["line"] = line
     if georef:
         return HeightField(heights, os.path.basename(path), unit=unit, crs=crs,
                            transform=transform, nodata_mask=mask, params=params)
@@ -288,9 +341,25 @@ def _grid_of(field):
     return Affine(dx, 0.0, -dx / 2, 0.0, -dy, dy / 2), field.crs, not field.north_up
 
 
-def _profile(field, count, dtype, nodata, blocksize=256, compress="deflate"):
-    transform, crs, _ = _grid_of(field)
-    rows, cols = field.shape
+def _window_shape(field, window):
+    """``(rows, cols)`` of ``field``'s grid cut to ``window`` (row and column slices of
+    the stored array; None: all of it)."""
+    if window is None:
+        return field.shape
+    return tuple(len(range(*s.indices(n))) for s, n in zip(window, field.shape))
+
+
+def _profile(field, count, dtype, nodata, blocksize=256, compress="deflate", window=None):
+    transform, crs, flip = _grid_of(field)
+    rows, cols = _window_shape(field, window)
+    if window is not None:
+        from affine import Affine
+
+        if flip:
+            raise ValueError("window: a field without georeferencing stored south-up is "
+                             "written flipped; cut it after to_north_up")
+        (r0, _, _), (c0, _, _) = (s.indices(n) for s, n in zip(window, field.shape))
+        transform = transform @ Affine.translation(c0, r0)  # the window's first pixel
     tiled = rows >= 16 and cols >= 16
     profile = dict(driver="GTiff", height=rows, width=cols, count=count, dtype=dtype.name,
                    crs=crs, transform=transform, nodata=nodata, compress=compress,
@@ -309,7 +378,7 @@ def _tags(product, units, params):
 
 
 def write_product(path, array, field, *, product, units, params=None, band_names=None,
-                  compress="deflate") -> str:
+                  compress="deflate", window=None) -> str:
     """Write a terrain product as a tiled, compressed GeoTIFF on ``field``'s grid.
 
     Parameters
@@ -328,6 +397,10 @@ def write_product(path, array, field, *, product, units, params=None, band_names
         The product's parameters, recorded as tags (``azimuth``, ``max_distance``, ...).
     band_names : sequence of str, optional
         One description per band (e.g. "azimuth 90").
+    window : (slice, slice), optional
+        The rows and columns of ``field``'s stored grid that ``array`` covers (a line's
+        own samples, ``params["line"]``); the file is that window of the grid, with its
+        geotransform. Default: the whole grid.
 
     Returns
     -------
@@ -340,17 +413,19 @@ def write_product(path, array, field, *, product, units, params=None, band_names
     values = np.asarray(array)
     if values.ndim == 2:
         values = values[None]
-    if values.ndim != 3 or values.shape[1:] != field.shape:
-        raise ValueError(f"array: expected shape {field.shape} or (K, *{field.shape}), got "
+    shape = _window_shape(field, window)
+    if values.ndim != 3 or values.shape[1:] != shape:
+        raise ValueError(f"array: expected shape {shape} or (K, *{shape}), got "
                          f"{np.shape(array)}")
     dtype, nodata = product_nodata(values.dtype)
     data = values.astype(dtype)
     if field.nodata_mask is not None:
-        data[:, np.asarray(field.nodata_mask)] = nodata
+        voids = np.asarray(field.nodata_mask)
+        data[:, voids if window is None else voids[window]] = nodata
+    profile = _profile(field, len(data), dtype, nodata, compress=compress, window=window)
     _, _, flip = _grid_of(field)
     if flip:
         data = field.to_north_up(data)
-    profile = _profile(field, len(data), dtype, nodata, compress=compress)
     with rasterio.open(path, "w", **profile) as dst:
         dst.write(data)
         dst.update_tags(**_tags(product, units, params))
@@ -486,19 +561,21 @@ class LazyRaster:
 
 
 def save_product(prefix, array, field, *, product, units, params=None, band_names=None,
-                 observers=None, cmap="viridis", border=None) -> list[str]:
-    """What a command writes for one product: ``prefix.tif`` (:func:`write_product`) and
-    ``prefix.png`` (:func:`datasets_gen.preview.product_png`, the first band for a
-    multi-band array). Returns the two paths."""
+                 observers=None, cmap="viridis", border=None, window=None) -> list[str]:
+    """What a command writes for one product: ``prefix.tif`` (:func:`write_product`, of
+    ``window`` of the field's grid when given) and ``prefix.png``
+    (:func:`datasets_gen.preview.product_png`, the first band for a multi-band array; a
+    window is drawn as stored, ``observers`` in its coordinates). Returns the two paths."""
     from .preview import product_png
 
     tif = write_product(f"{prefix}.tif", array, field, product=product, units=units,
-                        params=params, band_names=band_names)
+                        params=params, band_names=band_names, window=window)
     first = np.asarray(array)
     first = first[0] if first.ndim == 3 else first
     shown = dict(params or {})
     if band_names is not None and np.asarray(array).ndim == 3:
         shown["band"] = band_names[0]
-    png = product_png(f"{prefix}.png", first, field, product=product, units=units,
+    png = product_png(f"{prefix}.png", first, field if window is None else None,
+                      product=product, units=units,
                       params=shown, observers=observers, cmap=cmap, border=border)
     return [tif, png]

@@ -95,6 +95,9 @@ def _thicken(heights, observer):
     shape = np.shape(heights)
     if len(shape) != 2 or min(shape) != 1 or max(shape) > _kernels.MAX_GRID_SIDE:
         return heights, None
+    if shape == (1, 1):  # repeated it would be named (2, 1), a shape the caller never gave
+        raise ValueError("heights: one sample (shape (1, 1)) is neither a line nor a field; "
+                         "a viewshed needs at least two samples in a row or a column")
     rows, cols = shape
     for k, (x, y) in enumerate(np.atleast_2d(np.asarray(observer, dtype=np.float64))):
         if not ((y == 0 and 0 <= x <= cols - 1) if rows == 1 else (x == 0 and 0 <= y <= rows - 1)):

@@ -116,6 +116,20 @@ def _viewshed(args, field, obs, common, progress):
     return count > 0 if len(obs) == 1 else count
 
 
+def _on_the_line(obs, line):
+    """The observers of a line (``field.params["line"]``, :func:`datasets_gen.load_file`
+    with ``lines=True``) checked as :func:`algos.viewshed` checks a one-row array's: on
+    the line, else ValueError with the API's message, in the line's coordinates."""
+    rows, cols = line["shape"]
+    r0, c0 = line["rows"][0], line["cols"][0]
+    for k, (c, r, _) in enumerate(obs):
+        x, y = c - c0, r - r0
+        if not ((y == 0 and 0 <= x <= cols - 1) if rows == 1 else (x == 0 and 0 <= y <= rows - 1)):
+            raise ValueError(f"observer[{k}]: ({x}, {y}) outside the footprint "
+                             f"[0, {cols - 1}] x [0, {rows - 1}] of a one-"
+                             f"{'row' if rows == 1 else 'column'} raster (a line)")
+
+
 def terrain_product(args):
     """Compute one product with ``algos`` and write it (module docstring)."""
     if args.dask:
@@ -136,7 +150,7 @@ def terrain_product(args):
     ran = {} if kind == "viewshed" else dict(return_stats=True)
     md = args.max_distance
     params = product_options(args, field)
-    band_names, marks, border, cmap = None, None, None, "viridis"
+    band_names, marks, border, cmap, window = None, None, None, "viridis", None
     curve = {} if kind == "viewshed" else dict(curvature=args.curvature,
                                                  refraction=args.refraction)
     if kind in ("horizon", "svf", "openness"):
@@ -170,10 +184,18 @@ def terrain_product(args):
         params.update(_path_tags(stats))
     else:
         obs = observers(args, field)
+        line = field.params.get("line")
+        if line is not None:  # held twice (two rows or columns): the line's own samples
+            _on_the_line(obs, line)
+            window = (slice(*line["rows"]), slice(*line["cols"]))
         bar, progress = _bar(args, len(obs), f"viewshed {field.name}", "observer")
         with bar:
             result = _viewshed(args, field, obs, common, progress)
         marks = [(c, r) for c, r, _ in obs]
+        if window is not None:
+            result = result[window]
+            marks = [(c - window[1].start, r - window[0].start) for c, r in marks]
+            obs = [(c - window[1].start, r - window[0].start, h) for c, r, h in obs]
         params["observers"] = observers_tag(obs)
         product = "viewshed"
         units = "1 = visible" if len(obs) == 1 else "observers that see the vertex"
@@ -188,19 +210,23 @@ def terrain_product(args):
                     "out_of_range_value)"
     os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
     paths = save_product(args.out, result, field, product=product, units=units, params=params,
-                         band_names=band_names, observers=marks, cmap=cmap, border=border)
+                         band_names=band_names, observers=marks, cmap=cmap, border=border,
+                         window=window)
     values = np.asarray(result, dtype=np.float32)
     channels = ({"Y": values} if values.ndim == 2
                 else {name.replace(" ", "_"): v for name, v in zip(band_names, values)})
     write_exr(args.out + ".exr", channels)
     paths.append(args.out + ".exr")
-    valid = values[np.isfinite(values)] if field.nodata_mask is None else \
-        values[..., ~np.asarray(field.nodata_mask)]
+    voids = None if field.nodata_mask is None else np.asarray(field.nodata_mask)
+    if voids is not None and window is not None:
+        voids = voids[window]
+    valid = values[np.isfinite(values)] if voids is None else values[..., ~voids]
     valid = valid[np.isfinite(valid)]
     summary = (f"min {valid.min():.4g}, mean {valid.mean():.4g}, max {valid.max():.4g}"
                if valid.size else "no valid vertex")
-    voids = 0 if field.nodata_mask is None else int(np.count_nonzero(field.nodata_mask))
-    print(f"{product} ({units}): {field.name} {field.shape[0]}x{field.shape[1]}"
+    voids = 0 if voids is None else int(np.count_nonzero(voids))
+    rows, cols = values.shape[-2:]
+    print(f"{product} ({units}): {field.name} {rows}x{cols}"
           f"{f', {voids} void vertices (nodata)' if voids else ''}, {summary} -> "
           f"{', '.join(paths)}")
     return 0

@@ -55,11 +55,14 @@ def load_terrain(args, lazy_chunks=None):
                                            spacing=args.spacing, unit=args.unit,
                                            vertical_scale=args.vertical_scale)
         else:
+            # a one-row or one-column file is a line, which the viewshed takes (as
+            # algos.viewshed does a one-row array)
             field = datasets_gen.load_file(source, band=args.band, spacing=args.spacing,
                                            unit=args.unit,
                                            vertical_scale=args.vertical_scale,
                                            reproject=args.reproject, nodata_policy=policy,
-                                           fill_value=fill_value)
+                                           fill_value=fill_value,
+                                           lines=args.command == "viewshed")
         if field.unit == "cell":  # in memory and with --dask alike
             import sys
 

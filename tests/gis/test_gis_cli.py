@@ -507,3 +507,124 @@ def test_a_gcp_georeferenced_dem_is_refused_not_called_ungeoreferenced(tmp_path,
             f"gdalwarp -t_srs EPSG:32615 -r bilinear {path}" in stderr
         assert "has no georeferencing" not in stderr and "Traceback" not in stderr
         assert len(stderr.strip().splitlines()) == 1
+
+
+# ---- a one-row or one-column raster: a line, which the viewshed takes (as the API) -----
+
+def _line_heights(shape):
+    """Heights along a line: a ridge and a valley, so that some vertices are hidden."""
+    n = max(shape)
+    t = np.arange(n, dtype=np.float64)
+    return (20.0 * np.sin(t / 3.0) + 0.5 * t).astype(np.float32).reshape(shape)
+
+
+@pytest.mark.parametrize("shape", [(1, 40), (40, 1)])
+def test_viewshed_of_a_one_row_or_column_npy_equals_the_api(tmp_path, capsys, shape):
+    """Found by a new user's trial: ``hftrace viewshed`` refused a one-row raster ("needs at
+    least 2 x 2 samples"), which ``algos.viewshed`` takes as a line."""
+    h = _line_heights(shape)
+    path = str(tmp_path / "line.npy")
+    np.save(path, h)
+    at = (7, 0) if shape[0] == 1 else (0, 7)
+    for extra, api in (([], {}), (["--max-distance", "12"], {"max_distance": 12.0}),
+                       (["--observer-height", "30"], {"observer_height": 30.0}),
+                       (["--mode", "angle"], {"mode": "angle"}),
+                       (["--mode", "ground"], {"mode": "ground"})):
+        out = str(tmp_path / "vs")
+        code, stdout, stderr = run(["viewshed", path, "--observer-pixel", f"{at[0]},{at[1]}",
+                                    "--out", out, "--no-progress", *extra], capsys)
+        assert code == 0, stderr
+        want = algos.viewshed(h, at, **api)
+        assert want.shape == shape
+        if "mode" in api:  # files hold degrees; the API gives radians
+            want = (np.degrees(want) if api["mode"] == "angle" else want).astype(np.float32)
+        else:
+            assert 0 < want.sum() < want.size  # seen and hidden vertices
+            want = want.astype(np.uint8)
+        with rasterio.open(out + ".tif") as src:
+            assert (src.height, src.width) == shape
+            np.testing.assert_array_equal(src.read(1), want)
+        import OpenEXR
+
+        with OpenEXR.File(out + ".exr") as f:
+            exr = np.array(f.channels()["Y"].pixels)
+        np.testing.assert_array_equal(exr, want.astype(np.float32))
+        assert f"{shape[0]}x{shape[1]}" in stdout
+
+
+def test_viewshed_of_a_one_row_geotiff_keeps_its_place_north_up_and_south_up(tmp_path, capsys):
+    h = _line_heights((1, 30))
+    x, y = NORTH_UP @ (12 + 0.5, 0 + 0.5)  # the centre of pixel 12
+    want = algos.viewshed(h, (12, 0), spacing=30.0, max_distance=400.0)
+    south_up = Affine(30.0, 0.0, 600000.0, 0.0, 30.0, 3650000.0)
+    for transform in (NORTH_UP, south_up):
+        path = write_tif(tmp_path / "line.tif", h, transform=transform)
+        x, y = transform @ (12 + 0.5, 0 + 0.5)
+        for observer in (["--observer", f"{x},{y}"], ["--observer-pixel", "12,0"]):
+            out = str(tmp_path / "vs")
+            code, _, stderr = run(["viewshed", path, *observer, "--max-distance", "400",
+                                   "--out", out, "--no-progress"], capsys)
+            assert code == 0, stderr
+            with rasterio.open(out + ".tif") as src:
+                assert src.transform == transform and (src.height, src.width) == (1, 30)
+                assert src.tags()["observers"] == "[[12.0, 0.0]]"
+                np.testing.assert_array_equal(src.read(1), want.astype(np.uint8))
+
+
+def test_an_observer_off_the_line_is_refused_as_the_api_refuses_it(tmp_path, capsys):
+    h = _line_heights((1, 20))
+    with pytest.raises(ValueError) as api:
+        algos.viewshed(h, [(3.0, 0.0), (4.5, 0.5)])
+    assert str(api.value).startswith("observer[1]: (4.5, 0.5) outside the footprint [0, 19] x "
+                                     "[0, 0] of a one-row raster (a line)")
+    # map coordinates half a pixel south of the line: the API's message, same coordinates
+    path = write_tif(tmp_path / "line.tif", h)
+    on, off = NORTH_UP @ (3 + 0.5, 0 + 0.5), NORTH_UP @ (4.5 + 0.5, 0.5 + 0.5)
+    code, _, stderr = run(["viewshed", path, "--observer", f"{on[0]},{on[1]}", "--observer",
+                           f"{off[0]},{off[1]}", "--out", str(tmp_path / "vs"),
+                           "--no-progress"], capsys)
+    assert code == 2 and stderr.strip().splitlines()[-1] == f"hftrace: error: {api.value}"
+    # a pixel beyond the line is refused as any pixel outside a file, naming the line's
+    # own rows (not the doubled field's)
+    np.save(tmp_path / "line.npy", h)
+    code, _, stderr = run(["viewshed", str(tmp_path / "line.npy"), "--observer-pixel", "3,0",
+                           "--observer-pixel", "4.5,0.5", "--out", str(tmp_path / "vs"),
+                           "--no-progress"], capsys)
+    assert code == 2 and stderr.strip().splitlines()[-1] == (
+        "hftrace: error: observer pixel 4.5,0.5: outside line.npy, whose columns are 0..19 "
+        "and rows 0..0 (row 0 north)")
+    assert not list(tmp_path.glob("vs.*"))
+
+
+def test_one_sample_is_refused_by_the_api_and_the_command_naming_its_shape(tmp_path, capsys):
+    """The API said "got (2, 1)" of a (1, 1) array, a shape the caller never gave."""
+    with pytest.raises(ValueError, match=r"^heights: one sample \(shape \(1, 1\)\) is neither "
+                                         "a line nor a field"):
+        algos.viewshed(np.zeros((1, 1)), (0, 0))
+    path = str(tmp_path / "one.npy")
+    np.save(path, np.zeros((1, 1), np.float32))
+    code, _, stderr = run(["viewshed", path, "--observer-pixel", "0,0", "--out",
+                           str(tmp_path / "vs"), "--no-progress"], capsys)
+    assert code == 2 and stderr.strip().splitlines()[-1] == (
+        f"hftrace: error: {path}: a height field needs at least 2 x 2 samples, got (1, 1)")
+
+
+def test_the_other_products_and_dask_refuse_a_line_saying_where_it_is_taken(tmp_path, capsys):
+    """The same line in memory and with --dask (the readers said it differently: the
+    window-by-window one named "heights" and "each side must be in [2, 16777216]")."""
+    path = str(tmp_path / "line.npy")
+    np.save(path, _line_heights((1, 20)))
+    tif = write_tif(tmp_path / "line.tif", _line_heights((1, 20)))
+    for source in (path, tif):
+        for command in (["horizon", source, "--max-distance", "5"],
+                        ["horizon", source, "--max-distance", "5", "--dask", "local:1"],
+                        ["viewshed", source, "--observer-pixel", "3,0", "--max-distance", "5",
+                         "--dask", "local:1"]):
+            code, _, stderr = run([*command, "--out", str(tmp_path / "p"), "--no-progress"],
+                                  capsys)
+            assert code == 2 and stderr.strip().splitlines()[-1] == (
+                f"hftrace: error: {source}: a height field needs at least 2 x 2 samples, got "
+                "(1, 20); a one-row or one-column file is a line, which only the viewshed "
+                "takes, in memory (load_file(lines=True); hftrace viewshed without --dask)"), \
+                (command, stderr)
+            assert not list(tmp_path.glob("p.*"))
