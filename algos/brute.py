@@ -76,6 +76,22 @@ def _cell_at_start(o, d, nx, ny, tmin):
     return index[1], index[0]
 
 
+def _cell_at_end(o, d, nx, ny, t1):
+    """The cell of the grid that holds p(t1) by the half-open rule (a zero component in
+    the far face: the last cell), from the exact t1; None when it lies outside the grid
+    (t1 on the box's far side, or beyond the grid)."""
+    index = []
+    for oa, da, n in ((o[0], d[0], nx), (o[1], d[1], ny)):
+        x = _exact(oa) + _exact(t1) * _exact(da)
+        k = math.ceil(x) - 1 if da < 0 else math.floor(x)
+        if da == 0 and k == n:
+            k = n - 1
+        if not 0 <= k < n:
+            return None
+        index.append(k)
+    return index[0], index[1]
+
+
 def _first_hit_one(H, o, d, surface, tmin, tmax):
     rows, cols = H.shape
     nx, ny = cols - 1, rows - 1
@@ -114,6 +130,15 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         j, i = _cell_at_start(o, d, nx, ny, tmin)
         visited[j, i] = True
         ta[j, i] = tb[j, i] = t0
+    # the range's closed end inside the grid (tmax before the box's far side): the cell
+    # that holds p(t1) decides that point, and when t1 lies on a border the ray crosses
+    # there, that cell is the one entered, with the one-point interval [t1, t1]
+    end_cell = None
+    if np.isfinite(tmax) and t1 == tmax and t0 < t1:
+        end_cell = _cell_at_end(o, d, nx, ny, t1)
+        if end_cell is not None and not visited[end_cell[1], end_cell[0]]:
+            visited[end_cell[1], end_cell[0]] = True
+            ta[end_cell[1], end_cell[0]] = tb[end_cell[1], end_cell[0]] = t1
     if not np.isfinite(t1) or (d[2] != 0 and not (t1 - t0) * abs(d[2]) < 2.0 ** 900):
         # a vertical ray, or one whose horizontal components are so small (subnormal) that
         # leaving the box takes a parameter near or beyond the float64 range, where z(t)
@@ -130,6 +155,9 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         tb = np.minimum(tb, end)
     jj, ii = np.nonzero(visited)
     ta, tb = ta[visited], tb[visited]
+    # which candidate holds p(t1) (True everywhere when no end cell applies)
+    holds_end = np.ones(len(ii), bool) if end_cell is None else \
+        (ii == end_cell[0]) & (jj == end_cell[1])
     h00, h10 = H[jj, ii].astype(np.float64), H[jj, ii + 1].astype(np.float64)
     h01, h11 = H[jj + 1, ii].astype(np.float64), H[jj + 1, ii + 1].astype(np.float64)
 
@@ -159,7 +187,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         # only where tb ends the range, so a touch exactly at its exit (z = s at tb, above
         # before) is not a hit of this cell; the next cell's surface decides that point
         fb = gap(tb)
-        cross = (fa > 0) & ((fb < 0) | ((fb == 0) & (tb >= t1)))
+        cross = (fa > 0) & ((fb < 0) | ((fb == 0) & (tb >= t1) & holds_end))
         with np.errstate(divide="ignore", invalid="ignore"):
             root = ta + (tb - ta) * (fa / (fa - fb))
         best = np.where(cross, np.minimum(best, np.clip(root, ta, tb)), best)
@@ -225,6 +253,13 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
     k = int(np.argmin(best))
     if not np.isfinite(best[k]):
         return np.inf, (-1, -1)
+    # a point on a border reached at the same t by two cells (a touch where a triangles
+    # or bilinear cell meets the next, or the end cell at t1): the one that holds it by
+    # the half-open rule (the cell entered) is the hit's cell
+    holder = _cell_at_end(o, d, nx, ny, best[k])
+    if holder is not None and holder != (int(ii[k]), int(jj[k])):
+        same = np.nonzero((ii == holder[0]) & (jj == holder[1]) & (best == best[k]))[0]
+        k = int(same[0]) if len(same) else k
     return float(best[k]), (int(ii[k]), int(jj[k]))
 
 
@@ -234,16 +269,18 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
     Same conventions as ``algos.intersect`` (docs/CONVENTIONS.md, "The first hit"),
     points on a cell border included: each is tested against the one cell that holds it
     for the ray's direction (a zero component takes the ``+`` side; the box's far side
-    and a one-point range take the nearest cell of the grid). On ``flat`` and ``plane3``
-    a touch exactly at a cell's exit is therefore the next cell's to decide. A
+    and a one-point range take the nearest cell of the grid; the range's end ``tmax``
+    inside the grid is the cell that holds that point). On ``flat`` and ``plane3`` a touch
+    exactly at a cell's exit is therefore the next cell's to decide. A
     :class:`algos.HeightField` gives its cell heights.
 
     Returns
     -------
     t : ndarray (n,) float64
     cell : ndarray (n, 2) int32
-        ``(i, j)`` of the cell whose surface or wall is hit (the first in row-major
-        order when two cells reach it at the same t), ``(-1, -1)`` on a miss.
+        ``(i, j)`` of the cell whose surface or wall is hit (the one that holds the hit
+        point by the half-open rule when two cells reach it at the same t, as where two
+        triangles or bilinear cells meet), ``(-1, -1)`` on a miss.
     """
     H = heights.cell_heights if isinstance(heights, HeightField) else \
         np.asarray(heights, dtype=np.float32)

@@ -367,9 +367,58 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
     return HF_OK;
 }
 
+/* The cell that holds a point on a cell border (docs/CONVENTIONS.md, "Points on a cell
+ * border"): the one the half-open rule gives for this ray's direction, which is the cell
+ * entered there. Two cases need it after the walk:
+ * - a hit at t that lies on the exit face of the cell it was found in (a touch where the
+ *   ray leaves a triangles or bilinear cell, whose neighbour reaches the same t, or a hit
+ *   at t0 on a face the ray starts on): the entered cell decides that point;
+ * - no hit, and the caller's tmax ends the range inside the grid on a border: every walk
+ *   stopped in the cell it leaves, which held [ta, t1] closed, and the entered cell
+ *   decides p(t1).
+ * The entered cell is tested at that one point (a wall there is hit): its hit, if any,
+ * is the record. Otherwise the walk's record stands: on flat and plane3 the cell test
+ * already left such a touch at t1 to the entered cell (hf_exits_into_grid), and a hit
+ * the cell left found exactly on its exit face is a root rounded onto it (or, on the
+ * continuous surfaces, a point where the two cells' surfaces meet and rounding parts
+ * them). A point on the box's far side keeps the last cell (the closed box). Returns h
+ * itself, or `decided` holding the record (h is left as the walk gave it: a plane's
+ * chain resumes from it). */
+static const hf_hit *border_point(const hf_hit_batch *b, int64_t ray, const hf_hit *h,
+                                  hf_hit *decided) {
+    double t, x, y;
+    int on_x, on_y;
+    int64_t i, j;
+    if (h->found) {
+        t = h->t;
+    } else {
+        if (!b->tmax || !(h->t0 < h->t1) || h->t1 != b->tmax[ray]) return h;
+        t = h->t1;
+    }
+    x = h->ox + t * h->dx;
+    y = h->oy + t * h->dy;
+    /* on a border the ray crosses at t: the found cell's exit face, or any when none */
+    on_x = h->dx != 0 && x == floor(x) && (!h->found || x == (double)h->i + (h->dx > 0));
+    on_y = h->dy != 0 && y == floor(y) && (!h->found || y == (double)h->j + (h->dy > 0));
+    if (!on_x && !on_y) return h;
+    i = on_x ? hf_index_of(x, h->dx > 0)
+             : (h->found ? h->i : hf_cell_at(h->ox, h->dx, t, b->cols - 1));
+    j = on_y ? hf_index_of(y, h->dy > 0)
+             : (h->found ? h->j : hf_cell_at(h->oy, h->dy, t, b->rows - 1));
+    if (i < 0 || i > b->cols - 2 || j < 0 || j > b->rows - 2) return h; /* the box's side */
+    *decided = *h;
+    decided->found = 0;
+    decided->cells_visited += 1;
+    decided->t1 = t; /* the one point, closed */
+    if (hf_surface_test(decided, (int32_t)i, (int32_t)j, t, t, on_x ? 0 : 1)) return decided;
+    return h;
+}
+
 /* Its outputs, each only when asked for. */
 HF_HOT void ray_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) {
     const double *d = b->directions + 3 * ray;
+    hf_hit decided;
+    h = border_point(b, ray, h, &decided);
     if (b->t) b->t[ray] = h->found ? h->t : (double)INFINITY;
     if (b->cell) {
         b->cell[2 * ray] = h->found ? h->i : -1;

@@ -149,7 +149,10 @@ HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray
     *t0_out = t0;
     *t1_out = t1;
     *entry_axis_out = axis;
-    if (!inside) return 0;
+    if (!inside) {
+        h->t0 = h->t1 = 0; /* a miss's range, as after ray_begin's memset */
+        return 0;
+    }
     h->oz = oz;
     h->dz = dz;
     h->t0 = t0;

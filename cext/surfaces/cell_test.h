@@ -1,11 +1,8 @@
 /* First hits on a height field: the per-cell surface tests and per-run culling that the
- * traversal walks call in HF_MODE_HIT (surfaces and rules: docs/CONVENTIONS.md).
- *
- * The traversal decides which cells are visited and in which order (each kernel its own
- * way); every surface test runs in float64 on the caller's 3D ray over the parameter
- * interval [ta, tb] in which that ray lies over the cell, clipped to [t0, t1]. The first
- * cell that reports a hit ends the walk, and cells come in order of t, so it is the first
- * hit. */
+ * traversal walks call in HF_MODE_HIT (surfaces and rules: docs/CONVENTIONS.md). The walk
+ * decides which cells are visited, in order of t; every surface test runs in float64 on
+ * the caller's 3D ray over the interval [ta, tb] in which it lies over the cell, clipped to
+ * [t0, t1]. The first cell that reports a hit ends the walk: it is the first hit. */
 #ifndef HFTRACE_CELL_TEST_H
 #define HFTRACE_CELL_TEST_H
 
@@ -162,9 +159,18 @@ static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double
     }
 }
 
-/* Test cell (i, j) on [ta, tb]. `wall` is the axis of the vertical wall the ray meets
- * at ta if it is already below the surface there (0 x, 1 y), or -1 when that is not a
- * wall (a start inside the solid). Returns 1 on a hit. */
+/* Whether p(t) lies on cell (i, j)'s exit face, with the cell entered there in the grid
+ * (then p(t) is that cell's, by the half-open rule). */
+static inline int hf_exits_into_grid(const hf_hit *h, int32_t i, int32_t j, double t) {
+    const double x = h->ox + t * h->dx, y = h->oy + t * h->dy;
+    const int sx = (h->dx > 0) - (h->dx < 0), sy = (h->dy > 0) - (h->dy < 0);
+    const int ex = sx != 0 && x == (double)i + (sx > 0), ey = sy != 0 && y == (double)j + (sy > 0);
+    const int64_t ni = (int64_t)i + ex * sx, nj = (int64_t)j + ey * sy;
+    return (ex || ey) && ni >= 0 && ni <= h->cols - 2 && nj >= 0 && nj <= h->rows - 2;
+}
+
+/* Test cell (i, j) on [ta, tb]; 1 on a hit. `wall`: the axis (0 x, 1 y) of the wall met at ta
+ * if the ray is below the surface there, or -1 when that is no wall (a start inside). */
 static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, double tb, int wall) {
     const double h00 = hf_height(h, i, j), h10 = hf_height(h, i + 1, j);
     const double h01 = hf_height(h, i, j + 1), h11 = hf_height(h, i + 1, j + 1);
@@ -175,13 +181,14 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     switch (h->surface) {
     /* flat and plane3 jump at cell borders, where a point belongs to the cell the ray
      * enters (docs/CONVENTIONS.md, "Points on a cell border"): the cell's interval is
-     * [ta, tb) unless tb ends the ray's range (the closed end, clamped into the grid).
+     * [ta, tb) unless tb ends the range and is not on an exit face into the grid (the
+     * entered cell decides that p(t1) after the walk: border_point, intersect.c).
      * So a cell the ray only touches at one point before t1 (a side cell of a vertex
      * crossing) is not hit, and neither is a touch exactly at its exit: the next cell's
      * surface decides that point. */
     case HF_FLAT: {
         const double c = hf_flat_height(h00, h10, h01, h11);
-        const int closed = tb >= h->t1;
+        const int closed = tb >= h->t1 && !hf_exits_into_grid(h, i, j, tb);
         if (!(ta < tb || closed)) return 0;
         if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
         if (zb < c || (zb == c && closed))
@@ -190,7 +197,7 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     }
     case HF_PLANE3: {
         double a, b;
-        const int closed = tb >= h->t1;
+        const int closed = tb >= h->t1 && !hf_exits_into_grid(h, i, j, tb);
         if (!(ta < tb || closed)) return 0;
         hf_plane3_slopes(h00, h10, h01, &a, &b);
         {

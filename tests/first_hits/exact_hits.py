@@ -6,7 +6,9 @@ crosses u = v, each piece on the triangle holding its interior), the smallest t 
 the surface. A point on a cell border belongs to the cell the ray enters there, so on flat
 and plane3 (which jump at borders) a cell's interval is open at its exit unless that exit
 ends the range [t0, t1]; triangles are continuous, and a touch there is found at the same t
-by both cells (the first in row-major order is reported, as by the brute force). Slow; a
+by both cells (the one that holds the point by the half-open rule is reported). The
+range's closed end t1, where tmax ends it inside the grid, is tested in the cell that holds
+p(t1) (the one entered when t1 lies on a border), and a touch there is that cell's. Slow; a
 few hundred rays at most."""
 from __future__ import annotations
 
@@ -20,9 +22,28 @@ def _q(x) -> Fraction:
     return Fraction(float(x))
 
 
-def _visited(org, dirn, t0, t1, nx, ny):
+def _end_cell(org, dirn, t1, nx, ny):
+    """The cell of the grid that holds p(t1) by the half-open rule, or None when that
+    cell lies outside the grid (t1 on the box's far side, or no finite t1)."""
+    if t1 is None:
+        return None
+    index = []
+    for a, n in ((0, nx), (1, ny)):
+        x = org[a] + t1 * dirn[a]
+        k = math.ceil(x) - 1 if dirn[a] < 0 else math.floor(x)
+        if dirn[a] == 0 and k == n:
+            k = n - 1  # a ray in the far face: its last cell (the box is closed)
+        if not 0 <= k < n:
+            return None
+        index.append(k)
+    return tuple(index)
+
+
+def _visited(org, dirn, t0, t1, nx, ny, end=None):
     """(i, j, ta, tb) of every visited cell (tb None: unbounded); the one cell at t0
-    (clamped into the grid) when the range is one point."""
+    (clamped into the grid) when the range is one point. ``end``: the cell holding p(t1)
+    where the range ends inside the grid; when no visited cell holds it (t1 lies on a
+    border the ray crosses there), it is added with the one-point interval [t1, t1]."""
     def axis(a, k, n):
         if dirn[a] == 0:
             return None if (k <= org[a] < k + 1 or (k == n - 1 and org[a] == n)) else False
@@ -48,6 +69,8 @@ def _visited(org, dirn, t0, t1, nx, ny):
             k = math.ceil(x) - 1 if dirn[a] < 0 else math.floor(x)
             index.append(min(max(k, 0), n - 1))
         cells = [(index[0], index[1], t0, t0)]
+    elif end is not None and not any((i, j) == end for i, j, _, _ in cells):
+        cells.append(end + (t1, t1))
     return cells
 
 
@@ -70,8 +93,12 @@ def exact_first_hit(heights, origin, direction, surface, tmin=0.0, tmax=math.inf
             t0, t1 = max(t0, lo), hi if t1 is None else min(t1, hi)
     if t1 is not None and t0 > t1:
         return None, (-1, -1)
+    # the range's closed end inside the grid (tmax before the box's far side): p(t1)
+    # belongs to the cell that holds it by the half-open rule, which decides that point
+    end = (_end_cell(org, dirn, t1, nx, ny)
+           if not math.isinf(tmax) and t1 is not None and t1 == _q(tmax) else None)
     best = None
-    for i, j, ta, tb in _visited(org, dirn, t0, t1, nx, ny):
+    for i, j, ta, tb in _visited(org, dirn, t0, t1, nx, ny, end):
         h00, h10 = _q(H[j, i]), _q(H[j, i + 1])
         h01, h11 = _q(H[j + 1, i]), _q(H[j + 1, i + 1])
         u0, v0 = org[0] - i, org[1] - j
@@ -83,7 +110,8 @@ def exact_first_hit(heights, origin, direction, surface, tmin=0.0, tmax=math.inf
             g1 = dirn[2] - su * dirn[0] - sv * dirn[1]
             if g0 + g1 * a <= 0:
                 return a
-            closed = b is None or b == t1 or surface == "triangles"
+            closed = (b is None or surface == "triangles"
+                      or b == t1 and (end is None or (i, j) == end))
             if g1 < 0 and (closed and (b is None or -g0 / g1 <= b) or not closed and -g0 / g1 < b):
                 return -g0 / g1
             return None
@@ -108,7 +136,10 @@ def exact_first_hit(heights, origin, direction, surface, tmin=0.0, tmax=math.inf
         for piece in pieces:
             t = first(*piece)
             if t is not None:
-                if best is None or t < best[0]:
+                # a point reached at the same t by two cells (where two triangles cells
+                # meet, or the end cell at t1) is the one's that holds it (half-open rule)
+                if (best is None or t < best[0]
+                        or t == best[0] and (i, j) == _end_cell(org, dirn, t, nx, ny)):
                     best = (t, (i, j))
                 break
     return (None, (-1, -1)) if best is None else best

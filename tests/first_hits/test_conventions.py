@@ -165,16 +165,18 @@ def test_bilinear_hit_at_the_ranges_closed_end():
     """bilinear, one cell with corners 3, 1 / 3, 3: along the ray, z - s = 1 - t^2, which
     reaches 0 exactly where the ray leaves the box (t = 1, y = 1): a hit at the range's
     closed end. Every kernel missed it (found by a new user's trial): the z clip leaves a
-    hair-thin interval whose local quadratic rounds the end a hair above the surface."""
+    hair-thin interval whose local quadratic rounds the end a hair above the surface. Where
+    tmax = 1 ends the range inside the grid, p(1) = (0.75, 1) lies on the border y = 1 and
+    belongs to the cell entered, (0, 1), whose surface meets the first cell's there."""
     o, d = (0.25, 0.0, 3.5), (0.5, 1.0, -0.5)
-    fields = {"box exit": (np.array([[3.0, 1.0], [3.0, 3.0]]), None),
-              "tmax": (np.where(np.arange(9).reshape(3, 3) == 1, 1.0, 3.0), 1.0)}
-    for what, (H, tmax) in fields.items():
+    fields = {"box exit": (np.array([[3.0, 1.0], [3.0, 3.0]]), None, (0, 0)),
+              "tmax": (np.where(np.arange(9).reshape(3, 3) == 1, 1.0, 3.0), 1.0, (0, 1))}
+    for what, (H, tmax, want) in fields.items():
         t, cell = algos.brute_force_hits(H, [o], [d], "bilinear", tmax=tmax)
-        assert (float(t[0]), tuple(cell[0])) == (1.0, (0, 0)), what
+        assert (float(t[0]), tuple(cell[0])) == (1.0, want), what
         for name in STRICT:
             got = algos.intersect(name, H, [o], [d], surface="bilinear", tmax=tmax)
-            assert got.t[0] == 1.0 and tuple(got.cell[0]) == (0, 0), (what, name)
+            assert got.t[0] == 1.0 and tuple(got.cell[0]) == want, (what, name)
 
 
 def test_bilinear_kernels_equal_the_brute_force_on_dyadic_rays():

@@ -237,8 +237,10 @@ def test_camera_rays_shapes_and_errors():
 
 def test_hit_cell_entered_at_t1_is_not_resumed():
     """A pinned case: a ray whose range ends exactly where the ray below entered its hit
-    cell (a grid vertex, flat walls). dda_maxmip never tests a cell whose interval is
-    [t1, t1], so the ray above must not resume there: a miss, not a hit at t1."""
+    cell (a grid vertex, flat walls). Its walk stops in the cell it leaves at t1, so the
+    chain must not resume it in the cell entered; p(t1) is then decided after the walk by
+    the cell entered (docs/CONVENTIONS.md, "Points on a cell border"), whose wall it meets:
+    a hit at t1 in that cell, as over the longer range of the ray below."""
     H = first_hit_fields(SHAPE)["terraces"]
     o = np.array([(20.0, 16.0, 4.0)] * 2)
     d = np.array([(1.0, 1.0, -0.25)] * 2)
@@ -246,7 +248,10 @@ def test_hit_cell_entered_at_t1_is_not_resumed():
     fld = algos.Field(H)
     _check(fld, o, d, "hit cell entered at t1", tmin=tmin, tmax=tmax)
     got = algos.intersect("plane_maxmip", fld, o, d, surface="flat", tmin=tmin, tmax=tmax)
-    assert got.t[0] == 2.0 and got.t[1] == np.inf
+    assert got.t[0] == 2.0 and got.t[1] == 2.0
+    assert tuple(got.cell[0]) == tuple(got.cell[1])
+    t, cell = algos.brute_force_hits(H, o, d, "flat", tmin=tmin, tmax=tmax)
+    assert t.tolist() == [2.0, 2.0] and (cell == got.cell).all()
 
 
 def test_seeded_random_planes():
