@@ -244,7 +244,7 @@ def speedup_table(rows, column_key="run_length", column_label="r", footer=None) 
                                precision, contended, row.get("stop", "")))
             cells.append(f"{text}, {float(row['ns_per_ray']):.0f} ns{flag}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    if footer:
+    if footer and footer(columns, lookup, names):
         lines.append(footer(columns, lookup, names))
     if any(name.startswith("embree") for name in names):
         lines += ["", EMBREE_NOTE + "."]

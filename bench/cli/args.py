@@ -99,8 +99,9 @@ def add_bench_arguments(p, command):
     p.add_argument("--seed", type=int, default=2004)
     p.add_argument("--run-lengths", type=run_lengths, default=(1, 2, 5, 25, 100),
                    help="comma-separated mean run lengths r")
+    kinds = algos.INTERSECTORS if command == "bench-intersect" else algos.TRAVERSALS
     p.add_argument("--algorithms", default=None,
-                   help=f"comma-separated subset of {', '.join(algos.TRAVERSALS)}")
+                   help=f"comma-separated subset of {', '.join(kinds)} (default: all)")
     add_out(p, command)
 
 

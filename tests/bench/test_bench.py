@@ -223,6 +223,14 @@ def test_cli_smoke(tmp_path, capsys):
                  "--out", str(tmp_path / "bi")]) == 0
     text = (tmp_path / "bi" / "tables.md").read_text()
     assert "## Targets" in text and "embree" in text
+    # without the reference `runs` (a trial's crash: KeyError ('runs', 1) after measuring):
+    # tables.md is written, and a target whose rows were not measured is not judged
+    assert main(["bench-intersect", "--rays", "16", "--repeats", "3", "--datasets", "fbm:32",
+                 "--run-lengths", "1", "--algorithms", "midpoint", "--surfaces", "flat",
+                 "--regimes", "warm", "--coherence", "random",
+                 "--out", str(tmp_path / "bi2")]) == 0
+    text = (tmp_path / "bi2" / "tables.md").read_text()
+    assert "not measured" in text and "missed" not in text and "cells / runs per ray" not in text
     assert main(["render", "flat", "--size", "8", "--width", "4", "--height", "3",
                  "--out", str(tmp_path / "r")]) == 0
     assert main(["render", "flat", "--algorithm", "nope"]) == 2
