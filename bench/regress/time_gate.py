@@ -7,7 +7,9 @@ each of 3 rounds with fresh data), and compares them with the baseline's samples
 bootstrap of the relative change of the medians. A ratio regresses only when the change
 is significant *and* large: the one-sided upper confidence bound (default 99 %) of the
 change lies below ``-tolerance`` (default 5 %). For each ratio it prints the smallest
-drop this run could have flagged, which the noise sets. Higher ratios never fail; refresh
+drop this run could have flagged, which the noise sets, and a ratio whose noise alone
+exceeds the tolerance is ``inconclusive`` (exit status 3 when nothing regressed: the run
+could not have seen a drop of the tolerance's size). Higher ratios never fail; refresh
 the baseline with ``--update`` after an intended speedup. Exact, load-independent counts
 are the other mode: ``bench.regress.instructions_gate``.
 
@@ -146,11 +148,40 @@ def load_baseline(path) -> dict:
     return data
 
 
+#: Exit status of a run that showed no regression but could not show one of the
+#: tolerance's size for some ratio (its noise alone exceeds the tolerance)
+INCONCLUSIVE = 3
+
+
+def inconclusive(a: dict, tolerance: float) -> bool:
+    """Whether :func:`assess`'s comparison could not have flagged a drop of twice the
+    tolerance: the upper bound lies more than ``tolerance`` above the change (the rule of
+    ``hftrace compare``: the interval's side wider than the tolerance)."""
+    return a["upper"] - a["change"] > tolerance
+
+
 def run(baseline_path, tolerance=None, update=False, echo=print,
         confidence=DEFAULT_CONFIDENCE) -> int:
-    """Exit status: 0 when every ratio holds, 1 when any regressed."""
+    """Exit status: 1 when any ratio regressed; else :data:`INCONCLUSIVE` (3) when some
+    ratio's noise was too wide to show a drop of the tolerance's size ("holds" would then
+    claim what the run cannot see); else 0, every ratio holds. The other processes' CPU
+    time over the measurement is printed, and a contended run is labelled so."""
+    import sys
+
+    from ..load import contention, snapshot, snapshot_after
+
     pin_to_one_cpu()
+    n_ratios = sum(len(c[3]) for c in checks())
+    echo(f"measuring {n_ratios} speedup ratios over dda, 3 rounds of 15 interleaved repeats "
+         "(a few minutes) ...")
+    sys.stdout.flush()
+    before = snapshot()
     measured = measure()
+    load = contention(before, snapshot_after(before))
+    other = "unknown" if load["other_cpu"] is None else f"{load['other_cpu']:.2f} cores"
+    echo(f"other processes during the measurement: {other}, load average "
+         f"{load['load_before']} -> {load['load_after']}"
+         + (" - CONTENDED: the ratios below are not findings" if load["contended"] else ""))
     if update:
         write_json(baseline_path, {
             "ratios": {k: round(float(np.median(v)), 4) for k, v in measured.items()},
@@ -164,6 +195,7 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
     failures = compare(base["samples"], measured, tol, confidence)
     echo(f"{'ratio':45s} {'baseline':>9s} {'measured':>9s} {'change':>8s} {'detectable':>11s}")
     worst = 0.0
+    unsure = []
     for name, b in sorted(base["samples"].items()):
         m = measured.get(name)
         if m is None:
@@ -171,7 +203,10 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
             continue
         a = assess(b, m, tol, confidence)
         worst = max(worst, a["detectable"])
-        flag = "  REGRESSED" if any(f["ratio"] == name for f in failures) else ""
+        flag = "  REGRESSED" if any(f["ratio"] == name for f in failures) else (
+            "  inconclusive" if inconclusive(a, tol) else "")
+        if flag == "  inconclusive":
+            unsure.append(name)
         echo(f"{name:45s} {np.median(b):9.3f} {np.median(m):9.3f} {100 * a['change']:+7.1f}% "
              f"{100 * a['detectable']:10.1f}%{flag}")
     for name in sorted(set(measured) - set(base["samples"])):
@@ -191,7 +226,14 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
             echo(f"  {f['ratio']}: {f['reason']}")
     if failures:
         return 1
-    echo(f"all {len(base['samples'])} ratios hold")
+    if unsure:
+        echo(f"no regression shown, but {len(unsure)} of {len(base['samples'])} ratio(s) "
+             f"inconclusive: their noise alone exceeds the {100 * tol:g} % tolerance, so a "
+             "drop of that size could not have been seen (rerun on a quiet machine, or use "
+             "--metric instructions, which is exact)")
+        return INCONCLUSIVE
+    echo(f"all {len(base['samples'])} ratios hold"
+         + (" (on a contended machine)" if load["contended"] else ""))
     return 0
 
 

@@ -179,6 +179,13 @@ def test_regress_exit_codes(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(regress, "measure", lambda: {"x": _samples(1.5, 0.02, seed=4), "y": _samples(1.0, 0.02)})
     assert regress.run(str(path), echo=print) == 1
     assert "REGRESSED" in capsys.readouterr().out
+    # noise wider than the tolerance: not a pass (a trial saw "all 15 ratios hold", exit 0,
+    # beside "the smallest drop this run could flag: 37.4 %")
+    monkeypatch.setattr(regress, "measure", lambda: {"x": _samples(2.0, 0.4, seed=5),
+                                                     "y": _samples(1.0, 0.02)})
+    assert regress.run(str(path), echo=print) == regress.INCONCLUSIVE == 3
+    out = capsys.readouterr().out
+    assert "inconclusive" in out and "ratios hold" not in out and "other processes" in out
     with pytest.raises(ValueError, match="does not exist"):
         regress.run(str(tmp_path / "missing.json"))
 
