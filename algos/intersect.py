@@ -159,6 +159,8 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     half-open rule toward the direction of travel), ``normal`` on the continuous surfaces
     (``triangles``, ``bilinear``: the surface's up-facing normal at the hit); ``stats``,
     and a ray range for a Python kernel, are refused with an error naming the kernel.
+    The BVH peers (``embree``, ``embree3``) count no cells either: ``stats`` is refused
+    for them too (ValueError naming the peer).
 
     Returns
     -------
@@ -195,6 +197,10 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     if algorithm.plugin is not None:
         return _plugin_hits(hits, algorithm, fld, o, d, lo, hi, outputs)
 
+    if algorithm.kind == "peer" and "stats" in outputs:
+        # zeros would read as a kernel that visits no cell (found by a new user's trial)
+        raise ValueError(f"outputs: {algorithm.name} (a BVH peer) reports no per-ray "
+                         "statistics; leave 'stats' out")
     if algorithm.name == "embree3":
         from .peers.embree3 import embree3_hits
 
@@ -208,8 +214,6 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         hits.t = t if "t" in outputs else None
         hits.cell = cell if "cell" in outputs else None
         hits.normal = normal if "normal" in outputs else None
-        if "stats" in outputs:
-            hits.stats = {k: np.zeros(n, np.int64) for k in STATS}
         return hits
 
     scale = _subnormal_scale(d)

@@ -47,7 +47,7 @@ class Rendering:
     cells_visited, runs_visited : (height, width)
         The intersector's per-ray statistics (``algos.intersect`` outputs "stats"); zero
         for a rasteriser, which visits no cells per ray, and for a registered plugin
-        (``algos.plugins``), which reports none.
+        (``algos.plugins``) or a BVH peer (``embree``, ``embree3``), which report none.
     points : float64 (height, width, 3)
         The hit points (the camera position on a miss).
     rgb : float64 (height, width, 3)
@@ -197,9 +197,11 @@ def render(heights_or_field, algorithm="runs", *, surface="triangles", width=640
         t, normal, cell, elapsed = image.t.ravel(), image.normal, image.cell, image.elapsed_ns
         cells_visited = runs_visited = np.zeros(shape, dtype=np.int64)
     else:
-        # a registered plugin reports no per-ray statistics: its count images are zero
+        # a registered plugin or a BVH peer reports no per-ray statistics: its count
+        # images are zero
         entry = get_intersector(algorithm)
-        outputs = ("t", "cell", "normal") + (("stats",) if entry.plugin is None else ())
+        counted = entry.plugin is None and entry.kind != "peer"
+        outputs = ("t", "cell", "normal") + (("stats",) if counted else ())
         hits = intersect(algorithm, field, origins, directions, surface=surface,
                          outputs=outputs, threads=threads)
         t, normal, cell, elapsed = hits.t, hits.normal, hits.cell, hits.elapsed_ns

@@ -159,3 +159,16 @@ def test_packet_width_the_cpu_lacks_is_refused(field):
 def test_grid_side_limit():
     with pytest.raises(ValueError, match="heights: Embree's grid geometry takes at most 32767"):
         embree3_peer.Embree3Scene(np.zeros((2, 32768)), "grid")
+
+
+def test_peers_refuse_stats(field):
+    """A BVH visits no cells: zeros in ``stats`` would read as a kernel that does no work
+    (a trial found them). Refused by name, for both peers; render's count images stay zero."""
+    o = np.array([[3.5, 3.5, 50.0]])
+    d = np.array([[0.3, 0.2, -1.0]])
+    for name in ("embree", "embree3"):
+        with pytest.raises(ValueError, match=f"outputs: {name} .*no per-ray statistics"):
+            algos.intersect(name, field, o, d, outputs=("t", "stats"))
+    assert np.isfinite(algos.intersect("embree3", field, o, d).t[0])
+    image = algos.render(field, "embree3", width=4, height=3)
+    assert not image.cells_visited.any()
