@@ -378,7 +378,7 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
  *   decides p(t1).
  * The entered cell is tested at that one point (a wall there is hit): its hit, if any,
  * is the record. Otherwise the walk's record stands: on flat and plane3 the cell test
- * already left such a touch at t1 to the entered cell (hf_exits_into_grid), and a hit
+ * already left such a touch at t1 to the entered cell (hf_end_closed), and a hit
  * the cell left found exactly on its exit face is a root rounded onto it (or, on the
  * continuous surfaces, a point where the two cells' surfaces meet and rounding parts
  * them). A point on the box's far side keeps the last cell (the closed box). Returns h
@@ -409,7 +409,7 @@ static const hf_hit *border_point(const hf_hit_batch *b, int64_t ray, const hf_h
     *decided = *h;
     decided->found = 0;
     decided->cells_visited += 1;
-    decided->t1 = t; /* the one point, closed */
+    decided->t0 = decided->t1 = t; /* the one point, closed */
     if (hf_surface_test(decided, (int32_t)i, (int32_t)j, t, t, on_x ? 0 : 1)) return decided;
     return h;
 }

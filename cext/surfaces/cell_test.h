@@ -159,14 +159,15 @@ static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double
     }
 }
 
-/* Whether p(t) lies on cell (i, j)'s exit face, with the cell entered there in the grid
- * (then p(t) is that cell's, by the half-open rule). */
-static inline int hf_exits_into_grid(const hf_hit *h, int32_t i, int32_t j, double t) {
-    const double x = h->ox + t * h->dx, y = h->oy + t * h->dy;
+/* Whether flat/plane3 cell (i, j) holds tb: it ends the range, the cell is more than that
+ * point (or the range is one point), and p(tb) is not on an exit face into the grid. */
+static inline int hf_end_closed(const hf_hit *h, int32_t i, int32_t j, double ta, double tb) {
+    const double x = h->ox + tb * h->dx, y = h->oy + tb * h->dy;
     const int sx = (h->dx > 0) - (h->dx < 0), sy = (h->dy > 0) - (h->dy < 0);
     const int ex = sx != 0 && x == (double)i + (sx > 0), ey = sy != 0 && y == (double)j + (sy > 0);
     const int64_t ni = (int64_t)i + ex * sx, nj = (int64_t)j + ey * sy;
-    return (ex || ey) && ni >= 0 && ni <= h->cols - 2 && nj >= 0 && nj <= h->rows - 2;
+    if (!(tb >= h->t1) || !(ta < tb || h->t0 == h->t1)) return 0;
+    return !((ex || ey) && ni >= 0 && ni <= h->cols - 2 && nj >= 0 && nj <= h->rows - 2);
 }
 
 /* Test cell (i, j) on [ta, tb]; 1 on a hit. `wall`: the axis (0 x, 1 y) of the wall met at ta
@@ -181,14 +182,13 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     switch (h->surface) {
     /* flat and plane3 jump at cell borders, where a point belongs to the cell the ray
      * enters (docs/CONVENTIONS.md, "Points on a cell border"): the cell's interval is
-     * [ta, tb) unless tb ends the range and is not on an exit face into the grid (the
-     * entered cell decides that p(t1) after the walk: border_point, intersect.c).
-     * So a cell the ray only touches at one point before t1 (a side cell of a vertex
-     * crossing) is not hit, and neither is a touch exactly at its exit: the next cell's
-     * surface decides that point. */
+     * [ta, tb) but at the range's end (hf_end_closed; an entered cell decides p(t1) after
+     * the walk, border_point in intersect.c). So a cell met at one point only (a side cell
+     * of a vertex crossing, or one stepped into as the range ends) is not hit, nor is a
+     * touch exactly at a cell's exit: the next cell's surface decides that point. */
     case HF_FLAT: {
         const double c = hf_flat_height(h00, h10, h01, h11);
-        const int closed = tb >= h->t1 && !hf_exits_into_grid(h, i, j, tb);
+        const int closed = hf_end_closed(h, i, j, ta, tb);
         if (!(ta < tb || closed)) return 0;
         if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
         if (zb < c || (zb == c && closed))
@@ -197,7 +197,7 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     }
     case HF_PLANE3: {
         double a, b;
-        const int closed = tb >= h->t1 && !hf_exits_into_grid(h, i, j, tb);
+        const int closed = hf_end_closed(h, i, j, ta, tb);
         if (!(ta < tb || closed)) return 0;
         hf_plane3_slopes(h00, h10, h01, &a, &b);
         {

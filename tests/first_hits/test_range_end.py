@@ -119,3 +119,16 @@ def test_cells_equal_the_exact_reference_with_ranges_ending_on_borders(surface):
             ok = got[1] == tuple(want[k][1]) and (
                 got[0] == want[k][0] or np.isclose(got[0], want[k][0], rtol=1e-12, atol=0))
             assert ok, (name, o[k].tolist(), d[k].tolist(), tmax[k], want[k], got)
+
+
+@pytest.mark.parametrize("name", ["brute force"] + STRICT)
+def test_a_cell_stepped_into_as_the_box_ends_is_not_hit(name):
+    """flat: rows 0-4 are low, the cells of row 5 reach 4 (row 6 stands 8 high). The ray
+    leaves the box through x = 0 exactly at the vertex (0, 5), t = 2, z = 2. Its last cell
+    is (0, 4); (0, 5) is met at that one point only, where the box ends, so it is not hit:
+    a miss. dda stepped into (0, 5) with the one-point interval [2, 2] and took it as a
+    hit (found by a new user's trial)."""
+    H = np.array([[0, 0]] * 6 + [[8, 8]] * 2, np.float32)
+    o, d = (1.0, -1.0, 3.0), (-0.5, 3.0, -0.5)
+    assert exact_first_hit(H, o, d, "flat") == (None, (-1, -1))
+    assert _hit(name, H, o, d, "flat") == (np.inf, (-1, -1))
