@@ -188,7 +188,8 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     n_groups = len(groups(cfg))
     minutes = estimate_seconds(cfg, name, counts) / 60
     echo(f"hftrace reproduce ({name} preset): {n_groups} group{'s' if n_groups != 1 else ''} on {len(cfg.datasets)} "
-         f"datasets, expected about {minutes:.0f} min on a 2-core machine "
+         f"datasets, expected about {minutes:.0f} min on a quiet 2-core machine (longer "
+         f"while other processes run) "
          f"(phases: measure{', counts' if counts else ''}"
          f"{', parallel rays' if name != 'headline' else ''}, reports) -> {out_dir}")
     affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
