@@ -639,9 +639,12 @@ static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t 
     t_out = (t_out - o_maj) * inv_maj;
     if (t_out > s->tb) t_out = s->tb;
     if (k != first) {
-        /* the previous cell's exit; exits grow along the run, so it is the latest */
-        double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
-        if (t_prev > s->tb) t_prev = s->tb;
+        /* the previous cell's exit; exits grow along the run, so it is the latest. Not
+         * clamped to the span's tb: a cell the caller's ray reaches only after leaving the
+         * run's minor strip (a cell of the walked run off the caller's ray: an off-lattice
+         * ray, or runs_periodic's approximate slope) has an empty interval, as in
+         * hf_cell_interval, and is not tested on a point outside it */
+        const double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
         ta = t_prev > ta ? t_prev : ta;
     }
     if (!(ta <= t_out)) return 0;
