@@ -162,6 +162,14 @@ static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double
     }
 }
 
+/* A cell met at one point only (ta == tb) inside a range that is not one point is not
+ * visited by the half-open rule (docs/CONVENTIONS.md): the point is the entered cell's,
+ * or at the closed end t1 the left cell's. Float walks and the band list such cells (a
+ * side cell of a vertex crossing, at tmin or at tmax); no surface tests them. */
+static inline int hf_one_point_cell(const hf_hit *h, double ta, double tb) {
+    return !(ta < tb) && h->t0 < h->t1;
+}
+
 /* Test cell (i, j) on [ta, tb]. `wall` is the axis of the vertical wall the ray meets
  * at ta if it is already below the surface there (0 x, 1 y), or -1 when that is not a
  * wall (a start inside the solid). Returns 1 on a hit. */
@@ -172,17 +180,16 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     const double ub = h->ox + tb * h->dx - i, vb = h->oy + tb * h->dy - j;
     const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
     h->cells_tested += 1;
+    if (hf_one_point_cell(h, ta, tb)) return 0;
     switch (h->surface) {
     /* flat and plane3 jump at cell borders, where a point belongs to the cell the ray
      * enters (docs/CONVENTIONS.md, "Points on a cell border"): the cell's interval is
      * [ta, tb) unless tb ends the ray's range (the closed end, clamped into the grid).
-     * So a cell the ray only touches at one point before t1 (a side cell of a vertex
-     * crossing) is not hit, and neither is a touch exactly at its exit: the next cell's
-     * surface decides that point. */
+     * So a touch exactly at its exit is not a hit of this cell: the next cell's surface
+     * decides that point. (A cell met at one point only: hf_one_point_cell.) */
     case HF_FLAT: {
         const double c = hf_flat_height(h00, h10, h01, h11);
         const int closed = tb >= h->t1;
-        if (!(ta < tb || closed)) return 0;
         if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
         if (zb < c || (zb == c && closed))
             return hf_hit_at(h, hf_linear_root(ta, tb, za - c, zb - c), i, j, -1, 0, 0);
@@ -191,7 +198,6 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     case HF_PLANE3: {
         double a, b;
         const int closed = tb >= h->t1;
-        if (!(ta < tb || closed)) return 0;
         hf_plane3_slopes(h00, h10, h01, &a, &b);
         {
             const double fa = za - hf_plane_height(h00, a, b, ua, va);
@@ -298,6 +304,7 @@ static inline int hf_tri_cell_test(hf_hit *h, const hf_tri_cell *c, int wall) {
     const double fa = za - c->p1a;
     double f_split;
     h->cells_tested += 1;
+    if (hf_one_point_cell(h, ta, tb)) return 0;
     if (fa <= 0) return hf_hit_at(h, ta, c->i, c->j, wall, c->su1, c->sv1);
     f_split = zs - c->p1s;
     if (f_split <= 0)
@@ -639,11 +646,8 @@ static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t 
     t_out = (t_out - o_maj) * inv_maj;
     if (t_out > s->tb) t_out = s->tb;
     if (k != first) {
-        /* the previous cell's exit; exits grow along the run, so it is the latest. Not
-         * clamped to the span's tb: a cell the caller's ray reaches only after leaving the
-         * run's minor strip (a cell of the walked run off the caller's ray: an off-lattice
-         * ray, or runs_periodic's approximate slope) has an empty interval, as in
-         * hf_cell_interval, and is not tested on a point outside it */
+        /* the previous cell's exit (the latest); unclamped, so a walked cell the caller's
+         * ray reaches only after leaving the strip is empty, as in hf_cell_interval */
         const double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
         ta = t_prev > ta ? t_prev : ta;
     }
