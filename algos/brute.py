@@ -19,7 +19,9 @@ from fractions import Fraction
 
 import numpy as np
 
-from .field import HeightField
+from .field import as_field
+from .registry import SURFACES
+from .validate import check_rays3, check_t
 
 __all__ = ["brute_force_hits"]
 
@@ -37,6 +39,13 @@ def _axis_intervals(o, d, n_cells):
     if d > 0:
         return (k - o) / d, (k + 1 - o) / d
     return (k + 1 - o) / d, (k - o) / d
+
+
+def _along(o, d, t):
+    """One coordinate ``o + t d`` of the ray at parameters ``t``; a zero component stays
+    at ``o`` even where ``t`` is infinite (a range from ``tmin = -inf``), which ``t * 0``
+    would make NaN."""
+    return o + t * d if d != 0 else np.full_like(t, o, dtype=np.float64)
 
 
 def _exact(value):
@@ -153,6 +162,17 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         end = max(end, t0)
         visited &= ta <= end
         tb = np.minimum(tb, end)
+        if d[2] < 0 and t0 < 0 and not (-t0) * (-d[2]) < 2.0 ** 900:
+            # the range starts so far back (tmin = -inf on a vertical ray, or a box entry
+            # beyond float64) that z(t0) overflows: the ray comes down from above every
+            # possible surface height, where it hits nothing, so it starts where z reaches
+            # it (without this, the gap at t0 was NaN, and a huge [t0, t1] rounded the
+            # linear root away: a vertical ray from tmin = -1e300 hit flat at t = 0)
+            start = (hi_s - o[2]) / d[2]
+            visited &= tb > start
+            ta = np.maximum(ta, start)
+            if not visited.any():
+                return np.inf, (-1, -1)
     jj, ii = np.nonzero(visited)
     ta, tb = ta[visited], tb[visited]
     # which candidate holds p(t1) (True everywhere when no end cell applies)
@@ -164,9 +184,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
     def gap(t, lower=None):
         """z - s at parameter t, per candidate cell, by the cell's own surface; for
         triangles ``lower`` forces the triangle (default: the one containing the point)."""
-        u = o[0] + t * d[0] - ii
-        v = o[1] + t * d[1] - jj
-        z = o[2] + t * d[2]
+        u, v, z = _along(o[0], d[0], t) - ii, _along(o[1], d[1], t) - jj, _along(o[2], d[2], t)
         if surface == "flat":
             s = (h00 + h10 + h01 + h11) / 4
         elif surface == "plane3":
@@ -199,9 +217,11 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         ts = np.where((ts > ta) & (ts < tb), ts, tb)
         # each piece lies in one triangle: the one holding its midpoint; evaluate each
         # piece with its own plane, at both of its ends
-        mid1, mid2 = 0.5 * (ta + ts), 0.5 * (ts + tb)
-        lower1 = (o[0] + mid1 * d[0] - ii) >= (o[1] + mid1 * d[1] - jj)
-        lower2 = (o[0] + mid2 * d[0] - ii) >= (o[1] + mid2 * d[1] - jj)
+        # (halved first: ta + ts passes the float range when both lie beyond 2**1023, a
+        # ray with a subnormal component; for others the same value bit for bit)
+        mid1, mid2 = 0.5 * ta + 0.5 * ts, 0.5 * ts + 0.5 * tb
+        lower1 = (_along(o[0], d[0], mid1) - ii) >= (_along(o[1], d[1], mid1) - jj)
+        lower2 = (_along(o[0], d[0], mid2) - ii) >= (_along(o[1], d[1], mid2) - jj)
         fs1, fs2 = gap(ts, lower1), gap(ts, lower2)
         fb = gap(tb, lower2)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -274,6 +294,23 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
     exactly at a cell's exit is therefore the next cell's to decide. A
     :class:`algos.HeightField` gives its cell heights.
 
+    Parameters
+    ----------
+    heights : 2D array of real numbers (rows, cols), HeightField or DataArray
+        Read as ``algos.intersect`` reads them (float32 cell heights).
+    origins, directions : (N, 3) array_like
+        Float rays, validated as ``algos.intersect`` validates them (finite, no zero
+        direction, largest direction component in ``[2**-400, 2**400]``,
+        ``|origins| <= 2**30``).
+    surface : {"flat", "plane3", "triangles", "bilinear"}
+    tmin, tmax : None, float or (N,) array
+        Default ``[0, inf)``; no NaN. An empty range (``tmin > tmax``) is a miss.
+
+    Raises
+    ------
+    ValueError, TypeError
+        As ``algos.intersect``: naming the argument and the offending ray.
+
     Returns
     -------
     t : ndarray (n,) float64
@@ -282,13 +319,15 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
         point by the half-open rule when two cells reach it at the same t, as where two
         triangles or bilinear cells meet), ``(-1, -1)`` on a miss.
     """
-    H = heights.cell_heights if isinstance(heights, HeightField) else \
-        np.asarray(heights, dtype=np.float32)
-    o = np.asarray(origins, dtype=np.float64)
-    d = np.asarray(directions, dtype=np.float64)
+    if surface not in SURFACES:
+        raise ValueError(f"surface: unknown surface {surface!r}; valid surfaces are {', '.join(SURFACES)}")
+    # the validation of algos.intersect: the same inputs are accepted, the same refused
+    H = as_field(heights).cell_heights
+    o, d = check_rays3(origins, directions)
     n = len(o)
-    lo = np.zeros(n) if tmin is None else np.broadcast_to(np.asarray(tmin, float), (n,))
-    hi = np.full(n, np.inf) if tmax is None else np.broadcast_to(np.asarray(tmax, float), (n,))
+    lo, hi = check_t(tmin, "tmin", n), check_t(tmax, "tmax", n)
+    lo = np.zeros(n) if lo is None else lo
+    hi = np.full(n, np.inf) if hi is None else hi
     t = np.empty(n)
     cell = np.empty((n, 2), np.int32)
     # a parameter beyond float64 (a subnormal direction component) overflows to +-inf,

@@ -151,7 +151,10 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     **options
         Per-intersector options (see ``algos.INTERSECTOR_REGISTRY[name].options``):
         ``cull_cells``, ``cull_runs`` (switch culling off, for checks),
-        ``max_denominator`` (runs_periodic), ``fine_level`` (the maxmip kernels: the
+        ``max_denominator`` (runs_periodic: its walk follows the slope's best rational
+        approximation p/q, q <= max_denominator, but its hits stay the caller's ray's,
+        exact for every value, a small one only costs more cells: docs/kernels.md, "A
+        user's max_denominator in first hits"), ``fine_level`` (the maxmip kernels: the
         floor level whose 2^fine_level tiles are walked cell by cell or run by run),
         ``packet_width`` (packet_maxmip: 1, 2, 4 or 8 consecutive rays per packet), and the
         marching parameters ``march_steps``, ``march_refinements``, ``march_growth``,

@@ -127,14 +127,11 @@ static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_
     return 1;
 }
 
-/* The triangles surface's two pieces on [ta, tb] of cell (i, j) with corner heights
- * h00 .. h11, from the 2D ray alone: the slopes of the triangle the ray is over just after
- * ta (lower: u >= v) and of the other one, and the parameter where the ray crosses the
- * diagonal u = v inside (ta, tb) (tb when it does not). ua, va (ub, vb): u, v at ta (tb).
- * A crossing that rounds onto ta (ua - va and the heading w of opposite signs, |ua - va|
- * a few ulps of ta times |w|: a ray with a tiny dx entering by the lower edge at u = 0+)
- * leaves no first piece: the ray is over the triangle it heads into for all of (ta, tb],
- * and at ta itself both planes agree to rounding (the surface is continuous). */
+/* The triangles surface's two pieces on [ta, tb] of cell (i, j) (corners h00 .. h11), from
+ * the 2D ray alone: the slopes of the triangle under the ray just after ta (lower: u >= v)
+ * and of the other, and where the ray crosses u = v inside (ta, tb) (else tb). ua, va (ub,
+ * vb): u, v at ta (tb). A crossing that rounds onto ta (a tiny dx entering by the lower edge
+ * at u = 0+) leaves no first piece: the ray heads into one triangle for all of (ta, tb]. */
 static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double h01, double h11,
                                  double ta, double tb, double ua, double va, double ub, double vb,
                                  double *su1, double *sv1, double *su2, double *sv2,
@@ -159,14 +156,22 @@ static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double
     }
 }
 
-/* Whether flat/plane3 cell (i, j) holds tb: it ends the range, the cell is more than that
- * point (or the range is one point), and p(tb) is not on an exit face into the grid. */
-static inline int hf_end_closed(const hf_hit *h, int32_t i, int32_t j, double ta, double tb) {
+/* A cell met at one point only (ta == tb) inside a range that is not one point is not
+ * visited by the half-open rule (docs/CONVENTIONS.md): the point is the entered cell's,
+ * or at the closed end t1 the left cell's. Float walks and the band list such cells (a
+ * side cell of a vertex crossing, at tmin or at tmax); no surface tests them. */
+static inline int hf_one_point_cell(const hf_hit *h, double ta, double tb) {
+    return !(ta < tb) && h->t0 < h->t1;
+}
+
+/* Whether flat/plane3 cell (i, j) holds tb: it ends the range, and p(tb) is not on the
+ * cell's exit face into another cell of the grid (that cell decides it: border_point). */
+static inline int hf_end_closed(const hf_hit *h, int32_t i, int32_t j, double tb) {
     const double x = h->ox + tb * h->dx, y = h->oy + tb * h->dy;
     const int sx = (h->dx > 0) - (h->dx < 0), sy = (h->dy > 0) - (h->dy < 0);
     const int ex = sx != 0 && x == (double)i + (sx > 0), ey = sy != 0 && y == (double)j + (sy > 0);
     const int64_t ni = (int64_t)i + ex * sx, nj = (int64_t)j + ey * sy;
-    if (!(tb >= h->t1) || !(ta < tb || h->t0 == h->t1)) return 0;
+    if (!(tb >= h->t1)) return 0;
     return !((ex || ey) && ni >= 0 && ni <= h->cols - 2 && nj >= 0 && nj <= h->rows - 2);
 }
 
@@ -179,17 +184,16 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     const double ub = h->ox + tb * h->dx - i, vb = h->oy + tb * h->dy - j;
     const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
     h->cells_tested += 1;
+    if (hf_one_point_cell(h, ta, tb)) return 0;
     switch (h->surface) {
     /* flat and plane3 jump at cell borders, where a point belongs to the cell the ray
      * enters (docs/CONVENTIONS.md, "Points on a cell border"): the cell's interval is
-     * [ta, tb) but at the range's end (hf_end_closed; an entered cell decides p(t1) after
-     * the walk, border_point in intersect.c). So a cell met at one point only (a side cell
-     * of a vertex crossing, or one stepped into as the range ends) is not hit, nor is a
-     * touch exactly at a cell's exit: the next cell's surface decides that point. */
+     * [ta, tb) unless tb ends the range (hf_end_closed; an entered cell decides p(t1) after
+     * the walk, border_point in intersect.c). So a touch exactly at its exit is not a hit
+     * of this cell: the next cell decides it. (One-point cells: hf_one_point_cell.) */
     case HF_FLAT: {
         const double c = hf_flat_height(h00, h10, h01, h11);
-        const int closed = hf_end_closed(h, i, j, ta, tb);
-        if (!(ta < tb || closed)) return 0;
+        const int closed = hf_end_closed(h, i, j, tb);
         if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
         if (zb < c || (zb == c && closed))
             return hf_hit_at(h, hf_linear_root(ta, tb, za - c, zb - c), i, j, -1, 0, 0);
@@ -197,8 +201,7 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
     }
     case HF_PLANE3: {
         double a, b;
-        const int closed = hf_end_closed(h, i, j, ta, tb);
-        if (!(ta < tb || closed)) return 0;
+        const int closed = hf_end_closed(h, i, j, tb);
         hf_plane3_slopes(h00, h10, h01, &a, &b);
         {
             const double fa = za - hf_plane_height(h00, a, b, ua, va);
@@ -305,6 +308,7 @@ static inline int hf_tri_cell_test(hf_hit *h, const hf_tri_cell *c, int wall) {
     const double fa = za - c->p1a;
     double f_split;
     h->cells_tested += 1;
+    if (hf_one_point_cell(h, ta, tb)) return 0;
     if (fa <= 0) return hf_hit_at(h, ta, c->i, c->j, wall, c->su1, c->sv1);
     f_split = zs - c->p1s;
     if (f_split <= 0)
@@ -337,15 +341,12 @@ HF_HOT void hf_slab_clip(double a, double b, int face_axis, double *lo, double *
     if (b < *hi) *hi = b;
 }
 
-/* 1 / d for a direction component d, as every face parameter (face - o) * inv of the
- * walks uses it; +inf for d = 0 (the walks test d != 0 before using it). Where |d| is
- * below DBL_MIN (a subnormal component beside a normal one), +-DBL_MAX instead of 1 / d,
- * which may overflow: a face the ray starts on is then at t = 0, where 0 * inf would
- * give NaN, which every comparison of the slab clips ignores (a ray on the far face kept
- * a range it does not have, or a cell's interval became empty). Any other face stays
- * beyond every parameter a ray reaches inside the box, unless the origin lies within
- * 2^-500 of the line 0 without lying on it. A normal d costs one predictable branch, as
- * the test d != 0 did. */
+/* 1 / d for a direction component d, as every face parameter (face - o) * inv uses it;
+ * +inf for d = 0 (the walks test d != 0 first). Where |d| < DBL_MIN (a subnormal beside a
+ * normal component), +-DBL_MAX instead of an overflowing 1 / d: a face the ray starts on is
+ * then at t = 0, where 0 * inf would give NaN, which the slab clips ignore. Any other face
+ * stays beyond every parameter reached in the box, unless the origin lies within 2^-500 of
+ * the line 0 without lying on it. A normal d costs one predictable branch. */
 static inline double hf_inverse(double d) {
     if (fabs(d) >= DBL_MIN) return 1.0 / d;
     return d == 0 ? (double)INFINITY : copysign(DBL_MAX, d);
@@ -410,14 +411,12 @@ static inline int hf_on_grid_line(const hf_hit *h) {
 }
 
 /* ---- the tight path -----------------------------------------------------------------
- * The exact per-cell test works on [ta, tb] = [t0, t1] intersected with the cell's x and
- * y slabs (hf_cell_interval), and culls when min(z(ta), z(tb)) > cellmax. The slab of
- * one axis alone gives a wider interval, so z over it reaches at least as low: its
- * parameter at the low-z end of cell k is ((k + off) - o) * inv, the very expression the
- * exact interval computes for that face, clamped to [t0, t1]. Rounding is monotone, so
- * the z computed from it is <= the z the exact test computes: a cell this bound rejects
- * is one the exact cull rejects too, and outputs stay bit-identical. No division, no
- * interval rebuild: a subtract, a multiply, a clamp and a multiply-add per cell. */
+ * The exact per-cell test works on [t0, t1] intersected with the cell's x and y slabs
+ * (hf_cell_interval), and culls when min(z(ta), z(tb)) > cellmax. One axis's slab alone is
+ * wider, so z over it reaches at least as low: its parameter at the low-z end of cell k is
+ * ((k + off) - o) * inv, the exact interval's own expression, clamped to [t0, t1]. Rounding
+ * is monotone, so a cell this bound rejects the exact cull rejects too (outputs stay
+ * bit-identical). A subtract, a multiply, a clamp and a multiply-add per cell. */
 static inline void hf_hit_prepare(hf_hit *h) {
     const int descending = h->dz < 0;
     int k;
@@ -646,9 +645,9 @@ static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t 
     t_out = (t_out - o_maj) * inv_maj;
     if (t_out > s->tb) t_out = s->tb;
     if (k != first) {
-        /* the previous cell's exit; exits grow along the run, so it is the latest */
-        double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
-        if (t_prev > s->tb) t_prev = s->tb;
+        /* the previous cell's exit (the latest); unclamped, so a walked cell the caller's
+         * ray reaches only after leaving the strip is empty, as in hf_cell_interval */
+        const double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
         ta = t_prev > ta ? t_prev : ta;
     }
     if (!(ta <= t_out)) return 0;

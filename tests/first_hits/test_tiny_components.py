@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import algos
+from algos.brute import _first_hit_one
 from algos.registry import INTERSECTOR_REGISTRY
 
 from .exact_hits import exact_first_hit
@@ -156,16 +157,21 @@ def test_tiny_component_sweep(surface):
 
 @pytest.mark.parametrize("surface", ["flat", "plane3", "triangles"])
 def test_brute_force_level_ray_crossing_a_grid_line_at_2e307(surface):
-    """dx = -2.2e-308, dy = dz = 0 (intersect refuses it: its largest component is below
-    2**-400; the brute force takes it): from x = 1.5 it reaches column 0, whose samples
-    are 5 high, at t = 0.5 / 2.2e-308 = 2.27e307, a float64. A level ray's z never
-    overflows, so its range is not cut short; the exact hit (Fraction) is matched."""
+    """dx = -2.2e-308, dy = dz = 0: from x = 1.5 it reaches column 0, whose samples are 5
+    high, at t = 0.5 / 2.2e-308 = 2.27e307, a float64. A level ray's z never overflows,
+    so its range is not cut short; the exact hit (Fraction) is matched. Its largest
+    component is below 2**-400, so brute_force_hits refuses it as intersect does (it
+    validates its input with intersect's checks); its per-ray routine, which the checked
+    rays reach, still takes it."""
     H = np.array([[5, 0, 0], [5, 0, 0]], np.float32)
     o, d = (1.5, 0.5, 1.0), (-2.2e-308, 0.0, 0.0)
     want, cell = exact_first_hit(H, o, d, surface)
     assert want is not None and want > Fraction(2 * 10 ** 307)
-    t, at = algos.brute_force_hits(H, [o], [d], surface)
-    assert _close(t[0], want) and tuple(at[0]) == cell
+    with pytest.raises(ValueError, match=r"directions: ray 0 has a largest component"):
+        algos.brute_force_hits(H, [o], [d], surface)
+    with np.errstate(over="ignore"):
+        t, at = _first_hit_one(H, np.array(o), np.array(d), surface, 0.0, np.inf)
+    assert _close(t, want) and tuple(at) == cell
 
 
 @pytest.mark.parametrize("surface", ["flat", "triangles"])
