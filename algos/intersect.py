@@ -155,7 +155,8 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         approximation p/q, q <= max_denominator, but its hits stay the caller's ray's,
         exact for every value, a small one only costs more cells: docs/kernels.md, "A
         user's max_denominator in first hits"), ``fine_level`` (the maxmip kernels: the
-        floor level whose 2^fine_level tiles are walked cell by cell or run by run),
+        floor level whose 2^fine_level tiles are walked cell by cell or run by run; a
+        value above the field's top mip level is clamped to it),
         ``packet_width`` (packet_maxmip: 1, 2, 4 or 8 consecutive rays per packet), and the
         marching parameters ``march_steps``, ``march_refinements``, ``march_growth``,
         ``march_first_fraction``, ``march_min_step``.

@@ -374,8 +374,8 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     given = np.asarray(observer, dtype=np.float64) if np.ndim(observer) else observer
     obs, single = _observers(given, h)
     if not single and (mode != "normal" or values_given):
-        raise ValueError(f"observer: mode={mode!r}{' and output values' if values_given else ''}"
-                         f" need one observer, got {len(obs)} (several give a count)")
+        raise ValueError(f"observer: mode={mode!r}{' and output values need' if values_given else ' needs'}"
+                         f" one observer, got {len(obs)} (several give a count)")
     if grid.field is not None:
         obs = np.column_stack([obs[:, 0], grid.field.north_up_row(obs[:, 1])])
     if grid.void is not None:

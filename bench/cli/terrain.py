@@ -91,7 +91,7 @@ def _viewshed(args, field, obs, common, progress):
     if args.mode != "normal" or values:
         if len(obs) != 1:
             raise ValueError(f"--observer: --mode {args.mode}"
-                             f"{' and output values' if values else ''} need one observer, "
+                             f"{' and output values need' if values else ' needs'} one observer, "
                              f"got {len(obs)} (several give a count)")
         (col, row, height), = obs
         if args.mode == "observer" and height is not None:

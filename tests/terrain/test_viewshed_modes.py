@@ -234,7 +234,7 @@ def test_bad_options_raise_naming_the_argument(kwargs, match):
 
 
 def test_several_observers_refuse_modes_and_values():
-    with pytest.raises(ValueError, match=r"observer: mode='ground' need one observer, got 2"):
+    with pytest.raises(ValueError, match=r"observer: mode='ground' needs one observer, got 2"):
         T.viewshed(np.zeros((4, 4)), [[0, 0], [1, 1]], mode="ground")
     with pytest.raises(ValueError, match="observer: mode='normal' and output values"):
         T.viewshed(np.zeros((4, 4)), [[0, 0], [1, 1]], visible_value=3)
