@@ -512,7 +512,7 @@ def algos_viewshed(field, observer_height, **kwargs):
 @pytest.mark.parametrize("args, match", [
     (["--mode", "ground", "--visible-value", "1"], "--visible-value: applies to --mode normal"),
     (["--mode", "observer", "--observer-height", "2"], "--observer-height: --mode observer"),
-    (["--mode", "ground", "--observer-pixel", "2,2"], "--observer: --mode ground need one"),
+    (["--mode", "ground", "--observer-pixel", "2,2"], "--observer: --mode ground needs one"),
     (["-om", "dem", "--dask", "local:1", "--max-distance", "60"], "--mode: --dask gives"),
 ])
 def test_cli_refuses_contradicting_options(tmp_path, capsys, args, match):
