@@ -20,7 +20,9 @@
  * (every grid lies inside; NaN goes to -2^30), so the conversion is always defined. floor and ceil
  * by truncation: without SSE4.1 they would be library calls. */
 static inline int64_t hf_index_of(double x, int forward) {
-    const double c = x >= -1073741824.0 ? (x <= 1073741824.0 ? x : 1073741824.0) : -1073741824.0;
+    /* two selects in a row, not nested (NaN: the first comparison is false) */
+    const double above = x > -1073741824.0 ? x : -1073741824.0;
+    const double c = above < 1073741824.0 ? above : 1073741824.0;
     const int64_t k = (int64_t)c;            /* c rounded toward zero */
     if (forward) return k - ((double)k > c); /* floor(c) */
     return k + ((double)k < c) - 1;          /* ceil(c) - 1 */

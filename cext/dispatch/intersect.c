@@ -264,20 +264,14 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     return 1;
 }
 
-/* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status.
- * `compact`: the tree's geometry for dda_compact (compact.h), NULL for the others. */
-HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
-                     int entry_axis, hf_hit_walk walk, int parallel, hf_direction *direction_cache,
-                     hf_pattern *pattern, const hf_compact *compact) {
+/* The one-ray batch b2 of a base walk (walk.h) on [*lo, *hi] for ray `ray`, and its 2D
+ * origin and direction o2, d2: built only for the walks that read it (runs_maxmip and the
+ * base walks), not for the max-mipmap, compact and cone walks, which take h alone. */
+static void ray_base_batch(int kernel, const hf_hit_batch *b, int64_t ray, hf_batch *b2,
+                           double o2[2], double d2[2], double *lo, double *hi, int parallel,
+                           hf_direction *direction_cache) {
     const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
-    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
-                         kernel == HF_HIT_MARCH_BINARY;
-    const int cone = kernel == HF_HIT_CONE;
-    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
-    hf_batch b2;
-    hf_sink sink;
-    double o2[2], d2[2], lo = t0, hi = t1;
-    memset(&b2, 0, sizeof b2);
+    memset(b2, 0, sizeof *b2);
     o2[0] = o[0];
     o2[1] = o[1];
     d2[0] = d[0];
@@ -306,24 +300,34 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
         if (d[0] == 0 && o[0] == b->cols - 1) o2[0] = o[0] - 0.75 / HF_ONE;
         if (d[1] == 0 && o[1] == b->rows - 1) o2[1] = o[1] - 0.75 / HF_ONE;
     }
-    b2.n_rays = 1;
-    b2.origins = o2;
-    b2.directions = d2;
-    b2.tmin = &lo;
-    b2.tmax = &hi;
-    b2.nx = b->cols - 1;
-    b2.ny = b->rows - 1;
+    b2->n_rays = 1;
+    b2->origins = o2;
+    b2->directions = d2;
+    b2->tmin = lo;
+    b2->tmax = hi;
+    b2->nx = b->cols - 1;
+    b2->ny = b->rows - 1;
     if (kernel == HF_DDA_F32) {
         /* the float32 walk casts its range to float: round it outward, so a
          * hair-thin interval (a flat field) cannot collapse to nothing; the surface
          * tests still use the float64 interval */
-        lo = (double)nextafterf((float)t0, -INFINITY);
-        hi = (double)nextafterf((float)t1, INFINITY);
+        *lo = (double)nextafterf((float)*lo, -INFINITY);
+        *hi = (double)nextafterf((float)*hi, INFINITY);
     }
-    b2.max_denominator = b->max_denominator;
-    b2.direction_cache = parallel ? direction_cache : NULL;
-    b2.pattern = b->pattern;
-    sink.hit = h;
+    b2->max_denominator = b->max_denominator;
+    b2->direction_cache = parallel ? direction_cache : NULL;
+    b2->pattern = b->pattern;
+}
+
+/* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status.
+ * `compact`: the tree's geometry for dda_compact (compact.h), NULL for the others. */
+HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
+                     int entry_axis, hf_hit_walk walk, int parallel, hf_direction *direction_cache,
+                     hf_pattern *pattern, const hf_compact *compact) {
+    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
+                         kernel == HF_HIT_MARCH_BINARY;
+    const int cone = kernel == HF_HIT_CONE;
+    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     if (marching) {
         march(h, b, kernel);
     } else if (relaxed) {
@@ -342,23 +346,25 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
         hf_compact_hit(h, compact);
     } else if (cone && !hf_on_grid_line(h)) {
         hf_cone_hit(h, b->cone);
-    } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(h)) {
-        hf_mipmap m;
-        m.levels = b->mip;
-        m.cols = b->mip_cols;
-        m.n_levels = b->mip_levels;
-        m.floor_level = b->floor_level;
-        {
-            const int status = hf_runs_maxmip_hit(&b2, &sink, &m);
-            if (status != HF_OK) {
-                b->bad_ray = ray;
-                return status;
-            }
-        }
     } else {
-        /* (a maxmip, compact or cone kernel on a grid line, where neighbouring cells
-         * matter, walks every cell with its base kernel) */
-        const int status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)pattern : NULL);
+        hf_batch b2;
+        hf_sink sink;
+        double o2[2], d2[2], lo = t0, hi = t1;
+        int status;
+        ray_base_batch(kernel, b, ray, &b2, o2, d2, &lo, &hi, parallel, direction_cache);
+        sink.hit = h;
+        if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(h)) {
+            hf_mipmap m;
+            m.levels = b->mip;
+            m.cols = b->mip_cols;
+            m.n_levels = b->mip_levels;
+            m.floor_level = b->floor_level;
+            status = hf_runs_maxmip_hit(&b2, &sink, &m);
+        } else {
+            /* (a maxmip, compact or cone kernel on a grid line, where neighbouring cells
+             * matter, walks every cell with its base kernel) */
+            status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)pattern : NULL);
+        }
         if (status != HF_OK) {
             b->bad_ray = ray;
             return status;

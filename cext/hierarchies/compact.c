@@ -163,7 +163,7 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
     const int climb = top > 1 ? top - 1 : 1; /* the coarsest tile level ever tested */
     const int descending = h->dz < 0;
     const int32_t fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
-    const int has_x = h->dx != 0, has_y = h->dy != 0;
+    double fox, foy; /* the face parameters' origin (hf_mip_ray: -inf along an axis not moved on) */
     const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
     const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
     const double inf = (double)INFINITY;
@@ -173,14 +173,16 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
     int level = climb < 2 ? climb : 2;
     int64_t guard;
     hf_mip_ray_of(h, &ray);
+    fox = ray.fox;
+    foy = ray.foy;
     ray.cull = cull; /* (h->cull_cells is off while the walk runs: see hf_compact_hit) */
     /* every pass skips a tile, walks a floor tile or descends one level; descents are at
      * most top per move */
     for (guard = 0; guard <= (8 + 2 * (int64_t)top) * ((int64_t)nx + ny) + 64; ++guard) {
         const int shift = 2 * level;
         const int64_t tile_i = i >> shift, tile_j = j >> shift;
-        const double t_exit_x = has_x ? hf_face_t(hf_tile_face(tile_i, shift, fx), ox, inv_x) : inf;
-        const double t_exit_y = has_y ? hf_face_t(hf_tile_face(tile_j, shift, fy), oy, inv_y) : inf;
+        const double t_exit_x = hf_face_t(hf_tile_face(tile_i, shift, fx), fox, inv_x);
+        const double t_exit_y = hf_face_t(hf_tile_face(tile_j, shift, fy), foy, inv_y);
         /* the tile's bound, from its parent's line (the root's tile has none) */
         const double bound =
             level < top

@@ -23,6 +23,10 @@ typedef struct {
     int top, floor_level, descending, cull, has_x, has_y;
     int32_t sx, sy, fx, fy; /* travel direction; exit face of index k is k + f */
     double ox, oy, oz, dx, dy, dz, inv_x, inv_y, t1;
+    /* the origin the face parameters subtract: ox (oy), or -inf along an axis the ray does
+     * not move on, whose inverse direction is +inf (hf_inverse): ((double)face - fox) *
+     * inv_x is then the exit parameter, or +inf, with no jump on has_x */
+    double fox, foy;
     int64_t guard_max; /* iterations after which the walk gives up (a miss) */
 } hf_mip_ray;
 
@@ -62,6 +66,8 @@ HF_HOT void hf_mip_ray_of(const hf_hit *h, hf_mip_ray *r) {
     r->inv_x = h->inv_dx;
     r->inv_y = h->inv_dy;
     r->t1 = h->t1;
+    r->fox = r->has_x ? h->ox : -(double)INFINITY;
+    r->foy = r->has_y ? h->oy : -(double)INFINITY;
 }
 
 static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_ray *r,
@@ -98,15 +104,13 @@ static inline hf_mip_tile hf_mip_tile_of(const hf_mip_ray *r, int32_t tile_i, in
 }
 
 /* The ray's exit parameter from tile `tile` at `level` along x (y): inf when the ray does
- * not move along that axis. */
+ * not move along that axis (fox is then -inf and inv_x +inf: no jump). */
 static inline double hf_mip_exit_x(const hf_mip_ray *r, int32_t tile, int level) {
-    return r->has_x ? hf_face_t(hf_tile_face(tile, level, r->fx), r->ox, r->inv_x)
-                    : (double)INFINITY;
+    return hf_face_t(hf_tile_face(tile, level, r->fx), r->fox, r->inv_x);
 }
 
 static inline double hf_mip_exit_y(const hf_mip_ray *r, int32_t tile, int level) {
-    return r->has_y ? hf_face_t(hf_tile_face(tile, level, r->fy), r->oy, r->inv_y)
-                    : (double)INFINITY;
+    return hf_face_t(hf_tile_face(tile, level, r->fy), r->foy, r->inv_y);
 }
 
 static inline hf_mip_tile hf_mip_tile_exit(const hf_mip_ray *r, const hf_mip_walk *w) {
@@ -144,7 +148,7 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
                          double t_start, double *t_entered, hf_cell_test test, void *ctx) {
     const int32_t nx = r->nx, ny = r->ny, sx = r->sx, sy = r->sy, fx = r->fx, fy = r->fy;
     const double ox = r->ox, oy = r->oy, oz = r->oz, dz = r->dz, inv_x = r->inv_x;
-    const double inv_y = r->inv_y, t1 = r->t1, inf = (double)INFINITY;
+    const double inv_y = r->inv_y, t1 = r->t1;
     const int descending = r->descending, cull = r->cull;
     /* the exact test's own cull is this one when the ray descends (z at the cell's exit,
      * tb: min(mx, my, t1) is the exact interval's tb, the same expressions) against the
@@ -152,8 +156,8 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
     const int culled = !leaf && cull && descending;
     int32_t i = *ci, j = *cj;
     double t_in = t_start;
-    double mx = r->has_x ? ((double)(i + fx) - ox) * inv_x : inf;
-    double my = r->has_y ? ((double)(j + fy) - oy) * inv_y : inf;
+    double mx = ((double)(i + fx) - r->fox) * inv_x; /* inf along an axis not moved on */
+    double my = ((double)(j + fy) - r->foy) * inv_y;
     for (;;) {
         const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
         h->cells_visited += 1;
