@@ -7,6 +7,9 @@
  * parameter where z reaches hmin, which ends the interval. */
 #include <math.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include "hierarchies/compact.h"
 #include "hierarchies/cone.h"
 #include "hierarchies/packet.h"
@@ -236,6 +239,34 @@ static hf_hit_walk walk_of(int kernel) {
 }
 
 /* ---- one ray of the batch, in three steps ------------------------------------------- */
+/* Zero a hit record with 16-byte stores (SSE2, the x86-64 baseline): a memset of its 288
+ * bytes compiles to a `rep stos`, whose start-up costs more than the stores (and which
+ * callgrind counts as a branch per 8 bytes). */
+static inline void zero_hit(hf_hit *h) {
+#if defined(__SSE2__)
+    /* 18 stores written out: a loop of them would be recognised as a memset again */
+    char *p = (char *)h;
+    const __m128i z = _mm_setzero_si128();
+#define HF_ZERO_32(at)                          \
+    _mm_storeu_si128((__m128i *)(p + (at)), z); \
+    _mm_storeu_si128((__m128i *)(p + (at) + 16), z)
+    HF_ZERO_32(0);
+    HF_ZERO_32(32);
+    HF_ZERO_32(64);
+    HF_ZERO_32(96);
+    HF_ZERO_32(128);
+    HF_ZERO_32(160);
+    HF_ZERO_32(192);
+    HF_ZERO_32(224);
+    HF_ZERO_32(256);
+#undef HF_ZERO_32
+#else
+    memset(h, 0, sizeof *h);
+#endif
+}
+/* (C99 has no static_assert: an array of negative size fails the build) */
+typedef char hf_hit_is_288_bytes[sizeof(hf_hit) == 288 ? 1 : -1];
+
 /* Its set-up: clip ray `ray` to the box and fill h (zeroed first); returns 1 when there
  * is a walk to do, 0 when the ray misses the box. */
 HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_out, double *t1_out,
@@ -247,7 +278,7 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     const double inv[2] = {hf_inverse(d[0]), hf_inverse(d[1])};
     double t0, t1;
     int entry_axis;
-    memset(h, 0, sizeof *h);
+    zero_hit(h);
     if (!clip_to_box(o, d, inv, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
                      &entry_axis))
         return 0;
