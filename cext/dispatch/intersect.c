@@ -213,11 +213,35 @@ static void march_relaxed_cone(hf_hit *h, const hf_hit_batch *b) {
  * it walks cell by cell with face parameters computed directly (no drift: the exact
  * interval's own expressions); the walk itself is in maxmip.h, shared with the packet
  * kernel (packet.c). */
-static int maxmip_tight(hf_hit *h, const hf_hit_batch *b) {
+/* The walk of a ray moving along both axes, with its direction's signs constants (gx:
+ * dx > 0, gy: dy > 0): every choice on them (the exit faces, the steps, the forward rule
+ * of the next cell) folds away, and no jump on a sign that a batch of random rays mixes is
+ * left in the loop. */
+HF_HOT int maxmip_quadrant(hf_hit *h, const hf_hit_batch *b, const hf_mip_ray *r, hf_mip_walk *w,
+                           const int gx, const int gy) {
+    hf_mip_ray q = *r;
+    q.fx = q.gx = gx;
+    q.fy = q.gy = gy;
+    q.sx = gx ? 1 : -1;
+    q.sy = gy ? 1 : -1;
+    return hf_mip_walk_alone(h, b, &q, w, 0);
+}
+
+#if defined(__GNUC__)
+__attribute__((flatten))
+#endif
+static int
+maxmip_tight(hf_hit *h, const hf_hit_batch *b) {
     hf_mip_ray r;
     hf_mip_walk w;
     hf_mip_setup(h, b, &r, &w);
-    return hf_mip_walk_alone(h, b, &r, &w, 0);
+    if (!r.has_x || !r.has_y) return hf_mip_walk_alone(h, b, &r, &w, 0);
+    switch (r.fx << 1 | r.fy) {
+    case 0: return maxmip_quadrant(h, b, &r, &w, 0, 0);
+    case 1: return maxmip_quadrant(h, b, &r, &w, 0, 1);
+    case 2: return maxmip_quadrant(h, b, &r, &w, 1, 0);
+    default: return maxmip_quadrant(h, b, &r, &w, 1, 1);
+    }
 }
 
 /* ---- the batch ------------------------------------------------------------------------ */

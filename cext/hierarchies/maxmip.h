@@ -22,6 +22,7 @@ typedef struct {
     int32_t nx, ny;
     int top, floor_level, descending, cull, has_x, has_y;
     int32_t sx, sy, fx, fy; /* travel direction; exit face of index k is k + f */
+    int32_t gx, gy;         /* the forward rule of hf_index_of: dx >= 0, dy >= 0 */
     double ox, oy, oz, dx, dy, dz, inv_x, inv_y, t1;
     /* the origin the face parameters subtract: ox (oy), or -inf along an axis the ray does
      * not move on, whose inverse direction is +inf (hf_inverse): ((double)face - fox) *
@@ -57,6 +58,8 @@ HF_HOT void hf_mip_ray_of(const hf_hit *h, hf_mip_ray *r) {
     r->sy = h->dy > 0 ? 1 : -1;
     r->fx = h->dx > 0;
     r->fy = h->dy > 0;
+    r->gx = h->dx >= 0;
+    r->gy = h->dy >= 0;
     r->ox = h->ox;
     r->oy = h->oy;
     r->oz = h->oz;
@@ -244,9 +247,9 @@ static inline int hf_mip_leave_tile(const hf_mip_ray *r, hf_mip_walk *w, const h
     int64_t ni, nj;
     /* (the range ends first exactly when no face is left: then t_exit is t1) */
     if (!(e->t_exit < r->t1)) return 0;
-    ni = hf_tile_next_cell(e->exits & 1, e->tile_i, w->level, r->nx, r->dx >= 0,
+    ni = hf_tile_next_cell(e->exits & 1, e->tile_i, w->level, r->nx, r->gx,
                            r->ox + e->t_exit * r->dx);
-    nj = hf_tile_next_cell(e->exits >> 1, e->tile_j, w->level, r->ny, r->dy >= 0,
+    nj = hf_tile_next_cell(e->exits >> 1, e->tile_j, w->level, r->ny, r->gy,
                            r->oy + e->t_exit * r->dy);
     if ((uint64_t)ni >= (uint64_t)r->nx || (uint64_t)nj >= (uint64_t)r->ny) return 0;
     w->i = (int32_t)ni;
