@@ -132,8 +132,9 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
         float64 height is rounded to the nearest float32 (``0.1`` becomes
         ``0.100000001490116``; a relative change below 6e-8), and one beyond float32's
         range is refused. Rays are float64. Pass an :class:`algos.HeightField`
-        (``algos.Field`` and ``datasets_gen.HeightField`` are the same class) to build acceleration structures once and reuse them; its
-        :attr:`~algos.HeightField.cell_heights` are used (heights in a map unit are divided
+        (``algos.Field`` and ``datasets_gen.HeightField`` are the same class) to build
+        acceleration structures once and reuse them; its :attr:`~algos.HeightField.cell_heights`
+        are used (heights in a map unit are divided
         by the square pixel size; rectangular pixels and voids are refused). Anything else
         raises TypeError naming ``heights`` and what is accepted.
     origins, directions : array_like, shape (N, 3)

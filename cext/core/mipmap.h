@@ -14,13 +14,28 @@
 
 #include <math.h>
 #include <stdint.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+/* x clamped to [-2^30, 2^30], NaN to -2^30: with SSE2 (the x86-64 baseline) by maxsd,
+ * which gives its second operand when either is NaN, and minsd, without jumps. */
+static inline double hf_clamp_2p30(double x) {
+#if defined(__SSE2__)
+    const __m128d lo = _mm_set_sd(-1073741824.0), hi = _mm_set_sd(1073741824.0);
+    return _mm_cvtsd_f64(_mm_min_sd(_mm_max_sd(_mm_set_sd(x), lo), hi));
+#else
+    const double above = x > -1073741824.0 ? x : -1073741824.0;
+    return above < 1073741824.0 ? above : 1073741824.0;
+#endif
+}
 
 /* The index of the cell holding coordinate x along one axis, by the forward rule: [k, k+1)
  * moving forward (or along the axis), (k, k+1] moving back; x is clamped to +-2^30 first
  * (every grid lies inside; NaN goes to -2^30), so the conversion is always defined. floor and ceil
  * by truncation: without SSE4.1 they would be library calls. */
 static inline int64_t hf_index_of(double x, int forward) {
-    const double c = x >= -1073741824.0 ? (x <= 1073741824.0 ? x : 1073741824.0) : -1073741824.0;
+    const double c = hf_clamp_2p30(x);
     const int64_t k = (int64_t)c;            /* c rounded toward zero */
     if (forward) return k - ((double)k > c); /* floor(c) */
     return k + ((double)k < c) - 1;          /* ceil(c) - 1 */

@@ -7,6 +7,9 @@
  * parameter where z reaches hmin, which ends the interval. */
 #include <math.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include "hierarchies/compact.h"
 #include "hierarchies/cone.h"
 #include "hierarchies/packet.h"
@@ -210,11 +213,35 @@ static void march_relaxed_cone(hf_hit *h, const hf_hit_batch *b) {
  * it walks cell by cell with face parameters computed directly (no drift: the exact
  * interval's own expressions); the walk itself is in maxmip.h, shared with the packet
  * kernel (packet.c). */
-static int maxmip_tight(hf_hit *h, const hf_hit_batch *b) {
+/* The walk of a ray moving along both axes, with its direction's signs constants (gx:
+ * dx > 0, gy: dy > 0): every choice on them (the exit faces, the steps, the forward rule
+ * of the next cell) folds away, and no jump on a sign that a batch of random rays mixes is
+ * left in the loop. */
+HF_HOT int maxmip_quadrant(hf_hit *h, const hf_hit_batch *b, const hf_mip_ray *r, hf_mip_walk *w,
+                           const int gx, const int gy) {
+    hf_mip_ray q = *r;
+    q.fx = q.gx = gx;
+    q.fy = q.gy = gy;
+    q.sx = gx ? 1 : -1;
+    q.sy = gy ? 1 : -1;
+    return hf_mip_walk_alone(h, b, &q, w, 0);
+}
+
+#if defined(__GNUC__)
+__attribute__((flatten))
+#endif
+static int
+maxmip_tight(hf_hit *h, const hf_hit_batch *b) {
     hf_mip_ray r;
     hf_mip_walk w;
     hf_mip_setup(h, b, &r, &w);
-    return hf_mip_walk_alone(h, b, &r, &w, 0);
+    if (!r.has_x || !r.has_y) return hf_mip_walk_alone(h, b, &r, &w, 0);
+    switch (r.fx << 1 | r.fy) {
+    case 0: return maxmip_quadrant(h, b, &r, &w, 0, 0);
+    case 1: return maxmip_quadrant(h, b, &r, &w, 0, 1);
+    case 2: return maxmip_quadrant(h, b, &r, &w, 1, 0);
+    default: return maxmip_quadrant(h, b, &r, &w, 1, 1);
+    }
 }
 
 /* ---- the batch ------------------------------------------------------------------------ */
@@ -236,6 +263,34 @@ static hf_hit_walk walk_of(int kernel) {
 }
 
 /* ---- one ray of the batch, in three steps ------------------------------------------- */
+/* Zero a hit record with 16-byte stores (SSE2, the x86-64 baseline): a memset of its 288
+ * bytes compiles to a `rep stos`, whose start-up costs more than the stores (and which
+ * callgrind counts as a branch per 8 bytes). */
+static inline void zero_hit(hf_hit *h) {
+#if defined(__SSE2__)
+    /* 18 stores written out: a loop of them would be recognised as a memset again */
+    char *p = (char *)h;
+    const __m128i z = _mm_setzero_si128();
+#define HF_ZERO_32(at)                          \
+    _mm_storeu_si128((__m128i *)(p + (at)), z); \
+    _mm_storeu_si128((__m128i *)(p + (at) + 16), z)
+    HF_ZERO_32(0);
+    HF_ZERO_32(32);
+    HF_ZERO_32(64);
+    HF_ZERO_32(96);
+    HF_ZERO_32(128);
+    HF_ZERO_32(160);
+    HF_ZERO_32(192);
+    HF_ZERO_32(224);
+    HF_ZERO_32(256);
+#undef HF_ZERO_32
+#else
+    memset(h, 0, sizeof *h);
+#endif
+}
+/* (C99 has no static_assert: an array of negative size fails the build) */
+typedef char hf_hit_is_288_bytes[sizeof(hf_hit) == 288 ? 1 : -1];
+
 /* Its set-up: clip ray `ray` to the box and fill h (zeroed first); returns 1 when there
  * is a walk to do, 0 when the ray misses the box. */
 HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_out, double *t1_out,
@@ -247,7 +302,7 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     const double inv[2] = {hf_inverse(d[0]), hf_inverse(d[1])};
     double t0, t1;
     int entry_axis;
-    memset(h, 0, sizeof *h);
+    zero_hit(h);
     if (!clip_to_box(o, d, inv, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
                      &entry_axis))
         return 0;
@@ -264,20 +319,14 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     return 1;
 }
 
-/* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status.
- * `compact`: the tree's geometry for dda_compact (compact.h), NULL for the others. */
-HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
-                     int entry_axis, hf_hit_walk walk, int parallel, hf_direction *direction_cache,
-                     hf_pattern *pattern, const hf_compact *compact) {
+/* The one-ray batch b2 of a base walk (walk.h) on [*lo, *hi] for ray `ray`, and its 2D
+ * origin and direction o2, d2: built only for the walks that read it (runs_maxmip and the
+ * base walks), not for the max-mipmap, compact and cone walks, which take h alone. */
+static void ray_base_batch(int kernel, const hf_hit_batch *b, int64_t ray, hf_batch *b2,
+                           double o2[2], double d2[2], double *lo, double *hi, int parallel,
+                           hf_direction *direction_cache) {
     const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
-    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
-                         kernel == HF_HIT_MARCH_BINARY;
-    const int cone = kernel == HF_HIT_CONE;
-    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
-    hf_batch b2;
-    hf_sink sink;
-    double o2[2], d2[2], lo = t0, hi = t1;
-    memset(&b2, 0, sizeof b2);
+    memset(b2, 0, sizeof *b2);
     o2[0] = o[0];
     o2[1] = o[1];
     d2[0] = d[0];
@@ -306,24 +355,34 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
         if (d[0] == 0 && o[0] == b->cols - 1) o2[0] = o[0] - 0.75 / HF_ONE;
         if (d[1] == 0 && o[1] == b->rows - 1) o2[1] = o[1] - 0.75 / HF_ONE;
     }
-    b2.n_rays = 1;
-    b2.origins = o2;
-    b2.directions = d2;
-    b2.tmin = &lo;
-    b2.tmax = &hi;
-    b2.nx = b->cols - 1;
-    b2.ny = b->rows - 1;
+    b2->n_rays = 1;
+    b2->origins = o2;
+    b2->directions = d2;
+    b2->tmin = lo;
+    b2->tmax = hi;
+    b2->nx = b->cols - 1;
+    b2->ny = b->rows - 1;
     if (kernel == HF_DDA_F32) {
         /* the float32 walk casts its range to float: round it outward, so a
          * hair-thin interval (a flat field) cannot collapse to nothing; the surface
          * tests still use the float64 interval */
-        lo = (double)nextafterf((float)t0, -INFINITY);
-        hi = (double)nextafterf((float)t1, INFINITY);
+        *lo = (double)nextafterf((float)*lo, -INFINITY);
+        *hi = (double)nextafterf((float)*hi, INFINITY);
     }
-    b2.max_denominator = b->max_denominator;
-    b2.direction_cache = parallel ? direction_cache : NULL;
-    b2.pattern = b->pattern;
-    sink.hit = h;
+    b2->max_denominator = b->max_denominator;
+    b2->direction_cache = parallel ? direction_cache : NULL;
+    b2->pattern = b->pattern;
+}
+
+/* Its walk with intersector `kernel` on [t0, t1]: HF_OK, or the walk's error status.
+ * `compact`: the tree's geometry for dda_compact (compact.h), NULL for the others. */
+HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1,
+                     int entry_axis, hf_hit_walk walk, int parallel, hf_direction *direction_cache,
+                     hf_pattern *pattern, const hf_compact *compact) {
+    const int marching = kernel == HF_HIT_MARCH_LINEAR || kernel == HF_HIT_MARCH_GROWING ||
+                         kernel == HF_HIT_MARCH_BINARY;
+    const int cone = kernel == HF_HIT_CONE;
+    const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     if (marching) {
         march(h, b, kernel);
     } else if (relaxed) {
@@ -342,23 +401,25 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
         hf_compact_hit(h, compact);
     } else if (cone && !hf_on_grid_line(h)) {
         hf_cone_hit(h, b->cone);
-    } else if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(h)) {
-        hf_mipmap m;
-        m.levels = b->mip;
-        m.cols = b->mip_cols;
-        m.n_levels = b->mip_levels;
-        m.floor_level = b->floor_level;
-        {
-            const int status = hf_runs_maxmip_hit(&b2, &sink, &m);
-            if (status != HF_OK) {
-                b->bad_ray = ray;
-                return status;
-            }
-        }
     } else {
-        /* (a maxmip, compact or cone kernel on a grid line, where neighbouring cells
-         * matter, walks every cell with its base kernel) */
-        const int status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)pattern : NULL);
+        hf_batch b2;
+        hf_sink sink;
+        double o2[2], d2[2], lo = t0, hi = t1;
+        int status;
+        ray_base_batch(kernel, b, ray, &b2, o2, d2, &lo, &hi, parallel, direction_cache);
+        sink.hit = h;
+        if (kernel == HF_HIT_RUNS_MAXMIP && !hf_on_grid_line(h)) {
+            hf_mipmap m;
+            m.levels = b->mip;
+            m.cols = b->mip_cols;
+            m.n_levels = b->mip_levels;
+            m.floor_level = b->floor_level;
+            status = hf_runs_maxmip_hit(&b2, &sink, &m);
+        } else {
+            /* (a maxmip, compact or cone kernel on a grid line, where neighbouring cells
+             * matter, walks every cell with its base kernel) */
+            status = walk(&b2, &sink, kernel == HF_RUNS_PERIODIC ? (void *)pattern : NULL);
+        }
         if (status != HF_OK) {
             b->bad_ray = ray;
             return status;

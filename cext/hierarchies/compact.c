@@ -157,13 +157,20 @@ static inline int compact_climb(int level, int climb, int64_t oi, int64_t oj, in
     return up < climb ? up : climb;
 }
 
-static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
+/* The walk; `quadrant`: -1 for any ray, or (dx > 0) << 1 | (dy > 0) for a ray moving
+ * along both axes, a constant at each call site, so the choices on the direction's signs
+ * fold away (as dda_maxmip's maxmip_quadrant). */
+HF_HOT int compact_walk(hf_hit *h, const hf_compact *c, int cull, const int quadrant) {
     const int32_t nx = h->cols - 1, ny = h->rows - 1;
     const int top = c->n_levels;
     const int climb = top > 1 ? top - 1 : 1; /* the coarsest tile level ever tested */
     const int descending = h->dz < 0;
-    const int32_t fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
-    const int has_x = h->dx != 0, has_y = h->dy != 0;
+    /* exit face of index k: k + f; the forward rule of hf_index_of: gx, gy */
+    const int32_t fx = quadrant < 0 ? h->dx > 0 : quadrant >> 1;
+    const int32_t fy = quadrant < 0 ? h->dy > 0 : quadrant & 1;
+    const int gx = quadrant < 0 ? h->dx >= 0 : quadrant >> 1;
+    const int gy = quadrant < 0 ? h->dy >= 0 : quadrant & 1;
+    double fox, foy; /* the face parameters' origin (hf_mip_ray: -inf along an axis not moved on) */
     const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
     const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
     const double inf = (double)INFINITY;
@@ -173,14 +180,22 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
     int level = climb < 2 ? climb : 2;
     int64_t guard;
     hf_mip_ray_of(h, &ray);
+    if (quadrant >= 0) {
+        ray.fx = ray.gx = fx;
+        ray.fy = ray.gy = fy;
+        ray.sx = fx ? 1 : -1;
+        ray.sy = fy ? 1 : -1;
+    }
+    fox = ray.fox;
+    foy = ray.foy;
     ray.cull = cull; /* (h->cull_cells is off while the walk runs: see hf_compact_hit) */
     /* every pass skips a tile, walks a floor tile or descends one level; descents are at
      * most top per move */
     for (guard = 0; guard <= (8 + 2 * (int64_t)top) * ((int64_t)nx + ny) + 64; ++guard) {
         const int shift = 2 * level;
         const int64_t tile_i = i >> shift, tile_j = j >> shift;
-        const double t_exit_x = has_x ? hf_face_t(hf_tile_face(tile_i, shift, fx), ox, inv_x) : inf;
-        const double t_exit_y = has_y ? hf_face_t(hf_tile_face(tile_j, shift, fy), oy, inv_y) : inf;
+        const double t_exit_x = hf_face_t(hf_tile_face(tile_i, shift, fx), fox, inv_x);
+        const double t_exit_y = hf_face_t(hf_tile_face(tile_j, shift, fy), foy, inv_y);
         /* the tile's bound, from its parent's line (the root's tile has none) */
         const double bound =
             level < top
@@ -213,9 +228,9 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
         {
             /* into the next tile at this level, then up to the coarsest tile that changed */
             const int64_t ni =
-                hf_tile_next_cell(exits & 1, tile_i, shift, nx, h->dx >= 0, ox + t_exit * h->dx);
+                hf_tile_next_cell(exits & 1, tile_i, shift, nx, gx, ox + t_exit * h->dx);
             const int64_t nj =
-                hf_tile_next_cell(exits >> 1, tile_j, shift, ny, h->dy >= 0, oy + t_exit * h->dy);
+                hf_tile_next_cell(exits >> 1, tile_j, shift, ny, gy, oy + t_exit * h->dy);
             if ((uint64_t)ni >= (uint64_t)nx || (uint64_t)nj >= (uint64_t)ny) return 0;
             level = compact_climb(level, climb, tile_i << shift, tile_j << shift, ni, nj);
             i = (int32_t)ni;
@@ -227,13 +242,25 @@ static int compact_walk(hf_hit *h, const hf_compact *c, int cull) {
     return 0;
 }
 
+#if defined(__GNUC__)
+__attribute__((flatten))
+#endif
 int hf_compact_hit(hf_hit *h, const hf_compact *c) {
     /* the floor cull is the exact test's own cull, on the leaf's copy of the maximum: the
      * exact test runs without it, and never reads the row-major cell maxima */
     const int cull = h->cull_cells;
     int found;
     h->cull_cells = 0;
-    found = compact_walk(h, c, cull);
+    if (h->dx == 0 || h->dy == 0) {
+        found = compact_walk(h, c, cull, -1);
+    } else {
+        switch ((h->dx > 0) << 1 | (h->dy > 0)) {
+        case 0: found = compact_walk(h, c, cull, 0); break;
+        case 1: found = compact_walk(h, c, cull, 1); break;
+        case 2: found = compact_walk(h, c, cull, 2); break;
+        default: found = compact_walk(h, c, cull, 3); break;
+        }
+    }
     h->cull_cells = cull;
     return found;
 }

@@ -22,7 +22,12 @@ typedef struct {
     int32_t nx, ny;
     int top, floor_level, descending, cull, has_x, has_y;
     int32_t sx, sy, fx, fy; /* travel direction; exit face of index k is k + f */
+    int32_t gx, gy;         /* the forward rule of hf_index_of: dx >= 0, dy >= 0 */
     double ox, oy, oz, dx, dy, dz, inv_x, inv_y, t1;
+    /* the origin the face parameters subtract: ox (oy), or -inf along an axis the ray does
+     * not move on, whose inverse direction is +inf (hf_inverse): ((double)face - fox) *
+     * inv_x is then the exit parameter, or +inf, with no jump on has_x */
+    double fox, foy;
     int64_t guard_max; /* iterations after which the walk gives up (a miss) */
 } hf_mip_ray;
 
@@ -53,6 +58,8 @@ HF_HOT void hf_mip_ray_of(const hf_hit *h, hf_mip_ray *r) {
     r->sy = h->dy > 0 ? 1 : -1;
     r->fx = h->dx > 0;
     r->fy = h->dy > 0;
+    r->gx = h->dx >= 0;
+    r->gy = h->dy >= 0;
     r->ox = h->ox;
     r->oy = h->oy;
     r->oz = h->oz;
@@ -62,6 +69,8 @@ HF_HOT void hf_mip_ray_of(const hf_hit *h, hf_mip_ray *r) {
     r->inv_x = h->inv_dx;
     r->inv_y = h->inv_dy;
     r->t1 = h->t1;
+    r->fox = r->has_x ? h->ox : -(double)INFINITY;
+    r->foy = r->has_y ? h->oy : -(double)INFINITY;
 }
 
 static inline void hf_mip_setup(const hf_hit *h, const hf_hit_batch *b, hf_mip_ray *r,
@@ -98,15 +107,13 @@ static inline hf_mip_tile hf_mip_tile_of(const hf_mip_ray *r, int32_t tile_i, in
 }
 
 /* The ray's exit parameter from tile `tile` at `level` along x (y): inf when the ray does
- * not move along that axis. */
+ * not move along that axis (fox is then -inf and inv_x +inf: no jump). */
 static inline double hf_mip_exit_x(const hf_mip_ray *r, int32_t tile, int level) {
-    return r->has_x ? hf_face_t(hf_tile_face(tile, level, r->fx), r->ox, r->inv_x)
-                    : (double)INFINITY;
+    return hf_face_t(hf_tile_face(tile, level, r->fx), r->fox, r->inv_x);
 }
 
 static inline double hf_mip_exit_y(const hf_mip_ray *r, int32_t tile, int level) {
-    return r->has_y ? hf_face_t(hf_tile_face(tile, level, r->fy), r->oy, r->inv_y)
-                    : (double)INFINITY;
+    return hf_face_t(hf_tile_face(tile, level, r->fy), r->foy, r->inv_y);
 }
 
 static inline hf_mip_tile hf_mip_tile_exit(const hf_mip_ray *r, const hf_mip_walk *w) {
@@ -144,7 +151,7 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
                          double t_start, double *t_entered, hf_cell_test test, void *ctx) {
     const int32_t nx = r->nx, ny = r->ny, sx = r->sx, sy = r->sy, fx = r->fx, fy = r->fy;
     const double ox = r->ox, oy = r->oy, oz = r->oz, dz = r->dz, inv_x = r->inv_x;
-    const double inv_y = r->inv_y, t1 = r->t1, inf = (double)INFINITY;
+    const double inv_y = r->inv_y, t1 = r->t1;
     const int descending = r->descending, cull = r->cull;
     /* the exact test's own cull is this one when the ray descends (z at the cell's exit,
      * tb: min(mx, my, t1) is the exact interval's tb, the same expressions) against the
@@ -152,8 +159,8 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
     const int culled = !leaf && cull && descending;
     int32_t i = *ci, j = *cj;
     double t_in = t_start;
-    double mx = r->has_x ? ((double)(i + fx) - ox) * inv_x : inf;
-    double my = r->has_y ? ((double)(j + fy) - oy) * inv_y : inf;
+    double mx = ((double)(i + fx) - r->fox) * inv_x; /* inf along an axis not moved on */
+    double my = ((double)(j + fy) - r->foy) * inv_y;
     for (;;) {
         const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
         h->cells_visited += 1;
@@ -240,9 +247,9 @@ static inline int hf_mip_leave_tile(const hf_mip_ray *r, hf_mip_walk *w, const h
     int64_t ni, nj;
     /* (the range ends first exactly when no face is left: then t_exit is t1) */
     if (!(e->t_exit < r->t1)) return 0;
-    ni = hf_tile_next_cell(e->exits & 1, e->tile_i, w->level, r->nx, r->dx >= 0,
+    ni = hf_tile_next_cell(e->exits & 1, e->tile_i, w->level, r->nx, r->gx,
                            r->ox + e->t_exit * r->dx);
-    nj = hf_tile_next_cell(e->exits >> 1, e->tile_j, w->level, r->ny, r->dy >= 0,
+    nj = hf_tile_next_cell(e->exits >> 1, e->tile_j, w->level, r->ny, r->gy,
                            r->oy + e->t_exit * r->dy);
     if ((uint64_t)ni >= (uint64_t)r->nx || (uint64_t)nj >= (uint64_t)r->ny) return 0;
     w->i = (int32_t)ni;
