@@ -445,34 +445,51 @@ HF_HOT int ray_solve(int kernel, hf_hit_batch *b, int64_t ray, hf_hit *h, double
  * them). A point on the box's far side keeps the last cell (the closed box). Returns h
  * itself, or `decided` holding the record (h is left as the walk gave it: a plane's
  * chain resumes from it). */
-static const hf_hit *border_point(const hf_hit_batch *b, int64_t ray, const hf_hit *h,
-                                  hf_hit *decided) {
-    double t, x, y;
-    int on_x, on_y;
-    int64_t i, j;
-    if (h->found) {
-        t = h->t;
-    } else {
-        if (!b->tmax || !(h->t0 < h->t1) || h->t1 != b->tmax[ray]) return h;
-        t = h->t1;
-    }
-    x = h->ox + t * h->dx;
-    y = h->oy + t * h->dy;
-    /* on a border the ray crosses at t: the found cell's exit face, or any when none */
-    on_x = h->dx != 0 && x == floor(x) && (!h->found || x == (double)h->i + (h->dx > 0));
-    on_y = h->dy != 0 && y == floor(y) && (!h->found || y == (double)h->j + (h->dy > 0));
-    if (!on_x && !on_y) return h;
-    i = on_x ? hf_index_of(x, h->dx > 0)
-             : (h->found ? h->i : hf_cell_at(h->ox, h->dx, t, b->cols - 1));
-    j = on_y ? hf_index_of(y, h->dy > 0)
-             : (h->found ? h->j : hf_cell_at(h->oy, h->dy, t, b->rows - 1));
-    if (i < 0 || i > b->cols - 2 || j < 0 || j > b->rows - 2) return h; /* the box's side */
+/* (border_point's test: the record of cell (i, j), entered at t across the wall of `axis`,
+ * tested at that one point, or h when it does not reach the point) */
+HF_COLD const hf_hit *border_test(const hf_hit *h, hf_hit *decided, double t, int32_t i, int32_t j,
+                                  int axis) {
     *decided = *h;
     decided->found = 0;
     decided->cells_visited += 1;
     decided->t0 = decided->t1 = t; /* the one point, closed */
-    if (hf_surface_test(decided, (int32_t)i, (int32_t)j, t, t, on_x ? 0 : 1)) return decided;
-    return h;
+    return hf_surface_test(decided, i, j, t, t, axis) ? decided : h;
+}
+
+/* (border_point for a hit on its cell's exit face, or near it) */
+HF_COLD const hf_hit *border_exit(const hf_hit *h, hf_hit *decided) {
+    int32_t i, j;
+    if (!hf_exit_into_grid(h, h->i, h->j, h->t, &i, &j)) return h;
+    return border_test(h, decided, h->t, i, j, i != h->i ? 0 : 1);
+}
+
+/* (border_point for a miss whose range tmax ends) */
+HF_COLD const hf_hit *border_end(const hf_hit_batch *b, int64_t ray, const hf_hit *h,
+                                 hf_hit *decided) {
+    const double t = h->t1, x = h->ox + t * h->dx, y = h->oy + t * h->dy;
+    int32_t i, j;
+    /* on a grid line (beyond 2^31 the point is off the grid anyway) */
+    const int on_x = h->dx != 0 && fabs(x) < 0x1p31 && x == (double)(int64_t)x;
+    const int on_y = h->dy != 0 && fabs(y) < 0x1p31 && y == (double)(int64_t)y;
+    if (!(h->t0 < h->t1) || h->t1 != b->tmax[ray]) return h;
+    if (!on_x && !on_y) return h; /* p(t1) inside the cell the walk ended in */
+    i = on_x ? (int32_t)hf_index_of(x, h->dx > 0) : hf_cell_at(h->ox, h->dx, t, b->cols - 1);
+    j = on_y ? (int32_t)hf_index_of(y, h->dy > 0) : hf_cell_at(h->oy, h->dy, t, b->rows - 1);
+    if (i < 0 || i > b->cols - 2 || j < 0 || j > b->rows - 2) return h; /* the box's side */
+    return border_test(h, decided, t, i, j, on_x ? 0 : 1);
+}
+
+HF_HOT const hf_hit *border_point(const hf_hit_batch *b, int64_t ray, const hf_hit *h,
+                                  hf_hit *decided) {
+    if (h->found) {
+        /* one compare per axis first: almost every hit lies inside its cell */
+        const double fx = (double)h->i + (h->dx > 0), fy = (double)h->j + (h->dy > 0);
+        if ((h->dx != 0 && h->ox + h->t * h->dx == fx) ||
+            (h->dy != 0 && h->oy + h->t * h->dy == fy))
+            return border_exit(h, decided);
+        return h;
+    }
+    return b->tmax ? border_end(b, ray, h, decided) : h;
 }
 
 /* Its outputs, each only when asked for. */

@@ -1,8 +1,6 @@
-/* First hits on a height field: the per-cell surface tests and per-run culling that the
- * traversal walks call in HF_MODE_HIT (surfaces and rules: docs/CONVENTIONS.md). The walk
- * decides which cells are visited, in order of t; every surface test runs in float64 on
- * the caller's 3D ray over the interval [ta, tb] in which it lies over the cell, clipped to
- * [t0, t1]. The first cell that reports a hit ends the walk: it is the first hit. */
+/* First hits: the per-cell surface tests and per-run culling of the walks in HF_MODE_HIT
+ * (docs/CONVENTIONS.md). The walk lists cells in order of t; each test runs in float64 on
+ * the caller's 3D ray over [ta, tb], its interval over the cell clipped to [t0, t1]. */
 #ifndef HFTRACE_CELL_TEST_H
 #define HFTRACE_CELL_TEST_H
 
@@ -156,23 +154,27 @@ static inline void hf_tri_pieces(const hf_hit *h, double h00, double h10, double
     }
 }
 
-/* A cell met at one point only (ta == tb) inside a range that is not one point is not
- * visited by the half-open rule (docs/CONVENTIONS.md): the point is the entered cell's,
- * or at the closed end t1 the left cell's. Float walks and the band list such cells (a
- * side cell of a vertex crossing, at tmin or at tmax); no surface tests them. */
+/* A cell met at one point only (ta == tb) in a range that is not one point is not visited
+ * (half-open rule): that point is the entered cell's (the last cell's at the box's side). */
 static inline int hf_one_point_cell(const hf_hit *h, double ta, double tb) {
     return !(ta < tb) && h->t0 < h->t1;
 }
 
-/* Whether flat/plane3 cell (i, j) holds tb: it ends the range, and p(tb) is not on the
- * cell's exit face into another cell of the grid (that cell decides it: border_point). */
-static inline int hf_end_closed(const hf_hit *h, int32_t i, int32_t j, double tb) {
-    const double x = h->ox + tb * h->dx, y = h->oy + tb * h->dy;
+/* Whether p(t) lies on cell (i, j)'s exit face into the grid: then (*ni, *nj) holds p(t). */
+static inline int hf_exit_into_grid(const hf_hit *h, int32_t i, int32_t j, double t, int32_t *ni,
+                                    int32_t *nj) {
+    const double x = h->ox + t * h->dx, y = h->oy + t * h->dy;
     const int sx = (h->dx > 0) - (h->dx < 0), sy = (h->dy > 0) - (h->dy < 0);
     const int ex = sx != 0 && x == (double)i + (sx > 0), ey = sy != 0 && y == (double)j + (sy > 0);
-    const int64_t ni = (int64_t)i + ex * sx, nj = (int64_t)j + ey * sy;
-    if (!(tb >= h->t1)) return 0;
-    return !((ex || ey) && ni >= 0 && ni <= h->cols - 2 && nj >= 0 && nj <= h->rows - 2);
+    *ni = i + ex * sx;
+    *nj = j + ey * sy;
+    return (ex || ey) && *ni >= 0 && *ni <= h->cols - 2 && *nj >= 0 && *nj <= h->rows - 2;
+}
+
+/* Whether a flat/plane3 cell holds its tb: it ends the range, not on an exit into the grid. */
+static inline int hf_end_closed(const hf_hit *h, int32_t i, int32_t j, double tb) {
+    int32_t ni, nj;
+    return tb >= h->t1 && !hf_exit_into_grid(h, i, j, tb, &ni, &nj);
 }
 
 /* Test cell (i, j) on [ta, tb]; 1 on a hit. `wall`: the axis (0 x, 1 y) of the wall met at ta
@@ -456,14 +458,12 @@ static inline float hf_cellmax(const hf_hit *h, int32_t i, int32_t j) {
 }
 
 /* ---- the bound carried by a walk ------------------------------------------------------
- * A walk keeps, in locals, z at the low end of the current slab of each axis and adds a
- * constant per step instead of recomputing it: z[a] for index k along axis a is
- * z(T) with T = ((k + off) - o) * inv, and one step in the travel direction adds
- * dz |inv|. The sum drifts from the direct expression by rounding; `margin` bounds that
- * drift over the longest walk (and the direct expression's own error), and is subtracted
- * from every value, so the carried bound is never above the one hf_axis_zlow computes:
- * the cull stays conservative and the outputs bit-identical. The margin is about
- * 1e-12 of the z range on a 1024^2 grid, so it culls as well as the exact bound. */
+ * A walk keeps z at the low end of each axis's current slab in locals and adds a constant
+ * per step: z[a] for index k is z(T), T = ((k + off) - o) * inv, and a step adds dz |inv|.
+ * `margin` bounds the sum's rounding drift over the longest walk (and the direct
+ * expression's own error) and is subtracted from every value, so the carried bound is never
+ * above hf_axis_zlow's: the cull stays conservative, the outputs bit-identical. The margin
+ * is about 1e-12 of the z range on a 1024^2 grid. */
 typedef struct {
     const float *cellmax;
     int64_t stride;
