@@ -68,6 +68,13 @@ def _exactly_visited(i, j, o, d, tmin, tmax):
     return max(lows) < min(highs)
 
 
+def _half_open_index(oa, da, t) -> int:
+    """The index along one axis of the cell that holds ``oa + t da`` by the half-open rule
+    (``(k, k+1]`` when ``da < 0``, else ``[k, k+1)``), with ``t`` exact (a Fraction)."""
+    x = _exact(oa) + (t * _exact(da) if da != 0 else 0)
+    return math.ceil(x) - 1 if da < 0 else math.floor(x)
+
+
 def _cell_at_start(o, d, nx, ny, tmin):
     """The cell holding p(t0) when the clipped range ``[t0, t1]`` is one point (the ray
     starts on a box face it leaves through, or ``tmin = tmax``): the half-open rule's cell,
@@ -77,12 +84,9 @@ def _cell_at_start(o, d, nx, ny, tmin):
         if da != 0:
             entry = min((0 - _exact(oa)) / _exact(da), (n - _exact(oa)) / _exact(da))
             t0 = entry if t0 is None else max(t0, entry)
-    index = []
-    for oa, da, n in ((o[0], d[0], nx), (o[1], d[1], ny)):
-        x = _exact(oa) + (t0 * _exact(da) if da != 0 else 0)
-        k = math.ceil(x) - 1 if da < 0 else math.floor(x)
-        index.append(min(max(k, 0), n - 1))
-    return index[1], index[0]
+    i, j = (min(max(_half_open_index(oa, da, t0), 0), n - 1)
+            for oa, da, n in ((o[0], d[0], nx), (o[1], d[1], ny)))
+    return j, i
 
 
 def _cell_at_end(o, d, nx, ny, t1):
@@ -91,8 +95,7 @@ def _cell_at_end(o, d, nx, ny, t1):
     (t1 on the box's far side, or beyond the grid)."""
     index = []
     for oa, da, n in ((o[0], d[0], nx), (o[1], d[1], ny)):
-        x = _exact(oa) + _exact(t1) * _exact(da)
-        k = math.ceil(x) - 1 if da < 0 else math.floor(x)
+        k = _half_open_index(oa, da, _exact(t1))
         if da == 0 and k == n:
             k = n - 1
         if not 0 <= k < n:
