@@ -140,7 +140,7 @@ TIERS = {
     # the targets' sizes but 8192^2: about 25 minutes on a quiet 2-core machine (23 min 23 s at 3d143b9)
     "medium": dict(sides=dict(random2048=2048, random4096=4096, level=2048, pitched=2048,
                               horizon16=2048),
-                   rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=1,
+                   rays=4000, image=(640, 360), repeats=7, processes=3, horizon_repeats=3,
                    precision=0.02, confirm_budget_s=8.0,
                    count_rays=None, count_mesh_max_side=1024, mesh_max_side=4096, judge=True, counts=True,
                    kernels=None, peers=None),
