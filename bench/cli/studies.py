@@ -286,7 +286,8 @@ def register(sub):
     p.add_argument("--no-counts", action="store_true",
                    help="skip the callgrind counts (instructions, last-level misses)")
     p.add_argument("--resume", action="store_true",
-                   help="keep the rows the output's targets.json already holds")
+                   help="keep the rows the output's targets.json already holds (same tier, "
+                        "--seed and --processes, or it is refused)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--out", default=None, help="output directory (default results/targets)")
     where.add_argument("--publish", action="store_true", help="write reports/targets instead")

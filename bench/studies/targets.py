@@ -357,6 +357,10 @@ def run(out_dir=DEFAULT_OUT, tier="quick", processes=None, seed=2008, counts=Tru
     for key in only or ():
         if key not in keys:
             raise ValueError(f"only: unknown row {key!r}; valid: {', '.join(keys)}")
+        if key not in cfg["sides"]:
+            raise ValueError(f"only: row {key!r} is not in the {tier} tier, whose rows are "
+                             f"{', '.join(k for k in keys if k in cfg['sides'])} "
+                             "(--tier full measures every row)")
     os.makedirs(out_dir, exist_ok=True)
     path = os.path.join(out_dir, "targets.json")
     record = dict(tier=tier, processes=processes, seed=seed,
@@ -366,6 +370,13 @@ def run(out_dir=DEFAULT_OUT, tier="quick", processes=None, seed=2008, counts=Tru
             previous = json.load(f)
         if previous.get("tier") != tier:
             raise ValueError(f"resume: {path} holds the {previous.get('tier')} tier, not {tier}")
+        # the kept rows were measured with the previous settings: mixing them with other
+        # ones would label those rows with settings they were not measured with
+        for name, value in (("seed", seed), ("processes", processes)):
+            if name in previous and previous[name] != value:
+                raise ValueError(f"resume: {path} was measured with {name} "
+                                 f"{previous[name]!r}, not {value!r}; give --{name} "
+                                 f"{previous[name]} to resume it, or another --out")
         record["rows"] = {k: v for k, v in previous.get("rows", {}).items() if "error" not in v}
     env = dict(environment(), tier=tier, processes=processes, load_before=_load())
     echo(f"targets ({tier} tier): one process per row pinned to one CPU, line 1 in "

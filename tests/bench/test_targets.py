@@ -232,6 +232,24 @@ def test_resume_keeps_the_measured_rows(tmp_path, tiny, monkeypatch):
         targets.run(out_dir=str(tmp_path), tier="other", resume=True, echo=lambda *_: None)
 
 
+def test_resume_refuses_other_settings_than_the_kept_rows(tmp_path, tiny, monkeypatch):
+    # kept rows were measured with one seed and one count of processes: a resume with
+    # others would record those for rows that were not measured with them
+    targets.run(out_dir=str(tmp_path), tier=tiny, counts=False, only=["horizon16"],
+                echo=lambda *_: None)
+    monkeypatch.setattr(targets, "_run_child", lambda *a: pytest.fail("measured"))
+    with pytest.raises(ValueError, match=r"resume: .* measured with seed 2008, not 7; give "
+                                         r"--seed 2008"):
+        targets.run(out_dir=str(tmp_path), tier=tiny, seed=7, resume=True,
+                    only=["horizon16"], echo=lambda *_: None)
+    with pytest.raises(ValueError, match=r"resume: .* measured with processes 2, not 5"):
+        targets.run(out_dir=str(tmp_path), tier=tiny, processes=5, resume=True,
+                    only=["horizon16"], echo=lambda *_: None)
+    # without resume the output is measured afresh: nothing to refuse
+    before = json.loads((tmp_path / "targets.json").read_text())
+    assert before["seed"] == 2008 and before["processes"] == 2
+
+
 def test_command_line_of_a_record_reproduces_it():
     cfg = targets.TIERS["medium"]
     record = dict(tier="medium", processes=cfg["processes"], only=None, out="reports/targets")
@@ -252,6 +270,10 @@ def test_bad_arguments_name_themselves(tmp_path):
         targets.run(out_dir=str(tmp_path), processes=0)
     with pytest.raises(ValueError, match="only: unknown row 'random1024'"):
         targets.run(out_dir=str(tmp_path), only=["random1024"])
+    # a row the tier does not measure is refused, not skipped with an exit status of 0
+    with pytest.raises(ValueError, match="only: row 'random8192' is not in the quick tier, "
+                                         "whose rows are random2048, random4096, level"):
+        targets.run(out_dir=str(tmp_path), only=["random8192"], echo=lambda *_: None)
 
 
 def test_command_line_validates_its_options(tmp_path, capsys):
