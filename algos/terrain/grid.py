@@ -88,10 +88,16 @@ VOID_HEIGHT = -1e28
 VOID_HEIGHT_LIMIT = 1e18
 
 
-def _prepare(heights, spacing, *, name="heights") -> Grid:
+def _prepare(heights, spacing, *, name="heights", divide=True) -> Grid:
     """The :class:`Grid` of a raw array (north-up; ``spacing``: None for cell units, or
     the pixel size in the heights' unit) or of a HeightField (its own spacing, units,
-    orientation and voids; ``spacing`` must then be left out or agree)."""
+    orientation and voids; ``spacing`` must then be left out or agree).
+
+    ``divide=False`` keeps heights given in map units as they are (``z_scale`` 1), for a
+    caller whose answer does not change when z is scaled (a line of sight without
+    curvature): dividing them by ``dx`` would round them (1 / 30 is no float64), and an
+    exact tie of the stored heights would no longer be one. Heights already in cells are
+    unchanged either way."""
     field = None
     if is_dataarray(heights):
         heights = HeightField.from_dataarray(heights)
@@ -133,6 +139,8 @@ def _prepare(heights, spacing, *, name="heights") -> Grid:
         raise ValueError(f"{name}: each side must be in [2, {_kernels.MAX_GRID_SIDE}], got {h.shape}")
     # aligned too: buffers from elsewhere (a Dask worker's deserialised block) need not be
     h = np.require(h, dtype=np.float64, requirements=["C", "A"])
+    if not divide and divisor != 1.0:
+        divisor = z_scale = 1.0
     if divisor != 1.0:
         h = h / divisor
     nan = np.isnan(h)

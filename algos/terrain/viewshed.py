@@ -369,7 +369,9 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
                               threads=threads)
     _check_surface(surface)
     heights, crop = _thicken(heights, observer)
-    grid = _prepare(heights, spacing)
+    # without curvature a line of sight is unchanged by scaling z: the heights stay in
+    # their own unit, so that a tie on a DEM with 30 m pixels is the tie it is in cells
+    grid = _prepare(heights, spacing, divide=bool(curvature))
     h = grid.h
     given = np.asarray(observer, dtype=np.float64) if np.ndim(observer) else observer
     obs, single = _observers(given, h)

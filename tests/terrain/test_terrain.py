@@ -210,6 +210,30 @@ def test_viewshed_matches_exact_reference(family):
                 np.testing.assert_array_equal(got, ref, err_msg=f"{name} {observer} {oh} {th}")
 
 
+def test_viewshed_ties_survive_a_pixel_size():
+    # a line of sight is unchanged by scaling x, y and z, so heights in metres on 30 m
+    # (or 30 x 20 m) pixels see what the same numbers see in cells, ties included. The
+    # heights used to be divided by dx first, which rounds (1/30 is no float64): the
+    # grazing line from (1, 0, 0) to (0, 1, 5) over the diagonal's 2.5 went hidden
+    g = np.array([[1.0, 0.0], [5.0, 4.0]])
+    assert viewshed_reference(g, (1, 0), 0.0)[1][0]
+    for spacing in (None, 30, (30, 20), (20, 30), 7):
+        assert T.viewshed(g, (1, 0), 0.0, spacing=spacing)[1, 0], spacing
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        h = rng.integers(0, 6, (7, 9)).astype(float)
+        for observer in [(0, 0), (8, 6), (3.5, 2.25), (0, 6)]:
+            for oh in (0.0, 0.5):
+                ref = np.array(viewshed_reference(h, observer, oh))
+                for spacing in ((30, 20), (20, 30), 7):
+                    field = HeightField(h, spacing=spacing, unit="m")
+                    for given, sp in ((h, spacing), (field, None)):
+                        for name in T.VIEWSHED_ALGORITHMS:
+                            got = T.viewshed(given, observer, oh, spacing=sp, algorithm=name)
+                            np.testing.assert_array_equal(
+                                got, ref, err_msg=f"{name} {observer} {oh} {spacing}")
+
+
 def test_viewshed_curvature_and_many_observers():
     h = FIELDS["noise"]
     obs = np.array([[0, 0], [5, 4], [10, 8]])
