@@ -74,6 +74,11 @@ def check_options(args):
         if args.azimuths is not None and args.n_azimuths is not None:
             raise ValueError("--n-azimuths: --azimuths already names the azimuths; give one "
                              "of the two")
+        if args.azimuths is not None and getattr(args, "rational", False):
+            # --rational moves the equally spaced azimuths only: with --azimuths it did
+            # nothing, and the exact sweep the user asked for did not run
+            raise ValueError("--rational: moves the equally spaced azimuths of --n-azimuths; "
+                             "with --azimuths give --snap-denominator 5 (the same snapping)")
         if args.n_azimuths is None:
             args.n_azimuths = 16
 

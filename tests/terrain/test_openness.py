@@ -225,6 +225,22 @@ def test_cli_horizon_and_openness_in_radians(tmp_path, capsys):
     assert code != 0 and "--snap-denominator: not available with --dask" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", ["svf", "openness"])
+def test_cli_refuses_rational_with_explicit_azimuths(tmp_path, capsys, command):
+    """--rational moves the equally spaced azimuths only: with --azimuths it was ignored
+    (the files' paths said chain, not sweep); --snap-denominator 5 is the spelling."""
+    from bench.cli import main
+
+    np.save(tmp_path / "dem.npy", np.zeros((8, 8), np.float32))
+    base = [command, str(tmp_path / "dem.npy"), "--out", str(tmp_path / "p"), "--no-progress",
+            "--azimuths", "10,20"]
+    assert main(base + ["--rational"]) != 0
+    assert "--rational: moves the equally spaced azimuths" in capsys.readouterr().err
+    assert main(base + ["--snap-denominator", "5"]) == 0, capsys.readouterr().err
+    assert main([command, str(tmp_path / "dem.npy"), "--out", str(tmp_path / "q"),
+                 "--no-progress", "--n-azimuths", "8", "--rational"]) == 0
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--azimuths", ""], "--azimuths: expected comma-separated degrees, got ''"),
     (["--refraction", "0.5"], "--refraction: applies with --curvature only"),
