@@ -75,7 +75,7 @@ class Rendering:
 
 
 def default_camera(heights):
-    """(position, look_at) of the default view: above the south-west corner (low x, low
+    """(position, look_at) of the default view: above the north-west corner (low x, low
     y), looking at the field's centre at its mean height; float64 3-vectors, cell units."""
     rows, cols = heights.shape
     span = float(heights.max() - heights.min())

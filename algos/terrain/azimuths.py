@@ -166,9 +166,21 @@ def _product_azimuths(heights, n_azimuths, azimuths, rational, spacing, snap_den
     Raises
     ------
     ValueError, TypeError
-        Naming ``n_azimuths``, ``snap_denominator``, ``azimuths[k]`` or ``spacing``.
+        Naming ``n_azimuths``, ``snap_denominator``, ``azimuths[k]`` or ``spacing``; or
+        ``azimuths`` given with ``n_azimuths`` or ``rational``, which apply to the equally
+        spaced azimuths only (they would be ignored).
     """
+    if azimuths is not None:
+        if n_azimuths is not None:
+            raise ValueError(f"azimuths: give n_azimuths or azimuths, not both (got n_azimuths="
+                             f"{n_azimuths!r} with explicit azimuths)")
+        if rational:
+            raise ValueError("rational: applies to the n_azimuths equally spaced azimuths only "
+                             "(got rational=True with explicit azimuths); snap_denominator=5 "
+                             "snaps explicit ones")
     if azimuths is None:
+        if n_azimuths is None:
+            n_azimuths = 16
         if isinstance(n_azimuths, bool) or not isinstance(n_azimuths, (int, np.integer)) or n_azimuths < 1:
             raise ValueError(f"n_azimuths: expected a positive int, got {n_azimuths!r}")
         azimuths = np.arange(n_azimuths) * (360.0 / n_azimuths)

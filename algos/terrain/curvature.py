@@ -30,12 +30,30 @@ _NO_UNIT_CURVATURE = (
     "--spacing); a field in cell units or in an unnamed 'map unit' has none")
 
 
+def _check_refraction(curvature, refraction) -> float:
+    """``refraction`` as a float in [0, 1), refused when it is not, or when it differs
+    from :data:`DEFAULT_REFRACTION` without ``curvature`` (it would be ignored: the
+    command line's ``--refraction`` without ``--curvature`` is refused the same way)."""
+    try:
+        r = float(refraction)
+    except (TypeError, ValueError):
+        raise TypeError(f"refraction: expected a number, got {refraction!r}") from None
+    if not (math.isfinite(r) and 0 <= r < 1):
+        raise ValueError(f"refraction: expected a coefficient in [0, 1), got {refraction!r}")
+    if not curvature and r != DEFAULT_REFRACTION:
+        raise ValueError(f"refraction: applies with curvature=True only (got refraction={r:g} "
+                         "without it)")
+    return r
+
+
 def _curvature_kappa(grid: Grid, curvature, refraction, earth_radius) -> float:
     """kappa, the drop per squared cell distance in cell height units:
     (1 - refraction) dx / (2 R), R in the field's unit; 0 without curvature. Validated as
-    :func:`viewshed` does (square pixels, a real unit)."""
+    :func:`viewshed` does (square pixels, a real unit; ``refraction`` by
+    :func:`_check_refraction`)."""
     if not isinstance(curvature, (bool, np.bool_)):
         raise TypeError(f"curvature: expected a bool, got {curvature!r}")
+    r = _check_refraction(curvature, refraction)
     if not curvature:
         return 0.0
     if not grid.has_unit:
@@ -43,12 +61,6 @@ def _curvature_kappa(grid: Grid, curvature, refraction, earth_radius) -> float:
     if not grid.square:
         raise ValueError(f"curvature: needs square pixels, got {grid.dx:g} x {grid.dy:g}; "
                          "resample first (e.g. gdalwarp -tr D D)")
-    try:
-        r = float(refraction)
-    except (TypeError, ValueError):
-        raise TypeError(f"refraction: expected a number, got {refraction!r}") from None
-    if not (math.isfinite(r) and 0 <= r < 1):
-        raise ValueError(f"refraction: expected a coefficient in [0, 1), got {refraction!r}")
     try:
         radius = float(earth_radius)
     except (TypeError, ValueError):

@@ -128,7 +128,8 @@ def horizon(heights, azimuths, max_distance=None, *, algorithm=None, surface="tr
         whose ``unit_metres`` is known) and square pixels.
     refraction : float
         The refraction coefficient in [0, 1); default 1/7, GDAL's and GRASS's
-        (:data:`DEFAULT_REFRACTION`).
+        (:data:`DEFAULT_REFRACTION`). Another value without ``curvature=True`` raises
+        ValueError (it would be ignored).
     earth_radius : float
         R in metres (default the WGS 84 semi-major axis, as GDAL), converted to the
         field's unit with its ``unit_metres`` (1 for a raw array).

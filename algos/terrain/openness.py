@@ -21,7 +21,7 @@ __all__ = ["openness", "OPENNESS_KINDS"]
 OPENNESS_KINDS = ("positive", "negative")
 
 
-def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azimuths=None,
+def openness(heights, kind="positive", n_azimuths=None, max_distance=None, *, azimuths=None,
              rational=False, units="degrees", algorithm=None, surface="triangles",
              spacing=None, curvature=False, refraction=DEFAULT_REFRACTION,
              earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None,
@@ -47,8 +47,9 @@ def openness(heights, kind="positive", n_azimuths=16, max_distance=None, *, azim
         As in :func:`sky_view_factor`. Yokoyama et al. name the radius L; RVT's default is
         10 pixels (``svf_r_max``), here None means unlimited.
     kind : {"positive", "negative"}
-    n_azimuths : int
-        Equally spaced azimuths from north; default 16, RVT's (Yokoyama et al. used 8).
+    n_azimuths : int, optional
+        Equally spaced azimuths from north; default 16 (None), RVT's (Yokoyama et al.
+        used 8).
     azimuths, rational
         As in :func:`sky_view_factor`.
     units : {"degrees", "radians"}

@@ -15,7 +15,7 @@ from .tiled import tiled_product
 __all__ = ["sky_view_factor"]
 
 
-def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False,
+def sky_view_factor(heights, n_azimuths=None, max_distance=None, *, rational=False,
                     azimuths=None, algorithm=None, surface="triangles", spacing=None,
                     curvature=False, refraction=DEFAULT_REFRACTION,
                     earth_radius=WGS84_SEMI_MAJOR_AXIS_M, threads=None, progress=None,
@@ -26,14 +26,16 @@ def sky_view_factor(heights, n_azimuths=16, max_distance=None, *, rational=False
     ----------
     heights, max_distance, algorithm, surface, spacing, threads
         As in :func:`horizon` (``max_distance`` a length in the field's unit).
-    n_azimuths : int
-        Equally spaced azimuths starting at north.
+    n_azimuths : int, optional
+        Equally spaced azimuths starting at north; default 16 (None), RVT's.
     rational : bool
-        Move each azimuth to the nearest direction whose slope *in cell space* is p/q with
-        q <= 5 (:func:`rational_azimuths`), where the exact sweep applies. On rectangular
-        pixels the map azimuths are then those directions' images.
+        Move each equally spaced azimuth to the nearest direction whose slope *in cell
+        space* is p/q with q <= 5 (:func:`rational_azimuths`), where the exact sweep
+        applies. On rectangular pixels the map azimuths are then those directions' images.
     azimuths : sequence of float, optional
-        Explicit azimuths (degrees), instead of ``n_azimuths``.
+        Explicit azimuths (degrees), instead of ``n_azimuths``; giving both, or
+        ``rational=True`` with them, raises ValueError (``snap_denominator`` snaps explicit
+        azimuths).
     curvature, refraction, earth_radius
         As in :func:`horizon`. Default False, as RVT's sky-view factor (Zaksek et al.
         2011), which has no curvature; with unlimited distance the exact sweep does not

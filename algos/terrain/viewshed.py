@@ -14,7 +14,7 @@ from ..georef import WGS84_SEMI_MAJOR_AXIS_M
 from ..parallel import resolve_threads
 from ..validate import check_length
 from .algorithms import VIEWSHED_ALGORITHMS
-from .curvature import _NO_UNIT_CURVATURE, DEFAULT_REFRACTION
+from .curvature import _NO_UNIT_CURVATURE, DEFAULT_REFRACTION, _check_refraction
 from .dataarray import _attr, _to_dataarray
 from .grid import _check_surface, _prepare, _run_ranges
 from .observers import (
@@ -242,7 +242,8 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         pixels.
     refraction : float
         The refraction coefficient in [0, 1); default 1/7, as GDAL (``gdal_viewshed``
-        ``-cc 0.85714``) and GRASS (``r.viewshed refraction_coeff=0.14286``).
+        ``-cc 0.85714``) and GRASS (``r.viewshed refraction_coeff=0.14286``). Another
+        value without ``curvature=True`` raises ValueError (it would be ignored).
     earth_radius : float
         R in metres (default the WGS 84 semi-major axis, as GDAL;
         :data:`algos.georef.WGS84_SEMI_MAJOR_AXIS_M`), converted to the field's unit with
@@ -397,6 +398,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         raise TypeError(f"exact: expected a bool, got {exact!r}")
     if not isinstance(curvature, (bool, np.bool_)):
         raise TypeError(f"curvature: expected a bool, got {curvature!r}")
+    _check_refraction(curvature, refraction)
     drop = 0.0
     if curvature:
         if not grid.has_unit:

@@ -47,7 +47,7 @@ def show_dataset(args):
                               use_cache=not args.no_cache, cache_dir=args.cache_dir, **params)
     h = field.heights
     print(f"name      {field.name}")
-    print(f"shape     {h.shape[0]} rows x {h.shape[1]} cols ({h.shape[1] - 1} x {h.shape[0] - 1} cells)")
+    print(f"shape     {h.shape[0]} rows x {h.shape[1]} cols of samples, {h.shape[0] - 1} x {h.shape[1] - 1} cells")
     print(f"heights   [{float(np.nanmin(h)):.4f}, {float(np.nanmax(h)):.4f}] {field.height_unit}, "
           f"mean {float(np.nanmean(h)):.4f}")
     print(f"spacing   dx {field.dx:g}, dy {field.dy:g} {field.unit}"

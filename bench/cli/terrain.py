@@ -159,12 +159,14 @@ def terrain_product(args):
         bar, progress = _bar(args, n, f"{kind} {field.name}", "azimuth")
         with bar:
             if kind == "svf":
-                result = algos.sky_view_factor(field, args.n_azimuths, md, rational=args.rational,
+                n_az = None if az else args.n_azimuths  # (--n-azimuths with --azimuths is refused)
+                result = algos.sky_view_factor(field, n_az, md, rational=args.rational,
                                                azimuths=az, progress=progress, **curve, **common,
                                                **ran)
                 product, units, cmap = "sky_view_factor", "1", "cividis"
             elif kind == "openness":
-                result = algos.openness(field, args.kind, args.n_azimuths, md, azimuths=az,
+                result = algos.openness(field, args.kind, None if az else args.n_azimuths, md,
+                                        azimuths=az,
                                         rational=args.rational, units=args.units,
                                         progress=progress, **curve, **common, **ran)
                 product, units, cmap = f"openness_{args.kind}", args.units, "cividis"
@@ -315,8 +317,11 @@ def register(sub):
                                 "q <= N (the sweep applies); recorded in the tags. Default: "
                                 "no snapping")
         if kind == "shadows":
-            p.add_argument("--azimuth", type=float, default=315.0, help="the sun's, degrees")
-            p.add_argument("--elevation", type=float, default=30.0, help="the sun's, degrees")
+            p.add_argument("--azimuth", type=float, default=315.0,
+                           help="the sun's, degrees clockwise from north (default 315, the "
+                                "north-west, as gdaldem hillshade)")
+            p.add_argument("--elevation", type=float, default=30.0,
+                           help="the sun's, degrees above the horizon (default 30)")
         if kind == "viewshed":
             p.add_argument("--observer", action="append", default=[], metavar="X,Y[,HEIGHT]",
                            help="map coordinates in the file's CRS (repeatable); HEIGHT above "

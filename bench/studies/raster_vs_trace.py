@@ -7,7 +7,7 @@ Axes (each a declared list; ``quick`` is the small tier, the default):
 
 * ``images``: image sizes, width x height;
 * ``fields``: fbm fields of side ``n`` (``datasets_gen.load("fbm", size=n, seed=1)``);
-* ``views``: ``overview`` (above the south-west corner, the whole field in view, as
+* ``views``: ``overview`` (above the north-west corner, the whole field in view, as
   ``hftrace render`` frames it) and ``grazing`` (a level camera near the ground at the
   south edge, looking north across the field).
 
@@ -84,7 +84,7 @@ FOV = 60.0
 def view_camera(view: str, heights: np.ndarray):
     """``(position, look_at)`` of a view of ``heights`` (cell units).
 
-    ``overview``: 15 % of the field outside its south-west corner and high above it,
+    ``overview``: 15 % of the field outside its north-west corner and high above it,
     looking at the centre (the framing of ``hftrace render``). ``grazing``: at the
     middle of the south edge, 2 % of the field's side above the highest sample within
     two cells, looking level towards the north edge."""

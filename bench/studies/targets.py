@@ -378,6 +378,13 @@ def run(out_dir=DEFAULT_OUT, tier="quick", processes=None, seed=2008, counts=Tru
                                  f"{previous[name]!r}, not {value!r}; give --{name} "
                                  f"{previous[name]} to resume it, or another --out")
         record["rows"] = {k: v for k, v in previous.get("rows", {}).items() if "error" not in v}
+        # the table holds the rows of both runs: its command names them all (none when
+        # either run measured the whole tier)
+        before = previous.get("only")
+        if record["only"] and before:
+            record["only"] = [r.key for r in ROWS if r.key in record["only"] or r.key in before]
+        else:
+            record["only"] = None
     env = dict(environment(), tier=tier, processes=processes, load_before=_load())
     echo(f"targets ({tier} tier): one process per row pinned to one CPU, line 1 in "
          f"{_processes(processes)}; os.getloadavg() = {env['load_before']}")

@@ -227,6 +227,15 @@ def test_resume_keeps_the_measured_rows(tmp_path, tiny, monkeypatch):
     record = targets.run(out_dir=str(tmp_path), tier=tiny, counts=False, resume=True,
                          only=["horizon16"], echo=lines.append)
     assert "horizon16" in record["rows"] and any("kept from" in x for x in lines)
+    # the resumed table holds the rows of both runs, and its command names them all (as
+    # if the first run had been `--only level`), or none when a run measured every row
+    saved = json.loads((tmp_path / "targets.json").read_text())
+    for before, after in ((["level"], ["level", "horizon16"]), (None, None)):
+        (tmp_path / "targets.json").write_text(json.dumps(dict(saved, only=before)))
+        record = targets.run(out_dir=str(tmp_path), tier=tiny, counts=False, resume=True,
+                             only=["horizon16"], echo=lines.append)
+        assert record["only"] == after
+        assert json.loads((tmp_path / "targets.json").read_text())["only"] == after
     monkeypatch.setitem(targets.TIERS, "other", TINY)
     with pytest.raises(ValueError, match="resume: .* holds the tiny tier, not other"):
         targets.run(out_dir=str(tmp_path), tier="other", resume=True, echo=lambda *_: None)

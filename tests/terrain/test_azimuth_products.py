@@ -83,7 +83,7 @@ def test_product_azimuths_returns_the_snapping_record():
     exactly as snap_azimuths returns it."""
     h = _heights()
     explicit = [10.0, 100.0]
-    azimuths, snap = _product_azimuths(h, 16, explicit, False, None, None)
+    azimuths, snap = _product_azimuths(h, None, explicit, False, None, None)
     assert azimuths is explicit and snap is None
     azimuths, snap = _product_azimuths(h, 16, None, False, None, 5)
     expected = T.snap_azimuths(np.arange(16) * 22.5, 5)

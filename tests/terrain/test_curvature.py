@@ -209,6 +209,18 @@ def test_dataarray_records_units_and_curvature():
      "curvature: algorithm='sweep'"),
     (lambda h: algos.shadows(h, 0.0, 10.0, curvature=True), ValueError, "curvature: needs spacing"),
     (lambda h: algos.sky_view_factor(h, 4, curvature=True), ValueError, "curvature: needs spacing"),
+    # refraction is checked without curvature too: out of range, or ignored (as the
+    # command line's --refraction without --curvature)
+    (lambda h: algos.horizon(h, 0.0, refraction=5.0), ValueError,
+     r"refraction: expected a coefficient in \[0, 1\), got 5.0"),
+    (lambda h: algos.horizon(h, 0.0, refraction=0.2), ValueError,
+     r"refraction: applies with curvature=True only \(got refraction=0.2 without it\)"),
+    (lambda h: algos.viewshed(h, (1, 1), refraction=0.2), ValueError,
+     "refraction: applies with curvature=True only"),
+    (lambda h: algos.sky_view_factor(h, 4, refraction="x"), TypeError,
+     "refraction: expected a number, got 'x'"),
+    (lambda h: algos.openness(h, "positive", 4, refraction=-0.5), ValueError,
+     "refraction: expected a coefficient"),
 ])
 def test_bad_curvature_arguments(call, error, match):
     with pytest.raises(error, match=match):

@@ -241,6 +241,21 @@ def test_cli_refuses_rational_with_explicit_azimuths(tmp_path, capsys, command):
                  "--no-progress", "--n-azimuths", "8", "--rational"]) == 0
 
 
+@pytest.mark.parametrize("product", [algos.sky_view_factor, algos.openness])
+def test_explicit_azimuths_refuse_what_would_be_ignored(product):
+    """n_azimuths and rational=True apply to the equally spaced azimuths: with explicit
+    azimuths they were ignored; the default (16, not rational) is unchanged."""
+    h = np.arange(64, dtype=np.float64).reshape(8, 8) % 5
+    with pytest.raises(ValueError, match=r"azimuths: give n_azimuths or azimuths, not both "
+                                         r"\(got n_azimuths=8 with explicit azimuths\)"):
+        product(h, n_azimuths=8, azimuths=[10.0, 20.0])
+    with pytest.raises(ValueError, match=r"rational: applies to the n_azimuths equally spaced "
+                                         r"azimuths only .* snap_denominator=5"):
+        product(h, azimuths=[10.0, 20.0], rational=True)
+    np.testing.assert_array_equal(product(h), product(h, n_azimuths=16))
+    np.testing.assert_array_equal(product(h), product(h, azimuths=np.arange(16) * 22.5))
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--azimuths", ""], "--azimuths: expected comma-separated degrees, got ''"),
     (["--refraction", "0.5"], "--refraction: applies with --curvature only"),
