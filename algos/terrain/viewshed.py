@@ -214,7 +214,10 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
     heights, spacing, algorithm, surface, threads
         As in :func:`horizon`. A one-row or one-column array is a line: its surface is
         the polyline through its samples, and observers must lie on it (a DataArray of
-        that shape is refused: it has no pixel size along its short side).
+        that shape is refused: it has no pixel size along its short side). Heights in
+        map units are used as given (a line of sight does not change when z is scaled),
+        so an exact tie of the stored heights stays one on 30 m pixels; only with
+        ``curvature`` are they divided by the pixel size, as :func:`horizon` does.
     observer : (x, y) or (N, 2) array
         Grid coordinates (column, row; fractions allowed) of the stored array, counted the
         same way on every input; a georeferenced field converts map coordinates with
