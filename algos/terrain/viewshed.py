@@ -401,7 +401,7 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         raise TypeError(f"exact: expected a bool, got {exact!r}")
     if not isinstance(curvature, (bool, np.bool_)):
         raise TypeError(f"curvature: expected a bool, got {curvature!r}")
-    _check_refraction(curvature, refraction)
+    r = _check_refraction(curvature, refraction)
     drop = 0.0
     if curvature:
         if not grid.has_unit:
@@ -409,9 +409,6 @@ def viewshed(heights, observer, observer_height=None, target_height=0.0, max_dis
         if not grid.square:
             raise ValueError(f"curvature: needs square pixels, got {grid.dx:g} x {grid.dy:g}; "
                              "resample first (e.g. gdalwarp -tr D D)")
-        r = float(refraction)
-        if not (math.isfinite(r) and 0 <= r < 1):
-            raise ValueError(f"refraction: expected a coefficient in [0, 1), got {refraction!r}")
         radius = float(earth_radius)
         if not (math.isfinite(radius) and radius > 0):
             raise ValueError(f"earth_radius: expected a positive length, got {earth_radius!r}")

@@ -159,14 +159,12 @@ def terrain_product(args):
         bar, progress = _bar(args, n, f"{kind} {field.name}", "azimuth")
         with bar:
             if kind == "svf":
-                n_az = None if az else args.n_azimuths  # (--n-azimuths with --azimuths is refused)
-                result = algos.sky_view_factor(field, n_az, md, rational=args.rational,
+                result = algos.sky_view_factor(field, args.n_azimuths, md, rational=args.rational,
                                                azimuths=az, progress=progress, **curve, **common,
                                                **ran)
                 product, units, cmap = "sky_view_factor", "1", "cividis"
             elif kind == "openness":
-                result = algos.openness(field, args.kind, None if az else args.n_azimuths, md,
-                                        azimuths=az,
+                result = algos.openness(field, args.kind, args.n_azimuths, md, azimuths=az,
                                         rational=args.rational, units=args.units,
                                         progress=progress, **curve, **common, **ran)
                 product, units, cmap = f"openness_{args.kind}", args.units, "cividis"

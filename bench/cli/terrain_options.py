@@ -79,7 +79,7 @@ def check_options(args):
             # nothing, and the exact sweep the user asked for did not run
             raise ValueError("--rational: moves the equally spaced azimuths of --n-azimuths; "
                              "with --azimuths give --snap-denominator 5 (the same snapping)")
-        if args.n_azimuths is None:
+        if args.n_azimuths is None and args.azimuths is None:
             args.n_azimuths = 16
 
 
