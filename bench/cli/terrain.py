@@ -188,6 +188,7 @@ def terrain_product(args):
         if line is not None:  # held twice (two rows or columns): the line's own samples
             _on_the_line(obs, line)
             window = (slice(*line["rows"]), slice(*line["cols"]))
+        params["observers"] = observers_tag(obs, field)  # as --observer-pixel counts
         bar, progress = _bar(args, len(obs), f"viewshed {field.name}", "observer")
         with bar:
             result = _viewshed(args, field, obs, common, progress)
@@ -195,8 +196,6 @@ def terrain_product(args):
         if window is not None:
             result = result[window]
             marks = [(c - window[1].start, r - window[0].start) for c, r in marks]
-            obs = [(c - window[1].start, r - window[0].start, h) for c, r, h in obs]
-        params["observers"] = observers_tag(obs)
         product = "viewshed"
         units = "1 = visible" if len(obs) == 1 else "observers that see the vertex"
         cmap = "Greens"

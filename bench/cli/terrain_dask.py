@@ -204,7 +204,7 @@ def terrain_product_dask(args):
         options.update(azimuth=args.azimuth, elevation=args.elevation)
     else:
         obs = observers(args, field)
-        options["params"]["observers"] = observers_tag(obs)  # as in memory
+        options["params"]["observers"] = observers_tag(obs, field)  # as in memory
         options.update(observers=obs, observer_height=args.observer_height,
                        target_height=args.target_height, curvature=args.curvature,
                        refraction=args.refraction)

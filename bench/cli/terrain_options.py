@@ -117,10 +117,14 @@ def observers(args, field):
     return out
 
 
-def observers_tag(obs):
+def observers_tag(obs, field):
     """The ``observers`` tag of a viewshed's files: ``[[col, row(, height)]]`` of
-    :func:`observers` (grid coordinates; the height when one was given)."""
-    return [[round(c, 6), round(r, 6)] + ([h] if h is not None else []) for c, r, h in obs]
+    :func:`observers` (grid coordinates of ``field``'s stored array) as pixels counted
+    from the north-west corner, as ``--observer-pixel`` takes them whatever the file's
+    orientation (a line's own samples are its northern row), with the height when one
+    was given. A tag can therefore be given back as ``--observer-pixel COL,ROW[,HEIGHT]``."""
+    return [[round(c, 6), round(float(field.north_up_row(r)), 6)] + ([h] if h is not None else [])
+            for c, r, h in obs]
 
 
 def azimuths_option(args):

@@ -628,3 +628,30 @@ def test_the_other_products_and_dask_refuse_a_line_saying_where_it_is_taken(tmp_
                 "takes, in memory (load_file(lines=True); hftrace viewshed without --dask)"), \
                 (command, stderr)
             assert not list(tmp_path.glob("p.*"))
+
+
+def test_the_observers_tag_counts_rows_from_the_north_so_it_can_be_given_back(tmp_path, capsys):
+    # a south-up file: stored row 0 is the southern row; --observer-pixel counts from the
+    # north, and the tag must too (it recorded the stored row before)
+    h = dem(rows=12, cols=14)
+    south_up = Affine(30.0, 0.0, 600000.0, 0.0, 30.0, 3650000.0)
+    path = write_tif(tmp_path / "south.tif", h, transform=south_up)
+    tags, images = [], []
+    for pixel in ("3,2,1.5", None):
+        if pixel is None:  # the tag given back
+            col, row, height = tags[0]
+            pixel = f"{col:g},{row:g},{height:g}"
+        out = str(tmp_path / f"vs{len(tags)}")
+        code, _, stderr = run(["viewshed", path, "--observer-pixel", pixel, "--out", out,
+                               "--no-progress"], capsys)
+        assert code == 0, stderr
+        with rasterio.open(out + ".tif") as src:
+            tags.append(eval(src.tags()["observers"])[0])
+            images.append(src.read(1))
+    assert tags[0] == [3.0, 2.0, 1.5] and tags[1] == tags[0]
+    np.testing.assert_array_equal(images[1], images[0])
+    # the pixel is the stored row rows - 1 - 2 of the south-up array
+    field = datasets_gen.load_file(path)
+    assert not field.north_up
+    want = algos.viewshed(field, (3, 12 - 1 - 2), observer_height=1.5)
+    np.testing.assert_array_equal(images[0], want.astype(np.uint8))  # the file keeps its orientation
