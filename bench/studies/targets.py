@@ -492,23 +492,26 @@ def _ratio_text(s):
     return f"{text} [{s['low']:.2f}, {s['high']:.2f}]"
 
 
-def _measured_text(row, rec):
+def _measured_text(row, rec, cfg):
     """The "measured" cell of a row: the ratios per regime against each peer, or the
-    seconds."""
+    seconds. A tier that judges nothing measures other sizes than the line names, so its
+    cell starts with the row's own setting."""
     summary = rec["summary"]
+    prefix = "" if cfg["judge"] else f"{rec.get('setting') or row.key}: "
     if "seconds" in summary:
         s = summary["seconds"]
         if "spread" not in s:
-            return s["status"]
+            return prefix + s["status"]
         lo, med, hi = s["spread"]
-        return f"{med:.1f} s" + (f" (min-max {lo:.1f}-{hi:.1f}, {s['repeats']} calls)"
-                                 if s["repeats"] > 1 else "")
+        return prefix + f"{med:.1f} s" + (f" (min-max {lo:.1f}-{hi:.1f}, {s['repeats']} calls)"
+                                          if s["repeats"] > 1 else "")
     parts = []
     for regime in ("warm", "flushed"):
         peers = [f"{_ratio_text(s)} {k.split('/')[1]}" for k, s in summary.items()
                  if k.startswith(regime + "/")]
         parts.append(f"{regime}: " + ", ".join(peers))
-    prefix = f"{row.key[len('random'):]}^2: " if row.kind == "random" and row.line == 2 else ""
+    if not prefix and row.kind == "random" and row.line == 2:
+        prefix = f"{cfg['sides'][row.key]}^2: "
     return prefix + "; ".join(parts)
 
 
@@ -542,7 +545,7 @@ def table(record, env, cfg, counts=True) -> str:
                                 else why)
                 statuses.append(why)
                 continue
-            measured.append(_measured_text(row, rec))
+            measured.append(_measured_text(row, rec, cfg))
             statuses += [s["status"] for s in rec["summary"].values() if s["status"] != "no target"]
         target = ", ".join(f"<= {v:g} s" if k == "seconds" else f">= {v:g}x {k}"
                            for k, v in line.targets.items())

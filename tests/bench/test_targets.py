@@ -91,6 +91,11 @@ def test_quick_tier_writes_every_line_of_the_targets(tmp_path, monkeypatch):
     assert f"| {e['pairs']}, {other['pairs']} ({e['stop']}, {other['stop']}) |" in text
     assert f"Command: `hftrace targets --tier quick --out {tmp_path}`" in text
     assert "8192^2: not measured (quick tier; `--tier full`)" in text
+    # the quick tier's cells name the sizes it measured, not the lines' own
+    assert "| fBm 64^2, 300 random rays: warm: " in text
+    assert "| fBm 96^2, 300 random rays: warm: " in text and "| 4096^2: " not in text
+    assert "| fBm 64^2, level camera 32x18, 60 deg: warm: " in text
+    assert "| Jacksboro 64 x 60, 16 azimuths, unlimited distance, 1 thread: " in text
     assert "no counts in the quick tier" in (tmp_path / "targets.json").read_text()
     rows = _csv(tmp_path)
     assert {r["row"] for r in rows} == {r.key for r in targets.ROWS}
