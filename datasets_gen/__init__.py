@@ -9,13 +9,13 @@ from __future__ import annotations
 
 from .cache import cache_dir, cached_array
 from .fields import GENERATORS, generate
-from .loaders import HeightField, jacksboro, load_file, open_lazy
+from .loaders import HeightField, jacksboro, load_file, open_lazy, undeclared_nodata
 from .raster import create_product, read_raster, save_product, write_product, write_window
 from .rays import RaySet
 
 __all__ = ["load", "catalogue", "GENERATORS", "generate", "HeightField", "load_file", "open_lazy",
            "jacksboro", "RaySet", "cache_dir", "EMBEDDED", "read_raster", "write_product",
-           "create_product", "write_window", "save_product"]
+           "create_product", "write_window", "save_product", "undeclared_nodata"]
 
 #: Real terrain shipped with (or through) the project: name -> (loader, parameters).
 EMBEDDED = {

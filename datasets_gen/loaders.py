@@ -40,9 +40,14 @@ from .fields import det_cos
 from .raster import LazyRaster, _refuse, is_line, read_raster, thicken_line, too_small
 
 __all__ = ["HeightField", "LoaderError", "load_file", "jacksboro", "resample_bilinear",
-           "NODATA_POLICIES", "open_lazy", "LazyRaster", "RASTER_EXTENSIONS"]
+           "NODATA_POLICIES", "open_lazy", "LazyRaster", "RASTER_EXTENSIONS",
+           "COMMON_NODATA", "undeclared_nodata"]
 
 NODATA_POLICIES = ("void", "error", "fill-min", "fill")
+#: Values that DEM tools write for "no data" (ESRI and GDAL's -9999, -99999, the int16
+#: extremes of SRTM-style files, float32's lowest value): a file that holds one as its
+#: lowest height without declaring it most likely has undeclared voids.
+COMMON_NODATA = (-9999.0, -99999.0, -32768.0, -32767.0, float(np.finfo(np.float32).min))
 #: Extensions read through rasterio (GDAL); any other GDAL format can be read with
 #: :func:`datasets_gen.raster.read_raster` directly.
 RASTER_EXTENSIONS = (".tif", ".tiff", ".vrt", ".img", ".asc", ".hgt", ".nc", ".bil", ".dt0",
@@ -454,3 +459,29 @@ def _open_lazy(path, *, chunks=2048, spacing=None, vertical_scale=1.0, band=1) -
         params["nodata"] = ds.nodatavals[band - 1]
         return HeightField(heights, name, unit=unit, crs=ds.crs, transform=ds.transform,
                            params=params)
+
+
+def undeclared_nodata(field, vertical_scale=1.0):
+    """A common nodata value (:data:`COMMON_NODATA`) that ``field`` holds as heights, with
+    no void declared at it: ``(value, count, (row, col))`` of its first sample (stored
+    rows), or None. The value is compared times ``vertical_scale``, the factor the field
+    was loaded with. Lazy (dask) fields are not read: None.
+
+    Such a field is most likely a file whose voids are not declared (a GeoTIFF without a
+    nodata tag, a ``.npy``): taken as heights, they sink the surface to -9999 and move
+    every product and the default render camera. Declare them with
+    ``load_file(path, nodata=value)`` (``--nodata`` on the command line)."""
+    heights = field.heights
+    if not isinstance(heights, np.ndarray) or heights.size == 0:
+        return None
+    low = float(np.nanmin(heights)) if np.isfinite(heights).any() else math.nan
+    for value in COMMON_NODATA:
+        if low == float(np.float32(value * vertical_scale)):
+            hit = heights == low
+            if field.nodata_mask is not None:
+                hit &= ~field.nodata_mask
+            count = int(np.count_nonzero(hit))
+            if count:
+                row, col = (int(v) for v in np.argwhere(hit)[0])
+                return value, count, (row, col)
+    return None

@@ -33,18 +33,21 @@ from algos.render import PROJECTIONS
 
 from .args import add_plugin, load_plugins, param, positive_int, results_dir, vector
 from .files import save_png, write_exr
-from .terrain_field import fill_policy
+from .terrain_field import fill_policy, note_undeclared_nodata
 
 __all__ = ["render_files", "load_render_field", "register"]
 
 
-def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
+def load_render_field(dataset, size=None, seed=1, params=None, fill=None, nodata=None):
     """The HeightField ``hftrace render`` draws: a file through ``datasets_gen.load_file``
     (heights in the pixel size's unit; a ``.npy`` is memory-mapped), else a generated or
     embedded dataset (cell units).
 
     ``fill`` is ``--fill``: None keeps a file's voids (then refused here), ``"min"`` or a
-    height (a number or its text) fills them. Raises ValueError naming the file and what
+    height (a number or its text) fills them; ``nodata`` is ``--nodata``, the void value
+    of a file that declares none. A file that holds a common nodata value (such as
+    -9999) as its lowest height without declaring it gets a note on stderr: taken as a
+    height, it moves the default camera far above the surface. Raises ValueError naming the file and what
     to do, before any camera is computed: voids (``--fill``), rectangular pixels
     (resample to square ones, e.g. ``gdalwarp -tr D D``), ``fill`` for a dataset."""
     import datasets_gen
@@ -52,12 +55,15 @@ def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
 
     path = str(dataset)
     if not os.path.exists(path):
-        if fill is not None:
-            raise ValueError(f"--fill: fills the voids of a file; {path} is a generated or "
-                             "embedded dataset")
+        for option, value, verb in (("fill", fill, "fills"), ("nodata", nodata, "declares")):
+            if value is not None:
+                raise ValueError(f"--{option}: {verb} the voids of a file; {path} is a "
+                                 "generated or embedded dataset")
         return datasets_gen.load(dataset, size=size, seed=seed, **(params or {}))
     policy, fill_value = fill_policy(None if fill is None else str(fill))
-    field = datasets_gen.load_file(path, nodata_policy=policy, fill_value=fill_value)
+    field = datasets_gen.load_file(path, nodata_policy=policy, fill_value=fill_value,
+                                   nodata=nodata)
+    note_undeclared_nodata(field, path)
     if field.dx != field.dy:
         d = min(field.dx, field.dy)
         raise ValueError(f"{path}: rectangular pixels ({field.dx:g} x {field.dy:g} "
@@ -76,7 +82,7 @@ def load_render_field(dataset, size=None, seed=1, params=None, fill=None):
 def render_files(dataset="fbm", size=None, seed=1, algorithm="runs", surface="triangles",
                  width=640, height=360, position=None, look_at=None, fov=60.0, fog=0.0,
                  out="render", diff=None, params=None, echo=print, threads=None, fill=None,
-                 projection="pinhole"):
+                 projection="pinhole", nodata=None):
     """Render with ``algos.render``, write the files (module docstring), return their paths
     (keys exr, png, and with ``diff`` diff_exr, diff_png).
 
@@ -85,10 +91,11 @@ def render_files(dataset="fbm", size=None, seed=1, algorithm="runs", surface="tr
     is rendered, so a file's image is exactly
     ``algos.render(datasets_gen.load_file(FILE), ...)``: heights in the pixel size's unit
     are divided by the (square) pixel size, and ``position``, ``look_at`` and ``fog``
-    are in cell units. ``fill`` as in :func:`load_render_field`; ``threads`` as in
+    are in cell units. ``fill`` and ``nodata`` as in :func:`load_render_field`; ``threads`` as in
     ``algos.intersect`` (default: every core), the image is bit-identical for every
     value. ``projection`` is ``algos.render``'s (pinhole, level or orthographic)."""
-    field = load_render_field(dataset, size=size, seed=seed, params=params, fill=fill)
+    field = load_render_field(dataset, size=size, seed=seed, params=params, fill=fill,
+                              nodata=nodata)
     if os.path.exists(str(dataset)):
         dataset = os.path.basename(str(dataset))
     heights = field.heights
@@ -178,7 +185,8 @@ def render_command(args):
                  surface=args.surface, width=args.width, height=args.height,
                  position=args.camera, look_at=args.look_at, fov=args.fov, fog=args.fog,
                  out=args.out, diff=args.diff, params=dict(args.param or []),
-                 threads=args.threads, fill=args.fill, projection=args.projection)
+                 threads=args.threads, fill=args.fill, projection=args.projection,
+                 nodata=args.nodata)
     return 0
 
 
@@ -191,6 +199,9 @@ def register(sub):
     p.add_argument("--fill", default=None, metavar="min|VALUE",
                    help="fill a file's voids (nodata) with its lowest height or VALUE; "
                         "without it a file with voids is refused")
+    p.add_argument("--nodata", type=float, default=None, metavar="VALUE",
+                   help="the nodata value of a file that declares none (e.g. -9999): its "
+                        "samples are voids (then give --fill)")
     p.add_argument("--size", type=positive_int, default=None)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--param", type=param, action="append", metavar="NAME=VALUE")

@@ -264,6 +264,9 @@ def register(sub):
         p.add_argument("--fill", default=None, metavar="min|VALUE",
                        help="fill the voids (nodata) with the lowest height or VALUE; default: "
                             "voids stay nodata in the outputs and block no ray")
+        p.add_argument("--nodata", type=float, default=None, metavar="VALUE",
+                       help="the nodata value of a file that declares none (e.g. -9999): "
+                            "its samples are voids")
         p.add_argument("--size", type=positive_int, default=None, help="dataset size")
         p.add_argument("--seed", type=int, default=1, help="dataset seed")
         p.add_argument("--param", type=param, action="append", metavar="NAME=VALUE",

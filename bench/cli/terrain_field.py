@@ -13,7 +13,7 @@ __all__ = ["load_terrain", "fill_policy"]
 
 #: Options that describe a file, meaningless for a generated dataset
 _FILE_OPTIONS = (("band", 1), ("spacing", None), ("unit", None), ("reproject", None), ("fill", None),
-                 ("vertical_scale", 1.0))
+                 ("vertical_scale", 1.0), ("nodata", None))
 
 
 def fill_policy(text):
@@ -27,6 +27,25 @@ def fill_policy(text):
     except ValueError:
         raise ValueError(f"--fill: expected 'min' or a height, got {text!r}") from None
     return "fill", value
+
+
+def note_undeclared_nodata(field, source, vertical_scale=1.0):
+    """A note on stderr when ``field`` (loaded from ``source``) holds a common nodata
+    value as its lowest height and declares no void there
+    (:func:`datasets_gen.loaders.undeclared_nodata`): the heights are used as they are,
+    and the note says how to declare them (``--nodata``)."""
+    import sys
+
+    from datasets_gen.loaders import undeclared_nodata
+
+    found = undeclared_nodata(field, vertical_scale)
+    if found is not None:
+        value, count, (row, col) = found
+        print(f"hftrace: note: {source} declares no nodata, but {count} sample"
+              f"{'s' * (count != 1)} equal {value:g} (the first at row {row}, col {col}), a "
+              f"common nodata value; they are taken as heights. If they are voids, give "
+              f"--nodata {value:g}", file=sys.stderr)
+    return found
 
 
 def _is_file_name(source):
@@ -47,7 +66,7 @@ def load_terrain(args, lazy_chunks=None):
             raise ValueError(f"source: {source} does not exist or is not a file")
         policy, fill_value = fill_policy(args.fill)
         if lazy_chunks is not None:
-            for option in ("reproject", "fill"):
+            for option in ("reproject", "fill", "nodata"):
                 if getattr(args, option) is not None:
                     raise ValueError(f"--{option}: not available with --dask (prepare the file "
                                      "first, e.g. with gdalwarp, and give it as it is)")
@@ -61,8 +80,9 @@ def load_terrain(args, lazy_chunks=None):
                                            unit=args.unit,
                                            vertical_scale=args.vertical_scale,
                                            reproject=args.reproject, nodata_policy=policy,
-                                           fill_value=fill_value,
+                                           fill_value=fill_value, nodata=args.nodata,
                                            lines=args.command == "viewshed")
+            note_undeclared_nodata(field, source, args.vertical_scale)
         if field.unit == "cell":  # in memory and with --dask alike
             import sys
 

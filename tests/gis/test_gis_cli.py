@@ -655,3 +655,47 @@ def test_the_observers_tag_counts_rows_from_the_north_so_it_can_be_given_back(tm
     assert not field.north_up
     want = algos.viewshed(field, (3, 12 - 1 - 2), observer_height=1.5)
     np.testing.assert_array_equal(images[0], want.astype(np.uint8))  # the file keeps its orientation
+
+
+def test_undeclared_minus_9999_gets_a_note_and_nodata_declares_it(tmp_path, capsys):
+    """A file whose voids hold -9999 without a nodata tag: render and the products take
+    them as heights but say so on stderr with the option that declares them; --nodata
+    -9999 makes them voids (the render then needs --fill, the products leave them nodata),
+    equal to load_file(..., nodata=-9999)."""
+    h = dem()
+    h[10:13, 20:24] = -9999.0
+    path = write_tif(tmp_path / "undeclared.tif", h, crs=UTM14)  # no nodata tag
+    found = datasets_gen.undeclared_nodata(datasets_gen.load_file(path))
+    assert found == (-9999.0, 12, (10, 20))
+    declared = datasets_gen.load_file(path, nodata=-9999.0)
+    assert datasets_gen.undeclared_nodata(declared) is None
+    assert np.count_nonzero(declared.nodata_mask) == 12
+    assert datasets_gen.undeclared_nodata(datasets_gen.load_file(write_tif(
+        tmp_path / "plain.tif", dem(), crs=UTM14))) is None
+    note = (f"hftrace: note: {path} declares no nodata, but 12 samples equal -9999 (the "
+            "first at row 10, col 20), a common nodata value; they are taken as heights. If "
+            "they are voids, give --nodata -9999")
+    out = tmp_path / "img"
+    code, _, stderr = run(["render", path, "--out", str(out)] + RENDER_VIEW, capsys)
+    assert code == 0 and note in stderr
+    code, _, stderr = run(["render", path, "--nodata", "-9999", "--out", str(out)]
+                          + RENDER_VIEW, capsys)
+    assert code == 2 and "12 void (nodata) samples" in stderr and "note" not in stderr
+    code, _, stderr = run(["render", path, "--nodata", "-9999", "--fill", "min", "--out",
+                           str(out)] + RENDER_VIEW, capsys)
+    assert code == 0 and "note" not in stderr, stderr
+    want = algos.render(datasets_gen.load_file(path, nodata=-9999.0, nodata_policy="fill-min"),
+                        width=64, height=36, threads=1)
+    assert_same_image(read_exr(str(out) + ".exr"), exr_of(want))
+    code, _, stderr = run(["svf", path, "--out", str(tmp_path / "svf"), "--no-progress"],
+                          capsys)
+    assert code == 0 and note in stderr
+    code, _, stderr = run(["svf", path, "--nodata", "-9999", "--out", str(tmp_path / "svf"),
+                           "--no-progress"], capsys)
+    assert code == 0 and "note" not in stderr, stderr
+    with rasterio.open(tmp_path / "svf.tif") as src:
+        got = src.read(1, masked=True)
+    np.testing.assert_array_equal(np.ma.getmaskarray(got), declared.nodata_mask)
+    code, _, stderr = run(["render", "fbm", "--size", "16", "--nodata", "-9999", "--out",
+                           str(out)], capsys)
+    assert code == 2 and "--nodata: declares the voids of a file; fbm" in stderr
