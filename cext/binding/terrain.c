@@ -589,9 +589,14 @@ static PyObject *horizon_chain(PyObject *self, PyObject *args) {
     if (!hf_arg_array(o_nd, "nb_d", NPY_FLOAT64, n_nb, 0, 0, &p, NULL)) return NULL;
     nb_d = (const double *)p;
     for (npy_intp k = 0; k < n_nb; k++) {
-        /* any vertex serves (the bound is a point of v's own ray); ahead is merely useful */
-        if (!(nb_d[k] > 0.0) || !isfinite(nb_d[k]) || (nb_x[k] == 0 && nb_y[k] == 0)) {
-            PyErr_Format(PyExc_ValueError, "neighbour %ld: expected an offset ahead (nb_d > 0)",
+        /* any vertex serves (the bound is a point of v's own ray); ahead is merely useful.
+         * (0, 0) with nb_d = 0 reads v's own occ as it is on entry (NaN: no bound), the
+         * oracle of bench/studies/horizon_oracle.py */
+        const int self = nb_x[k] == 0 && nb_y[k] == 0;
+        if (!isfinite(nb_d[k]) || (self ? nb_d[k] != 0.0 : !(nb_d[k] > 0.0))) {
+            PyErr_Format(PyExc_ValueError,
+                         "neighbour %ld: expected an offset ahead (nb_d > 0), or (0, 0) with "
+                         "nb_d = 0",
                          (long)k);
             return NULL;
         }
