@@ -230,7 +230,8 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
         echo(f"no regression shown, but {len(unsure)} of {len(base['samples'])} ratio(s) "
              f"inconclusive: their noise alone exceeds the {100 * tol:g} % tolerance, so a "
              "drop of that size could not have been seen (rerun on a quiet machine, or use "
-             "--metric instructions, which is exact)")
+             "--metric instructions, which is exact for hftrace's own C kernels; plugins are "
+             "gated on time only)")
         return INCONCLUSIVE
     echo(f"all {len(base['samples'])} ratios hold"
          + (" (on a contended machine)" if load["contended"] else ""))

@@ -868,3 +868,15 @@ def test_render_command_takes_a_plugin(tmp_path, monkeypatch, registered, capsys
                  "--plugin", "myhits:register", "--algorithm", "my_hits",
                  "--out", str(tmp_path / "img"), "--threads", "1"]) == 0, capsys.readouterr().err
     assert (tmp_path / "img.png").exists() and (tmp_path / "img.exr").exists()
+
+
+@pytest.mark.parametrize("metric", ["instructions", "counters"])
+def test_exact_regress_gates_refuse_a_plugin(metric, capsys):
+    """The exact gates count hftrace's own C kernels only: ``--plugin`` with them is
+    refused (exit 2, one line naming the option and the plugin) instead of passing
+    without ever gating the plugin."""
+    spec = "examples.plugins.numpy_dda:register"
+    assert main(["regress", "--metric", metric, "--plugin", spec]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hftrace: error: --plugin:") and spec in err
+    assert "--metric time" in err and len(err.strip().splitlines()) == 1
