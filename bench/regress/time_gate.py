@@ -24,6 +24,7 @@ import numpy as np
 
 import algos
 import datasets_gen
+from algos.plugins import PluginError
 
 from ..sweep import measure_group
 from ..timing import environment, pin_to_one_cpu, write_json
@@ -81,7 +82,11 @@ def measure(repeats=15, seed=7, rounds=3) -> dict[str, list]:
                                  repeats, seed + round_, keep_samples=True)
             for row in rows:
                 if row.get("error"):
-                    raise RuntimeError(f"{row['algorithm']}: {row['error']}")
+                    # a kernel that fails (a plugin that raises, or whose exactness claim
+                    # fails) has no ratio to gate: one line naming the ratio and why
+                    raise PluginError(f"time gate: {key(workload, surface, r, row['algorithm'])}: "
+                                      f"kernel {row['algorithm']!r} failed, so its ratio cannot "
+                                      f"be gated: {' '.join(str(row['error']).split())}")
                 if row["algorithm"] != "dda":
                     samples.setdefault(key(workload, surface, r, row["algorithm"]), []).extend(
                         round(float(v), 5) for v in row["ratio_samples"])

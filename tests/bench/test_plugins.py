@@ -880,3 +880,25 @@ def test_exact_regress_gates_refuse_a_plugin(metric, capsys):
     err = capsys.readouterr().err
     assert err.startswith("hftrace: error: --plugin:") and spec in err
     assert "--metric time" in err and len(err.strip().splitlines()) == 1
+
+
+def test_time_gate_names_a_failing_plugin_in_one_line(monkeypatch, registered, quiet_flush,
+                                                      tmp_path, capsys):
+    """A plugin that raises during ``hftrace regress`` (time) fails the command with one
+    line naming the ratio, the kernel and its error, never a traceback."""
+    import functools
+
+    from bench.regress import time_gate as gate
+
+    def exploding(o, d, shape):
+        raise RuntimeError("kernel exploded\nsecond line")
+
+    algos.register_traversal("exploding", exploding)
+    registered.append("exploding")
+    monkeypatch.setattr(gate, "CHECKS", (("visit", "-", 2, ("midpoint",), 40),))
+    monkeypatch.setattr(gate, "measure", functools.partial(gate.measure, repeats=3, rounds=1))
+    monkeypatch.setattr(gate, "pin_to_one_cpu", lambda: None)
+    assert main(["regress", "--baseline", str(tmp_path / "none.json")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "visit/-/r=2/exploding" in err and "kernel exploded second line" in err
