@@ -426,6 +426,12 @@ CELL_LEGEND = ("Each cell: speedup ±half-width of its 95 % interval, in percent
                "spent` or `too few repeats`.")
 
 
+def _table_text(text) -> str:
+    """``text`` as one Markdown table cell: on one line, its pipes escaped (a kernel's
+    error message may hold either, which would break the table's row)."""
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
 def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
                      full=False) -> str:
     """The Markdown report of a sweep's rows ``df``: what was found and the noise floor
@@ -527,7 +533,7 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
                   "|---|---|---|---|---|"]
         for _, row in errors.iterrows():
             lines.append(f"| {row['algorithm']} | {row['dataset']} | {row['workload']} | "
-                         f"{_r_label(row['run_length'])} | {row['error']} |")
+                         f"{_r_label(row['run_length'])} | {_table_text(row['error'])} |")
         lines.append("")
     agree = df[df["agree"] < 1.0]
     if not agree.empty:

@@ -321,6 +321,9 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             except Exception as exc:
                 error = f"{type(exc).__name__}: {exc}"
         if error is not None:
+            # one line: a kernel's message may span several, which would split the row's
+            # cell in the Markdown tables and the command's error lines
+            error = " ".join(str(error).split())
             nan = math.nan
             out.append(dict(common, ns_per_ray=nan, ns_per_ray_ci_low=nan,
                             ns_per_ray_ci_high=nan, speedup=nan, speedup_ci_low=nan,
@@ -568,7 +571,7 @@ def _measure_isolated(field, label, workload, surface, r, names, rays, repeats, 
         return [row for row in message[1] if row["algorithm"] != BASELINE]
     return [dict(algorithm=n, baseline=BASELINE, workload=workload, surface=surface,
                  dataset=label, run_length=r, rays=rays, repeats=repeats, seed=seed,
-                 error=f"isolated: {reason}") for n in names]
+                 error="isolated: " + " ".join(str(reason).split())) for n in names]
 
 
 def _design(cfg) -> dict:

@@ -902,3 +902,22 @@ def test_time_gate_names_a_failing_plugin_in_one_line(monkeypatch, registered, q
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1, err
     assert "visit/-/r=2/exploding" in err and "kernel exploded second line" in err
+
+
+def test_multiline_kernel_error_is_one_table_row(tmp_path, registered, quiet_flush):
+    """A kernel's error message over several lines, with a pipe, is one line in its row
+    and one row of speedup.md's "Kernel errors" table (it split the row in two)."""
+    def exploding(o, d, shape):
+        raise RuntimeError("kernel | exploded\nsecond line")
+
+    algos.register_traversal("exploding", exploding)
+    registered.append("exploding")
+    cfg = sweep.load_config({**TINY, "algorithms": ["dda", "exploding"]})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert [r["error"] for r in by(rows, "exploding")] == \
+        ["RuntimeError: kernel | exploded second line"] * 2
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    text = open(tmp_path / "speedup.md").read()
+    table = text.split("## Kernel errors")[1].split("\n\n")[2].splitlines()
+    assert table[2:] == [f"| exploding | fbm64 | visit | {r} | RuntimeError: kernel \\| "
+                         "exploded second line |" for r in ("2", "random")]
