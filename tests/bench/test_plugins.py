@@ -921,3 +921,28 @@ def test_multiline_kernel_error_is_one_table_row(tmp_path, registered, quiet_flu
     table = text.split("## Kernel errors")[1].split("\n\n")[2].splitlines()
     assert table[2:] == [f"| exploding | fbm64 | visit | {r} | RuntimeError: kernel \\| "
                          "exploded second line |" for r in ("2", "random")]
+
+
+def test_by_dataset_table_marks_error_rows(tmp_path, registered, quiet_flush):
+    """speedup.md's by-dataset table says ``error`` where the headline table does: a
+    kernel whose exactness claim failed (its timings kept) and one that raised (no
+    timings) showed a speedup and a blank cell there."""
+    def wrong(h, o, d):
+        return algos.intersect("runs", algos.Field(np.array(h)), o, d).t * 1.5
+
+    def raising(h, o, d):
+        raise RuntimeError("boom")
+
+    algos.register_intersector("wrong_hits", wrong, exact=True)
+    algos.register_intersector("raising_hits", raising, exact=True)
+    registered += ["wrong_hits", "raising_hits"]
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"],
+                             "algorithms": ["dda", "runs", "wrong_hits", "raising_hits"]})
+    sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    text = open(tmp_path / "speedup.md").read()
+    headline = text.split("## The paper's measure")[1].split("\n\n")[3].splitlines()
+    assert all(line.endswith("| error | error |") for line in headline[2:]), headline
+    by_dataset = text.split("## By dataset")[1].split("\n\n")[1].splitlines()
+    assert by_dataset[0].endswith("| wrong_hits | raising_hits |"), by_dataset
+    assert by_dataset[2].endswith("| error | error |"), by_dataset
