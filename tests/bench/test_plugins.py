@@ -946,3 +946,41 @@ def test_by_dataset_table_marks_error_rows(tmp_path, registered, quiet_flush):
     by_dataset = text.split("## By dataset")[1].split("\n\n")[1].splitlines()
     assert by_dataset[0].endswith("| wrong_hits | raising_hits |"), by_dataset
     assert by_dataset[2].endswith("| error | error |"), by_dataset
+
+
+def test_swept_plugin_outputs_are_checked_as_the_public_calls_check_them(
+        tmp_path, registered, quiet_flush):
+    """A sweep refuses what algos.traverse and algos.intersect refuse, with an error in the
+    kernel's row naming what was wrong: cells that are not (k, 2) integers or lie outside
+    the grid (they were folded into a checksum that merely disagreed), signed or float
+    checksums and t that is text ("cannot reshape", "could not convert") or negative."""
+    def float_cells(o, d, shape):
+        return [np.array([[0.5, 0.0]])] * len(o)
+
+    def off_grid(o, d, shape):
+        return [np.array([[shape[0] + 3, 0]])] * len(o)
+
+    def signed_sums(o, d, shape):
+        return np.zeros(len(o), dtype=np.int64)
+
+    def text_t(h, o, d):
+        return ["x"] * len(o)
+
+    def behind(h, o, d):
+        return np.full(len(o), -1.0)
+
+    for fn in (float_cells, off_grid, signed_sums):
+        algos.register_traversal(fn.__name__, fn)
+    for fn in (text_t, behind):
+        algos.register_intersector(fn.__name__, fn)
+    registered += ["float_cells", "off_grid", "signed_sums", "text_t", "behind"]
+    cfg = sweep.load_config({**TINY, "workloads": ["visit", "first_hit"], "run_lengths": [2],
+                             "algorithms": ["dda", "float_cells", "off_grid", "signed_sums",
+                                            "text_t", "behind"]})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    errors = {r["algorithm"]: r["error"] for r in rows}
+    assert "ray 0: returned cells of shape (1, 2) and dtype float64" in errors["float_cells"]
+    assert "returned cell (66, 0) outside the grid of 63 x 63 cells" in errors["off_grid"]
+    assert "returned a (40,) int64 array; checksums are (N,) uint64" in errors["signed_sums"]
+    assert "returned t of dtype str; expected (40,) numbers" in errors["text_t"]
+    assert "returned t[0] = -1.0, outside ray 0's range" in errors["behind"]
