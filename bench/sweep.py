@@ -64,12 +64,22 @@ RUN_COLUMNS = ("run_id", "machine", "config_hash", "started")
 #: Columns a whole sweep row never leaves empty (``bench.report.scan_csv``)
 REQUIRED = ("algorithm", "workload", "dataset", "run_length", "rays", "repeats", "seed")
 # ---- the groups ----------------------------------------------------------------------
-def dataset_label(ds) -> str:
+def dataset_label(ds, datasets=()) -> str:
     """The dataset column of a config entry: name, size and sorted parameters, e.g.
-    ``fbm1024-octaves6``."""
-    size = ds.get("size")
-    extra = "".join(f"-{k}{v}" for k, v in sorted(ds.get("params", {}).items()))
-    return f"{ds['name']}{size if size else ''}{extra}"
+    ``fbm1024-octaves6``; with the seed too, ``fbm1024-seed2``, when another entry of
+    ``datasets`` (the config's) differs from it by the seed alone, so that each field's
+    rows stay its own (they were one label, merged in the tables and taken for each
+    other's on ``--resume``)."""
+    def base(entry):
+        size = entry.get("size")
+        extra = "".join(f"-{k}{v}" for k, v in sorted(entry.get("params", {}).items()))
+        return f"{entry['name']}{size if size else ''}{extra}"
+
+    label = base(ds)
+    seed = ds.get("seed", 0)
+    if any(base(other) == label and other.get("seed", 0) != seed for other in datasets):
+        label += f"-seed{seed}"
+    return label
 
 
 def row_key(row) -> tuple:
@@ -456,7 +466,7 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
                              f"{run['machine']}; choose another --out rather than mix machines")
         run.update(run_id=first.get("run_id") or run["run_id"],
                    started=first.get("started") or run["started"])
-    labels = {dataset_label(ds) for ds in cfg.datasets}
+    labels = {dataset_label(ds, cfg.datasets) for ds in cfg.datasets}
     for k, row in enumerate(kept):
         if row.get("dataset") not in labels:
             continue
@@ -487,7 +497,7 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
     done = {row_key(r) for r in kept}
     todo = []
     for ds, workload, surface, r, names in groups(cfg):
-        label = dataset_label(ds)
+        label = dataset_label(ds, cfg.datasets)
         missing = [n for n in names if (label, workload, surface, str(r), n) not in done]
         if missing:
             todo.append((ds, label, workload, surface, r, names, missing))
@@ -590,12 +600,11 @@ def prepare_field(ds, todo) -> algos.Field:
     from algos import plugins
 
     field = load_field(ds)
-    label = dataset_label(ds)
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
     seen = set()
     for ds_, label_, workload, surface, r, names, _ in todo:
-        if label_ != label or workload != "first_hit":
+        if ds_ != ds or workload != "first_hit":
             continue
         o, d = coherent_rays(field, "random", r, 2, 0)
         for name in names:

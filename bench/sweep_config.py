@@ -156,6 +156,10 @@ def load_config(source) -> SweepConfig:
         where = f"datasets[{k}]"
         if not isinstance(ds, dict):
             raise ConfigError(f"{where}: expected a table with name, size, seed, params")
+        same = [j for j, other in enumerate(cfg.datasets[:k]) if _same_dataset(other, ds)]
+        if same:
+            raise ConfigError(f"{where}: the same dataset as datasets[{same[0]}] (name, size, "
+                              "seed and params); list each field once")
         extra = set(ds) - _DATASET_KEYS
         if extra:
             raise _unknown_key(f"{where}.", sorted(extra)[0], _DATASET_KEYS)
@@ -178,3 +182,11 @@ def load_config(source) -> SweepConfig:
                 raise ConfigError(f"{where}.params.{p}: not a parameter of {name}{hint}; it "
                                   f"takes {', '.join(allowed) or 'none'}")
     return cfg
+
+
+def _same_dataset(a, b) -> bool:
+    """Whether two dataset entries name the same field (the seed defaults to 0)."""
+    if not isinstance(a, dict) or not isinstance(b, dict):
+        return False
+    return (a.get("name"), a.get("size"), a.get("seed", 0), a.get("params", {})) == \
+        (b.get("name"), b.get("size"), b.get("seed", 0), b.get("params", {}))

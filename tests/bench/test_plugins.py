@@ -984,3 +984,22 @@ def test_swept_plugin_outputs_are_checked_as_the_public_calls_check_them(
     assert "returned a (40,) int64 array; checksums are (N,) uint64" in errors["signed_sums"]
     assert "returned t of dtype str; expected (40,) numbers" in errors["text_t"]
     assert "returned t[0] = -1.0, outside ray 0's range" in errors["behind"]
+
+
+def test_datasets_differing_by_seed_keep_their_own_rows(tmp_path, quiet_flush):
+    """Two fields of one generator and size that differ by the seed get their own labels
+    (they shared one: the report failed with "Index contains duplicate entries" after the
+    whole measurement, and --resume took one field's rows for the other's); one field
+    listed twice is refused before any work."""
+    two = [{"name": "fbm", "size": 64, "seed": 1}, {"name": "fbm", "size": 64, "seed": 2}]
+    cfg = sweep.load_config({**TINY, "run_lengths": [2], "algorithms": ["dda", "midpoint"],
+                             "datasets": two})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert sorted({r["dataset"] for r in rows}) == ["fbm64-seed1", "fbm64-seed2"]
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    assert "Datasets: fbm64-seed1, fbm64-seed2." in open(tmp_path / "speedup.md").read()
+    assert sweep._pending(cfg, str(tmp_path), resume=True)[1] == []  # nothing left
+    assert sweep.dataset_label(two[0]) == "fbm64"  # alone, the label is unchanged
+    with pytest.raises(sweep.ConfigError, match=r"datasets\[1\]: the same dataset as "
+                                                r"datasets\[0\]"):
+        sweep.load_config({**TINY, "datasets": [two[0], dict(two[0])]})
