@@ -28,7 +28,7 @@ from datasets_gen.rays import coherent_rays, traversal_rays
 
 from . import load as machine_load
 from .report import RowWriter, results_row_check, scan_csv
-from .sweep_config import WORKLOADS, ConfigError, SweepConfig, load_config
+from .sweep_config import WORKLOADS, ConfigError, SweepConfig, _same_dataset, load_config
 from .timing import (
     WARM_TIMED_CALLS,
     call_rays,
@@ -467,6 +467,8 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
         run.update(run_id=first.get("run_id") or run["run_id"],
                    started=first.get("started") or run["started"])
     labels = {dataset_label(ds, cfg.datasets) for ds in cfg.datasets}
+    if kept:
+        _check_recorded_datasets(cfg, out_dir, {row.get("dataset") for row in kept})
     for k, row in enumerate(kept):
         if row.get("dataset") not in labels:
             continue
@@ -502,6 +504,30 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
         if missing:
             todo.append((ds, label, workload, surface, r, names, missing))
     return csv_path, todo
+
+
+def _check_recorded_datasets(cfg, out_dir, measured):
+    """ValueError when a dataset of ``cfg`` has the label of kept rows (``measured``) but
+    another seed than the run recorded in its ``env.json`` (``"datasets"``): the label
+    holds the name, size and parameters, not the seed, so the kept rows would pass for
+    the other field's. Runs whose env.json records no datasets are not checked."""
+    path = os.path.join(out_dir, "env.json")
+    try:
+        with open(path) as f:
+            recorded = json.load(f).get("datasets")
+    except (OSError, ValueError):
+        return
+    if not isinstance(recorded, list) or not all(isinstance(d, dict) for d in recorded):
+        return
+    before = {dataset_label(ds, recorded): ds for ds in recorded}
+    for k, ds in enumerate(cfg.datasets):
+        label = dataset_label(ds, cfg.datasets)
+        old = before.get(label)
+        if label in measured and old is not None and not _same_dataset(old, ds):
+            raise ValueError(
+                f"--resume: the rows of {label} were measured with datasets[{k}].seed = "
+                f"{old.get('seed', 0)}, the config says {ds.get('seed', 0)}; choose another "
+                "--out (or restore the config) rather than mix them")
 
 
 def _report_damaged(csv_path, bad, echo):
@@ -683,6 +709,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad)
     _report_damaged(csv_path, bad, echo)
     env["run_identity"] = run  # the RUN_COLUMNS of every row this session writes
+    env["datasets"] = cfg.datasets  # what each label is, for --resume to check
     env["load_before"] = machine_load.load_average()
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)

@@ -1003,3 +1003,17 @@ def test_datasets_differing_by_seed_keep_their_own_rows(tmp_path, quiet_flush):
     with pytest.raises(sweep.ConfigError, match=r"datasets\[1\]: the same dataset as "
                                                 r"datasets\[0\]"):
         sweep.load_config({**TINY, "datasets": [two[0], dict(two[0])]})
+
+
+def test_resume_refuses_a_dataset_with_another_seed(tmp_path, quiet_flush):
+    """--resume with a dataset's seed changed is refused, naming the label and both seeds:
+    the label does not hold the seed, so the kept rows of the old field passed for the new
+    one's and only the missing groups were measured on it."""
+    cfg = sweep.load_config({**TINY, "run_lengths": [2], "algorithms": ["dda", "midpoint"]})
+    sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert sweep._pending(cfg, str(tmp_path), resume=True)[1] == []
+    other = sweep.load_config({**TINY, "run_lengths": [2, 5], "algorithms": ["dda", "midpoint"],
+                               "datasets": [{"name": "fbm", "size": 64, "seed": 2}]})
+    with pytest.raises(ValueError, match=r"--resume: the rows of fbm64 were measured with "
+                                         r"datasets\[0\]\.seed = 1, the config says 2"):
+        sweep.run_sweep(other, str(tmp_path), resume=True, progress=False, echo=None)
