@@ -447,7 +447,7 @@ def prepare_timed_first_hit(name, heights, origins, directions, surface):
         args = (_ptr(h), ctypes.c_int64(h.shape[0]), ctypes.c_int64(h.shape[1]),
                 ctypes.c_int(surface_id), ctypes.c_int64(n), _ptr(o), _ptr(d), None, None,
                 _ptr(t), _ptr(cells))
-        return _timed_c_call(plugin, name, args), lambda: t.copy()
+        return _timed_c_call(plugin, name, args), lambda: _ray_parameters(t, name)
     state = {}
     kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
     h, o, d = _read_only(h), _read_only(o), _read_only(d)  # shared with the other kernels
@@ -460,16 +460,22 @@ def prepare_timed_first_hit(name, heights, origins, directions, surface):
         return elapsed
 
     def hits():
-        # checked as algos.intersect checks it: numbers of shape (N,), none before t = 0
-        t = _t_values(state.get("t"), n, name)
-        behind = t < 0
-        if behind.any():
-            k = int(np.argmax(behind))
-            raise PluginError(f"{name}: returned t[{k}] = {float(t[k])!r}, outside ray {k}'s "
-                              "range [0.0, inf]")
-        return t
+        return _ray_parameters(_t_values(state.get("t"), n, name), name)
 
     return run, hits
+
+
+def _ray_parameters(t, name):
+    """A copy of a timed first-hit call's ``t``, checked as ``algos.intersect`` checks it:
+    a NaN is a miss (``inf``), a ``t`` before 0 (``-inf`` included) is an error naming the
+    ray, never a miss or a hit that merely disagrees."""
+    t = np.where(np.isnan(t), np.inf, t)
+    behind = t < 0
+    if behind.any():
+        k = int(np.argmax(behind))
+        raise PluginError(f"{name}: returned t[{k}] = {float(t[k])!r}, outside ray {k}'s "
+                          "range [0.0, inf]")
+    return t
 
 
 def _ptr(a):

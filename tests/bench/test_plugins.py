@@ -1017,3 +1017,17 @@ def test_resume_refuses_a_dataset_with_another_seed(tmp_path, quiet_flush):
     with pytest.raises(ValueError, match=r"--resume: the rows of fbm64 were measured with "
                                          r"datasets\[0\]\.seed = 1, the config says 2"):
         sweep.run_sweep(other, str(tmp_path), resume=True, progress=False, echo=None)
+
+
+def test_swept_c_first_hit_before_the_origin_is_an_error(tmp_path, registered, quiet_flush):
+    """A C first-hit kernel whose t is -inf (or any t < 0) has an error in its row, as
+    algos.intersect refuses it; it passed for a miss that agreed with the reference's."""
+    lib = build_source(tmp_path, C_FIRST_HIT.replace('"constant_hit"', '"minus_inf"'),
+                       "minus_inf", "-DT=(-INFINITY)")
+    plugins.load_c_plugin(lib)
+    registered.append("minus_inf")
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"], "run_lengths": [2],
+                             "algorithms": ["dda", "minus_inf"]})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert [r["error"] for r in by(rows, "minus_inf")] == \
+        ["PluginError: minus_inf: returned t[0] = -inf, outside ray 0's range [0.0, inf]"]
