@@ -1031,3 +1031,23 @@ def test_swept_c_first_hit_before_the_origin_is_an_error(tmp_path, registered, q
     rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
     assert [r["error"] for r in by(rows, "minus_inf")] == \
         ["PluginError: minus_inf: returned t[0] = -inf, outside ray 0's range [0.0, inf]"]
+
+
+def test_config_refuses_a_kernel_no_group_measures(registered):
+    """A kernel in ``algorithms`` that no workload or surface of the config measures is
+    refused before any work, naming it and what it takes (it was dropped from every group
+    without a word: a first-hit plugin in a visit sweep ran as a table without it)."""
+    algos.register_intersector("tri_hits", lambda h, o, d: np.full(len(o), np.inf))
+    registered.append("tri_hits")
+    with pytest.raises(sweep.ConfigError, match=r"algorithms\[1\]: 'tri_hits' is measured by "
+                                                r"no group of this config \(workloads visit; "
+                                                r".*it takes first_hit on triangles"):
+        sweep.load_config({**TINY, "algorithms": ["dda", "tri_hits"]})
+    with pytest.raises(sweep.ConfigError, match=r"'tri_hits' .*surfaces bilinear"):
+        sweep.load_config({**TINY, "workloads": ["first_hit"], "surfaces": ["bilinear"],
+                           "algorithms": ["tri_hits"]})
+    with pytest.raises(sweep.ConfigError, match=r"'runs_maxmip' .*it takes first_hit"):
+        sweep.load_config({**TINY, "algorithms": ["dda", "runs_maxmip"]})
+    # measured by one of the config's workloads: accepted
+    sweep.load_config({**TINY, "workloads": ["visit", "first_hit"],
+                       "algorithms": ["midpoint", "tri_hits"]})
