@@ -1051,3 +1051,18 @@ def test_config_refuses_a_kernel_no_group_measures(registered):
     # measured by one of the config's workloads: accepted
     sweep.load_config({**TINY, "workloads": ["visit", "first_hit"],
                        "algorithms": ["midpoint", "tri_hits"]})
+
+
+def test_register_refuses_a_non_bool_exact_and_names_surfaces(registered):
+    """``exact="false"`` was taken as a claim of exactness (``bool("false")``), and
+    ``surfaces=None`` raised "'NoneType' object is not iterable", naming no argument."""
+    with pytest.raises(TypeError, match="exact: expected True or False, got 'false'"):
+        algos.register_traversal("mine", lambda *a: None, exact="false")
+    with pytest.raises(TypeError, match="exact: expected True or False, got 'no'"):
+        algos.register_intersector("mine", lambda *a: None, exact="no")
+    with pytest.raises(TypeError, match="surfaces: expected a sequence of surface names .* "
+                                        "got None"):
+        algos.register_intersector("mine", lambda *a: None, surfaces=None)
+    registered.append("mine")
+    assert algos.register_traversal("mine", lambda *a: None, exact=np.bool_(False)).exact is False
+    assert algos.register_intersector("mine", lambda *a: None, exact=1).plugin.exact is True
