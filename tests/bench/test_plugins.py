@@ -1066,3 +1066,23 @@ def test_register_refuses_a_non_bool_exact_and_names_surfaces(registered):
     registered.append("mine")
     assert algos.register_traversal("mine", lambda *a: None, exact=np.bool_(False)).exact is False
     assert algos.register_intersector("mine", lambda *a: None, exact=1).plugin.exact is True
+
+
+def test_sweep_command_prints_each_kernel_error_once(tmp_path, registered, quiet_flush,
+                                                      capsys, monkeypatch):
+    """``hftrace sweep`` printed every kernel error twice (the engine's line, then the
+    command's own); now once, then where the table of them is, and exits 1."""
+    def raising(o, d, shape):
+        raise RuntimeError("kernel exploded")
+
+    algos.register_traversal("raising", raising)
+    registered.append("raising")
+    monkeypatch.setattr("bench.timing.pin_to_one_cpu", lambda: None)
+    config = tmp_path / "c.toml"
+    config.write_text('name = "once"\nrays = 16\nrepeats = 3\nworkloads = ["visit"]\n'
+                      'run_lengths = [2]\nalgorithms = ["dda", "raising"]\n'
+                      '[[datasets]]\nname = "fbm"\nsize = 32\nseed = 1\n')
+    assert main(["sweep", str(config), "--out", str(tmp_path / "out"), "--no-progress"]) == 1
+    out = capsys.readouterr().out
+    assert out.count("kernel exploded") == 1, out
+    assert "1 row(s) with a kernel error: the Kernel errors table of " in out
