@@ -43,9 +43,16 @@ def fold_cells(cells) -> int:
     return h
 
 
-def _checksums(result, n, name):
-    """A traversal plugin's output as (N,) uint64 checksums."""
-    if isinstance(result, np.ndarray) and result.ndim == 1 and result.dtype == np.uint64:
+def _checksums(result, n, name, shape):
+    """A traversal plugin's output as (N,) uint64 checksums; returned cells are checked
+    as :func:`traversal_cells` checks them ((k, 2) integers inside the grid of ``shape``
+    cells) before they are folded, so a malformed output is an error in the kernel's row,
+    never a checksum that merely disagrees."""
+    if isinstance(result, np.ndarray) and result.ndim == 1 and result.dtype.kind in "iufb":
+        if result.dtype != np.uint64:
+            raise PluginError(f"{name}: returned a ({len(result)},) {result.dtype} array; "
+                              "checksums are (N,) uint64 (algos.plugins.fold_cells), or "
+                              "return N arrays of (i, j) cells")
         if len(result) != n:
             raise PluginError(f"{name}: returned {len(result)} checksums for {n} rays")
         return result
@@ -56,7 +63,26 @@ def _checksums(result, n, name):
                           "checksums or N arrays of cells") from None
     if len(paths) != n:
         raise PluginError(f"{name}: returned {len(paths)} paths for {n} rays")
-    return np.array([fold_cells(p) for p in paths], dtype=np.uint64)
+    offsets, cells = _checked_paths(paths, n, int(shape[0]), int(shape[1]), name)
+    return np.array([fold_cells(cells[offsets[k]:offsets[k + 1]]) for k in range(n)],
+                    dtype=np.uint64)
+
+
+def _t_values(out, n, name):
+    """A Python first-hit kernel's output as (N,) float64 ray parameters, ``inf`` on a
+    miss (a NaN is read as a miss); PluginError naming the shape or dtype otherwise."""
+    try:
+        t = np.array(out, dtype=np.float64).reshape(-1) if np.ndim(out) == 1 else None
+    except (TypeError, ValueError):
+        t = None
+    if t is None or t.shape != (n,):
+        shape = getattr(out, "shape", type(out).__name__)
+        dtype = getattr(out, "dtype", None)
+        if t is None and np.ndim(out) == 1 and len(out) == n:
+            raise PluginError(f"{name}: returned t of dtype {dtype or type(out[0]).__name__}; "
+                              f"expected ({n},) numbers (float64, inf on a miss)")
+        raise PluginError(f"{name}: returned t of shape {shape}; expected ({n},)")
+    return np.where(np.isnan(t), np.inf, t)
 
 
 # ---- the public calls (algos.traverse, algos.intersect) --------------------------------
@@ -233,18 +259,7 @@ def first_hits(name, heights, origins, directions, surface, tmin=None, tmax=None
         _refuse_range(plugin, name, tmin, tmax)
         kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
         out = _call(plugin, name, _read_only(h), _read_only(o), _read_only(d), **kwargs)
-        try:
-            t = np.array(out, dtype=np.float64).reshape(-1) if np.ndim(out) == 1 else None
-        except (TypeError, ValueError):
-            t = None
-        if t is None or t.shape != (n,):
-            shape = getattr(out, "shape", type(out).__name__)
-            dtype = getattr(out, "dtype", None)
-            if t is None and np.ndim(out) == 1 and len(out) == n:
-                raise PluginError(f"{name}: returned t of dtype {dtype or type(out[0]).__name__}; "
-                                  f"expected ({n},) numbers (float64, inf on a miss)")
-            raise PluginError(f"{name}: returned t of shape {shape}; expected ({n},)")
-        t = np.where(np.isnan(t), np.inf, t)
+        t = _t_values(out, n, name)
         cell = None  # the cell holding each hit point, once t is known to be in range
     hit = np.isfinite(t)
     # a first hit lies in the ray's range [tmin, tmax] (default [0, inf))
@@ -409,7 +424,7 @@ def prepare_timed_traversal(name, origins, directions, shape):
         return elapsed
 
     def checksums():
-        return _checksums(state.get("out"), n, name)
+        return _checksums(state.get("out"), n, name, (nx, ny))
 
     return run, checksums
 
@@ -432,7 +447,7 @@ def prepare_timed_first_hit(name, heights, origins, directions, surface):
         args = (_ptr(h), ctypes.c_int64(h.shape[0]), ctypes.c_int64(h.shape[1]),
                 ctypes.c_int(surface_id), ctypes.c_int64(n), _ptr(o), _ptr(d), None, None,
                 _ptr(t), _ptr(cells))
-        return _timed_c_call(plugin, name, args), lambda: t.copy()
+        return _timed_c_call(plugin, name, args), lambda: _ray_parameters(t, name)
     state = {}
     kwargs = {"surface": surface} if len(entry.surfaces) > 1 else {}
     h, o, d = _read_only(h), _read_only(o), _read_only(d)  # shared with the other kernels
@@ -445,12 +460,22 @@ def prepare_timed_first_hit(name, heights, origins, directions, surface):
         return elapsed
 
     def hits():
-        out = np.asarray(state.get("t"), dtype=np.float64)
-        if out.shape != (n,):
-            raise PluginError(f"{name}: returned t of shape {out.shape}; expected ({n},)")
-        return np.where(np.isnan(out), np.inf, out)
+        return _ray_parameters(_t_values(state.get("t"), n, name), name)
 
     return run, hits
+
+
+def _ray_parameters(t, name):
+    """A copy of a timed first-hit call's ``t``, checked as ``algos.intersect`` checks it:
+    a NaN is a miss (``inf``), a ``t`` before 0 (``-inf`` included) is an error naming the
+    ray, never a miss or a hit that merely disagrees."""
+    t = np.where(np.isnan(t), np.inf, t)
+    behind = t < 0
+    if behind.any():
+        k = int(np.argmax(behind))
+        raise PluginError(f"{name}: returned t[{k}] = {float(t[k])!r}, outside ray {k}'s "
+                          "range [0.0, inf]")
+    return t
 
 
 def _ptr(a):

@@ -150,6 +150,17 @@ def _check_name(name):
         raise ValueError(f"name: {name!r} is a built-in kernel; choose another name")
 
 
+def _check_exact(exact) -> bool:
+    """``exact`` as a bool; a value that is not True or False (1 or 0) is refused: a
+    string such as ``"false"`` would otherwise claim exactness."""
+    if isinstance(exact, bool) or (hasattr(exact, "dtype") and getattr(exact, "ndim", 1) == 0
+                                   and exact.dtype == bool):
+        return bool(exact)
+    if isinstance(exact, int) and exact in (0, 1):
+        return bool(exact)
+    raise TypeError(f"exact: expected True or False, got {exact!r}")
+
+
 def _check_limit(time_limit):
     if time_limit is None:
         return DEFAULT_TIME_LIMIT
@@ -185,12 +196,14 @@ def register_traversal(name, fn, exact=False, summary="", citation="", time_limi
     Raises
     ------
     ValueError
-        A bad or built-in name, a bad time limit. ``TypeError``: ``fn`` not callable.
+        A bad or built-in name, a bad time limit. ``TypeError``: ``fn`` not callable,
+        ``exact`` not True or False.
     """
     _check_name(name)
     if not callable(fn):
         raise TypeError(f"fn: expected a callable, got {type(fn).__name__}")
-    plugin = _plugin or Plugin(fn, "python", bool(exact), _check_limit(time_limit))
+    exact = _check_exact(exact)
+    plugin = _plugin or Plugin(fn, "python", exact, _check_limit(time_limit))
     entry = registry.Traversal(name, -1, bool(exact), "cell", "exact" if exact else "plugin",
                                citation=citation, summary=summary or f"plugin ({plugin.language})",
                                plugin=plugin)
@@ -225,19 +238,24 @@ def register_intersector(name, fn, exact=False, surfaces=("triangles",), summary
     ------
     ValueError
         A bad or built-in name, an unknown surface, a bad time limit. ``TypeError``:
-        ``fn`` not callable.
+        ``fn`` not callable, ``exact`` not True or False, ``surfaces`` not a sequence.
     """
     _check_name(name)
     if not callable(fn):
         raise TypeError(f"fn: expected a callable, got {type(fn).__name__}")
-    surfaces = (surfaces,) if isinstance(surfaces, str) else tuple(surfaces)
+    exact = _check_exact(exact)
+    try:
+        surfaces = (surfaces,) if isinstance(surfaces, str) else tuple(surfaces)
+    except TypeError:
+        raise TypeError(f"surfaces: expected a sequence of surface names "
+                        f"({', '.join(registry.SURFACES)}), got {surfaces!r}") from None
     for k, s in enumerate(surfaces):
         if s not in registry.SURFACES:
             raise ValueError(f"surfaces[{k}]: unknown surface {s!r}; valid: "
                              f"{', '.join(registry.SURFACES)}")
     if not surfaces:
         raise ValueError("surfaces: expected at least one surface")
-    plugin = _plugin or Plugin(fn, "python", bool(exact), _check_limit(time_limit))
+    plugin = _plugin or Plugin(fn, "python", exact, _check_limit(time_limit))
     entry = registry.Intersector(name, None, "plugin", "exact" if exact else "plugin",
                                  surfaces=surfaces, options={},
                                  summary=summary or f"plugin ({plugin.language})",

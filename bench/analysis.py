@@ -408,13 +408,18 @@ def summary_lines(df, env=None) -> list:
 
 
 def _cell_texts(part):
-    """The per-row cell texts of :func:`ratio_text` (one group each)."""
+    """The per-row cell texts of :func:`ratio_text` (one group each); ``error`` for a row
+    with an error, as :func:`pivot_ci` gives it (a wrong exactness claim keeps its
+    timings, which are no finding)."""
     precision = part["precision"] if "precision" in part else [DEFAULT_PRECISION] * len(part)
     stops = part["stop"].fillna("") if "stop" in part else [""] * len(part)
-    return ["1 (baseline)" if a == "dda" else ratio_text(s, lo, hi, p, c, st)
-            for a, s, lo, hi, p, c, st in zip(part["algorithm"], part["speedup"],
-                                              part["speedup_ci_low"], part["speedup_ci_high"],
-                                              precision, part["contended"], stops)]
+    errors = part["error"] if "error" in part else [""] * len(part)
+    return ["1 (baseline)" if a == "dda" else "error" if e else
+            ratio_text(s, lo, hi, p, c, st)
+            for a, s, lo, hi, p, c, st, e in zip(part["algorithm"], part["speedup"],
+                                                 part["speedup_ci_low"],
+                                                 part["speedup_ci_high"], precision,
+                                                 part["contended"], stops, errors)]
 
 
 CELL_LEGEND = ("Each cell: speedup ±half-width of its 95 % interval, in percent of the "
@@ -424,6 +429,12 @@ CELL_LEGEND = ("Each cell: speedup ±half-width of its 95 % interval, in percent
                "`(same)` (it contains 1). Otherwise the reason is in parentheses: "
                "`contended` (other processes used the machine; never a finding), `budget "
                "spent` or `too few repeats`.")
+
+
+def _table_text(text) -> str:
+    """``text`` as one Markdown table cell: on one line, its pipes escaped (a kernel's
+    error message may hold either, which would break the table's row)."""
+    return " ".join(str(text).split()).replace("|", "\\|")
 
 
 def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
@@ -527,7 +538,7 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
                   "|---|---|---|---|---|"]
         for _, row in errors.iterrows():
             lines.append(f"| {row['algorithm']} | {row['dataset']} | {row['workload']} | "
-                         f"{_r_label(row['run_length'])} | {row['error']} |")
+                         f"{_r_label(row['run_length'])} | {_table_text(row['error'])} |")
         lines.append("")
     agree = df[df["agree"] < 1.0]
     if not agree.empty:

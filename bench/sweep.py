@@ -28,7 +28,7 @@ from datasets_gen.rays import coherent_rays, traversal_rays
 
 from . import load as machine_load
 from .report import RowWriter, results_row_check, scan_csv
-from .sweep_config import WORKLOADS, ConfigError, SweepConfig, load_config
+from .sweep_config import WORKLOADS, ConfigError, SweepConfig, _same_dataset, load_config
 from .timing import (
     WARM_TIMED_CALLS,
     call_rays,
@@ -64,12 +64,22 @@ RUN_COLUMNS = ("run_id", "machine", "config_hash", "started")
 #: Columns a whole sweep row never leaves empty (``bench.report.scan_csv``)
 REQUIRED = ("algorithm", "workload", "dataset", "run_length", "rays", "repeats", "seed")
 # ---- the groups ----------------------------------------------------------------------
-def dataset_label(ds) -> str:
+def dataset_label(ds, datasets=()) -> str:
     """The dataset column of a config entry: name, size and sorted parameters, e.g.
-    ``fbm1024-octaves6``."""
-    size = ds.get("size")
-    extra = "".join(f"-{k}{v}" for k, v in sorted(ds.get("params", {}).items()))
-    return f"{ds['name']}{size if size else ''}{extra}"
+    ``fbm1024-octaves6``; with the seed too, ``fbm1024-seed2``, when another entry of
+    ``datasets`` (the config's) differs from it by the seed alone, so that each field's
+    rows stay its own (they were one label, merged in the tables and taken for each
+    other's on ``--resume``)."""
+    def base(entry):
+        size = entry.get("size")
+        extra = "".join(f"-{k}{v}" for k, v in sorted(entry.get("params", {}).items()))
+        return f"{entry['name']}{size if size else ''}{extra}"
+
+    label = base(ds)
+    seed = ds.get("seed", 0)
+    if any(base(other) == label and other.get("seed", 0) != seed for other in datasets):
+        label += f"-seed{seed}"
+    return label
 
 
 def row_key(row) -> tuple:
@@ -321,6 +331,9 @@ def measure_group(field, label, workload, surface, r, names, rays, repeats, seed
             except Exception as exc:
                 error = f"{type(exc).__name__}: {exc}"
         if error is not None:
+            # one line: a kernel's message may span several, which would split the row's
+            # cell in the Markdown tables and the command's error lines
+            error = " ".join(str(error).split())
             nan = math.nan
             out.append(dict(common, ns_per_ray=nan, ns_per_ray_ci_low=nan,
                             ns_per_ray_ci_high=nan, speedup=nan, speedup_ci_low=nan,
@@ -453,7 +466,9 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
                              f"{run['machine']}; choose another --out rather than mix machines")
         run.update(run_id=first.get("run_id") or run["run_id"],
                    started=first.get("started") or run["started"])
-    labels = {dataset_label(ds) for ds in cfg.datasets}
+    labels = {dataset_label(ds, cfg.datasets) for ds in cfg.datasets}
+    if kept:
+        _check_recorded_datasets(cfg, out_dir, {row.get("dataset") for row in kept})
     for k, row in enumerate(kept):
         if row.get("dataset") not in labels:
             continue
@@ -484,11 +499,35 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
     done = {row_key(r) for r in kept}
     todo = []
     for ds, workload, surface, r, names in groups(cfg):
-        label = dataset_label(ds)
+        label = dataset_label(ds, cfg.datasets)
         missing = [n for n in names if (label, workload, surface, str(r), n) not in done]
         if missing:
             todo.append((ds, label, workload, surface, r, names, missing))
     return csv_path, todo
+
+
+def _check_recorded_datasets(cfg, out_dir, measured):
+    """ValueError when a dataset of ``cfg`` has the label of kept rows (``measured``) but
+    another seed than the run recorded in its ``env.json`` (``"datasets"``): the label
+    holds the name, size and parameters, not the seed, so the kept rows would pass for
+    the other field's. Runs whose env.json records no datasets are not checked."""
+    path = os.path.join(out_dir, "env.json")
+    try:
+        with open(path) as f:
+            recorded = json.load(f).get("datasets")
+    except (OSError, ValueError):
+        return
+    if not isinstance(recorded, list) or not all(isinstance(d, dict) for d in recorded):
+        return
+    before = {dataset_label(ds, recorded): ds for ds in recorded}
+    for k, ds in enumerate(cfg.datasets):
+        label = dataset_label(ds, cfg.datasets)
+        old = before.get(label)
+        if label in measured and old is not None and not _same_dataset(old, ds):
+            raise ValueError(
+                f"--resume: the rows of {label} were measured with datasets[{k}].seed = "
+                f"{old.get('seed', 0)}, the config says {ds.get('seed', 0)}; choose another "
+                "--out (or restore the config) rather than mix them")
 
 
 def _report_damaged(csv_path, bad, echo):
@@ -568,7 +607,7 @@ def _measure_isolated(field, label, workload, surface, r, names, rays, repeats, 
         return [row for row in message[1] if row["algorithm"] != BASELINE]
     return [dict(algorithm=n, baseline=BASELINE, workload=workload, surface=surface,
                  dataset=label, run_length=r, rays=rays, repeats=repeats, seed=seed,
-                 error=f"isolated: {reason}") for n in names]
+                 error="isolated: " + " ".join(str(reason).split())) for n in names]
 
 
 def _design(cfg) -> dict:
@@ -587,12 +626,11 @@ def prepare_field(ds, todo) -> algos.Field:
     from algos import plugins
 
     field = load_field(ds)
-    label = dataset_label(ds)
     rows_, cols_ = field.heights.shape
     shape = (cols_ - 1, rows_ - 1)
     seen = set()
     for ds_, label_, workload, surface, r, names, _ in todo:
-        if label_ != label or workload != "first_hit":
+        if ds_ != ds or workload != "first_hit":
             continue
         o, d = coherent_rays(field, "random", r, 2, 0)
         for name in names:
@@ -671,6 +709,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad)
     _report_damaged(csv_path, bad, echo)
     env["run_identity"] = run  # the RUN_COLUMNS of every row this session writes
+    env["datasets"] = cfg.datasets  # what each label is, for --resume to check
     env["load_before"] = machine_load.load_average()
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)

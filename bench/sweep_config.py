@@ -152,10 +152,16 @@ def load_config(source) -> SweepConfig:
         for a in cfg.algorithms:
             if a not in valid:
                 raise ConfigError(f"algorithms: unknown algorithm {a!r}; valid: {', '.join(sorted(valid))}")
+        for k, a in enumerate(cfg.algorithms):
+            _check_measured(f"algorithms[{k}]", a, cfg.workloads, cfg.surfaces)
     for k, ds in enumerate(cfg.datasets):
         where = f"datasets[{k}]"
         if not isinstance(ds, dict):
             raise ConfigError(f"{where}: expected a table with name, size, seed, params")
+        same = [j for j, other in enumerate(cfg.datasets[:k]) if _same_dataset(other, ds)]
+        if same:
+            raise ConfigError(f"{where}: the same dataset as datasets[{same[0]}] (name, size, "
+                              "seed and params); list each field once")
         extra = set(ds) - _DATASET_KEYS
         if extra:
             raise _unknown_key(f"{where}.", sorted(extra)[0], _DATASET_KEYS)
@@ -178,3 +184,32 @@ def load_config(source) -> SweepConfig:
                 raise ConfigError(f"{where}.params.{p}: not a parameter of {name}{hint}; it "
                                   f"takes {', '.join(allowed) or 'none'}")
     return cfg
+
+
+def _same_dataset(a, b) -> bool:
+    """Whether two dataset entries name the same field (the seed defaults to 0)."""
+    if not isinstance(a, dict) or not isinstance(b, dict):
+        return False
+    return (a.get("name"), a.get("size"), a.get("seed", 0), a.get("params", {})) == \
+        (b.get("name"), b.get("size"), b.get("seed", 0), b.get("params", {}))
+
+
+def _check_measured(where, name, workloads, surfaces):
+    """ConfigError when no group of the config measures the kernel ``name`` (a first-hit
+    kernel with only the visit workload, or none of its surfaces): it was left out of
+    every group without a word, and its table had no column for it."""
+    traversal = algos.TRAVERSAL_REGISTRY.get(name)
+    hit = algos.INTERSECTOR_REGISTRY.get(name)
+    offers = []
+    if traversal is not None:
+        offers += ["visit"] + (["runs"] if traversal.plugin is None else [])
+    if hit is not None:
+        offers += [f"first_hit on {', '.join(hit.surfaces)}"]
+    measured = (traversal is not None and "visit" in workloads) or \
+        (traversal is not None and traversal.plugin is None and "runs" in workloads) or \
+        (hit is not None and "first_hit" in workloads and
+         any(s in hit.surfaces for s in surfaces))
+    if not measured:
+        raise ConfigError(f"{where}: {name!r} is measured by no group of this config "
+                          f"(workloads {', '.join(workloads)}; surfaces "
+                          f"{', '.join(surfaces)}): it takes {'; '.join(offers)}")

@@ -145,7 +145,7 @@ def run_sweep_dask(cfg: SweepConfig, out_dir: str, address: str, resume=False, p
     from dask.distributed import as_completed
 
     client, cluster = dask_client(address)
-    env = dict(environment(), dask_address=address, workers={})
+    env = dict(environment(), dask_address=address, workers={}, datasets=cfg.datasets)
     try:
         futures = {}
         for item in todo:

@@ -5,9 +5,18 @@ from __future__ import annotations
 
 def regress(args):
     """Run the instruction-count, counter or time gate; its exit status. ``--plugin``
-    kernels join the time gate's checks of their workload."""
+    kernels join the time gate's checks of their workload; the exact gates count
+    hftrace's own C kernels only, so ``--plugin`` with them is refused rather than
+    passed over (a CI job would pass without ever gating the plugin)."""
     from .args import load_plugins
 
+    if args.plugin and args.metric != "time":
+        raise ValueError(f"--plugin: --metric {args.metric} gates hftrace's own C kernels "
+                         "only and would pass without looking at "
+                         f"{', '.join(args.plugin)}; gate a plugin with --metric time, or "
+                         "count a C plugin with valgrind --tool=callgrind "
+                         "--toggle-collect=hftrace_first_hit (or hftrace_traverse) "
+                         "(docs/plugins.md, \"Regression gates and instruction counts\")")
     load_plugins(args)
     if args.metric == "instructions":
         from ..regress import instructions_gate as gate

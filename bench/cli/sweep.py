@@ -36,9 +36,13 @@ def run_sweep(args):
         print(analysis.pivot_ci(df, workload, surface).to_string())
     print(f"\n{len(rows)} rows in {out_dir}/results.csv; tables in {paths['speedup']}")
     errors = df[df["error"] != ""]
-    for _, row in errors.iterrows():
-        print(f"error: {row['algorithm']} ({row['dataset']} {row['workload']} "
-              f"r={row['run_length']}): {row['error']}")
+    if args.dask:  # the local engine printed each error as its run ended; Dask's does not
+        for _, row in errors.iterrows():
+            print(f"error: {row['algorithm']} ({row['dataset']} {row['workload']} "
+                  f"r={row['run_length']}): {row['error']}")
+    elif not errors.empty:
+        print(f"{len(errors)} row(s) with a kernel error: the Kernel errors table of "
+              f"{paths['speedup']}")
     return 1 if not errors.empty else 0
 
 

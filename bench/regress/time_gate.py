@@ -24,6 +24,7 @@ import numpy as np
 
 import algos
 import datasets_gen
+from algos.plugins import PluginError
 
 from ..sweep import measure_group
 from ..timing import environment, pin_to_one_cpu, write_json
@@ -81,7 +82,11 @@ def measure(repeats=15, seed=7, rounds=3) -> dict[str, list]:
                                  repeats, seed + round_, keep_samples=True)
             for row in rows:
                 if row.get("error"):
-                    raise RuntimeError(f"{row['algorithm']}: {row['error']}")
+                    # a kernel that fails (a plugin that raises, or whose exactness claim
+                    # fails) has no ratio to gate: one line naming the ratio and why
+                    raise PluginError(f"time gate: {key(workload, surface, r, row['algorithm'])}: "
+                                      f"kernel {row['algorithm']!r} failed, so its ratio cannot "
+                                      f"be gated: {' '.join(str(row['error']).split())}")
                 if row["algorithm"] != "dda":
                     samples.setdefault(key(workload, surface, r, row["algorithm"]), []).extend(
                         round(float(v), 5) for v in row["ratio_samples"])
@@ -230,7 +235,8 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
         echo(f"no regression shown, but {len(unsure)} of {len(base['samples'])} ratio(s) "
              f"inconclusive: their noise alone exceeds the {100 * tol:g} % tolerance, so a "
              "drop of that size could not have been seen (rerun on a quiet machine, or use "
-             "--metric instructions, which is exact)")
+             "--metric instructions, which is exact for hftrace's own C kernels; plugins are "
+             "gated on time only)")
         return INCONCLUSIVE
     echo(f"all {len(base['samples'])} ratios hold"
          + (" (on a contended machine)" if load["contended"] else ""))

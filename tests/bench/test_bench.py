@@ -72,7 +72,7 @@ def _expected_keys(cfg):
     keys = set()
     for ds, workload, surface, r, names in sweep.groups(cfg):
         for n in names:
-            keys.add((sweep.dataset_label(ds), workload, surface, str(r), n))
+            keys.add((sweep.dataset_label(ds, cfg.datasets), workload, surface, str(r), n))
     return keys
 
 

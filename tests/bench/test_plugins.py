@@ -868,3 +868,221 @@ def test_render_command_takes_a_plugin(tmp_path, monkeypatch, registered, capsys
                  "--plugin", "myhits:register", "--algorithm", "my_hits",
                  "--out", str(tmp_path / "img"), "--threads", "1"]) == 0, capsys.readouterr().err
     assert (tmp_path / "img.png").exists() and (tmp_path / "img.exr").exists()
+
+
+@pytest.mark.parametrize("metric", ["instructions", "counters"])
+def test_exact_regress_gates_refuse_a_plugin(metric, capsys):
+    """The exact gates count hftrace's own C kernels only: ``--plugin`` with them is
+    refused (exit 2, one line naming the option and the plugin) instead of passing
+    without ever gating the plugin."""
+    spec = "examples.plugins.numpy_dda:register"
+    assert main(["regress", "--metric", metric, "--plugin", spec]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hftrace: error: --plugin:") and spec in err
+    assert "--metric time" in err and len(err.strip().splitlines()) == 1
+
+
+def test_time_gate_names_a_failing_plugin_in_one_line(monkeypatch, registered, quiet_flush,
+                                                      tmp_path, capsys):
+    """A plugin that raises during ``hftrace regress`` (time) fails the command with one
+    line naming the ratio, the kernel and its error, never a traceback."""
+    import functools
+
+    from bench.regress import time_gate as gate
+
+    def exploding(o, d, shape):
+        raise RuntimeError("kernel exploded\nsecond line")
+
+    algos.register_traversal("exploding", exploding)
+    registered.append("exploding")
+    monkeypatch.setattr(gate, "CHECKS", (("visit", "-", 2, ("midpoint",), 40),))
+    monkeypatch.setattr(gate, "measure", functools.partial(gate.measure, repeats=3, rounds=1))
+    monkeypatch.setattr(gate, "pin_to_one_cpu", lambda: None)
+    assert main(["regress", "--baseline", str(tmp_path / "none.json")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "visit/-/r=2/exploding" in err and "kernel exploded second line" in err
+
+
+def test_multiline_kernel_error_is_one_table_row(tmp_path, registered, quiet_flush):
+    """A kernel's error message over several lines, with a pipe, is one line in its row
+    and one row of speedup.md's "Kernel errors" table (it split the row in two)."""
+    def exploding(o, d, shape):
+        raise RuntimeError("kernel | exploded\nsecond line")
+
+    algos.register_traversal("exploding", exploding)
+    registered.append("exploding")
+    cfg = sweep.load_config({**TINY, "algorithms": ["dda", "exploding"]})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert [r["error"] for r in by(rows, "exploding")] == \
+        ["RuntimeError: kernel | exploded second line"] * 2
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    text = open(tmp_path / "speedup.md").read()
+    table = text.split("## Kernel errors")[1].split("\n\n")[2].splitlines()
+    assert table[2:] == [f"| exploding | fbm64 | visit | {r} | RuntimeError: kernel \\| "
+                         "exploded second line |" for r in ("2", "random")]
+
+
+def test_by_dataset_table_marks_error_rows(tmp_path, registered, quiet_flush):
+    """speedup.md's by-dataset table says ``error`` where the headline table does: a
+    kernel whose exactness claim failed (its timings kept) and one that raised (no
+    timings) showed a speedup and a blank cell there."""
+    def wrong(h, o, d):
+        return algos.intersect("runs", algos.Field(np.array(h)), o, d).t * 1.5
+
+    def raising(h, o, d):
+        raise RuntimeError("boom")
+
+    algos.register_intersector("wrong_hits", wrong, exact=True)
+    algos.register_intersector("raising_hits", raising, exact=True)
+    registered += ["wrong_hits", "raising_hits"]
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"],
+                             "algorithms": ["dda", "runs", "wrong_hits", "raising_hits"]})
+    sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    text = open(tmp_path / "speedup.md").read()
+    headline = text.split("## The paper's measure")[1].split("\n\n")[3].splitlines()
+    assert all(line.endswith("| error | error |") for line in headline[2:]), headline
+    by_dataset = text.split("## By dataset")[1].split("\n\n")[1].splitlines()
+    assert by_dataset[0].endswith("| wrong_hits | raising_hits |"), by_dataset
+    assert by_dataset[2].endswith("| error | error |"), by_dataset
+
+
+def test_swept_plugin_outputs_are_checked_as_the_public_calls_check_them(
+        tmp_path, registered, quiet_flush):
+    """A sweep refuses what algos.traverse and algos.intersect refuse, with an error in the
+    kernel's row naming what was wrong: cells that are not (k, 2) integers or lie outside
+    the grid (they were folded into a checksum that merely disagreed), signed or float
+    checksums and t that is text ("cannot reshape", "could not convert") or negative."""
+    def float_cells(o, d, shape):
+        return [np.array([[0.5, 0.0]])] * len(o)
+
+    def off_grid(o, d, shape):
+        return [np.array([[shape[0] + 3, 0]])] * len(o)
+
+    def signed_sums(o, d, shape):
+        return np.zeros(len(o), dtype=np.int64)
+
+    def text_t(h, o, d):
+        return ["x"] * len(o)
+
+    def behind(h, o, d):
+        return np.full(len(o), -1.0)
+
+    for fn in (float_cells, off_grid, signed_sums):
+        algos.register_traversal(fn.__name__, fn)
+    for fn in (text_t, behind):
+        algos.register_intersector(fn.__name__, fn)
+    registered += ["float_cells", "off_grid", "signed_sums", "text_t", "behind"]
+    cfg = sweep.load_config({**TINY, "workloads": ["visit", "first_hit"], "run_lengths": [2],
+                             "algorithms": ["dda", "float_cells", "off_grid", "signed_sums",
+                                            "text_t", "behind"]})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    errors = {r["algorithm"]: r["error"] for r in rows}
+    assert "ray 0: returned cells of shape (1, 2) and dtype float64" in errors["float_cells"]
+    assert "returned cell (66, 0) outside the grid of 63 x 63 cells" in errors["off_grid"]
+    assert "returned a (40,) int64 array; checksums are (N,) uint64" in errors["signed_sums"]
+    assert "returned t of dtype str; expected (40,) numbers" in errors["text_t"]
+    assert "returned t[0] = -1.0, outside ray 0's range" in errors["behind"]
+
+
+def test_datasets_differing_by_seed_keep_their_own_rows(tmp_path, quiet_flush):
+    """Two fields of one generator and size that differ by the seed get their own labels
+    (they shared one: the report failed with "Index contains duplicate entries" after the
+    whole measurement, and --resume took one field's rows for the other's); one field
+    listed twice is refused before any work."""
+    two = [{"name": "fbm", "size": 64, "seed": 1}, {"name": "fbm", "size": 64, "seed": 2}]
+    cfg = sweep.load_config({**TINY, "run_lengths": [2], "algorithms": ["dda", "midpoint"],
+                             "datasets": two})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert sorted({r["dataset"] for r in rows}) == ["fbm64-seed1", "fbm64-seed2"]
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    assert "Datasets: fbm64-seed1, fbm64-seed2." in open(tmp_path / "speedup.md").read()
+    assert sweep._pending(cfg, str(tmp_path), resume=True)[1] == []  # nothing left
+    assert sweep.dataset_label(two[0]) == "fbm64"  # alone, the label is unchanged
+    with pytest.raises(sweep.ConfigError, match=r"datasets\[1\]: the same dataset as "
+                                                r"datasets\[0\]"):
+        sweep.load_config({**TINY, "datasets": [two[0], dict(two[0])]})
+
+
+def test_resume_refuses_a_dataset_with_another_seed(tmp_path, quiet_flush):
+    """--resume with a dataset's seed changed is refused, naming the label and both seeds:
+    the label does not hold the seed, so the kept rows of the old field passed for the new
+    one's and only the missing groups were measured on it."""
+    cfg = sweep.load_config({**TINY, "run_lengths": [2], "algorithms": ["dda", "midpoint"]})
+    sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert sweep._pending(cfg, str(tmp_path), resume=True)[1] == []
+    other = sweep.load_config({**TINY, "run_lengths": [2, 5], "algorithms": ["dda", "midpoint"],
+                               "datasets": [{"name": "fbm", "size": 64, "seed": 2}]})
+    with pytest.raises(ValueError, match=r"--resume: the rows of fbm64 were measured with "
+                                         r"datasets\[0\]\.seed = 1, the config says 2"):
+        sweep.run_sweep(other, str(tmp_path), resume=True, progress=False, echo=None)
+
+
+def test_swept_c_first_hit_before_the_origin_is_an_error(tmp_path, registered, quiet_flush):
+    """A C first-hit kernel whose t is -inf (or any t < 0) has an error in its row, as
+    algos.intersect refuses it; it passed for a miss that agreed with the reference's."""
+    lib = build_source(tmp_path, C_FIRST_HIT.replace('"constant_hit"', '"minus_inf"'),
+                       "minus_inf", "-DT=(-INFINITY)")
+    plugins.load_c_plugin(lib)
+    registered.append("minus_inf")
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"], "run_lengths": [2],
+                             "algorithms": ["dda", "minus_inf"]})
+    rows = sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert [r["error"] for r in by(rows, "minus_inf")] == \
+        ["PluginError: minus_inf: returned t[0] = -inf, outside ray 0's range [0.0, inf]"]
+
+
+def test_config_refuses_a_kernel_no_group_measures(registered):
+    """A kernel in ``algorithms`` that no workload or surface of the config measures is
+    refused before any work, naming it and what it takes (it was dropped from every group
+    without a word: a first-hit plugin in a visit sweep ran as a table without it)."""
+    algos.register_intersector("tri_hits", lambda h, o, d: np.full(len(o), np.inf))
+    registered.append("tri_hits")
+    with pytest.raises(sweep.ConfigError, match=r"algorithms\[1\]: 'tri_hits' is measured by "
+                                                r"no group of this config \(workloads visit; "
+                                                r".*it takes first_hit on triangles"):
+        sweep.load_config({**TINY, "algorithms": ["dda", "tri_hits"]})
+    with pytest.raises(sweep.ConfigError, match=r"'tri_hits' .*surfaces bilinear"):
+        sweep.load_config({**TINY, "workloads": ["first_hit"], "surfaces": ["bilinear"],
+                           "algorithms": ["tri_hits"]})
+    with pytest.raises(sweep.ConfigError, match=r"'runs_maxmip' .*it takes first_hit"):
+        sweep.load_config({**TINY, "algorithms": ["dda", "runs_maxmip"]})
+    # measured by one of the config's workloads: accepted
+    sweep.load_config({**TINY, "workloads": ["visit", "first_hit"],
+                       "algorithms": ["midpoint", "tri_hits"]})
+
+
+def test_register_refuses_a_non_bool_exact_and_names_surfaces(registered):
+    """``exact="false"`` was taken as a claim of exactness (``bool("false")``), and
+    ``surfaces=None`` raised "'NoneType' object is not iterable", naming no argument."""
+    with pytest.raises(TypeError, match="exact: expected True or False, got 'false'"):
+        algos.register_traversal("mine", lambda *a: None, exact="false")
+    with pytest.raises(TypeError, match="exact: expected True or False, got 'no'"):
+        algos.register_intersector("mine", lambda *a: None, exact="no")
+    with pytest.raises(TypeError, match="surfaces: expected a sequence of surface names .* "
+                                        "got None"):
+        algos.register_intersector("mine", lambda *a: None, surfaces=None)
+    registered.append("mine")
+    assert algos.register_traversal("mine", lambda *a: None, exact=np.bool_(False)).exact is False
+    assert algos.register_intersector("mine", lambda *a: None, exact=1).plugin.exact is True
+
+
+def test_sweep_command_prints_each_kernel_error_once(tmp_path, registered, quiet_flush,
+                                                      capsys, monkeypatch):
+    """``hftrace sweep`` printed every kernel error twice (the engine's line, then the
+    command's own); now once, then where the table of them is, and exits 1."""
+    def raising(o, d, shape):
+        raise RuntimeError("kernel exploded")
+
+    algos.register_traversal("raising", raising)
+    registered.append("raising")
+    monkeypatch.setattr("bench.timing.pin_to_one_cpu", lambda: None)
+    config = tmp_path / "c.toml"
+    config.write_text('name = "once"\nrays = 16\nrepeats = 3\nworkloads = ["visit"]\n'
+                      'run_lengths = [2]\nalgorithms = ["dda", "raising"]\n'
+                      '[[datasets]]\nname = "fbm"\nsize = 32\nseed = 1\n')
+    assert main(["sweep", str(config), "--out", str(tmp_path / "out"), "--no-progress"]) == 1
+    out = capsys.readouterr().out
+    assert out.count("kernel exploded") == 1, out
+    assert "1 row(s) with a kernel error: the Kernel errors table of " in out

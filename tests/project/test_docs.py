@@ -158,3 +158,29 @@ def test_api_reference_lists_every_public_name():
         listed |= set(re.findall(rf"``{package.__name__}\.(\w+)`` is", text))
         missing = sorted(set(package.__all__) - listed)
         assert not missing, f"{package.__name__}: not in the API reference: {missing}"
+
+
+def test_plugin_guide_python_snippets_run():
+    """The Python blocks of docs/plugins.md sections 2 and 3, run in order as a reader
+    pastes them, define every name they use and register and call both kernels (they
+    used ``...`` bodies and inputs the page never defined)."""
+    import re
+
+    from algos import plugins
+
+    text = open(os.path.join(ROOT, "docs", "plugins.md"), encoding="utf-8").read()
+    start = text.index("## 2. A Python")
+    part = text[start:text.index("## 4. Sweep it")]
+    blocks = re.findall(r"```python\n(.*?)```", part, flags=re.S)
+    assert len(blocks) == 2
+    scope = {}
+    try:
+        for block in blocks:
+            exec(compile(block, "docs/plugins.md", "exec"), scope)  # noqa: S102
+        assert len(scope["paths"]) == 1 and len(scope["paths"][0]) > 1
+        assert scope["hits"].t.shape == (1,)
+        assert scope["image"] is not None
+    finally:
+        for name in ("my_walk", "my_hits"):
+            if name in plugins.plugin_names():
+                plugins.unregister(name)
