@@ -49,6 +49,8 @@ def chain_counts(heights, azimuth):
 
 
 def main(argv=None):
+    """The command line (module docstring): prints the counts per vertex as a Markdown
+    table; exit status 1 when the angles differ (a bound may only prune)."""
     p = argparse.ArgumentParser(prog="python -m bench.studies.horizon_oracle",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("--dataset", default="jacksboro")

@@ -4,9 +4,9 @@ block (a snippet that leaves ``field`` or ``position`` undefined fails here).
 
 Left out, each for its reason: docs/CONVENTIONS.md (the API's signatures, shared word for
 word with outside scripts), docs/gis.md (reads the user's own ``dem.tif``),
-docs/layout.md (one line of an API listing), docs/terrain.md and docs/plugins.md (run
-at full size or as parts of one session: their commands are tested in tests/terrain and
-tests/bench)."""
+docs/layout.md (one line of an API listing), docs/terrain.md (the whole of Jacksboro
+2048: its calls are tested in tests/terrain); docs/plugins.md's blocks run in
+tests/project/test_docs.py."""
 import os
 import re
 
