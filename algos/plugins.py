@@ -89,7 +89,7 @@ __all__ = ["register_traversal", "register_intersector", "load_c_plugin", "unreg
            "load_entry_points", "load_plugin_spec", "fold_cells", "is_plugin", "plugin_names",
            "traversal_cells", "first_hits", "surface_normals", "PluginError",
            "prepare_timed_traversal", "prepare_timed_first_hit", "DEFAULT_TIME_LIMIT",
-           "ENTRY_POINT_GROUP", "PLUGIN_ABI"]
+           "ENTRY_POINT_GROUP", "PLUGIN_ABI", "plugin_fingerprint"]
 
 #: The entry-point group a package declares its kernels in.
 ENTRY_POINT_GROUP = "hftrace.kernels"
@@ -287,6 +287,32 @@ def is_plugin(name, workload="first_hit") -> bool:
     table = registry.INTERSECTOR_REGISTRY if workload == "first_hit" else registry.TRAVERSAL_REGISTRY
     entry = table.get(name)
     return entry is not None and entry.plugin is not None
+
+
+def plugin_fingerprint(name) -> str | None:
+    """What identifies the code of registered plugin ``name`` (None for a built-in
+    kernel or an unknown name): a C plugin's library by the SHA-256 of its bytes (the name
+    of its private copy), a Python kernel by the SHA-256 of its function's source file
+    with the function's qualified name, or its module and name when the source cannot be
+    read. A sweep records it (``env.json``), and ``--resume`` refuses rows measured with
+    another build or edit of the plugin."""
+    entry = registry.INTERSECTOR_REGISTRY.get(name) or registry.TRAVERSAL_REGISTRY.get(name)
+    plugin = getattr(entry, "plugin", None)
+    if plugin is None:
+        return None
+    if plugin.language == "c":
+        return f"c:{os.path.basename(plugin.loaded_from or plugin.path)}"
+    fn = plugin.fn
+    where = f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', repr(fn))}"
+    try:
+        import inspect
+
+        source = inspect.getsourcefile(fn)
+        with open(source, "rb") as f:
+            digest = hashlib.sha256(f.read()).hexdigest()[:20]
+    except (TypeError, OSError):
+        return f"python:{where}"
+    return f"python:{where}:{digest}"
 
 
 def plugin_names() -> list:

@@ -469,6 +469,7 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
     labels = {dataset_label(ds, cfg.datasets) for ds in cfg.datasets}
     if kept:
         _check_recorded_datasets(cfg, out_dir, {row.get("dataset") for row in kept})
+        _check_recorded_plugins(cfg, out_dir, {row.get("algorithm") for row in kept})
     for k, row in enumerate(kept):
         if row.get("dataset") not in labels:
             continue
@@ -528,6 +529,37 @@ def _check_recorded_datasets(cfg, out_dir, measured):
                 f"--resume: the rows of {label} were measured with datasets[{k}].seed = "
                 f"{old.get('seed', 0)}, the config says {ds.get('seed', 0)}; choose another "
                 "--out (or restore the config) rather than mix them")
+
+
+def _plugin_fingerprints(cfg) -> dict:
+    """{plugin name: :func:`algos.plugins.plugin_fingerprint`} for the config's plugin
+    kernels."""
+    from algos.plugins import plugin_fingerprint
+
+    found = {name: plugin_fingerprint(name) for name in cfg.algorithms}
+    return {name: fp for name, fp in found.items() if fp is not None}
+
+
+def _check_recorded_plugins(cfg, out_dir, measured):
+    """ValueError when a plugin kernel with kept rows (``measured``) is not the build or
+    edit the run recorded in its ``env.json`` (``"plugins"``): hftrace's commit does not
+    cover a plugin's code, so rows of two versions would pass for one. Runs whose
+    env.json records no plugins are not checked."""
+    path = os.path.join(out_dir, "env.json")
+    try:
+        with open(path) as f:
+            recorded = json.load(f).get("plugins")
+    except (OSError, ValueError):
+        return
+    if not isinstance(recorded, dict):
+        return
+    for name, now in _plugin_fingerprints(cfg).items():
+        before = recorded.get(name)
+        if name in measured and before is not None and before != now:
+            raise ValueError(
+                f"--resume: the rows of {name} were measured with another version of the "
+                f"plugin ({before}; now {now}); choose another --out to measure this one "
+                "(or restore the plugin) rather than mix them")
 
 
 def _report_damaged(csv_path, bad, echo):
@@ -710,6 +742,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     _report_damaged(csv_path, bad, echo)
     env["run_identity"] = run  # the RUN_COLUMNS of every row this session writes
     env["datasets"] = cfg.datasets  # what each label is, for --resume to check
+    env["plugins"] = _plugin_fingerprints(cfg)  # which build of each plugin, likewise
     env["load_before"] = machine_load.load_average()
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)

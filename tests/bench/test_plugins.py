@@ -1086,3 +1086,41 @@ def test_sweep_command_prints_each_kernel_error_once(tmp_path, registered, quiet
     out = capsys.readouterr().out
     assert out.count("kernel exploded") == 1, out
     assert "1 row(s) with a kernel error: the Kernel errors table of " in out
+
+
+def test_resume_refuses_another_build_of_a_c_plugin(tmp_path, registered, quiet_flush):
+    """--resume after rebuilding a C plugin at the same path is refused, naming the plugin
+    and both builds: hftrace's commit does not cover a plugin's code, so the rows of the
+    old build passed for the new one's."""
+    lib = build_source(tmp_path, C_FIRST_HIT, "constant_hit", "-DT=1.0")
+    plugins.load_c_plugin(lib)
+    registered.append("constant_hit")
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"], "run_lengths": [2],
+                             "algorithms": ["dda", "constant_hit"]})
+    out = str(tmp_path / "run")
+    sweep.run_sweep(cfg, out, progress=False, echo=None)
+    first = plugins.plugin_fingerprint("constant_hit")
+    assert first.startswith("c:") and sweep._pending(cfg, out, resume=True)[1] == []
+    plugins.unregister("constant_hit")
+    assert build_source(tmp_path, C_FIRST_HIT, "constant_hit", "-DT=2.0") == lib  # same path
+    plugins.load_c_plugin(lib)
+    assert plugins.plugin_fingerprint("constant_hit") != first
+    more = sweep.load_config({**TINY, "workloads": ["first_hit"], "run_lengths": [2, 5],
+                              "algorithms": ["dda", "constant_hit"]})
+    with pytest.raises(ValueError, match=r"--resume: the rows of constant_hit were measured "
+                                         r"with another version of the plugin \(c:"):
+        sweep.run_sweep(more, out, resume=True, progress=False, echo=None)
+
+
+def test_a_python_plugin_is_known_by_its_source(registered):
+    """A Python kernel's fingerprint names its function and hashes its source file; a
+    built-in kernel has none."""
+    algos.register_intersector("fp_hits", _no_hits)
+    registered.append("fp_hits")
+    fp = plugins.plugin_fingerprint("fp_hits")
+    assert fp.startswith(f"python:{__name__}._no_hits:") and len(fp.rsplit(":", 1)[1]) == 20
+    assert plugins.plugin_fingerprint("dda") is None
+
+
+def _no_hits(h, o, d):
+    return np.full(len(o), np.inf)
