@@ -24,6 +24,12 @@ def regress(args):
         from ..regress import counters_gate as gate
     else:
         from ..regress import time_gate as gate
+    if args.only is not None:
+        if args.metric != "time":
+            raise ValueError(f"--only: selects the time gate's kernels; --metric "
+                             f"{args.metric} counts every kernel in a few minutes")
+        return gate.run(args.baseline or gate.BASELINE, tolerance=args.tolerance,
+                        update=args.update, only=gate.check_only(args.only))
     return gate.run(args.baseline or gate.BASELINE, tolerance=args.tolerance,
                     update=args.update)
 
@@ -41,6 +47,10 @@ def register(sub):
     p.add_argument("--tolerance", type=float, default=None,
                    help="allowed fractional change (default: the baseline's; 0.01 for "
                         "instructions)")
+    p.add_argument("--only", default=None, metavar="KERNEL[,KERNEL]",
+                   help="time gate: measure and judge these kernels' ratios alone (a plugin's, "
+                        "in a fraction of the time); with --update, write them into the "
+                        "baseline and keep its others")
     p.add_argument("--update", action="store_true",
                    help="write a new baseline instead (instructions, counters: from a clean "
                         "tree, whose commit it records)")

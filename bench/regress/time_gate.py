@@ -52,10 +52,11 @@ def key(workload, surface, r, name) -> str:
     return f"{workload}/{surface}/r={r}/{name}"
 
 
-def checks():
+def checks(only=None):
     """:data:`CHECKS` with every registered plugin (``algos.plugins``) added to the checks
     of its workload: traversals to the visit checks, intersectors to the first-hit checks
-    of the surfaces they declared (gated on time; callgrind counts only hftrace's own C)."""
+    of the surfaces they declared (gated on time; callgrind counts only hftrace's own C).
+    ``only`` (kernel names): keep those kernels alone, and the checks that hold one."""
     out = []
     for workload, surface, r, names, rays in CHECKS:
         if workload == "first_hit":
@@ -65,19 +66,41 @@ def checks():
             extra = [n for n, t in algos.TRAVERSAL_REGISTRY.items() if t.plugin is not None]
         else:
             extra = []
-        out.append((workload, surface, r, tuple(names) + tuple(extra), rays))
+        names = tuple(names) + tuple(extra)
+        if only is not None:
+            names = tuple(n for n in names if n in only)
+        if names:
+            out.append((workload, surface, r, names, rays))
     return tuple(out)
 
 
-def measure(repeats=15, seed=7, rounds=3) -> dict[str, list]:
+def check_only(only) -> list | None:
+    """``--only`` as a list of kernel names, each measured by some check (a plugin once
+    registered); ValueError naming the first that none measures."""
+    if only is None:
+        return None
+    names = [n.strip() for n in str(only).split(",") if n.strip()]
+    if not names:
+        raise ValueError(f"--only: expected kernel names separated by commas, got {only!r}")
+    measured = {n for c in checks() for n in c[3]}
+    for name in names:
+        if name not in measured:
+            raise ValueError(f"--only: {name!r} is in no check of the time gate; it gates "
+                             f"{', '.join(sorted(measured))} (a plugin once loaded with "
+                             "--plugin)")
+    return names
+
+
+def measure(repeats=15, seed=7, rounds=3, only=None) -> dict[str, list]:
     """The paired per-repeat ratios of CHECKS, measured now, over ``rounds`` rounds, each
     with a freshly allocated field and fresh rays, so that one unlucky memory placement
-    (which interleaving inside a round cannot cancel) does not decide a ratio."""
+    (which interleaving inside a round cannot cancel) does not decide a ratio. ``only``:
+    the ratios of those kernels alone (:func:`checks`)."""
     samples: dict[str, list] = {}
     for round_ in range(rounds):
         heights = datasets_gen.load("fbm", size=512, seed=1).heights.copy()
         field = algos.Field(heights)
-        for workload, surface, r, names, rays in checks():
+        for workload, surface, r, names, rays in checks(only):
             rows = measure_group(field, "fbm512", workload, surface, r, ["dda", *names], rays,
                                  repeats, seed + round_, keep_samples=True)
             for row in rows:
@@ -166,36 +189,52 @@ def inconclusive(a: dict, tolerance: float) -> bool:
 
 
 def run(baseline_path, tolerance=None, update=False, echo=print,
-        confidence=DEFAULT_CONFIDENCE) -> int:
+        confidence=DEFAULT_CONFIDENCE, only=None) -> int:
     """Exit status: 1 when any ratio regressed; else :data:`INCONCLUSIVE` (3) when some
     ratio's noise was too wide to show a drop of the tolerance's size ("holds" would then
     claim what the run cannot see); else 0, every ratio holds. The other processes' CPU
-    time over the measurement is printed, and a contended run is labelled so."""
+    time over the measurement is printed, and a contended run is labelled so.
+
+    ``only`` (kernel names, :func:`check_only`): measure and judge the ratios of those
+    kernels alone (each against ``dda``, as always); with ``update``, those ratios are
+    written into the baseline and its others kept."""
     import sys
 
     from ..load import contention, snapshot, snapshot_after
 
+    only = check_only(only) if only is not None and not isinstance(only, list) else only
     pin_to_one_cpu()
-    n_ratios = sum(len(c[3]) for c in checks())
+    n_ratios = sum(len(c[3]) for c in checks(only))
     echo(f"measuring {n_ratios} speedup ratios over dda, 3 rounds of 15 interleaved repeats "
          "(a few minutes) ...")
     sys.stdout.flush()
     before = snapshot()
-    measured = measure()
+    measured = measure() if only is None else measure(only=only)
     load = contention(before, snapshot_after(before))
     other = "unknown" if load["other_cpu"] is None else f"{load['other_cpu']:.2f} cores"
     echo(f"other processes during the measurement: {other}, load average "
          f"{load['load_before']} -> {load['load_after']}"
          + (" - CONTENDED: the ratios below are not findings" if load["contended"] else ""))
     if update:
+        samples = dict(measured)
+        if only is not None and os.path.exists(baseline_path):
+            # the other kernels' ratios stay as they were measured
+            samples = {**load_baseline(baseline_path)["samples"], **measured}
         write_json(baseline_path, {
-            "ratios": {k: round(float(np.median(v)), 4) for k, v in measured.items()},
-            "samples": measured, "tolerance": tolerance or DEFAULT_TOLERANCE,
+            "ratios": {k: round(float(np.median(v)), 4) for k, v in samples.items()},
+            "samples": samples, "tolerance": tolerance or DEFAULT_TOLERANCE,
             "confidence": confidence, "env": environment(),
             "note": "paired per-repeat speedup ratios over dda; see bench/regress/time_gate.py"})
-        echo(f"wrote {len(measured)} ratios to {baseline_path}")
+        echo(f"wrote {len(measured)} ratios to {baseline_path}"
+             + (f" ({len(samples)} in all)" if len(samples) != len(measured) else ""))
         return 0
     base = load_baseline(baseline_path)
+    if only is not None:  # judge the kernels asked for, against their own baseline ratios
+        kept = {k: v for k, v in base["samples"].items() if k.rsplit("/", 1)[1] in only}
+        if not kept:
+            raise ValueError(f"--only: {', '.join(only)} has no ratio in {baseline_path} "
+                             "(measure it first with --update)")
+        base = dict(base, samples=kept)
     tol = tolerance if tolerance is not None else base.get("tolerance", DEFAULT_TOLERANCE)
     failures = compare(base["samples"], measured, tol, confidence)
     echo(f"{'ratio':45s} {'baseline':>9s} {'measured':>9s} {'change':>8s} {'detectable':>11s}")

@@ -1124,3 +1124,38 @@ def test_a_python_plugin_is_known_by_its_source(registered):
 
 def _no_hits(h, o, d):
     return np.full(len(o), np.inf)
+
+
+def test_time_gate_only_measures_and_judges_the_kernels_named(monkeypatch, registered,
+                                                             quiet_flush, tmp_path, capsys):
+    """``hftrace regress --only NAME`` measures the checks that hold NAME, with NAME alone
+    against dda, and judges its ratios alone; ``--update --only`` writes them into the
+    baseline and keeps its other ratios; a name no check measures is refused."""
+    import functools
+    import json
+
+    from bench.regress import time_gate as gate
+
+    spec = "examples.plugins.numpy_dda:register"
+    registered.append("numpy_dda")
+    monkeypatch.setattr(gate, "CHECKS", (("visit", "-", 2, ("midpoint", "runs"), 40),
+                                         ("first_hit", "triangles", 2, ("runs",), 40)))
+    monkeypatch.setattr(gate, "measure", functools.partial(gate.measure, repeats=3, rounds=1))
+    monkeypatch.setattr(gate, "pin_to_one_cpu", lambda: None)
+    base = tmp_path / "mine.json"
+    old = [1.0, 1.01, 0.99] * 3
+    base.write_text(json.dumps({"samples": {"visit/-/r=2/midpoint": old}, "tolerance": 0.05}))
+    assert main(["regress", "--plugin", spec, "--only", "numpy_dda", "--baseline", str(base),
+                 "--update"]) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "measuring 1 speedup ratios" in out and "wrote 1 ratios" in out and "(2 in all)" in out
+    written = json.loads(base.read_text())["samples"]
+    assert set(written) == {"visit/-/r=2/midpoint", "visit/-/r=2/numpy_dda"}
+    assert written["visit/-/r=2/midpoint"] == old  # kept as it was
+    code = main(["regress", "--plugin", spec, "--only", "numpy_dda", "--baseline", str(base)])
+    out = capsys.readouterr().out
+    assert code in (0, 3) and "visit/-/r=2/numpy_dda" in out and "r=2/midpoint" not in out
+    assert main(["regress", "--only", "nope", "--baseline", str(base)]) == 2
+    assert "--only: 'nope' is in no check of the time gate" in capsys.readouterr().err
+    assert main(["regress", "--metric", "counters", "--only", "runs"]) == 2
+    assert "--only: selects the time gate's kernels" in capsys.readouterr().err
