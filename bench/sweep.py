@@ -28,7 +28,8 @@ from datasets_gen.rays import coherent_rays, traversal_rays
 
 from . import load as machine_load
 from .report import RowWriter, results_row_check, scan_csv
-from .sweep_config import WORKLOADS, ConfigError, SweepConfig, _same_dataset, load_config
+from .sweep_config import WORKLOADS, ConfigError, SweepConfig, load_config
+from .sweep_resume import check_recorded_datasets, check_recorded_plugins, plugin_fingerprints
 from .timing import (
     WARM_TIMED_CALLS,
     call_rays,
@@ -468,8 +469,8 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
                    started=first.get("started") or run["started"])
     labels = {dataset_label(ds, cfg.datasets) for ds in cfg.datasets}
     if kept:
-        _check_recorded_datasets(cfg, out_dir, {row.get("dataset") for row in kept})
-        _check_recorded_plugins(cfg, out_dir, {row.get("algorithm") for row in kept})
+        check_recorded_datasets(cfg, out_dir, {row.get("dataset") for row in kept}, dataset_label)
+        check_recorded_plugins(cfg, out_dir, {row.get("algorithm") for row in kept})
     for k, row in enumerate(kept):
         if row.get("dataset") not in labels:
             continue
@@ -505,61 +506,6 @@ def _pending(cfg, out_dir, resume, commit=None, run=None, bad=None, check_machin
         if missing:
             todo.append((ds, label, workload, surface, r, names, missing))
     return csv_path, todo
-
-
-def _check_recorded_datasets(cfg, out_dir, measured):
-    """ValueError when a dataset of ``cfg`` has the label of kept rows (``measured``) but
-    another seed than the run recorded in its ``env.json`` (``"datasets"``): the label
-    holds the name, size and parameters, not the seed, so the kept rows would pass for
-    the other field's. Runs whose env.json records no datasets are not checked."""
-    path = os.path.join(out_dir, "env.json")
-    try:
-        with open(path) as f:
-            recorded = json.load(f).get("datasets")
-    except (OSError, ValueError):
-        return
-    if not isinstance(recorded, list) or not all(isinstance(d, dict) for d in recorded):
-        return
-    before = {dataset_label(ds, recorded): ds for ds in recorded}
-    for k, ds in enumerate(cfg.datasets):
-        label = dataset_label(ds, cfg.datasets)
-        old = before.get(label)
-        if label in measured and old is not None and not _same_dataset(old, ds):
-            raise ValueError(
-                f"--resume: the rows of {label} were measured with datasets[{k}].seed = "
-                f"{old.get('seed', 0)}, the config says {ds.get('seed', 0)}; choose another "
-                "--out (or restore the config) rather than mix them")
-
-
-def _plugin_fingerprints(cfg) -> dict:
-    """{plugin name: :func:`algos.plugins.plugin_fingerprint`} for the config's plugin
-    kernels."""
-    from algos.plugins import plugin_fingerprint
-
-    found = {name: plugin_fingerprint(name) for name in cfg.algorithms}
-    return {name: fp for name, fp in found.items() if fp is not None}
-
-
-def _check_recorded_plugins(cfg, out_dir, measured):
-    """ValueError when a plugin kernel with kept rows (``measured``) is not the build or
-    edit the run recorded in its ``env.json`` (``"plugins"``): hftrace's commit does not
-    cover a plugin's code, so rows of two versions would pass for one. Runs whose
-    env.json records no plugins are not checked."""
-    path = os.path.join(out_dir, "env.json")
-    try:
-        with open(path) as f:
-            recorded = json.load(f).get("plugins")
-    except (OSError, ValueError):
-        return
-    if not isinstance(recorded, dict):
-        return
-    for name, now in _plugin_fingerprints(cfg).items():
-        before = recorded.get(name)
-        if name in measured and before is not None and before != now:
-            raise ValueError(
-                f"--resume: the rows of {name} were measured with another version of the "
-                f"plugin ({before}; now {now}); choose another --out to measure this one "
-                "(or restore the plugin) rather than mix them")
 
 
 def _report_damaged(csv_path, bad, echo):
@@ -742,7 +688,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     _report_damaged(csv_path, bad, echo)
     env["run_identity"] = run  # the RUN_COLUMNS of every row this session writes
     env["datasets"] = cfg.datasets  # what each label is, for --resume to check
-    env["plugins"] = _plugin_fingerprints(cfg)  # which build of each plugin, likewise
+    env["plugins"] = plugin_fingerprints(cfg)  # which build of each plugin, likewise
     env["load_before"] = machine_load.load_average()
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)
