@@ -79,6 +79,31 @@ def test_reference_rejects_bad_input():
         algos.reference_cells((0, 0), (1, 0), (4, 4), tmax=math.nan)
 
 
+@pytest.mark.parametrize("origin,direction,shape,error,words", [
+    ((0.5, 0.5), (1, 0), (4.5, 4), TypeError, "shape: nx must be an integer, got 4.5"),
+    ((0.5, 0.5), (1, 0), "44", ValueError, "shape must be"),
+    ((0.5, 0.5), (1, 0), (4, 4, 4), ValueError, "shape must be"),
+    ((0.5, 0.5), (1, 0), 4, ValueError, "shape must be"),
+    ((0.5, 0.5), (1, 0), (True, 4), TypeError, "shape: nx"),
+    ((0.5, 0.5, 1.0), (1, 0), (4, 4), ValueError, "origin must be a pair"),
+    (0.5, (1, 0), (4, 4), ValueError, "origin must be a pair"),
+    ((0.5, 0.5), "10", (4, 4), TypeError, "direction must be a pair"),
+    (("1", 0.5), (1, 0), (4, 4), TypeError, "origin[0] must be a real number"),
+    ((0.5, 1j), (1, 0), (4, 4), TypeError, "origin[1] must be a real number"),
+])
+def test_reference_names_the_bad_argument(origin, direction, shape, error, words):
+    """The reference checks its arguments as traverse does, naming each: it took a
+    shape of (4.5, 4) as 4 x 4 cells and the string "44" as (4, 4), read the string "1"
+    as the number 1, and answered a 3D origin with "too many values to unpack"."""
+    with pytest.raises(error) as info:
+        algos.reference_cells(origin, direction, shape)
+    assert words in str(info.value)
+    # numbers of any NumPy type, Fractions and a huge grid stay accepted
+    from fractions import Fraction
+    assert algos.reference_cells((np.float32(0.5), Fraction(1, 2)), np.array([1, 0]),
+                                 (np.int64(2), 2**40), tmax=2.0) == [(0, 0), (1, 0)]
+
+
 @pytest.mark.parametrize("name", ALL)
 def test_layouts_and_dtypes(name):
     """float32, big-endian, Fortran order, strided views and lists give the same cells,
