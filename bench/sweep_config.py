@@ -1,6 +1,6 @@
 """The sweep config: read from TOML or a dict, every key checked before any work starts.
 
-    name = "my-sweep"                 # output directory name under reports/
+    name = "my-sweep"                 # output directory results/sweep/<name>
     rays = 2000                       # rays per group
     repeats = 7                       # interleaved repeats (>= 3); with precision, the fewest rounds
     precision = 0.02                  # optional: sequential paired rounds to +-2 % (docs/METHOD.md)
