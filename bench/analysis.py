@@ -721,12 +721,26 @@ def cost_model(df, counts=None) -> list:
     return lines
 
 
-def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels=False,
+def report_title(env) -> str:
+    """The title of a run's reports, from its ``env.json``: the ``reproduce`` preset, else
+    the sweep's name, else a neutral one (a file without either)."""
+    env = env or {}
+    preset = (env.get("reproduce") or {}).get("preset")
+    if preset:
+        return f"hftrace reproduce ({preset} preset)"
+    if env.get("sweep_name"):
+        return f"hftrace sweep {env['sweep_name']}"
+    return "hftrace results"
+
+
+def write_reports(csv_path, out_dir=None, title=None, all_kernels=False,
                   run=None, echo=_warn) -> dict:
     """speedup.md (the headline table), speedup_full.md (every kernel),
     run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV (``all_kernels``:
     every kernel in the plots, not the default subset), of one run (``run``: see
     :func:`load`). ``echo`` receives the run read and each damaged line left out.
+    ``title`` heads the reports; by default :func:`report_title` of the ``env.json``
+    beside the CSV, so `hftrace plot` never calls a sweep the reproduce study.
     ``ValueError`` when the CSV is missing, not a results.csv, or holds several runs and
     ``run`` does not choose one."""
     out_dir = out_dir or os.path.dirname(os.path.abspath(csv_path))
@@ -739,6 +753,8 @@ def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels
         env = json.load(open(env_path)) if os.path.exists(env_path) else None
     except (OSError, ValueError):
         env = None
+    if title is None:
+        title = report_title(env)
     paths = {"speedup": os.path.join(out_dir, "speedup.md"),
              "plot": os.path.join(out_dir, "run_length_vs_speedup.png"),
              "cost": os.path.join(out_dir, "ns_per_ray_vs_cells.png")}

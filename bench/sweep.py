@@ -671,6 +671,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     csv_path, todo = _pending(cfg, out_dir, resume, commit=commit, run=run, bad=bad)
     _report_damaged(csv_path, bad, echo)
     env["run_identity"] = run  # the RUN_COLUMNS of every row this session writes
+    env["sweep_name"] = cfg.name  # the reports' title when `hftrace plot` rewrites them
     env["load_before"] = machine_load.load_average()
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)

@@ -101,6 +101,22 @@ def test_sweep_rows_and_reports(tmp_path):
     assert open(tmp_path / "again" / "speedup.md").read() == text
 
 
+def test_plot_keeps_the_title_of_the_run(tmp_path):
+    """`hftrace plot` on a sweep's results.csv rewrote its speedup.md as "# hftrace
+    reproduce: ...", calling a user's sweep the main study; the title now comes from the
+    run's env.json, as the sweep wrote it."""
+    cfg = sweep.load_config({**TINY, "name": "mine", "workloads": ["first_hit"],
+                             "run_lengths": [25], "datasets": TINY["datasets"][:1]})
+    sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    for report in ("speedup.md", "speedup_full.md"):
+        first = open(tmp_path / report).readline()
+        assert first.startswith("# hftrace sweep mine"), first
+    assert analysis.report_title({"reproduce": {"preset": "standard"}}) == \
+        "hftrace reproduce (standard preset)"
+    assert analysis.report_title(None) == "hftrace results"
+
+
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
     """Kill a sweep mid-way, resume it, and check every row is there exactly once."""
     cfg_path = tmp_path / "c.toml"
