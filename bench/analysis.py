@@ -662,16 +662,32 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     plt.close(fig)
 
 
+def cost_panels(df) -> list:
+    """The (workload, surface) panels of :func:`plot_cost`: a 2D workload (``visit`` where
+    measured) and a first hit (the paper's measure where measured), each only when the
+    rows hold one; the paper's measure alone for rows holding neither."""
+    pairs = list(dict.fromkeys(zip(df["workload"], df["surface"])))
+    two_d = [p for p in pairs if p[1] == "-"]
+    hits = [p for p in pairs if p[1] != "-"]
+    panels = [("visit", "-") if ("visit", "-") in pairs else (two_d[0] if two_d else None),
+              PRIMARY if PRIMARY in pairs else (hits[0] if hits else None)]
+    return [p for p in panels if p] or [PRIMARY]
+
+
 def plot_cost(df, path, all_kernels=False):
     """ns/ray against cells/ray: O(n) walkers climb with n, run walkers with n/r. The same
-    kernels as :func:`plot_speedup` (and ``dda``), one colour each, a legend per panel."""
+    kernels as :func:`plot_speedup` (and ``dda``), one colour each, a legend per panel;
+    one panel per workload of :func:`cost_panels` (a sweep of first hits on bilinear
+    cells drew two empty panels, "visit" and "first_hit, triangles"). Returns them."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), dpi=120)
-    for ax, (workload, surface) in zip(axes, (("visit", "-"), PRIMARY)):
+    panels = cost_panels(df)
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.5), dpi=120,
+                             squeeze=False)
+    for ax, (workload, surface) in zip(axes[0], panels):
         part = df[(df["workload"] == workload) & (df["surface"] == surface)]
         names = ["dda"] + plot_kernels(dict.fromkeys(part["algorithm"]), all_kernels)
         names = [n for n in names if n in set(part["algorithm"])]
@@ -690,6 +706,7 @@ def plot_cost(df, path, all_kernels=False):
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+    return panels
 
 
 def cost_model(df, counts=None) -> list:

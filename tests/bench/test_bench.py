@@ -117,6 +117,27 @@ def test_plot_keeps_the_title_of_the_run(tmp_path):
     assert analysis.report_title(None) == "hftrace results"
 
 
+@pytest.mark.parametrize("pairs,panels", [
+    ([("first_hit", "bilinear")], [("first_hit", "bilinear")]),
+    ([("runs", "-"), ("first_hit", "flat"), ("first_hit", "triangles")],
+     [("runs", "-"), ("first_hit", "triangles")]),
+    ([("visit", "-"), ("runs", "-"), ("first_hit", "triangles")],
+     [("visit", "-"), ("first_hit", "triangles")]),
+    ([("first_hit", "triangles")], [("first_hit", "triangles")]),
+])
+def test_cost_plot_draws_the_workloads_measured(tmp_path, pairs, panels):
+    """ns_per_ray_vs_cells.png drew "visit" and "first_hit, triangles" whatever the run
+    measured: a sweep of first hits alone had an empty "no rows" panel, one on bilinear
+    cells two."""
+    import pandas as pd
+
+    rows = [{"workload": w, "surface": s, "algorithm": a, "cells_per_ray": 10.0 + k,
+             "ns_per_ray": 100.0 + k} for k, (w, s) in enumerate(pairs) for a in ("dda", "runs")]
+    path = tmp_path / "cost.png"
+    assert analysis.plot_cost(pd.DataFrame(rows), str(path)) == panels
+    assert os.path.getsize(path) > 10_000
+
+
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
     """Kill a sweep mid-way, resume it, and check every row is there exactly once."""
     cfg_path = tmp_path / "c.toml"
