@@ -699,42 +699,44 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     spare = 0.25 * len(todo) * cfg.group_budget if cfg.precision is not None else 0.0
     remeasured = 0
     flushing = 0.0
-    with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
-                   check=results_row_check()) as writer:
-        for ds, label, workload, surface, r, names, missing in todo:
-            if label not in fields_cache:
-                fields_cache.clear()  # one field in memory at a time
-                p0 = time.perf_counter()
-                fields_cache[label] = prepare_field(ds, todo)
-                preparing += time.perf_counter() - p0
-            field_ = fields_cache[label]
-            own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
-            isolated = [n for n in names if n not in own and n in missing]
-            measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
-                                     cfg.repeats, cfg.seed, **design)
-            while measured[0]["contended"] and spare > measured[0]["wall_s"]:
-                # contention is never a finding: wait for a quiet machine, then measure again
-                waited = wait_until_quiet(min(5.0, spare - measured[0]["wall_s"]))
-                spare -= measured[0]["wall_s"] + waited
-                if spare <= 0 or waited < 0:
-                    break
-                timed += measured[0]["timed_s"]
-                remeasured += 1
+    try:  # the bar closes before an interrupt's message, not redrawn after it
+        with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
+                       check=results_row_check()) as writer:
+            for ds, label, workload, surface, r, names, missing in todo:
+                if label not in fields_cache:
+                    fields_cache.clear()  # one field in memory at a time
+                    p0 = time.perf_counter()
+                    fields_cache[label] = prepare_field(ds, todo)
+                    preparing += time.perf_counter() - p0
+                field_ = fields_cache[label]
+                own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
+                isolated = [n for n in names if n not in own and n in missing]
                 measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
                                          cfg.repeats, cfg.seed, **design)
-            for name in isolated:  # one child per plugin: a crash takes only its rows
-                measured += _measure_isolated(field_, label, workload, surface, r, [name],
-                                              cfg.rays, cfg.repeats, cfg.seed, **design)
-            timed += measured[0]["timed_s"]
-            if not math.isnan(measured[0]["flush_s"]):
-                flushing += measured[0]["flush_s"]
-            contended += bool(measured[0]["contended"])
-            failed += [f"{label} {workload} r={r} {row['algorithm']}: {row['error']}"
-                       for row in measured if row.get("error")]
-            _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}",
-                         commit=commit, run=run)
-    if bar is not None:
-        bar.close()
+                while measured[0]["contended"] and spare > measured[0]["wall_s"]:
+                    # contention is never a finding: wait for a quiet machine, then measure again
+                    waited = wait_until_quiet(min(5.0, spare - measured[0]["wall_s"]))
+                    spare -= measured[0]["wall_s"] + waited
+                    if spare <= 0 or waited < 0:
+                        break
+                    timed += measured[0]["timed_s"]
+                    remeasured += 1
+                    measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
+                                             cfg.repeats, cfg.seed, **design)
+                for name in isolated:  # one child per plugin: a crash takes only its rows
+                    measured += _measure_isolated(field_, label, workload, surface, r, [name],
+                                                  cfg.rays, cfg.repeats, cfg.seed, **design)
+                timed += measured[0]["timed_s"]
+                if not math.isnan(measured[0]["flush_s"]):
+                    flushing += measured[0]["flush_s"]
+                contended += bool(measured[0]["contended"])
+                failed += [f"{label} {workload} r={r} {row['algorithm']}: {row['error']}"
+                           for row in measured if row.get("error")]
+                _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}",
+                             commit=commit, run=run)
+    finally:
+        if bar is not None:
+            bar.close()
     wall = time.perf_counter() - start
     measure = time.perf_counter() - measure0 - preparing
     env["run"] = {"groups": len(todo), "wall_s": round(wall, 2), "timed_s": round(timed, 2),

@@ -138,6 +138,39 @@ def test_cost_plot_draws_the_workloads_measured(tmp_path, pairs, panels):
     assert os.path.getsize(path) > 10_000
 
 
+def test_interrupt_closes_the_progress_bar_first(tmp_path, monkeypatch):
+    """Ctrl-C left the bar open: tqdm redrew it below `hftrace: interrupted; ... --resume
+    continues` when the interpreter exited, so the message sat above a stale bar."""
+    events = []
+
+    class Bar:
+        def set_postfix_str(self, text):
+            events.append("postfix")
+
+        def update(self, n=1):
+            events.append("update")
+
+        def close(self):
+            events.append("close")
+
+    calls = []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    real = sweep.measure_group
+    monkeypatch.setattr(sweep, "_bar", lambda progress, total, desc: Bar())
+    monkeypatch.setattr(sweep, "measure_group", interrupted)
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"], "datasets": TINY["datasets"][:1]})
+    with pytest.raises(KeyboardInterrupt):
+        sweep.run_sweep(cfg, str(tmp_path), progress=True, echo=None)
+    assert events[-1] == "close" and events.count("close") == 1
+    assert len(list(csv.DictReader(open(tmp_path / "results.csv")))) == 5  # the first group
+
+
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
     """Kill a sweep mid-way, resume it, and check every row is there exactly once."""
     cfg_path = tmp_path / "c.toml"
