@@ -553,8 +553,10 @@ def load_section(df, env=None) -> list:
              f"{groups['load_before'].min():.2f} to {groups['load_after'].max():.2f}."]
     run = (env or {}).get("run")
     if run:
-        lines.append(f"The sweep took {run['wall_s']:.0f} s, {100 * (run['timed_share'] or 0):.0f} % "
-                     "of it inside timed calls.")
+        sessions = (f" in {run['sessions']} sessions (resumed)"
+                    if (run.get("sessions") or 1) > 1 else "")
+        lines.append(f"The sweep took {run['wall_s']:.0f} s{sessions}, "
+                     f"{100 * (run['timed_share'] or 0):.0f} % of it inside timed calls.")
         if run.get("timed_share_of_measure") is not None:
             prepared = (f" after {run['prepare_s']:.0f} s preparing the fields' structures"
                         if run.get("prepare_s") else "")

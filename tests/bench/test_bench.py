@@ -171,6 +171,39 @@ def test_interrupt_closes_the_progress_bar_first(tmp_path, monkeypatch):
     assert len(list(csv.DictReader(open(tmp_path / "results.csv")))) == 5  # the first group
 
 
+def test_resumed_run_reports_every_session(tmp_path, monkeypatch):
+    """A resumed run's env.json described its last session only (resuming a finished
+    reproduce run reported "The sweep took 0 s, 0 % of it inside timed calls" over its 24
+    measured groups), and an interrupted session wrote no totals at all."""
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"], "run_lengths": [1, 25],
+                             "datasets": TINY["datasets"][:1]})
+    real, calls = sweep.measure_group, []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sweep, "measure_group", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    first = json.load(open(tmp_path / "env.json"))["run"]  # the cut session: one group
+    assert first["groups"] == 1 and "sessions" not in first
+    sweep.run_sweep(cfg, str(tmp_path), resume=True, progress=False, echo=None)
+    second = json.load(open(tmp_path / "env.json"))["run"]
+    assert second["sessions"] == 2 and second["groups"] == 2
+    sweep.run_sweep(cfg, str(tmp_path), resume=True, progress=False, echo=None)  # nothing left
+    third = json.load(open(tmp_path / "env.json"))["run"]
+    assert third["sessions"] == 3 and third["groups"] == 2
+    assert third["wall_s"] >= second["wall_s"] >= first["wall_s"] > 0
+    assert third["timed_s"] == second["timed_s"] and third["last_session"]["groups"] == 0
+    text = open(analysis.write_reports(str(tmp_path / "results.csv"), echo=None)["speedup"]).read()
+    assert "in 3 sessions (resumed)" in text
+    assert sweep.merge_sessions({"groups": 3, "wall_s": 2.0, "timed_s": 1.0, "sessions": 2},
+                                {"groups": 1, "wall_s": 2.0, "timed_s": 1.0})["sessions"] == 3
+
+
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
     """Kill a sweep mid-way, resume it, and check every row is there exactly once."""
     cfg_path = tmp_path / "c.toml"
