@@ -78,3 +78,23 @@ def test_render_negative_fog_is_refused(tmp_path, capsys):
     assert status == 2
     assert "fog: expected a density >= 0" in err.strip().splitlines()[-1]
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("r", ["nan", "inf", "1e400", "abc", "0", "-1", "0.5"])
+def test_profile_run_length_names_its_option(capsys, monkeypatch, r):
+    """`hftrace profile runs --r nan` (or inf, abc) printed int()'s "invalid literal for
+    int() with base 10: 'nan'", naming no option; it is refused as --r, before any count."""
+    from bench import profile
+
+    monkeypatch.setattr(profile, "profile", lambda *a, **k: pytest.fail("counted"))
+    status, out, err = _run(capsys, "profile", "runs", "--r", r)
+    assert status == 2
+    assert err.strip() == f"hftrace: error: --r: expected a number >= 1 or 'random', got '{r}'"
+
+
+def test_profile_run_length_accepts_numbers_and_random():
+    from bench.cli.profile import _run_length
+
+    assert _run_length("25") == 25 and isinstance(_run_length("25"), int)
+    assert _run_length("2.5") == 2.5 and _run_length("1e3") == 1000.0
+    assert _run_length("random") == "random"
