@@ -34,6 +34,9 @@ TINY = {
     ({"workloads": ["walk"]}, "workloads: unknown workload 'walk'"),
     ({"surfaces": ["smooth"]}, "surfaces: unknown surface 'smooth'"),
     ({"run_lengths": [0.5]}, "run_lengths: 0.5 is neither"),
+    # inf passed the check: every group ran, then the report refused all its rows
+    ({"run_lengths": [float("inf")]}, "run_lengths: inf is neither"),
+    ({"run_lengths": [float("nan")]}, "run_lengths: nan is neither"),
     ({"algorithms": ["bvh"]}, "algorithms: unknown algorithm 'bvh'"),
     ({"datasets": [{"name": "mars"}]}, r"datasets\[0\].name: unknown dataset 'mars'"),
     ({"datasets": [{"name": "fbm", "colour": 1}]}, r"datasets\[0\].colour: unknown key"),
