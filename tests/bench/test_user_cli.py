@@ -98,3 +98,16 @@ def test_profile_run_length_accepts_numbers_and_random():
     assert _run_length("25") == 25 and isinstance(_run_length("25"), int)
     assert _run_length("2.5") == 2.5 and _run_length("1e3") == 1000.0
     assert _run_length("random") == "random"
+
+
+def test_a_sweep_too_big_for_memory_is_one_line(tmp_path, capsys):
+    """`rays = 10000000000` in a sweep config ended in numpy's _ArrayMemoryError traceback
+    (74.5 GiB for one array): user errors are one line, never a traceback."""
+    config = tmp_path / "big.toml"
+    config.write_text('rays = 10000000000\nworkloads = ["visit"]\nrun_lengths = [1]\n'
+                      'algorithms = ["runs"]\n[[datasets]]\nname = "flat"\nsize = 8\n')
+    status, out, err = _run(capsys, "sweep", str(config), "--out", str(tmp_path / "out"),
+                            "--no-progress")
+    assert status == 2
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("hftrace: error: out of memory") and "Traceback" not in err
