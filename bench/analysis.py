@@ -446,9 +446,7 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
     if rounds is None or rounds.isna().all():  # results of the fixed-repeats design
         rounds = pd.to_numeric(df["repeats"], errors="coerce")
     calls = sorted(set(df["call_rays"].dropna().astype(int))) if "call_rays" in df else []
-    paired = "regime" in df and df["regime"].isin(["warm", "flushed-per-call",
-                                                     "flushed-per-round", "unflushed"]).any() \
-        and "precision" in df and pd.to_numeric(df["precision"], errors="coerce").notna().any()
+    paired = paired_design(df)
     if paired and "algorithm" in df:  # the baseline's own count is of its visits
         rounds = rounds[(df["algorithm"] != "dda").to_numpy()]
     how = ("the median over adjacent pairs (each kernel's call between two of dda's) of time "
@@ -613,6 +611,23 @@ def _colours(n):
     return [cmap(k % cmap.N) for k in range(max(n, 1))]
 
 
+def paired_design(df) -> bool:
+    """Whether the rows were measured in adjacent pairs with a precision (docs/METHOD.md,
+    "Paired rounds"), whose speedup is the median pair's ratio; else the fixed-repeats
+    design, whose speedup is the geometric mean of the paired per-round ratios."""
+    return bool("regime" in df and df["regime"].isin(["warm", "flushed-per-call",
+                                                       "flushed-per-round", "unflushed"]).any()
+                and "precision" in df
+                and pd.to_numeric(df["precision"], errors="coerce").notna().any())
+
+
+def speedup_axis_label(df) -> str:
+    """The y label of the run-length plot: what its speedups are, by the rows' design."""
+    how = "median of adjacent pairs' ratios" if paired_design(df) else \
+        "geometric mean of paired ratios"
+    return f"speedup over dda ({how})"
+
+
 def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernels=False):
     """Speedup over dda against mean run length for one workload and surface, one line per
     algorithm (geometric mean over datasets), saved as a PNG at ``path``. By default the
@@ -653,7 +668,7 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     ax.axhline(1.0, color="grey", lw=0.8)
     ax.set_xscale("log")
     ax.set_xlabel("mean run length r (log)")
-    ax.set_ylabel("speedup over dda (geometric mean of paired ratios)")
+    ax.set_ylabel(speedup_axis_label(df))  # the headline preset's were medians, labelled means
     where = workload if surface == "-" else f"{workload} on {surface}"
     ax.set_title(f"{where}: run length vs speedup\n(solid exact, dashed float or not claimed "
                  "exact, dotted marching; bars and bands: 95 % intervals)", fontsize=10)

@@ -207,6 +207,21 @@ def test_resumed_run_reports_every_session(tmp_path, monkeypatch):
                                 {"groups": 1, "wall_s": 2.0, "timed_s": 1.0})["sessions"] == 3
 
 
+def test_run_length_plot_says_which_speedup_it_draws():
+    """The run-length plot's y axis read "geometric mean of paired ratios" for every run,
+    but the headline preset and every sweep with `precision` report the median of adjacent
+    pairs (docs/METHOD.md, "Paired rounds"; their speedup.md says so)."""
+    import pandas as pd
+
+    paired = pd.DataFrame({"regime": ["warm"], "precision": ["0.02"]})
+    fixed = pd.DataFrame({"regime": ["flushed"], "precision": [""]})
+    assert analysis.speedup_axis_label(paired) == "speedup over dda (median of adjacent pairs' ratios)"
+    assert analysis.speedup_axis_label(fixed) == "speedup over dda (geometric mean of paired ratios)"
+    headline = analysis.load(os.path.join(ROOT, "reports", "reproduce-headline", "results.csv"),
+                             echo=None)
+    assert "median" in analysis.speedup_axis_label(headline)
+
+
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
     """Kill a sweep mid-way, resume it, and check every row is there exactly once."""
     cfg_path = tmp_path / "c.toml"
