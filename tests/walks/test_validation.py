@@ -137,3 +137,22 @@ def test_empty_batch():
 def test_zero_direction_is_vertical():
     paths = algos.traverse("runs", [[1.5, 2.5], [9.0, 9.0]], [[0.0, 0.0], [0.0, 0.0]], (4, 4))
     assert paths[0].tolist() == [[1, 2]] and paths[1].tolist() == []
+
+
+def test_python_numbers_numpy_keeps_as_objects():
+    """A Python int beyond int64 (2**70, within the documented |d| <= 2**1000) or a
+    Fraction made an object array, refused as "expected real numbers, got dtype object":
+    they are real numbers, taken as float64; one beyond float64 is refused by its index."""
+    from fractions import Fraction
+
+    cells = algos.traverse("runs", [[0.5, 0.5]], [[2**70, 1]], (4, 4))[0]
+    assert [tuple(c) for c in cells.tolist()] == [(0, 0), (1, 0), (2, 0), (3, 0)]
+    got = algos.traverse("runs", [[Fraction(1, 2), 0.5]], [[1, 0]], (4, 4), tmin=-2**70)[0]
+    assert [tuple(c) for c in got.tolist()] == [(0, 0), (1, 0), (2, 0), (3, 0)]
+    hits = algos.intersect("runs", np.zeros((3, 3)), [[0.5, 0.5, Fraction(5, 2)]], [[0, 0, -1]])
+    assert hits.t[0] == 2.5
+    with pytest.raises(ValueError, match=r"directions: directions\[0, 1\] = 100000000000\.\.\. "
+                                         r"\(401 digits\) is beyond float64's range"):
+        algos.traverse("runs", [[0.5, 0.5]], [[1, 10**400]], (4, 4))
+    with pytest.raises(TypeError, match="directions: expected real numbers, got dtype object"):
+        algos.traverse("runs", [[0.5, 0.5]], [[None, 1]], (4, 4))
