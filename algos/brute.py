@@ -278,12 +278,47 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         return np.inf, (-1, -1)
     # a point on a border reached at the same t by two cells (a touch where a triangles
     # or bilinear cell meets the next, or the end cell at t1): the one that holds it by
-    # the half-open rule (the cell entered) is the hit's cell
-    holder = _cell_at_end(o, d, nx, ny, best[k])
-    if holder is not None and holder != (int(ii[k]), int(jj[k])):
-        same = np.nonzero((ii == holder[0]) & (jj == holder[1]) & (best == best[k]))[0]
-        k = int(same[0]) if len(same) else k
+    # the half-open rule (the cell entered) is the hit's cell. That is the tied cell whose
+    # interval starts last: the cell left ends at that t, the cell entered starts there.
+    # (Locating p(t) at the rounded t instead picked the cell left whenever the border's
+    # parameter is not a float: t = 1/3 rounds below 1/3, where p lies in that cell.)
+    same = np.nonzero(best == best[k])[0]
+    if len(same) > 1:
+        k = int(same[np.argmax(ta[same])])
+    elif surface in ("triangles", "bilinear") and best[k] < tb[k] and np.isfinite(tb[k]):
+        # the root of the cell left can round a few ulps below its exit when the ray
+        # comes down onto the surface exactly on the border (t = 5/3): the next cell then
+        # hits at its entry, one ulp later. The border decides in rational arithmetic:
+        # a touch exactly there is the entered cell's
+        nxt = np.nonzero((ta == tb[k]) & (best == ta))[0]
+        if len(nxt) and tb[k] - best[k] <= 8 * np.finfo(np.float64).eps * abs(tb[k]) and \
+                _touches_at_exit(H, o, d, surface, int(ii[k]), int(jj[k]), tmax):
+            return float(best[k]), (int(ii[nxt[0]]), int(jj[nxt[0]]))
     return float(best[k]), (int(ii[k]), int(jj[k]))
+
+
+def _touches_at_exit(H, o, d, surface, i, j, tmax):
+    """Whether the ray is exactly on cell (i, j)'s ``triangles`` or ``bilinear`` surface
+    where it leaves the cell (the exit of its half-open interval, before ``tmax``), in
+    rational arithmetic."""
+    exits = [(_exact(k + (1 if da > 0 else 0)) - _exact(oa)) / _exact(da)
+             for k, oa, da in ((i, o[0], d[0]), (j, o[1], d[1])) if da != 0]
+    if not exits:
+        return False
+    t = min(exits)
+    if np.isfinite(tmax) and _exact(tmax) <= t:
+        return False
+    u = _exact(o[0]) + t * _exact(d[0]) - i
+    v = _exact(o[1]) + t * _exact(d[1]) - j
+    z = _exact(o[2]) + t * _exact(d[2])
+    h00, h10 = _exact(H[j, i]), _exact(H[j, i + 1])
+    h01, h11 = _exact(H[j + 1, i]), _exact(H[j + 1, i + 1])
+    if surface == "triangles":
+        s = (h00 + (h10 - h00) * u + (h11 - h10) * v if u >= v else
+             h00 + (h11 - h01) * u + (h01 - h00) * v)
+    else:
+        s = h00 * (1 - u) * (1 - v) + h10 * u * (1 - v) + h01 * (1 - u) * v + h11 * u * v
+    return z == s
 
 
 def brute_force_hits(heights, origins, directions, surface="triangles", tmin=None, tmax=None):

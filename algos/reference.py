@@ -10,6 +10,7 @@ cannot be mirrored here.
 from __future__ import annotations
 
 import math
+import numbers
 from fractions import Fraction
 from typing import Iterable
 
@@ -71,10 +72,42 @@ def _merge(a: list, b: list) -> list:
 def _exact(value, name: str) -> Fraction:
     if isinstance(value, Fraction):
         return value
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
     value = float(value)
     if not math.isfinite(value):
         raise ValueError(f"{name} must be finite, got {value!r}")
     return Fraction(value)
+
+
+def _pair(value, name: str) -> tuple:
+    """``(x, y)`` of ``origin`` or ``direction`` as exact Fractions; anything else raises,
+    naming the argument (a 3D point, a bare number and a string of digits too)."""
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} must be a pair (x, y) of real numbers, got {value!r}")
+    try:
+        x, y = value
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a pair (x, y), got {value!r}") from None
+    return _exact(x, f"{name}[0]"), _exact(y, f"{name}[1]")
+
+
+def _grid(shape) -> tuple:
+    """``(nx, ny)``: two integers >= 1 (no upper limit: the reference is pure Python)."""
+    if hasattr(shape, "cell_heights"):  # a HeightField: its grid of cells
+        return shape.cols - 1, shape.rows - 1
+    try:
+        sides = tuple(shape)
+    except TypeError:
+        sides = ()
+    if isinstance(shape, (str, bytes)) or len(sides) != 2:
+        raise ValueError(f"shape must be (nx, ny), got {shape!r}")
+    for axis, side in zip(("nx", "ny"), sides):
+        if isinstance(side, bool) or not isinstance(side, numbers.Integral):
+            raise TypeError(f"shape: {axis} must be an integer, got {side!r}")
+        if side < 1:
+            raise ValueError(f"shape must be positive, got {shape!r}")
+    return int(sides[0]), int(sides[1])
 
 
 def reference_cells(origin, direction, shape, tmin=0.0, tmax=float("inf")):
@@ -100,13 +133,9 @@ def reference_cells(origin, direction, shape, tmin=0.0, tmax=float("inf")):
         change at once; consecutive cells share an edge (or a vertex only at a vertex
         crossing); no cell repeats.
     """
-    if hasattr(shape, "cell_heights"):  # a HeightField: its grid of cells
-        shape = (shape.cols - 1, shape.rows - 1)
-    nx, ny = (int(s) for s in shape)
-    if nx < 1 or ny < 1:
-        raise ValueError(f"shape must be positive, got {shape!r}")
-    ox, oy = (_exact(v, "origin") for v in origin)
-    dx, dy = (_exact(v, "direction") for v in direction)
+    nx, ny = _grid(shape)
+    ox, oy = _pair(origin, "origin")
+    dx, dy = _pair(direction, "direction")
     t_lo = None if tmin == -math.inf else _exact(tmin, "tmin") if tmin != math.inf else None
     t_hi = None if tmax == math.inf else _exact(tmax, "tmax") if tmax != -math.inf else None
     if tmin == math.inf or tmax == -math.inf or (

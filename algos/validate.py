@@ -26,6 +26,19 @@ def as_float_array(value, name: str) -> np.ndarray:
         array = np.asarray(value)
     except Exception as exc:  # e.g. ragged nested lists
         raise TypeError(f"{name}: cannot be read as an array ({exc})") from None
+    if array.dtype == object and array.size and all(
+            isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) for v in array.flat):
+        # Python numbers NumPy keeps as objects: an int beyond int64 (2**70), a Fraction.
+        # They are real numbers: converted, or refused naming the one beyond float64
+        values = []
+        for index, v in zip(np.ndindex(array.shape), array.flat):
+            try:
+                values.append(float(v))
+            except OverflowError:
+                where = ", ".join(str(i) for i in index)
+                text = str(v) if len(str(v)) <= 24 else f"{str(v)[:12]}... ({len(str(v))} digits)"
+                raise ValueError(f"{name}: {name}[{where}] = {text} is beyond float64's range") from None
+        return np.array(values, dtype=np.float64).reshape(array.shape)
     if array.dtype.kind not in "fiu":
         raise TypeError(f"{name}: expected real numbers, got dtype {array.dtype}")
     return array

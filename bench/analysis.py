@@ -457,9 +457,7 @@ def speedup_markdown(df, env=None, title="hftrace reproduce", counts=None,
     if rounds is None or rounds.isna().all():  # results of the fixed-repeats design
         rounds = pd.to_numeric(df["repeats"], errors="coerce")
     calls = sorted(set(df["call_rays"].dropna().astype(int))) if "call_rays" in df else []
-    paired = "regime" in df and df["regime"].isin(["warm", "flushed-per-call",
-                                                     "flushed-per-round", "unflushed"]).any() \
-        and "precision" in df and pd.to_numeric(df["precision"], errors="coerce").notna().any()
+    paired = paired_design(df)
     if paired and "algorithm" in df:  # the baseline's own count is of its visits
         rounds = rounds[(df["algorithm"] != "dda").to_numpy()]
     how = ("the median over adjacent pairs (each kernel's call between two of dda's) of time "
@@ -564,8 +562,10 @@ def load_section(df, env=None) -> list:
              f"{groups['load_before'].min():.2f} to {groups['load_after'].max():.2f}."]
     run = (env or {}).get("run")
     if run:
-        lines.append(f"The sweep took {run['wall_s']:.0f} s, {100 * (run['timed_share'] or 0):.0f} % "
-                     "of it inside timed calls.")
+        sessions = (f" in {run['sessions']} sessions (resumed)"
+                    if (run.get("sessions") or 1) > 1 else "")
+        lines.append(f"The sweep took {run['wall_s']:.0f} s{sessions}, "
+                     f"{100 * (run['timed_share'] or 0):.0f} % of it inside timed calls.")
         if run.get("timed_share_of_measure") is not None:
             prepared = (f" after {run['prepare_s']:.0f} s preparing the fields' structures"
                         if run.get("prepare_s") else "")
@@ -622,6 +622,23 @@ def _colours(n):
     return [cmap(k % cmap.N) for k in range(max(n, 1))]
 
 
+def paired_design(df) -> bool:
+    """Whether the rows were measured in adjacent pairs with a precision (docs/METHOD.md,
+    "Paired rounds"), whose speedup is the median pair's ratio; else the fixed-repeats
+    design, whose speedup is the geometric mean of the paired per-round ratios."""
+    return bool("regime" in df and df["regime"].isin(["warm", "flushed-per-call",
+                                                       "flushed-per-round", "unflushed"]).any()
+                and "precision" in df
+                and pd.to_numeric(df["precision"], errors="coerce").notna().any())
+
+
+def speedup_axis_label(df) -> str:
+    """The y label of the run-length plot: what its speedups are, by the rows' design."""
+    how = "median of adjacent pairs' ratios" if paired_design(df) else \
+        "geometric mean of paired ratios"
+    return f"speedup over dda ({how})"
+
+
 def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernels=False):
     """Speedup over dda against mean run length for one workload and surface, one line per
     algorithm (geometric mean over datasets), saved as a PNG at ``path``. By default the
@@ -662,7 +679,7 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     ax.axhline(1.0, color="grey", lw=0.8)
     ax.set_xscale("log")
     ax.set_xlabel("mean run length r (log)")
-    ax.set_ylabel("speedup over dda (geometric mean of paired ratios)")
+    ax.set_ylabel(speedup_axis_label(df))  # the headline preset's were medians, labelled means
     where = workload if surface == "-" else f"{workload} on {surface}"
     ax.set_title(f"{where}: run length vs speedup\n(solid exact, dashed float or not claimed "
                  "exact, dotted marching; bars and bands: 95 % intervals)", fontsize=10)
@@ -673,16 +690,32 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     plt.close(fig)
 
 
+def cost_panels(df) -> list:
+    """The (workload, surface) panels of :func:`plot_cost`: a 2D workload (``visit`` where
+    measured) and a first hit (the paper's measure where measured), each only when the
+    rows hold one; the paper's measure alone for rows holding neither."""
+    pairs = list(dict.fromkeys(zip(df["workload"], df["surface"])))
+    two_d = [p for p in pairs if p[1] == "-"]
+    hits = [p for p in pairs if p[1] != "-"]
+    panels = [("visit", "-") if ("visit", "-") in pairs else (two_d[0] if two_d else None),
+              PRIMARY if PRIMARY in pairs else (hits[0] if hits else None)]
+    return [p for p in panels if p] or [PRIMARY]
+
+
 def plot_cost(df, path, all_kernels=False):
     """ns/ray against cells/ray: O(n) walkers climb with n, run walkers with n/r. The same
-    kernels as :func:`plot_speedup` (and ``dda``), one colour each, a legend per panel."""
+    kernels as :func:`plot_speedup` (and ``dda``), one colour each, a legend per panel;
+    one panel per workload of :func:`cost_panels` (a sweep of first hits on bilinear
+    cells drew two empty panels, "visit" and "first_hit, triangles"). Returns them."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), dpi=120)
-    for ax, (workload, surface) in zip(axes, (("visit", "-"), PRIMARY)):
+    panels = cost_panels(df)
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.5), dpi=120,
+                             squeeze=False)
+    for ax, (workload, surface) in zip(axes[0], panels):
         part = df[(df["workload"] == workload) & (df["surface"] == surface)]
         names = ["dda"] + plot_kernels(dict.fromkeys(part["algorithm"]), all_kernels)
         names = [n for n in names if n in set(part["algorithm"])]
@@ -701,6 +734,7 @@ def plot_cost(df, path, all_kernels=False):
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+    return panels
 
 
 def cost_model(df, counts=None) -> list:
@@ -732,12 +766,26 @@ def cost_model(df, counts=None) -> list:
     return lines
 
 
-def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels=False,
+def report_title(env) -> str:
+    """The title of a run's reports, from its ``env.json``: the ``reproduce`` preset, else
+    the sweep's name, else a neutral one (a file without either)."""
+    env = env or {}
+    preset = (env.get("reproduce") or {}).get("preset")
+    if preset:
+        return f"hftrace reproduce ({preset} preset)"
+    if env.get("sweep_name"):
+        return f"hftrace sweep {env['sweep_name']}"
+    return "hftrace results"
+
+
+def write_reports(csv_path, out_dir=None, title=None, all_kernels=False,
                   run=None, echo=_warn) -> dict:
     """speedup.md (the headline table), speedup_full.md (every kernel),
     run_length_vs_speedup.png and ns_per_ray_vs_cells.png from a CSV (``all_kernels``:
     every kernel in the plots, not the default subset), of one run (``run``: see
     :func:`load`). ``echo`` receives the run read and each damaged line left out.
+    ``title`` heads the reports; by default :func:`report_title` of the ``env.json``
+    beside the CSV, so `hftrace plot` never calls a sweep the reproduce study.
     ``ValueError`` when the CSV is missing, not a results.csv, or holds several runs and
     ``run`` does not choose one."""
     out_dir = out_dir or os.path.dirname(os.path.abspath(csv_path))
@@ -750,6 +798,8 @@ def write_reports(csv_path, out_dir=None, title="hftrace reproduce", all_kernels
         env = json.load(open(env_path)) if os.path.exists(env_path) else None
     except (OSError, ValueError):
         env = None
+    if title is None:
+        title = report_title(env)
     paths = {"speedup": os.path.join(out_dir, "speedup.md"),
              "plot": os.path.join(out_dir, "run_length_vs_speedup.png"),
              "cost": os.path.join(out_dir, "ns_per_ray_vs_cells.png")}

@@ -668,6 +668,42 @@ def calibrate_noise(field, workload, surface, r, cfg, kernels, seconds=1.0) -> d
     return dict(out, call_rays=n, call_s=round(call_s, 5), kernels=kernels)
 
 
+#: The totals of ``env.json``'s ``"run"`` that add up over the sessions of a resumed run.
+SESSION_TOTALS = ("groups", "wall_s", "timed_s", "measure_s", "flush_s", "prepare_s",
+                  "contended_groups", "remeasured_groups")
+
+
+def _earlier_sessions(out_dir, run):
+    """The ``"run"`` totals that ``env.json`` holds for this run (same ``run_id``) from the
+    sessions before a ``--resume``, or None."""
+    try:
+        with open(os.path.join(out_dir, "env.json")) as f:
+            old = json.load(f)
+    except (OSError, ValueError):
+        return None
+    same = (old.get("run_identity") or {}).get("run_id") == run["run_id"]
+    return old.get("run") if same and isinstance(old.get("run"), dict) else None
+
+
+def merge_sessions(earlier: dict, latest: dict) -> dict:
+    """One run's totals over its sessions: a resumed run's ``env.json`` described only its
+    last session (a resume with nothing left to measure: "The sweep took 0 s, 0 % of it
+    inside timed calls"). Totals add up, the shares are recomputed and ``sessions`` counts
+    them; the rest is the latest session's, and ``last_session`` keeps its own totals."""
+    merged = dict(latest)
+    merged["last_session"] = {k: v for k, v in latest.items() if k != "last_session"}
+    for key in SESSION_TOTALS:
+        if isinstance(earlier.get(key), (int, float)) and isinstance(latest.get(key), (int, float)):
+            merged[key] = round(earlier[key] + latest[key], 2)
+    merged["sessions"] = int(earlier.get("sessions", 1)) + 1
+    wall, timed, measure = merged.get("wall_s"), merged.get("timed_s"), merged.get("measure_s")
+    if wall is not None and timed is not None:
+        merged["timed_share"] = round(timed / wall, 4) if wall > 0 else None
+    if measure is not None and timed is not None:
+        merged["timed_share_of_measure"] = round(timed / measure, 4) if measure > 0 else None
+    return merged
+
+
 def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=print,
               isolate=False):
     """Run (or resume) a sweep; returns every row of results.csv afterwards.
@@ -689,7 +725,9 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     env["run_identity"] = run  # the RUN_COLUMNS of every row this session writes
     env["datasets"] = cfg.datasets  # what each label is, for --resume to check
     env["plugins"] = plugin_fingerprints(cfg)  # which build of each plugin, likewise
+    env["sweep_name"] = cfg.name  # the reports' title when `hftrace plot` rewrites them
     env["load_before"] = machine_load.load_average()
+    earlier = _earlier_sessions(out_dir, run) if resume else None
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)
     fields_cache = {}
@@ -714,55 +752,61 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     measure0 = time.perf_counter()
     # contended groups are measured again once the machine is quiet, within this allowance
     spare = 0.25 * len(todo) * cfg.group_budget if cfg.precision is not None else 0.0
-    remeasured = 0
+    remeasured = finished = 0
     flushing = 0.0
-    with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
-                   check=results_row_check()) as writer:
-        for ds, label, workload, surface, r, names, missing in todo:
-            if label not in fields_cache:
-                fields_cache.clear()  # one field in memory at a time
-                p0 = time.perf_counter()
-                fields_cache[label] = prepare_field(ds, todo)
-                preparing += time.perf_counter() - p0
-            field_ = fields_cache[label]
-            own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
-            isolated = [n for n in names if n not in own and n in missing]
-            measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
-                                     cfg.repeats, cfg.seed, **design)
-            while measured[0]["contended"] and spare > measured[0]["wall_s"]:
-                # contention is never a finding: wait for a quiet machine, then measure again
-                waited = wait_until_quiet(min(5.0, spare - measured[0]["wall_s"]))
-                spare -= measured[0]["wall_s"] + waited
-                if spare <= 0 or waited < 0:
-                    break
-                timed += measured[0]["timed_s"]
-                remeasured += 1
+    try:  # the bar closes before an interrupt's message, not redrawn after it
+        with RowWriter(csv_path, COLUMNS, append=resume, required=REQUIRED,
+                       check=results_row_check()) as writer:
+            for ds, label, workload, surface, r, names, missing in todo:
+                if label not in fields_cache:
+                    fields_cache.clear()  # one field in memory at a time
+                    p0 = time.perf_counter()
+                    fields_cache[label] = prepare_field(ds, todo)
+                    preparing += time.perf_counter() - p0
+                field_ = fields_cache[label]
+                own = [n for n in names if not (isolate and plugins.is_plugin(n, workload))]
+                isolated = [n for n in names if n not in own and n in missing]
                 measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
                                          cfg.repeats, cfg.seed, **design)
-            for name in isolated:  # one child per plugin: a crash takes only its rows
-                measured += _measure_isolated(field_, label, workload, surface, r, [name],
-                                              cfg.rays, cfg.repeats, cfg.seed, **design)
-            timed += measured[0]["timed_s"]
-            if not math.isnan(measured[0]["flush_s"]):
-                flushing += measured[0]["flush_s"]
-            contended += bool(measured[0]["contended"])
-            failed += [f"{label} {workload} r={r} {row['algorithm']}: {row['error']}"
-                       for row in measured if row.get("error")]
-            _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}",
-                         commit=commit, run=run)
-    if bar is not None:
-        bar.close()
-    wall = time.perf_counter() - start
-    measure = time.perf_counter() - measure0 - preparing
-    env["run"] = {"groups": len(todo), "wall_s": round(wall, 2), "timed_s": round(timed, 2),
-                  "timed_share": round(timed / wall, 4) if wall > 0 else None,
-                  "measure_s": round(measure, 2), "flush_s": round(flushing, 2),
-                  "prepare_s": round(preparing, 2),
-                  "timed_share_of_measure": round(timed / measure, 4) if measure > 0 else None,
-                  "contended_groups": contended, "remeasured_groups": remeasured,
-                  "precision": cfg.precision, "group_budget_s": cfg.group_budget,
-                  "load_after": machine_load.load_average()}
-    write_json(os.path.join(out_dir, "env.json"), env)
+                while measured[0]["contended"] and spare > measured[0]["wall_s"]:
+                    # contention is never a finding: wait for a quiet machine, then measure again
+                    waited = wait_until_quiet(min(5.0, spare - measured[0]["wall_s"]))
+                    spare -= measured[0]["wall_s"] + waited
+                    if spare <= 0 or waited < 0:
+                        break
+                    timed += measured[0]["timed_s"]
+                    remeasured += 1
+                    measured = measure_group(field_, label, workload, surface, r, own, cfg.rays,
+                                             cfg.repeats, cfg.seed, **design)
+                for name in isolated:  # one child per plugin: a crash takes only its rows
+                    measured += _measure_isolated(field_, label, workload, surface, r, [name],
+                                                  cfg.rays, cfg.repeats, cfg.seed, **design)
+                timed += measured[0]["timed_s"]
+                if not math.isnan(measured[0]["flush_s"]):
+                    flushing += measured[0]["flush_s"]
+                contended += bool(measured[0]["contended"])
+                failed += [f"{label} {workload} r={r} {row['algorithm']}: {row['error']}"
+                           for row in measured if row.get("error")]
+                _write_group(writer, measured, missing, bar, f"{label} {workload} {surface} r={r}",
+                             commit=commit, run=run)
+                finished += 1
+    finally:
+        if bar is not None:
+            bar.close()
+        # the session's totals, an interrupted one's too (its groups written so far)
+        wall = time.perf_counter() - start
+        measure = time.perf_counter() - measure0 - preparing
+        env["run"] = {"groups": finished, "wall_s": round(wall, 2), "timed_s": round(timed, 2),
+                      "timed_share": round(timed / wall, 4) if wall > 0 else None,
+                      "measure_s": round(measure, 2), "flush_s": round(flushing, 2),
+                      "prepare_s": round(preparing, 2),
+                      "timed_share_of_measure": round(timed / measure, 4) if measure > 0 else None,
+                      "contended_groups": contended, "remeasured_groups": remeasured,
+                      "precision": cfg.precision, "group_budget_s": cfg.group_budget,
+                      "load_after": machine_load.load_average()}
+        if earlier:
+            env["run"] = merge_sessions(earlier, env["run"])
+        write_json(os.path.join(out_dir, "env.json"), env)
     if echo and todo:
         echo(f"{len(todo)} groups measured in {wall:.1f} s, {100 * timed / max(wall, 1e-9):.0f} % "
              f"of it inside timed calls")

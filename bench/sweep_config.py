@@ -1,6 +1,6 @@
 """The sweep config: read from TOML or a dict, every key checked before any work starts.
 
-    name = "my-sweep"                 # output directory name under reports/
+    name = "my-sweep"                 # output directory results/sweep/<name>
     rays = 2000                       # rays per group
     repeats = 7                       # interleaved repeats (>= 3); with precision, the fewest rounds
     precision = 0.02                  # optional: sequential paired rounds to +-2 % (docs/METHOD.md)
@@ -25,6 +25,7 @@ An unknown key is an error naming it and the closest valid key.
 from __future__ import annotations
 
 import difflib
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -143,8 +144,10 @@ def load_config(source) -> SweepConfig:
         if s not in algos.SURFACES:
             raise ConfigError(f"surfaces: unknown surface {s!r}; valid: {', '.join(algos.SURFACES)}")
     for r in cfg.run_lengths:
-        if r != "random" and (isinstance(r, bool) or not isinstance(r, (int, float)) or not r >= 1):
-            raise ConfigError(f"run_lengths: {r!r} is neither a number >= 1 nor \"random\"")
+        # finite: inf passed here, every group ran, and the report refused every row
+        if r != "random" and (isinstance(r, bool) or not isinstance(r, (int, float)) or not r >= 1
+                              or not math.isfinite(r)):
+            raise ConfigError(f"run_lengths: {r!r} is neither a finite number >= 1 nor \"random\"")
     if cfg.algorithms is not None:
         if not isinstance(cfg.algorithms, list) or not cfg.algorithms:
             raise ConfigError("algorithms: expected a non-empty list of names")

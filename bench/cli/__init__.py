@@ -88,6 +88,11 @@ def main(argv=None) -> int:
                 if resumable and "--resume" not in again.split() else "")
         print(f"\nhftrace: interrupted{hint}", file=sys.stderr)
         return 130
+    except MemoryError as exc:  # e.g. `rays = 10000000000` in a sweep config: one line
+        detail = f" ({exc})" if str(exc) else ""
+        print(f"hftrace: error: out of memory{detail}; ask for fewer rays or a smaller field",
+              file=sys.stderr)
+        return 2
     except BrokenPipeError:  # e.g. `hftrace datasets list | head`
         sys.stderr.close()
         return 0

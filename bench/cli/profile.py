@@ -1,6 +1,7 @@
 """``hftrace profile``: instruction and branch counts of one kernel (``bench.profile``)."""
 from __future__ import annotations
 
+import math
 import sys
 
 import algos
@@ -26,6 +27,24 @@ def _options(items) -> dict:
     return options
 
 
+def _run_length(text: str):
+    """``--r``: ``"random"``, or a finite number >= 1 (an int when written as one). "nan",
+    "inf" and "abc" raised int()'s "invalid literal for int() with base 10", naming no
+    option."""
+    if text == "random":
+        return text
+    try:
+        r = int(text)
+    except ValueError:
+        try:
+            r = float(text)
+        except ValueError:
+            r = math.nan
+    if not (math.isfinite(r) and r >= 1):
+        raise ValueError(f"--r: expected a number >= 1 or 'random', got {text!r}")
+    return r
+
+
 def profile_command(args):
     """Check the arguments, count one kernel under callgrind and print the report; 2 when
     valgrind is missing or fails."""
@@ -37,9 +56,7 @@ def profile_command(args):
         algos.get_traversal(args.kernel)
     if args.surface not in algos.SURFACES:
         raise ValueError(f"--surface: unknown surface {args.surface!r}; valid: {', '.join(algos.SURFACES)}")
-    r = args.r if args.r == "random" else float(args.r) if "." in args.r else int(args.r)
-    if r != "random" and r < 1:
-        raise ValueError(f"--r: expected a number >= 1 or 'random', got {args.r!r}")
+    r = _run_length(args.r)
     try:
         result = prof.profile(args.kernel, dataset=args.dataset, size=args.size, r=r,
                               rays=args.rays, surface=args.surface, workload=args.workload,

@@ -239,10 +239,12 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
     env_path = os.path.join(out_dir, "env.json")
     env = json.load(open(env_path))
     total = time.perf_counter() - wall0
-    timed = (env.get("run") or {}).get("timed_s") or 0.0
+    # this session's (a resumed run's "run" adds up every session: bench.sweep.merge_sessions)
+    session = (env.get("run") or {}).get("last_session") or env.get("run") or {}
+    timed = session.get("timed_s") or 0.0
     # the sweep's phases: preparing (fields, their structures, Embree's scenes), then
     # measuring (noise calibration, the groups' set-up, their timed and untimed calls)
-    prepare_s = (env.get("run") or {}).get("prepare_s") or 0.0
+    prepare_s = session.get("prepare_s") or 0.0
     measure_s -= prepare_s
     env["reproduce"] = {"preset": name, "wall_s": round(total, 1), "measure_s": round(measure_s, 1),
                         "prepare_s": round(prepare_s, 1),

@@ -39,9 +39,10 @@
             return HF_OK;                                                                    \
         }                                                                                    \
         if (!(t0 < t1)) return HF_OK;                                                        \
-        /* first cell, by the half-open rule; rounding may land outside: clamp */            \
-        x = ox + t0 * dx;                                                                    \
-        y = oy + t0 * dy;                                                                    \
+        /* first cell, by the half-open rule; rounding may land outside: clamp. A zero       \
+         * component keeps the origin: t0 may be -inf (vertical rays), -inf * 0 is NaN */    \
+        x = dx != 0 ? ox + t0 * dx : ox;                                                     \
+        y = dy != 0 ? oy + t0 * dy : oy;                                                     \
         x = dx < 0 ? CEIL(x) - 1 : FLOOR(x);                                                 \
         y = dy < 0 ? CEIL(y) - 1 : FLOOR(y);                                                 \
         i = (int32_t)FMIN(FMAX(x, (REAL)0), nx - 1);                                         \

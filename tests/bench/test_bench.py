@@ -34,6 +34,9 @@ TINY = {
     ({"workloads": ["walk"]}, "workloads: unknown workload 'walk'"),
     ({"surfaces": ["smooth"]}, "surfaces: unknown surface 'smooth'"),
     ({"run_lengths": [0.5]}, "run_lengths: 0.5 is neither"),
+    # inf passed the check: every group ran, then the report refused all its rows
+    ({"run_lengths": [float("inf")]}, "run_lengths: inf is neither"),
+    ({"run_lengths": [float("nan")]}, "run_lengths: nan is neither"),
     ({"algorithms": ["bvh"]}, "algorithms: unknown algorithm 'bvh'"),
     ({"datasets": [{"name": "mars"}]}, r"datasets\[0\].name: unknown dataset 'mars'"),
     ({"datasets": [{"name": "fbm", "colour": 1}]}, r"datasets\[0\].colour: unknown key"),
@@ -99,6 +102,124 @@ def test_sweep_rows_and_reports(tmp_path):
     # `hftrace plot` regenerates the same reports elsewhere
     assert main(["plot", str(tmp_path / "results.csv"), "--out", str(tmp_path / "again")]) == 0
     assert open(tmp_path / "again" / "speedup.md").read() == text
+
+
+def test_plot_keeps_the_title_of_the_run(tmp_path):
+    """`hftrace plot` on a sweep's results.csv rewrote its speedup.md as "# hftrace
+    reproduce: ...", calling a user's sweep the main study; the title now comes from the
+    run's env.json, as the sweep wrote it."""
+    cfg = sweep.load_config({**TINY, "name": "mine", "workloads": ["first_hit"],
+                             "run_lengths": [25], "datasets": TINY["datasets"][:1]})
+    sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    assert main(["plot", str(tmp_path / "results.csv")]) == 0
+    for report in ("speedup.md", "speedup_full.md"):
+        first = open(tmp_path / report).readline()
+        assert first.startswith("# hftrace sweep mine"), first
+    assert analysis.report_title({"reproduce": {"preset": "standard"}}) == \
+        "hftrace reproduce (standard preset)"
+    assert analysis.report_title(None) == "hftrace results"
+
+
+@pytest.mark.parametrize("pairs,panels", [
+    ([("first_hit", "bilinear")], [("first_hit", "bilinear")]),
+    ([("runs", "-"), ("first_hit", "flat"), ("first_hit", "triangles")],
+     [("runs", "-"), ("first_hit", "triangles")]),
+    ([("visit", "-"), ("runs", "-"), ("first_hit", "triangles")],
+     [("visit", "-"), ("first_hit", "triangles")]),
+    ([("first_hit", "triangles")], [("first_hit", "triangles")]),
+])
+def test_cost_plot_draws_the_workloads_measured(tmp_path, pairs, panels):
+    """ns_per_ray_vs_cells.png drew "visit" and "first_hit, triangles" whatever the run
+    measured: a sweep of first hits alone had an empty "no rows" panel, one on bilinear
+    cells two."""
+    import pandas as pd
+
+    rows = [{"workload": w, "surface": s, "algorithm": a, "cells_per_ray": 10.0 + k,
+             "ns_per_ray": 100.0 + k} for k, (w, s) in enumerate(pairs) for a in ("dda", "runs")]
+    path = tmp_path / "cost.png"
+    assert analysis.plot_cost(pd.DataFrame(rows), str(path)) == panels
+    assert os.path.getsize(path) > 10_000
+
+
+def test_interrupt_closes_the_progress_bar_first(tmp_path, monkeypatch):
+    """Ctrl-C left the bar open: tqdm redrew it below `hftrace: interrupted; ... --resume
+    continues` when the interpreter exited, so the message sat above a stale bar."""
+    events = []
+
+    class Bar:
+        def set_postfix_str(self, text):
+            events.append("postfix")
+
+        def update(self, n=1):
+            events.append("update")
+
+        def close(self):
+            events.append("close")
+
+    calls = []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    real = sweep.measure_group
+    monkeypatch.setattr(sweep, "_bar", lambda progress, total, desc: Bar())
+    monkeypatch.setattr(sweep, "measure_group", interrupted)
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"], "datasets": TINY["datasets"][:1]})
+    with pytest.raises(KeyboardInterrupt):
+        sweep.run_sweep(cfg, str(tmp_path), progress=True, echo=None)
+    assert events[-1] == "close" and events.count("close") == 1
+    assert len(list(csv.DictReader(open(tmp_path / "results.csv")))) == 5  # the first group
+
+
+def test_resumed_run_reports_every_session(tmp_path, monkeypatch):
+    """A resumed run's env.json described its last session only (resuming a finished
+    reproduce run reported "The sweep took 0 s, 0 % of it inside timed calls" over its 24
+    measured groups), and an interrupted session wrote no totals at all."""
+    cfg = sweep.load_config({**TINY, "workloads": ["first_hit"], "run_lengths": [1, 25],
+                             "datasets": TINY["datasets"][:1]})
+    real, calls = sweep.measure_group, []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sweep, "measure_group", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        sweep.run_sweep(cfg, str(tmp_path), progress=False, echo=None)
+    first = json.load(open(tmp_path / "env.json"))["run"]  # the cut session: one group
+    assert first["groups"] == 1 and "sessions" not in first
+    sweep.run_sweep(cfg, str(tmp_path), resume=True, progress=False, echo=None)
+    second = json.load(open(tmp_path / "env.json"))["run"]
+    assert second["sessions"] == 2 and second["groups"] == 2
+    sweep.run_sweep(cfg, str(tmp_path), resume=True, progress=False, echo=None)  # nothing left
+    third = json.load(open(tmp_path / "env.json"))["run"]
+    assert third["sessions"] == 3 and third["groups"] == 2
+    assert third["wall_s"] >= second["wall_s"] >= first["wall_s"] > 0
+    assert third["timed_s"] == second["timed_s"] and third["last_session"]["groups"] == 0
+    text = open(analysis.write_reports(str(tmp_path / "results.csv"), echo=None)["speedup"]).read()
+    assert "in 3 sessions (resumed)" in text
+    assert sweep.merge_sessions({"groups": 3, "wall_s": 2.0, "timed_s": 1.0, "sessions": 2},
+                                {"groups": 1, "wall_s": 2.0, "timed_s": 1.0})["sessions"] == 3
+
+
+def test_run_length_plot_says_which_speedup_it_draws():
+    """The run-length plot's y axis read "geometric mean of paired ratios" for every run,
+    but the headline preset and every sweep with `precision` report the median of adjacent
+    pairs (docs/METHOD.md, "Paired rounds"; their speedup.md says so)."""
+    import pandas as pd
+
+    paired = pd.DataFrame({"regime": ["warm"], "precision": ["0.02"]})
+    fixed = pd.DataFrame({"regime": ["flushed"], "precision": [""]})
+    assert analysis.speedup_axis_label(paired) == "speedup over dda (median of adjacent pairs' ratios)"
+    assert analysis.speedup_axis_label(fixed) == "speedup over dda (geometric mean of paired ratios)"
+    headline = analysis.load(os.path.join(ROOT, "reports", "reproduce-headline", "results.csv"),
+                             echo=None)
+    assert "median" in analysis.speedup_axis_label(headline)
 
 
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):

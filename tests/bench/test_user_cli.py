@@ -78,3 +78,36 @@ def test_render_negative_fog_is_refused(tmp_path, capsys):
     assert status == 2
     assert "fog: expected a density >= 0" in err.strip().splitlines()[-1]
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("r", ["nan", "inf", "1e400", "abc", "0", "-1", "0.5"])
+def test_profile_run_length_names_its_option(capsys, monkeypatch, r):
+    """`hftrace profile runs --r nan` (or inf, abc) printed int()'s "invalid literal for
+    int() with base 10: 'nan'", naming no option; it is refused as --r, before any count."""
+    from bench import profile
+
+    monkeypatch.setattr(profile, "profile", lambda *a, **k: pytest.fail("counted"))
+    status, out, err = _run(capsys, "profile", "runs", "--r", r)
+    assert status == 2
+    assert err.strip() == f"hftrace: error: --r: expected a number >= 1 or 'random', got '{r}'"
+
+
+def test_profile_run_length_accepts_numbers_and_random():
+    from bench.cli.profile import _run_length
+
+    assert _run_length("25") == 25 and isinstance(_run_length("25"), int)
+    assert _run_length("2.5") == 2.5 and _run_length("1e3") == 1000.0
+    assert _run_length("random") == "random"
+
+
+def test_a_sweep_too_big_for_memory_is_one_line(tmp_path, capsys):
+    """`rays = 10000000000` in a sweep config ended in numpy's _ArrayMemoryError traceback
+    (74.5 GiB for one array): user errors are one line, never a traceback."""
+    config = tmp_path / "big.toml"
+    config.write_text('rays = 10000000000\nworkloads = ["visit"]\nrun_lengths = [1]\n'
+                      'algorithms = ["runs"]\n[[datasets]]\nname = "flat"\nsize = 8\n')
+    status, out, err = _run(capsys, "sweep", str(config), "--out", str(tmp_path / "out"),
+                            "--no-progress")
+    assert status == 2
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("hftrace: error: out of memory") and "Traceback" not in err

@@ -181,3 +181,14 @@ def test_origin_far_outside(name):
     got = algos.traverse(name, o, d, (4, 4))
     assert as_tuples(got[0]) == [(0, 0), (1, 0), (2, 0), (3, 0)]
     assert as_tuples(got[1]) == [(3, 3), (2, 2), (1, 1), (0, 0)]
+
+
+@pytest.mark.parametrize("name", list(TRAVERSAL_REGISTRY))
+def test_vertical_ray_with_unbounded_range(name):
+    """A vertical ray over [-inf, t) visits the cell under its origin in every kernel, the
+    float walks too: dda and dda_f32 took its entry point o + (-inf) * 0 = NaN and clamped
+    it to cell (0, 0). dda_f32's float32 range makes -1e308 such a tmin as well."""
+    for tmin, tmax in ((-math.inf, math.inf), (-math.inf, 1.0), (-1e308, 1e308)):
+        expected = algos.reference_cells((1.5, 2.5), (0, 0), (4, 4), tmin, tmax)
+        assert expected == [(1, 2)]
+        assert walk(name, (1.5, 2.5), (0, 0), (4, 4), tmin, tmax) == expected, (tmin, tmax)

@@ -79,6 +79,31 @@ def test_reference_rejects_bad_input():
         algos.reference_cells((0, 0), (1, 0), (4, 4), tmax=math.nan)
 
 
+@pytest.mark.parametrize("origin,direction,shape,error,words", [
+    ((0.5, 0.5), (1, 0), (4.5, 4), TypeError, "shape: nx must be an integer, got 4.5"),
+    ((0.5, 0.5), (1, 0), "44", ValueError, "shape must be"),
+    ((0.5, 0.5), (1, 0), (4, 4, 4), ValueError, "shape must be"),
+    ((0.5, 0.5), (1, 0), 4, ValueError, "shape must be"),
+    ((0.5, 0.5), (1, 0), (True, 4), TypeError, "shape: nx"),
+    ((0.5, 0.5, 1.0), (1, 0), (4, 4), ValueError, "origin must be a pair"),
+    (0.5, (1, 0), (4, 4), ValueError, "origin must be a pair"),
+    ((0.5, 0.5), "10", (4, 4), TypeError, "direction must be a pair"),
+    (("1", 0.5), (1, 0), (4, 4), TypeError, "origin[0] must be a real number"),
+    ((0.5, 1j), (1, 0), (4, 4), TypeError, "origin[1] must be a real number"),
+])
+def test_reference_names_the_bad_argument(origin, direction, shape, error, words):
+    """The reference checks its arguments as traverse does, naming each: it took a
+    shape of (4.5, 4) as 4 x 4 cells and the string "44" as (4, 4), read the string "1"
+    as the number 1, and answered a 3D origin with "too many values to unpack"."""
+    with pytest.raises(error) as info:
+        algos.reference_cells(origin, direction, shape)
+    assert words in str(info.value)
+    # numbers of any NumPy type, Fractions and a huge grid stay accepted
+    from fractions import Fraction
+    assert algos.reference_cells((np.float32(0.5), Fraction(1, 2)), np.array([1, 0]),
+                                 (np.int64(2), 2**40), tmax=2.0) == [(0, 0), (1, 0)]
+
+
 @pytest.mark.parametrize("name", ALL)
 def test_layouts_and_dtypes(name):
     """float32, big-endian, Fortran order, strided views and lists give the same cells,
@@ -112,3 +137,22 @@ def test_empty_batch():
 def test_zero_direction_is_vertical():
     paths = algos.traverse("runs", [[1.5, 2.5], [9.0, 9.0]], [[0.0, 0.0], [0.0, 0.0]], (4, 4))
     assert paths[0].tolist() == [[1, 2]] and paths[1].tolist() == []
+
+
+def test_python_numbers_numpy_keeps_as_objects():
+    """A Python int beyond int64 (2**70, within the documented |d| <= 2**1000) or a
+    Fraction made an object array, refused as "expected real numbers, got dtype object":
+    they are real numbers, taken as float64; one beyond float64 is refused by its index."""
+    from fractions import Fraction
+
+    cells = algos.traverse("runs", [[0.5, 0.5]], [[2**70, 1]], (4, 4))[0]
+    assert [tuple(c) for c in cells.tolist()] == [(0, 0), (1, 0), (2, 0), (3, 0)]
+    got = algos.traverse("runs", [[Fraction(1, 2), 0.5]], [[1, 0]], (4, 4), tmin=-2**70)[0]
+    assert [tuple(c) for c in got.tolist()] == [(0, 0), (1, 0), (2, 0), (3, 0)]
+    hits = algos.intersect("runs", np.zeros((3, 3)), [[0.5, 0.5, Fraction(5, 2)]], [[0, 0, -1]])
+    assert hits.t[0] == 2.5
+    with pytest.raises(ValueError, match=r"directions: directions\[0, 1\] = 100000000000\.\.\. "
+                                         r"\(401 digits\) is beyond float64's range"):
+        algos.traverse("runs", [[0.5, 0.5]], [[1, 10**400]], (4, 4))
+    with pytest.raises(TypeError, match="directions: expected real numbers, got dtype object"):
+        algos.traverse("runs", [[0.5, 0.5]], [[None, 1]], (4, 4))
