@@ -29,7 +29,14 @@ from datasets_gen.rays import coherent_rays, traversal_rays
 from . import load as machine_load
 from .report import RowWriter, results_row_check, scan_csv
 from .sweep_config import WORKLOADS, ConfigError, SweepConfig, load_config
-from .sweep_resume import check_recorded_datasets, check_recorded_plugins, plugin_fingerprints
+from .sweep_resume import (  # noqa: F401  (merge_sessions: bench.sweep's API)
+    SESSION_TOTALS,
+    check_recorded_datasets,
+    check_recorded_plugins,
+    earlier_sessions,
+    merge_sessions,
+    plugin_fingerprints,
+)
 from .timing import (
     WARM_TIMED_CALLS,
     call_rays,
@@ -668,42 +675,6 @@ def calibrate_noise(field, workload, surface, r, cfg, kernels, seconds=1.0) -> d
     return dict(out, call_rays=n, call_s=round(call_s, 5), kernels=kernels)
 
 
-#: The totals of ``env.json``'s ``"run"`` that add up over the sessions of a resumed run.
-SESSION_TOTALS = ("groups", "wall_s", "timed_s", "measure_s", "flush_s", "prepare_s",
-                  "contended_groups", "remeasured_groups")
-
-
-def _earlier_sessions(out_dir, run):
-    """The ``"run"`` totals that ``env.json`` holds for this run (same ``run_id``) from the
-    sessions before a ``--resume``, or None."""
-    try:
-        with open(os.path.join(out_dir, "env.json")) as f:
-            old = json.load(f)
-    except (OSError, ValueError):
-        return None
-    same = (old.get("run_identity") or {}).get("run_id") == run["run_id"]
-    return old.get("run") if same and isinstance(old.get("run"), dict) else None
-
-
-def merge_sessions(earlier: dict, latest: dict) -> dict:
-    """One run's totals over its sessions: a resumed run's ``env.json`` described only its
-    last session (a resume with nothing left to measure: "The sweep took 0 s, 0 % of it
-    inside timed calls"). Totals add up, the shares are recomputed and ``sessions`` counts
-    them; the rest is the latest session's, and ``last_session`` keeps its own totals."""
-    merged = dict(latest)
-    merged["last_session"] = {k: v for k, v in latest.items() if k != "last_session"}
-    for key in SESSION_TOTALS:
-        if isinstance(earlier.get(key), (int, float)) and isinstance(latest.get(key), (int, float)):
-            merged[key] = round(earlier[key] + latest[key], 2)
-    merged["sessions"] = int(earlier.get("sessions", 1)) + 1
-    wall, timed, measure = merged.get("wall_s"), merged.get("timed_s"), merged.get("measure_s")
-    if wall is not None and timed is not None:
-        merged["timed_share"] = round(timed / wall, 4) if wall > 0 else None
-    if measure is not None and timed is not None:
-        merged["timed_share_of_measure"] = round(timed / measure, 4) if measure > 0 else None
-    return merged
-
-
 def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=print,
               isolate=False):
     """Run (or resume) a sweep; returns every row of results.csv afterwards.
@@ -727,7 +698,7 @@ def run_sweep(cfg: SweepConfig, out_dir: str, resume=False, progress=True, echo=
     env["plugins"] = plugin_fingerprints(cfg)  # which build of each plugin, likewise
     env["sweep_name"] = cfg.name  # the reports' title when `hftrace plot` rewrites them
     env["load_before"] = machine_load.load_average()
-    earlier = _earlier_sessions(out_dir, run) if resume else None
+    earlier = earlier_sessions(out_dir, run) if resume else None
     write_json(os.path.join(out_dir, "env.json"), env)
     bar = _bar(progress, len(todo), cfg.name)
     fields_cache = {}

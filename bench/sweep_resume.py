@@ -2,7 +2,7 @@
 were measured on the fields and with the plugin code the run recorded in its
 ``env.json`` (``bench.sweep._pending``). A label holds a dataset's name, size and
 parameters but not its seed, and hftrace's commit does not cover a plugin's code, so
-neither is visible in the rows."""
+neither is visible in the rows. And the run's totals over its sessions."""
 from __future__ import annotations
 
 import json
@@ -65,3 +65,39 @@ def check_recorded_plugins(cfg, out_dir, measured):
                 f"--resume: the rows of {name} were measured with another version of the "
                 f"plugin ({before}; now {now}); choose another --out to measure this one "
                 "(or restore the plugin) rather than mix them")
+
+
+#: The totals of ``env.json``'s ``"run"`` that add up over the sessions of a resumed run.
+SESSION_TOTALS = ("groups", "wall_s", "timed_s", "measure_s", "flush_s", "prepare_s",
+                  "contended_groups", "remeasured_groups")
+
+
+def earlier_sessions(out_dir, run):
+    """The ``"run"`` totals that ``env.json`` holds for this run (same ``run_id``) from the
+    sessions before a ``--resume``, or None."""
+    try:
+        with open(os.path.join(out_dir, "env.json")) as f:
+            old = json.load(f)
+    except (OSError, ValueError):
+        return None
+    same = (old.get("run_identity") or {}).get("run_id") == run["run_id"]
+    return old.get("run") if same and isinstance(old.get("run"), dict) else None
+
+
+def merge_sessions(earlier: dict, latest: dict) -> dict:
+    """One run's totals over its sessions: a resumed run's ``env.json`` described only its
+    last session (a resume with nothing left to measure: "The sweep took 0 s, 0 % of it
+    inside timed calls"). Totals add up, the shares are recomputed and ``sessions`` counts
+    them; the rest is the latest session's, and ``last_session`` keeps its own totals."""
+    merged = dict(latest)
+    merged["last_session"] = {k: v for k, v in latest.items() if k != "last_session"}
+    for key in SESSION_TOTALS:
+        if isinstance(earlier.get(key), (int, float)) and isinstance(latest.get(key), (int, float)):
+            merged[key] = round(earlier[key] + latest[key], 2)
+    merged["sessions"] = int(earlier.get("sessions", 1)) + 1
+    wall, timed, measure = merged.get("wall_s"), merged.get("timed_s"), merged.get("measure_s")
+    if wall is not None and timed is not None:
+        merged["timed_share"] = round(timed / wall, 4) if wall > 0 else None
+    if measure is not None and timed is not None:
+        merged["timed_share_of_measure"] = round(timed / measure, 4) if measure > 0 else None
+    return merged
