@@ -21,7 +21,7 @@ import numpy as np
 
 from .field import as_field
 from .registry import SURFACES
-from .validate import check_rays3, check_t
+from .validate import check_rays3, check_rising_from_below, check_t
 
 __all__ = ["brute_force_hits"]
 
@@ -364,6 +364,7 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
     o, d = check_rays3(origins, directions)
     n = len(o)
     lo, hi = check_t(tmin, "tmin", n), check_t(tmax, "tmax", n)
+    check_rising_from_below(d, lo, hi)
     lo = np.zeros(n) if lo is None else lo
     hi = np.full(n, np.inf) if hi is None else hi
     t = np.empty(n)

@@ -19,7 +19,7 @@ from .field import HeightField, as_field, bound_kind
 from .parallel import resolve_threads, run_ranges, split
 from .registry import SURFACES, get_intersector
 from .traverse import DEFAULT_MAX_DENOMINATOR, MAX_DENOMINATOR
-from .validate import check_rays3, check_t
+from .validate import check_rays3, check_rising_from_below, check_t
 
 __all__ = ["Hits", "intersect", "HIT_OUTPUTS", "STATS"]
 
@@ -200,6 +200,7 @@ def intersect(name, heights, origins, directions, surface="triangles", tmin=None
     n = len(o)
     lo = check_t(tmin, "tmin", n)
     hi = check_t(tmax, "tmax", n)
+    check_rising_from_below(d, lo, hi)
     hits = Hits(name, surface)
     nthreads = resolve_threads(threads)
     if algorithm.plugin is not None:

@@ -14,7 +14,7 @@ import numpy as np
 
 from .lattice import MAX_DIRECTION, MAX_GRID_SIDE, MAX_ORIGIN
 
-__all__ = ["as_float_array", "first_bad", "check_rays", "check_rays3", "check_t",
+__all__ = ["as_float_array", "first_bad", "check_rays", "check_rays3", "check_t", "check_rising_from_below",
            "check_shape", "check_heights", "check_length", "check_spacing",
            "check_positive_int"]
 
@@ -142,6 +142,26 @@ def check_t(value, name: str, n: int):
         k = first_bad(bad)[0]
         raise ValueError(f"{name}: ray {k} has {name}[{k}] = nan")
     return array
+
+
+def check_rising_from_below(directions, tmin, tmax=None):
+    """ValueError naming ``tmin`` and the first ray that rises vertically (direction
+    ``(0, 0, dz > 0)``) over a range starting at ``tmin = -inf`` (``tmax`` above it): it
+    starts infinitely deep inside the solid, so its first hit would be at ``t = -inf``,
+    a point of no cell. Every finite ``tmin`` is a hit there, in the cell under the origin
+    (docs/CONVENTIONS.md, "A ray that starts inside the solid hits at t0"); the kernels
+    and the brute force disagreed on this limit (a miss, or a hit in cell (0, 0))."""
+    if tmin is None:
+        return
+    d = np.asarray(directions)
+    bad = (np.isneginf(tmin) & (d[:, 0] == 0) & (d[:, 1] == 0) & (d[:, 2] > 0))
+    if tmax is not None:
+        bad &= tmax > tmin
+    if bad.any():
+        k = first_bad(bad)[0]
+        raise ValueError(f"tmin: ray {k} rises vertically from tmin[{k}] = -inf, infinitely "
+                         "deep inside the solid, so its first hit would be at t = -inf; give a "
+                         "finite tmin (any finite one hits there, in the cell under the origin)")
 
 
 def check_shape(shape) -> tuple[int, int]:

@@ -16,6 +16,7 @@ import sys
 import numpy as np
 import pandas as pd
 
+from .cost_report import cost_model  # noqa: F401  (the report's section; analysis API)
 from .findings import DEFAULT_PRECISION, REASONS, finding, ratio_text, verdict  # noqa: F401
 from .report import results_row_check, scan_csv
 
@@ -735,35 +736,6 @@ def plot_cost(df, path, all_kernels=False):
     fig.savefig(path)
     plt.close(fig)
     return panels
-
-
-def cost_model(df, counts=None) -> list:
-    """The cost model's table: ns per ray, cell and run (medians over the first-hit
-    groups on triangles), with instructions and branches per cell from ``counts.csv``
-    (:mod:`bench.counts`) where they were counted."""
-    cost = df[(df["workload"] == PRIMARY[0]) & (df["surface"] == PRIMARY[1])]
-    if cost.empty:
-        return []
-    c = cost.groupby("algorithm", sort=False)[["ns_per_ray", "ns_per_cell", "ns_per_run"]].median()
-    counts = counts or {}
-    lines = ["## Cost model (first hit, triangles; medians over groups)", ""]
-    if counts:
-        any_row = next(iter(counts.values()))
-        lines += [f"Instructions and branches per cell: callgrind, {any_row['dataset']} "
-                  f"{any_row['size']}^2, r = {any_row['r']}, {any_row['rays']} rays "
-                  "(`hftrace profile KERNEL`; per cell of the `runs` walk up to its hit, "
-                  "each ray's setup included).", ""]
-    else:
-        lines += ["No instruction counts here (valgrind was not available, or "
-                  "`--no-counts`); `hftrace profile KERNEL` gives them.", ""]
-    lines += ["| algorithm | ns/ray | ns/cell | ns/run | instr/cell | branches/cell |",
-              "|---|---|---|---|---|---|"]
-    for a, r in c.iterrows():
-        k = counts.get(a, {})
-        lines.append(f"| {a} | {r.ns_per_ray:.0f} | {r.ns_per_cell:.2f} | {r.ns_per_run:.2f} | "
-                     f"{k.get('instructions_per_cell', '')} | {k.get('branches_per_cell', '')} |")
-    lines.append("")
-    return lines
 
 
 def report_title(env) -> str:

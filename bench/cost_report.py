@@ -24,6 +24,35 @@ FIELDS = ["workload", "kernel", "dataset", "size", "r", "rays", "instructions_pe
 HEADING = "## Cost model"
 
 
+def cost_model(df, counts=None) -> list:
+    """The cost model's table: ns per ray, cell and run (medians over the first-hit
+    groups on triangles), with instructions and branches per cell from ``counts.csv``
+    (:mod:`bench.counts`) where they were counted."""
+    cost = df[(df["workload"] == "first_hit") & (df["surface"] == "triangles")]
+    if cost.empty:
+        return []
+    c = cost.groupby("algorithm", sort=False)[["ns_per_ray", "ns_per_cell", "ns_per_run"]].median()
+    counts = counts or {}
+    lines = ["## Cost model (first hit, triangles; medians over groups)", ""]
+    if counts:
+        any_row = next(iter(counts.values()))
+        lines += [f"Instructions and branches per cell: callgrind, {any_row['dataset']} "
+                  f"{any_row['size']}^2, r = {any_row['r']}, {any_row['rays']} rays "
+                  "(`hftrace profile KERNEL`; per cell of the `runs` walk up to its hit, "
+                  "each ray's setup included).", ""]
+    else:
+        lines += ["No instruction counts here (valgrind was not available, or "
+                  "`--no-counts`); `hftrace profile KERNEL` gives them.", ""]
+    lines += ["| algorithm | ns/ray | ns/cell | ns/run | instr/cell | branches/cell |",
+              "|---|---|---|---|---|---|"]
+    for a, r in c.iterrows():
+        k = counts.get(a, {})
+        lines.append(f"| {a} | {r.ns_per_ray:.0f} | {r.ns_per_cell:.2f} | {r.ns_per_run:.2f} | "
+                     f"{k.get('instructions_per_cell', '')} | {k.get('branches_per_cell', '')} |")
+    lines.append("")
+    return lines
+
+
 def _read(path):
     if not os.path.exists(path):
         return {}

@@ -110,3 +110,29 @@ def test_triangles_midpoint_beyond_the_float_range():
     t, cell = _no_warning(lambda: algos.brute_force_hits(H, o, d, "triangles", tmin=-1e300))
     ref = algos.intersect("dda", H, o, d, surface="triangles", tmin=-1e300)
     assert t[0] == ref.t[0] and np.array_equal(cell, ref.cell)
+
+
+def test_a_vertical_ray_rising_from_minus_inf_is_refused_by_intersect_and_brute_force():
+    """A ray (0, 0, dz > 0) over a range from tmin = -inf starts infinitely deep inside
+    the solid: its hit would be at t = -inf. The kernels disagreed (flat: -inf in the cell
+    under the origin, or in cell (0, 0) for the max-mipmap family; the other surfaces and
+    the brute force: a miss), so both calls refuse it naming tmin and the ray; every
+    finite tmin hits at tmin in the cell under the origin, and a falling ray from -inf is
+    taken as before."""
+    import algos
+
+    H = np.random.default_rng(5).integers(0, 5, (9, 11)).astype(np.float32)
+    o = np.array([[3.5, 2.5, 1.0], [3.5, 2.5, 1.0]])
+    d = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.125]])
+    message = r"tmin: ray 1 rises vertically from tmin\[1\] = -inf"
+    for name in ("dda", "dda_maxmip", "cone"):
+        with pytest.raises(ValueError, match=message):
+            algos.intersect(name, H, o, d, tmin=[-np.inf, -np.inf])
+    with pytest.raises(ValueError, match=message):
+        algos.brute_force_hits(H, o, d, tmin=np.array([-np.inf, -np.inf]))
+    for surface in ("flat", "triangles", "bilinear"):
+        hits = [algos.intersect(n, H, o[1:], d[1:], surface=surface, tmin=[-1e300])
+                for n in ("dda", "dda_maxmip", "cone")]
+        assert all(h.t[0] == -1e300 and tuple(h.cell[0]) == (3, 2) for h in hits)
+    falling = algos.intersect("dda", H, o[1:], -d[1:], tmin=[-np.inf])
+    assert np.isfinite(falling.t[0])
