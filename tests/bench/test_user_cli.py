@@ -100,6 +100,8 @@ def test_profile_run_length_accepts_numbers_and_random():
     assert _run_length("random") == "random"
 
 
+@pytest.mark.skipif("libasan" in os.environ.get("LD_PRELOAD", ""),
+                    reason="AddressSanitizer aborts on a failed allocation instead of raising")
 def test_a_sweep_too_big_for_memory_is_one_line(tmp_path, capsys):
     """`rays = 10000000000` in a sweep config ended in numpy's _ArrayMemoryError traceback
     (74.5 GiB for one array): user errors are one line, never a traceback."""
