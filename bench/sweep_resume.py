@@ -11,18 +11,24 @@ import os
 from .sweep_config import _same_dataset
 
 
+def recorded_env(out_dir) -> dict:
+    """The ``env.json`` a run wrote in ``out_dir``, or {} when there is none (or it is not
+    JSON)."""
+    try:
+        with open(os.path.join(out_dir, "env.json")) as f:
+            env = json.load(f)
+    except (OSError, ValueError):
+        return {}
+    return env if isinstance(env, dict) else {}
+
+
 def check_recorded_datasets(cfg, out_dir, measured, dataset_label):
     """ValueError when a dataset of ``cfg`` has the label of kept rows (``measured``) but
     another seed than the run recorded in its ``env.json`` (``"datasets"``): the label
     holds the name, size and parameters, not the seed, so the kept rows would pass for
     the other field's. Runs whose env.json records no datasets are not checked.
     ``dataset_label``: :func:`bench.sweep.dataset_label`."""
-    path = os.path.join(out_dir, "env.json")
-    try:
-        with open(path) as f:
-            recorded = json.load(f).get("datasets")
-    except (OSError, ValueError):
-        return
+    recorded = recorded_env(out_dir).get("datasets")
     if not isinstance(recorded, list) or not all(isinstance(d, dict) for d in recorded):
         return
     before = {dataset_label(ds, recorded): ds for ds in recorded}
@@ -50,12 +56,7 @@ def check_recorded_plugins(cfg, out_dir, measured):
     edit the run recorded in its ``env.json`` (``"plugins"``): hftrace's commit does not
     cover a plugin's code, so rows of two versions would pass for one. Runs whose
     env.json records no plugins are not checked."""
-    path = os.path.join(out_dir, "env.json")
-    try:
-        with open(path) as f:
-            recorded = json.load(f).get("plugins")
-    except (OSError, ValueError):
-        return
+    recorded = recorded_env(out_dir).get("plugins")
     if not isinstance(recorded, dict):
         return
     for name, now in plugin_fingerprints(cfg).items():
@@ -75,11 +76,7 @@ SESSION_TOTALS = ("groups", "wall_s", "timed_s", "measure_s", "flush_s", "prepar
 def earlier_sessions(out_dir, run):
     """The ``"run"`` totals that ``env.json`` holds for this run (same ``run_id``) from the
     sessions before a ``--resume``, or None."""
-    try:
-        with open(os.path.join(out_dir, "env.json")) as f:
-            old = json.load(f)
-    except (OSError, ValueError):
-        return None
+    old = recorded_env(out_dir)
     same = (old.get("run_identity") or {}).get("run_id") == run["run_id"]
     return old.get("run") if same and isinstance(old.get("run"), dict) else None
 

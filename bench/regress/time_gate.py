@@ -195,14 +195,13 @@ def run(baseline_path, tolerance=None, update=False, echo=print,
     claim what the run cannot see); else 0, every ratio holds. The other processes' CPU
     time over the measurement is printed, and a contended run is labelled so.
 
-    ``only`` (kernel names, :func:`check_only`): measure and judge the ratios of those
+    ``only`` (a list of kernel names, as :func:`check_only` returns it): measure and judge the ratios of those
     kernels alone (each against ``dda``, as always); with ``update``, those ratios are
     written into the baseline and its others kept."""
     import sys
 
     from ..load import contention, snapshot, snapshot_after
 
-    only = check_only(only) if only is not None and not isinstance(only, list) else only
     pin_to_one_cpu()
     n_ratios = sum(len(c[3]) for c in checks(only))
     echo(f"measuring {n_ratios} speedup ratios over dda, 3 rounds of 15 interleaved repeats "
