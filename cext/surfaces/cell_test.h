@@ -10,6 +10,8 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "core/mipmap.h"
+#include "surfaces/exact_cell.h"
+#include "surfaces/rmq.h"
 #include "surfaces/surfaces.h"
 
 /* HF_COLD: out of line (a rare path kept out of a hot loop); HF_HOT: always inlined. */
@@ -23,17 +25,6 @@
 
 enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 };
 
-/* Range maximum over one line (a row or a column) of cell maxima, answered in O(1) once
- * the range spans two blocks of 2^block_shift cells: the suffix maximum of the first
- * block, the prefix maximum of the last, and a sparse table over the whole blocks in
- * between. Inside one block the few cells are scanned. */
-typedef struct {
-    int32_t n_lines, length, block_shift, n_blocks, n_levels;
-    const float *values; /* [line][length]                       */
-    const float *prefix; /* [line][length]: max from block start */
-    const float *suffix; /* [line][length]: max to block end     */
-    const float *sparse; /* [line][level][n_blocks]              */
-} hf_rmq;
 
 typedef struct {
     /* the field: heights H[j * cols + i] and cell maxima M[j * (cols-1) + i] */
@@ -47,6 +38,9 @@ typedef struct {
     /* the ray, clipped to [t0, t1]; entry_axis: the box face it entered by at t0 (0 x,
      * 1 y, 2 z) or -1 when t0 is tmin */
     double ox, oy, oz, dx, dy, dz, inv_dx, inv_dy, t0, t1;
+    /* the gaps z - s within +-window of 0 are decided exactly (hf_hit_window); habs: the
+     * largest |height| of the field */
+    double window, habs;
     int entry_axis;
     /* The tight path (hf_hit_prepare): with cell culling on and no grid-line special
      * case, a cell (or a run) is first rejected by a bound computed from its index along
@@ -65,39 +59,6 @@ typedef struct {
     double su, sv; /* surface slope ds/du, ds/dv at the hit (for the normal)  */
     int64_t cells_visited, cells_tested, runs_visited, runs_culled, tiles_skipped;
 } hf_hit;
-
-/* ---- range maximum --------------------------------------------------------------------- */
-static inline float hf_rmq_query(const hf_rmq *q, int32_t line, int32_t lo, int32_t hi) {
-    const int32_t shift = q->block_shift;
-    const int32_t blo = lo >> shift, bhi = hi >> shift;
-    const float *values = q->values + (int64_t)line * q->length;
-    float best;
-    if (blo == bhi) {
-        int32_t k;
-        best = values[lo];
-        for (k = lo + 1; k <= hi; ++k) best = values[k] > best ? values[k] : best;
-        return best;
-    }
-    {
-        const float a = q->suffix[(int64_t)line * q->length + lo];
-        const float b = q->prefix[(int64_t)line * q->length + hi];
-        best = a > b ? a : b;
-    }
-    if (bhi - blo >= 2) {
-        /* whole blocks blo+1 .. bhi-1: two overlapping power-of-two windows */
-        const int32_t first = blo + 1, count = bhi - blo - 1;
-        int32_t level = 0;
-        const float *table;
-        float c, d;
-        while ((2 << level) <= count) ++level;
-        table = q->sparse + ((int64_t)line * q->n_levels + level) * q->n_blocks;
-        c = table[first];
-        d = table[bhi - (1 << level)];
-        best = best > c ? best : c;
-        best = best > d ? best : d;
-    }
-    return best;
-}
 
 /* The cell index along one axis (n cells) holding the ray at parameter t, by the forward
  * rule ([k, k+1) moving forward or along the axis, (k, k+1] moving back), clamped into
@@ -177,9 +138,53 @@ static inline int hf_end_closed(const hf_hit *h, int32_t i, int32_t j, double tb
     return tb >= h->t1 && !hf_exit_into_grid(h, i, j, tb, &ni, &nj);
 }
 
+/* The cold path of the cell tests: the cell decided in exact arithmetic (exact_cell.h).
+ * Returns 1 on a hit, 0 on none, -1 when it cannot decide (the caller's float64 does).
+ * t_split: where the caller's first triangles piece ends (tb: one piece). */
+HF_COLD int hf_surface_exact(hf_hit *h, int32_t i, int32_t j, double ta, double tb, int wall,
+                             double t_split) {
+    hf_exact_cell c;
+    hf_exact_answer r;
+    double su = 0, sv = 0;
+    c.ox = h->ox, c.oy = h->oy, c.oz = h->oz, c.dx = h->dx, c.dy = h->dy, c.dz = h->dz;
+    c.inv_dx = h->inv_dx, c.inv_dy = h->inv_dy, c.t0 = h->t0, c.t1 = h->t1;
+    c.cols = h->cols, c.rows = h->rows, c.surface = h->surface, c.i = i, c.j = j;
+    c.ta = ta, c.tb = tb, c.t_split = t_split;
+    if (h->surface == HF_BILINEAR) return -1;
+    c.h00 = hf_height(h, i, j), c.h10 = hf_height(h, i + 1, j);
+    c.h01 = hf_height(h, i, j + 1), c.h11 = hf_height(h, i + 1, j + 1);
+    r = hf_exact_cell_decide(&c);
+    if (r.kind <= 0) return r.kind;
+    if (r.piece == 3) { /* triangles: the cell entered, on the triangle it heads into */
+        const double u = h->ox + r.t * h->dx - r.i, v = h->oy + r.t * h->dy - r.j;
+        r.piece = (u - v) > 0 || ((u - v) == 0 && h->dx >= h->dy) ? 1 : 2;
+        c.h00 = hf_height(h, r.i, r.j), c.h10 = hf_height(h, r.i + 1, r.j);
+        c.h01 = hf_height(h, r.i, r.j + 1), c.h11 = hf_height(h, r.i + 1, r.j + 1);
+    }
+    if (h->surface == HF_PLANE3) hf_plane3_slopes(c.h00, c.h10, c.h01, &su, &sv);
+    if (h->surface == HF_TRIANGLES && r.piece == 1)
+        hf_lower_triangle_slopes(c.h00, c.h10, c.h11, &su, &sv);
+    if (h->surface == HF_TRIANGLES && r.piece == 2)
+        hf_upper_triangle_slopes(c.h00, c.h01, c.h11, &su, &sv);
+    if (r.kind == 1) return hf_hit_at(h, ta, i, j, wall, su, sv);
+    return hf_hit_at(h, r.t, r.i, r.j, -1, su, sv);
+}
+
+/* Whether a gap f is within the ray's rounding window of 0 (then its sign is decided
+ * exactly); a cold path tried first, whose -1 leaves the float64 decision. */
+#define HF_NEAR_ZERO(f) ((f) >= -h->window && (f) <= h->window)
+#define HF_TRY_EXACT(f, split)                                                                   \
+    do {                                                                                         \
+        if (HF_NEAR_ZERO(f)) {                                                                   \
+            const int exact_ = hf_surface_exact(h, i, j, ta, tb, wall, split);                  \
+            if (exact_ >= 0) return exact_;                                                      \
+        }                                                                                        \
+    } while (0)
+
 /* Test cell (i, j) on [ta, tb]; 1 on a hit. `wall`: the axis (0 x, 1 y) of the wall met at ta
  * if the ray is below the surface there, or -1 when that is no wall (a start inside). */
-static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, double tb, int wall) {
+static inline int hf_surface_test_float(hf_hit *h, int32_t i, int32_t j, double ta, double tb,
+                                        int wall) {
     const double h00 = hf_height(h, i, j), h10 = hf_height(h, i + 1, j);
     const double h01 = hf_height(h, i, j + 1), h11 = hf_height(h, i + 1, j + 1);
     const double ua = h->ox + ta * h->dx - i, va = h->oy + ta * h->dy - j;
@@ -195,22 +200,33 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
      * of this cell: the next cell decides it. (One-point cells: hf_one_point_cell.) */
     case HF_FLAT: {
         const double c = hf_flat_height(h00, h10, h01, h11);
-        const int closed = hf_end_closed(h, i, j, tb);
-        if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
-        if (zb < c || (zb == c && closed))
-            return hf_hit_at(h, hf_linear_root(ta, tb, za - c, zb - c), i, j, -1, 0, 0);
+        const double fa = za - c, fb = zb - c;
+        if (fa <= h->window) {
+            HF_TRY_EXACT(fa, tb);
+            if (za <= c) return hf_hit_at(h, ta, i, j, wall, 0, 0);
+        }
+        if (fb <= h->window) {
+            HF_TRY_EXACT(fb, tb);
+            if (zb < c || (zb == c && hf_end_closed(h, i, j, tb)))
+                return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, 0, 0);
+        }
         return 0;
     }
     case HF_PLANE3: {
         double a, b;
-        const int closed = hf_end_closed(h, i, j, tb);
         hf_plane3_slopes(h00, h10, h01, &a, &b);
         {
             const double fa = za - hf_plane_height(h00, a, b, ua, va);
             const double fb = zb - hf_plane_height(h00, a, b, ub, vb);
-            if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, a, b);
-            if (fb < 0 || (fb == 0 && closed))
-                return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, a, b);
+            if (fa <= h->window) {
+                HF_TRY_EXACT(fa, tb);
+                if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, a, b);
+            }
+            if (fb <= h->window) {
+                HF_TRY_EXACT(fb, tb);
+                if (fb < 0 || (fb == 0 && hf_end_closed(h, i, j, tb)))
+                    return hf_hit_at(h, hf_linear_root(ta, tb, fa, fb), i, j, -1, a, b);
+            }
         }
         return 0;
     }
@@ -219,15 +235,22 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
         hf_tri_pieces(h, h00, h10, h01, h11, ta, tb, ua, va, ub, vb, &su1, &sv1, &su2, &sv2,
                       &t_split);
         fa = za - hf_plane_height(h00, su1, sv1, ua, va);
-        if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, su1, sv1);
+        if (fa <= h->window) {
+            HF_TRY_EXACT(fa, t_split);
+            if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, su1, sv1);
+        }
         {
             /* first piece [ta, t_split] on the first triangle; one shared value at the
              * split so the diagonal is watertight */
             const double us = h->ox + t_split * h->dx - i, vs = h->oy + t_split * h->dy - j;
             const double zs = h->oz + t_split * h->dz;
             f_split = zs - hf_plane_height(h00, su1, sv1, us, vs);
-            if (f_split <= 0)
-                return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), i, j, -1, su1, sv1);
+            if (f_split <= h->window) {
+                HF_TRY_EXACT(f_split, t_split);
+                if (f_split <= 0)
+                    return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), i, j, -1, su1,
+                                     sv1);
+            }
         }
         if (t_split < tb) {
             /* second piece [t_split, tb] on the other triangle. Its own value at the split
@@ -238,9 +261,16 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
             const double zs = h->oz + t_split * h->dz;
             const double f_split2 = zs - hf_plane_height(h00, su2, sv2, us, vs);
             const double fb = zb - hf_plane_height(h00, su2, sv2, ub, vb);
-            if (f_split2 <= 0) return hf_hit_at(h, t_split, i, j, -1, su2, sv2);
-            if (fb <= 0)
-                return hf_hit_at(h, hf_linear_root(t_split, tb, f_split2, fb), i, j, -1, su2, sv2);
+            if (f_split2 <= h->window) {
+                HF_TRY_EXACT(f_split2, t_split);
+                if (f_split2 <= 0) return hf_hit_at(h, t_split, i, j, -1, su2, sv2);
+            }
+            if (fb <= h->window) {
+                HF_TRY_EXACT(fb, t_split);
+                if (fb <= 0)
+                    return hf_hit_at(h, hf_linear_root(t_split, tb, f_split2, fb), i, j, -1, su2,
+                                     sv2);
+            }
         }
         return 0;
     }
@@ -266,6 +296,33 @@ static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, do
         return hf_hit_at(h, t, i, j, -1, q.a + q.c * v, q.b + q.c * u);
     }
     }
+}
+
+/* A hit in a cell whose float interval is a sliver (a few units of rounding long): a float
+ * walk passes through a side cell where the ray crosses a grid vertex exactly at a
+ * parameter that is not a float, and the cell entered there is the diagonal one. Such a
+ * cell is not visited (exact_cell.h, hf_exact_visits): its hit is dropped. Checked only on
+ * hits, once per ray. */
+HF_COLD int hf_sliver_hit(hf_hit *h, int32_t i, int32_t j, double ta, double tb) {
+    hf_exact_cell c;
+    c.ox = h->ox, c.oy = h->oy, c.oz = h->oz, c.dx = h->dx, c.dy = h->dy, c.dz = h->dz;
+    c.inv_dx = h->inv_dx, c.inv_dy = h->inv_dy, c.t0 = h->t0, c.t1 = h->t1;
+    c.cols = h->cols, c.rows = h->rows, c.surface = h->surface, c.i = i, c.j = j;
+    c.ta = ta, c.tb = tb, c.t_split = tb;
+    c.h00 = c.h10 = c.h01 = c.h11 = 0;
+    if (hf_exact_visits(&c) != 0) return 1;
+    h->found = 0;
+    return 0;
+}
+
+static inline int hf_is_sliver(const hf_hit *h, double ta, double tb) {
+    return tb - ta <= 0x1p-44 * (fabs(ta) + fabs(tb)) && h->t0 < h->t1;
+}
+
+/* Test cell (i, j) on [ta, tb]; 1 on a hit (hf_surface_test_float, then hf_sliver_hit). */
+static inline int hf_surface_test(hf_hit *h, int32_t i, int32_t j, double ta, double tb, int wall) {
+    if (!hf_surface_test_float(h, i, j, ta, tb, wall)) return 0;
+    return hf_is_sliver(h, ta, tb) ? hf_sliver_hit(h, i, j, ta, tb) : 1;
 }
 
 /* A triangles cell's test split in two (plane_maxmip, dispatch/plane.c): what depends on
@@ -304,26 +361,44 @@ static inline void hf_tri_cell_build(const hf_hit *h, int32_t i, int32_t j, doub
 
 /* hf_surface_test's triangles case on the record's cell and interval [ta, tb] (the
  * record's own, bit for bit), `wall` as there. Returns 1 on a hit. */
-static inline int hf_tri_cell_test(hf_hit *h, const hf_tri_cell *c, int wall) {
+static inline int hf_tri_cell_test_float(hf_hit *h, const hf_tri_cell *c, int wall) {
     const double ta = c->ta, tb = c->tb, t_split = c->t_split;
     const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz, zs = h->oz + t_split * h->dz;
     const double fa = za - c->p1a;
     double f_split;
+    const int32_t i = c->i, j = c->j;
     h->cells_tested += 1;
     if (hf_one_point_cell(h, ta, tb)) return 0;
-    if (fa <= 0) return hf_hit_at(h, ta, c->i, c->j, wall, c->su1, c->sv1);
+    if (fa <= h->window) {
+        HF_TRY_EXACT(fa, t_split);
+        if (fa <= 0) return hf_hit_at(h, ta, i, j, wall, c->su1, c->sv1);
+    }
     f_split = zs - c->p1s;
-    if (f_split <= 0)
-        return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), c->i, c->j, -1, c->su1,
-                         c->sv1);
+    if (f_split <= h->window) {
+        HF_TRY_EXACT(f_split, t_split);
+        if (f_split <= 0)
+            return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), i, j, -1, c->su1,
+                             c->sv1);
+    }
     if (t_split < tb) {
         const double f_split2 = zs - c->p2s, fb = zb - c->p2b;
-        if (f_split2 <= 0) return hf_hit_at(h, t_split, c->i, c->j, -1, c->su2, c->sv2);
-        if (fb <= 0)
-            return hf_hit_at(h, hf_linear_root(t_split, tb, f_split2, fb), c->i, c->j, -1, c->su2,
-                             c->sv2);
+        if (f_split2 <= h->window) {
+            HF_TRY_EXACT(f_split2, t_split);
+            if (f_split2 <= 0) return hf_hit_at(h, t_split, i, j, -1, c->su2, c->sv2);
+        }
+        if (fb <= h->window) {
+            HF_TRY_EXACT(fb, t_split);
+            if (fb <= 0)
+                return hf_hit_at(h, hf_linear_root(t_split, tb, f_split2, fb), i, j, -1, c->su2,
+                                 c->sv2);
+        }
     }
     return 0;
+}
+
+static inline int hf_tri_cell_test(hf_hit *h, const hf_tri_cell *c, int wall) {
+    if (!hf_tri_cell_test_float(h, c, wall)) return 0;
+    return hf_is_sliver(h, c->ta, c->tb) ? hf_sliver_hit(h, c->i, c->j, c->ta, c->tb) : 1;
 }
 
 /* Slab clipping, the one step every interval of the ray is built from (the field's box,
@@ -419,6 +494,30 @@ static inline int hf_on_grid_line(const hf_hit *h) {
  * ((k + off) - o) * inv, the exact interval's own expression, clamped to [t0, t1]. Rounding
  * is monotone, so a cell this bound rejects the exact cull rejects too (outputs stay
  * bit-identical). A subtract, a multiply, a clamp and a multiply-add per cell. */
+/* The window of hf_hit's `window`: a gap z - s computed in float64 at a cell's event point
+ * (surfaces/exact_cell.h) is within it of the exact gap at the exact event, so a gap
+ * outside it has the exact sign. The rounding of the gap scales with M = |oz| + T |dz| +
+ * Hm + 2 Hm X + X |dz| / (|dx| + |dy|), X = |ox| + |oy| + T (|dx| + |dy|) + cols + rows + 2,
+ * T = max |t| over [t0, t1], Hm the largest |height|: the ray's z, the surface's terms
+ * (slopes up to 2 Hm times coordinates up to X), and the diagonal crossing's parameter,
+ * whose error X u / |dx - dy| moves z by |dz| times as much. The window is 2^-36 M, at
+ * least 2^10 times the few units of rounding (u = 2^-53) these expressions carry once
+ * |dx - dy| >= 2^-12 (|dx| + |dy|). A triangles ray nearer the diagonal's direction gets an
+ * unbounded window (every gap is decided exactly); a ray whose M is not finite gets none
+ * (float64 decides, as before). */
+static inline double hf_hit_window(const hf_hit *h) {
+    const double t = fabs(h->t0) > fabs(h->t1) ? fabs(h->t0) : fabs(h->t1);
+    const double dh = fabs(h->dx) + fabs(h->dy);
+    const double x = fabs(h->ox) + fabs(h->oy) + t * dh + (double)h->cols + (double)h->rows + 2;
+    double m = fabs(h->oz) + t * fabs(h->dz) + h->habs + 2 * h->habs * x;
+    if (dh > 0) m += x * fabs(h->dz) / dh;
+    m *= 0x1p-36;
+    if (!(m < (double)INFINITY)) return 0;
+    if (h->surface == HF_TRIANGLES && h->dx != h->dy && fabs(h->dx - h->dy) < 0x1p-12 * dh)
+        return DBL_MAX;
+    return m;
+}
+
 static inline void hf_hit_prepare(hf_hit *h) {
     const int descending = h->dz < 0;
     int k;
@@ -436,6 +535,7 @@ static inline void hf_hit_prepare(hf_hit *h) {
     h->fast = h->cull_cells && !hf_on_grid_line(h) && (h->dx != 0 || h->dy != 0);
     h->fast_runs = h->fast && descending;
     h->cell_axis = fabs(h->dx) >= fabs(h->dy) ? 0 : 1;
+    h->window = hf_hit_window(h);
 }
 
 /* z at the low-end face of slab k along `axis`, unclamped; with the floor z(t1) or z(t0)

@@ -71,6 +71,7 @@ static inline void hf_hit_fill(hf_hit *h, const hf_hit_batch *b, const double *o
     h->col_max = b->cull_runs ? &b->col_max : NULL;
     h->surface = b->surface;
     h->cull_cells = b->cull_cells;
+    h->habs = fabs(b->hmin) > fabs(b->hmax) ? fabs(b->hmin) : fabs(b->hmax);
     h->ox = o[0];
     h->oy = o[1];
     h->dx = d[0];
