@@ -19,6 +19,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from .exact_hits import LINEAR_SURFACES, exact_first_hit
 from .field import as_field
 from .registry import SURFACES
 from .validate import check_rays3, check_rising_from_below, check_t
@@ -104,7 +105,46 @@ def _cell_at_end(o, d, nx, ny, t1):
     return index[0], index[1]
 
 
-def _first_hit_one(H, o, d, surface, tmin, tmax):
+_EPS = float(np.finfo(np.float64).eps)
+
+
+def _near(a, b):
+    """Where ``a`` lies within a few ulps of ``b`` (both finite)."""
+    with np.errstate(invalid="ignore"):
+        return np.abs(a - b) <= 8 * _EPS * np.maximum(np.abs(a), np.abs(b))
+
+
+def _gap_window(H, o, d, t0, t1, nx, ny, h_max=None):
+    """A bound, generous by far, on the float64 error of a gap z - s that the brute force
+    evaluates at an event on [t0, t1] (a grid-line crossing ``(k - o) / d`` or the
+    triangles' diagonal crossing, which are not floats, rounded, then fed into z and s):
+    a gap within it has no trustworthy sign. ``2**-40 M``, with M the size of the terms
+    (the origin, T |d|, the heights times the coordinates, and the diagonal crossing's
+    shift ``X |dz| / (|dx| + |dy|)``)."""
+    T = max(abs(t0), abs(t1))
+    h_max = float(np.max(np.abs(H))) if h_max is None else h_max
+    horizontal = abs(d[0]) + abs(d[1])
+    X = abs(o[0]) + abs(o[1]) + T * horizontal + nx + ny + 2
+    M = abs(o[2]) + T * abs(d[2]) + h_max + 2 * h_max * X
+    if horizontal > 0:
+        M += X * abs(d[2]) / horizontal
+    return 2.0 ** -40 * M
+
+
+def _exact_hit(H, o, d, surface, tmin, tmax, t0, candidates):
+    """The first hit of one ray in rational arithmetic (``algos.exact_hits``), tested
+    on the candidate cells only ((ny, nx) bool mask, a superset of the visited cells), t
+    rounded to the nearest float. ``tmin = -inf`` is passed as a finite parameter before
+    the box entry ``t0`` (the exact clip then starts at the box)."""
+    if not np.isfinite(tmin):
+        tmin = t0 - 1.0 - abs(t0)
+    jj, ii = np.nonzero(candidates)
+    t, cell = exact_first_hit(H, o, d, surface, tmin, tmax, cells=zip(ii, jj))
+    return (np.inf, (-1, -1)) if t is None else (float(t), cell)
+
+
+def _first_hit_one(H, o, d, surface, tmin, tmax, h_max=None):
+    """(t, (i, j)) of one ray; ``h_max``: max |H| (computed when None)."""
     rows, cols = H.shape
     nx, ny = cols - 1, rows - 1
     # the closed range [t0, t1]: [tmin, tmax] clipped to the box [0, nx] x [0, ny]
@@ -135,6 +175,9 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
     unsure = np.abs(finite_tb - finite_ta) <= 8 * np.finfo(np.float64).eps * scale
     unsure &= np.isfinite(ta) & np.isfinite(tb)
     visited = (margin > 0) & ~unsure
+    # every cell the ray may visit (a superset of the exactly visited ones): where the
+    # exact cold path below looks for the hit
+    candidates = visited | unsure
     for j, i in zip(*np.nonzero(unsure)):
         visited[j, i] = _exactly_visited(i, j, o, d, tmin, tmax)
     if not visited.any():
@@ -202,6 +245,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
 
     fa = gap(ta)
     best = np.where(fa <= 0, ta, np.inf)
+    gaps, near_split = [fa], np.zeros(len(ta), bool)
     if surface in ("flat", "plane3"):
         # linear along the ray inside a cell. These surfaces jump at cell borders, where a
         # point belongs to the cell the ray enters: a cell's interval is [ta, tb), closed
@@ -217,7 +261,11 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         w = d[0] - d[1]
         with np.errstate(divide="ignore", invalid="ignore"):
             ts = (ii - jj - (o[0] - o[1])) / w if w != 0 else np.full_like(ta, np.inf)
-        ts = np.where((ts > ta) & (ts < tb), ts, tb)
+        split = (ts > ta) & (ts < tb)
+        near_split = _near(ts, ta) | _near(ts, tb)
+        if abs(w) < 2.0 ** -12 * (abs(d[0]) + abs(d[1])):
+            near_split |= split  # nearly along the diagonal: the split is poorly placed
+        ts = np.where(split, ts, tb)
         # each piece lies in one triangle: the one holding its midpoint; evaluate each
         # piece with its own plane, at both of its ends
         # (halved first: ta + ts passes the float range when both lie beyond 2**1023, a
@@ -236,6 +284,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         best = np.where(first, np.minimum(best, np.clip(r1, ta, ts)), best)
         best = np.where(at_split, np.minimum(best, ts), best)
         best = np.where(second, np.minimum(best, np.clip(r2, ts, tb)), best)
+        gaps.extend([fs1, fs2])
     else:
         # bilinear: z - s is quadratic in t; A t^2 + B t + C in absolute t
         a, b, c = h10 - h00, h01 - h00, h00 - h10 - h01 + h11
@@ -274,6 +323,15 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
                 lo_t = np.where(below, lo_t, mid)
             best[sub] = hi_t
     k = int(np.argmin(best))
+    if surface in LINEAR_SURFACES and np.isfinite(t0) and np.isfinite(t1):
+        gaps.append(fb)
+        # the cells that can hold the first hit or tie with it: those entered by the end
+        # of the float hit's cell (all of them on a miss)
+        limit = tb[k] + 8 * _EPS * abs(tb[k]) if np.isfinite(best[k]) else np.inf
+        window = _gap_window(H, o, d, t0, t1, nx, ny, h_max)
+        unsure_sign = near_split | np.any([~(np.abs(g) > window) for g in gaps], axis=0)
+        if np.any(unsure_sign & (ta <= limit)):
+            return _exact_hit(H, o, d, surface, tmin, tmax, t0, candidates)
     if not np.isfinite(best[k]):
         return np.inf, (-1, -1)
     # a point on a border reached at the same t by two cells (a touch where a triangles
@@ -371,7 +429,8 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
     cell = np.empty((n, 2), np.int32)
     # a parameter beyond float64 (a subnormal direction component) overflows to +-inf,
     # which is what the clip and the cell intervals mean by it
+    h_max = float(np.max(np.abs(H)))
     with np.errstate(over="ignore"):
         for k in range(n):
-            t[k], cell[k] = _first_hit_one(H, o[k], d[k], surface, lo[k], hi[k])
+            t[k], cell[k] = _first_hit_one(H, o[k], d[k], surface, lo[k], hi[k], h_max)
     return t, cell
