@@ -8,9 +8,26 @@ the earliest parameter of the closed ``[ta, tb]`` at which the ray is at or belo
 cell's own surface, and takes the minimum over the cells. So a point on a cell border is
 tested against the one cell that holds it for this ray's direction ("Points on a cell
 border", under "The first hit"): a taller neighbour that the ray only touches along an
-edge or at a vertex is never hit. Which cells are visited is decided exactly (rational
-arithmetic wherever float64 cannot tell a tie apart), so rays along grid lines and
-through vertices follow the rule. Slow (O(cells) per ray) by design.
+edge or at a vertex is never hit. Slow (O(cells) per ray) by design.
+
+What is decided exactly:
+
+- Which cells are visited (rational arithmetic wherever float64 cannot tell a tie apart),
+  so rays along grid lines and through vertices follow the rule, on every surface.
+- On the piecewise linear surfaces (flat, plane3, triangles), the whole first hit of
+  every ray whose float64 signs cannot be trusted: a gap z - s at an event (a cell's
+  entry or exit, the triangles' diagonal crossing) within a generous bound of its
+  rounding error of 0 (``_gap_window``), a diagonal crossing within a few ulps of a cell
+  border or with a direction nearly along the diagonal, or a clipped range whose ends
+  are within a few ulps of each other. Those events lie at parameters that are not
+  floats (t = 1/3), where a touch could be missed, a hit found one cell early, or a hit
+  reported where the exact ray stays above. Such a ray is recomputed in rational
+  arithmetic by ``algos.exact_hits.exact_first_hit`` on the cells the float pass found
+  along it, and its t is that exact t rounded to the nearest float. So on these surfaces
+  the brute force equals the rational reference: t to the rounding of the float roots of
+  the other rays, and the cell. Not on rays whose clipped range is infinite (a vertical
+  ray over ``[tmin, inf)``: no grid-line events there), nor on bilinear (float64, with
+  the exact border test ``_touches_at_exit``).
 """
 from __future__ import annotations
 
@@ -137,7 +154,7 @@ def _exact_hit(H, o, d, surface, tmin, tmax, t0, candidates):
     rounded to the nearest float. ``tmin = -inf`` is passed as a finite parameter before
     the box entry ``t0`` (the exact clip then starts at the box)."""
     if not np.isfinite(tmin):
-        tmin = t0 - 1.0 - abs(t0)
+        tmin = max(t0 - 1.0 - abs(t0), -np.finfo(np.float64).max)
     jj, ii = np.nonzero(candidates)
     t, cell = exact_first_hit(H, o, d, surface, tmin, tmax, cells=zip(ii, jj))
     return (np.inf, (-1, -1)) if t is None else (float(t), cell)
@@ -156,7 +173,12 @@ def _first_hit_one(H, o, d, surface, tmin, tmax, h_max=None):
         else:
             a, b = sorted(((0 - o[axis]) / d[axis], (top - o[axis]) / d[axis]))
             t0, t1 = max(t0, a), min(t1, b)
-    if not t0 <= t1 or t0 == np.inf:  # t0 = inf: it enters the box beyond float64
+    # t0 and t1 within a few ulps (a range that starts or ends on a box face or grid line
+    # at a parameter like 2/3, tmax its rounding): whether the range is empty, one point
+    # or a sliver is decided in rational arithmetic, below
+    exact_clip = (surface in LINEAR_SURFACES and np.isfinite(t0) and np.isfinite(t1)
+                  and bool(_near(t0, t1)))
+    if (not t0 <= t1 or t0 == np.inf) and not exact_clip:  # t0 = inf: beyond float64
         return np.inf, (-1, -1)
     xa, xb = _axis_intervals(o[0], d[0], nx)
     ya, yb = _axis_intervals(o[1], d[1], ny)
@@ -178,6 +200,8 @@ def _first_hit_one(H, o, d, surface, tmin, tmax, h_max=None):
     # every cell the ray may visit (a superset of the exactly visited ones): where the
     # exact cold path below looks for the hit
     candidates = visited | unsure
+    if exact_clip:
+        return _exact_hit(H, o, d, surface, tmin, tmax, min(t0, t1), candidates)
     for j, i in zip(*np.nonzero(unsure)):
         visited[j, i] = _exactly_visited(i, j, o, d, tmin, tmax)
     if not visited.any():
