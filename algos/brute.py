@@ -17,9 +17,9 @@ What is decided exactly:
 - On the piecewise linear surfaces (flat, plane3, triangles), the whole first hit of
   every ray whose float64 signs cannot be trusted: a gap z - s at an event (a cell's
   entry or exit, the triangles' diagonal crossing) within a generous bound of its
-  rounding error of 0 (``_gap_window``), a diagonal crossing within a few ulps of a cell
-  border or with a direction nearly along the diagonal, or a clipped range whose ends
-  are within a few ulps of each other. Those events lie at parameters that are not
+  rounding error of 0 (``_error_bounds``), a diagonal crossing within its error of a cell
+  border (with a gap there near 0) or with a direction nearly along the diagonal, or a
+  clipped range whose ends are within a few ulps of each other. Those events lie at parameters that are not
   floats (t = 1/3), where a touch could be missed, a hit found one cell early, or a hit
   reported where the exact ray stays above. Such a ray is recomputed in rational
   arithmetic by ``algos.exact_hits.exact_first_hit`` on the cells the float pass found
@@ -131,13 +131,16 @@ def _near(a, b):
         return np.abs(a - b) <= 8 * _EPS * np.maximum(np.abs(a), np.abs(b))
 
 
-def _gap_window(H, o, d, t0, t1, nx, ny, h_max=None):
-    """A bound, generous by far, on the float64 error of a gap z - s that the brute force
-    evaluates at an event on [t0, t1] (a grid-line crossing ``(k - o) / d`` or the
-    triangles' diagonal crossing, which are not floats, rounded, then fed into z and s):
-    a gap within it has no trustworthy sign. ``2**-40 M``, with M the size of the terms
-    (the origin, T |d|, the heights times the coordinates, and the diagonal crossing's
-    shift ``X |dz| / (|dx| + |dy|)``)."""
+def _error_bounds(H, o, d, t0, t1, nx, ny, h_max=None):
+    """(window, split tolerance) of one ray on [t0, t1].
+
+    window: a bound, generous by far, on the float64 error of a gap z - s that the brute
+    force evaluates at an event (a grid-line crossing ``(k - o) / d`` or the triangles'
+    diagonal crossing, which are not floats, rounded, then fed into z and s): a gap within
+    it has no trustworthy sign. ``2**-40 M``, with M the size of the terms (the origin,
+    T |d|, the heights times the coordinates X, and the diagonal crossing's shift
+    ``X |dz| / (|dx| + |dy|)``). Split tolerance: a bound on the error of the diagonal
+    crossing's parameter ``(i - j - (ox - oy)) / (dx - dy)``."""
     T = max(abs(t0), abs(t1))
     h_max = float(np.max(np.abs(H))) if h_max is None else h_max
     horizontal = abs(d[0]) + abs(d[1])
@@ -145,7 +148,9 @@ def _gap_window(H, o, d, t0, t1, nx, ny, h_max=None):
     M = abs(o[2]) + T * abs(d[2]) + h_max + 2 * h_max * X
     if horizontal > 0:
         M += X * abs(d[2]) / horizontal
-    return 2.0 ** -40 * M
+    w = abs(d[0] - d[1])
+    split_tol = 16 * _EPS * (T + X / w) if w > 0 else 0.0
+    return 2.0 ** -40 * M, split_tol
 
 
 def _exact_hit(H, o, d, surface, tmin, tmax, t0, candidates):
@@ -269,7 +274,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax, h_max=None):
 
     fa = gap(ta)
     best = np.where(fa <= 0, ta, np.inf)
-    gaps, near_split = [fa], np.zeros(len(ta), bool)
+    gaps = [fa]
     if surface in ("flat", "plane3"):
         # linear along the ray inside a cell. These surfaces jump at cell borders, where a
         # point belongs to the cell the ray enters: a cell's interval is [ta, tb), closed
@@ -285,10 +290,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax, h_max=None):
         w = d[0] - d[1]
         with np.errstate(divide="ignore", invalid="ignore"):
             ts = (ii - jj - (o[0] - o[1])) / w if w != 0 else np.full_like(ta, np.inf)
-        split = (ts > ta) & (ts < tb)
-        near_split = _near(ts, ta) | _near(ts, tb)
-        if abs(w) < 2.0 ** -12 * (abs(d[0]) + abs(d[1])):
-            near_split |= split  # nearly along the diagonal: the split is poorly placed
+        ts_raw, split = ts, (ts > ta) & (ts < tb)
         ts = np.where(split, ts, tb)
         # each piece lies in one triangle: the one holding its midpoint; evaluate each
         # piece with its own plane, at both of its ends
@@ -352,8 +354,19 @@ def _first_hit_one(H, o, d, surface, tmin, tmax, h_max=None):
         # the cells that can hold the first hit or tie with it: those entered by the end
         # of the float hit's cell (all of them on a miss)
         limit = tb[k] + 8 * _EPS * abs(tb[k]) if np.isfinite(best[k]) else np.inf
-        window = _gap_window(H, o, d, t0, t1, nx, ny, h_max)
-        unsure_sign = near_split | np.any([~(np.abs(g) > window) for g in gaps], axis=0)
+        window, split_tol = _error_bounds(H, o, d, t0, t1, nx, ny, h_max)
+        unsure_sign = np.any([~(np.abs(g) > window) for g in gaps], axis=0)
+        if surface == "triangles":
+            # the diagonal crossing within its error of a cell border: a piece that may
+            # or may not exist, whose hit would lie at that border, so the gap there is
+            # near 0 when it matters (tested with a window 2**20 times wider). A direction
+            # nearly along the diagonal places the crossing poorly: every split is unsure
+            wide = 2.0 ** 20 * window
+            with np.errstate(invalid="ignore"):
+                unsure_sign |= (np.abs(ts_raw - ta) <= split_tol) & ~(np.abs(fa) > wide)
+                unsure_sign |= (np.abs(ts_raw - tb) <= split_tol) & ~(np.abs(fb) > wide)
+            if abs(w) < 2.0 ** -12 * (abs(d[0]) + abs(d[1])):
+                unsure_sign |= split
         if np.any(unsure_sign & (ta <= limit)):
             return _exact_hit(H, o, d, surface, tmin, tmax, t0, candidates)
     if not np.isfinite(best[k]):
