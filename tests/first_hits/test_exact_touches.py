@@ -15,6 +15,7 @@ to the reference on the fuzzed rays; only the brute force is checked here.
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -93,7 +94,6 @@ NAMED = [
 
 @pytest.mark.parametrize("surface, o, d, t, cell", NAMED, ids=[n[0] for n in NAMED])
 def test_named_touches(surface, o, d, t, cell):
-    from fractions import Fraction
     H = _named_heights()
     assert exact_first_hit(H, o, d, surface) == (Fraction(t), cell)
     got_t, got_cell = brute_force(H, [o], [d], surface, None, None)
