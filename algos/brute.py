@@ -8,9 +8,26 @@ the earliest parameter of the closed ``[ta, tb]`` at which the ray is at or belo
 cell's own surface, and takes the minimum over the cells. So a point on a cell border is
 tested against the one cell that holds it for this ray's direction ("Points on a cell
 border", under "The first hit"): a taller neighbour that the ray only touches along an
-edge or at a vertex is never hit. Which cells are visited is decided exactly (rational
-arithmetic wherever float64 cannot tell a tie apart), so rays along grid lines and
-through vertices follow the rule. Slow (O(cells) per ray) by design.
+edge or at a vertex is never hit. Slow (O(cells) per ray) by design.
+
+What is decided exactly:
+
+- Which cells are visited (rational arithmetic wherever float64 cannot tell a tie apart),
+  so rays along grid lines and through vertices follow the rule, on every surface.
+- On the piecewise linear surfaces (flat, plane3, triangles), the whole first hit of
+  every ray whose float64 signs cannot be trusted: a gap z - s at an event (a cell's
+  entry or exit, the triangles' diagonal crossing) within a generous bound of its
+  rounding error of 0 (``_error_bounds``), a diagonal crossing within its error of a cell
+  border (with a gap there near 0) or with a direction nearly along the diagonal, or a
+  clipped range whose ends are within a few ulps of each other. Those events lie at parameters that are not
+  floats (t = 1/3), where a touch could be missed, a hit found one cell early, or a hit
+  reported where the exact ray stays above. Such a ray is recomputed in rational
+  arithmetic by ``algos.exact_hits.exact_first_hit`` on the cells the float pass found
+  along it, and its t is that exact t rounded to the nearest float. So on these surfaces
+  the brute force equals the rational reference: t to the rounding of the float roots of
+  the other rays, and the cell. Not on rays whose clipped range is infinite (a vertical
+  ray over ``[tmin, inf)``: no grid-line events there), nor on bilinear (float64, with
+  the exact border test ``_touches_at_exit``).
 """
 from __future__ import annotations
 
@@ -19,6 +36,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from .exact_hits import LINEAR_SURFACES, exact_first_hit
 from .field import as_field
 from .registry import SURFACES
 from .validate import check_rays3, check_rising_from_below, check_t
@@ -104,7 +122,51 @@ def _cell_at_end(o, d, nx, ny, t1):
     return index[0], index[1]
 
 
-def _first_hit_one(H, o, d, surface, tmin, tmax):
+_EPS = float(np.finfo(np.float64).eps)
+
+
+def _near(a, b):
+    """Where ``a`` lies within a few ulps of ``b`` (both finite)."""
+    with np.errstate(invalid="ignore"):
+        return np.abs(a - b) <= 8 * _EPS * np.maximum(np.abs(a), np.abs(b))
+
+
+def _error_bounds(H, o, d, t0, t1, nx, ny, h_max=None):
+    """(window, split tolerance) of one ray on [t0, t1].
+
+    window: a bound, generous by far, on the float64 error of a gap z - s that the brute
+    force evaluates at an event (a grid-line crossing ``(k - o) / d`` or the triangles'
+    diagonal crossing, which are not floats, rounded, then fed into z and s): a gap within
+    it has no trustworthy sign. ``2**-40 M``, with M the size of the terms (the origin,
+    T |d|, the heights times the coordinates X, and the diagonal crossing's shift
+    ``X |dz| / (|dx| + |dy|)``). Split tolerance: a bound on the error of the diagonal
+    crossing's parameter ``(i - j - (ox - oy)) / (dx - dy)``."""
+    T = max(abs(t0), abs(t1))
+    h_max = float(np.max(np.abs(H))) if h_max is None else h_max
+    horizontal = abs(d[0]) + abs(d[1])
+    X = abs(o[0]) + abs(o[1]) + T * horizontal + nx + ny + 2
+    M = abs(o[2]) + T * abs(d[2]) + h_max + 2 * h_max * X
+    if horizontal > 0:
+        M += X * abs(d[2]) / horizontal
+    w = abs(d[0] - d[1])
+    split_tol = 16 * _EPS * (T + X / w) if w > 0 else 0.0
+    return 2.0 ** -40 * M, split_tol
+
+
+def _exact_hit(H, o, d, surface, tmin, tmax, t0, candidates):
+    """The first hit of one ray in rational arithmetic (``algos.exact_hits``), tested
+    on the candidate cells only ((ny, nx) bool mask, a superset of the visited cells), t
+    rounded to the nearest float. ``tmin = -inf`` is passed as a finite parameter before
+    the box entry ``t0`` (the exact clip then starts at the box)."""
+    if not np.isfinite(tmin):
+        tmin = max(t0 - 1.0 - abs(t0), -np.finfo(np.float64).max)
+    jj, ii = np.nonzero(candidates)
+    t, cell = exact_first_hit(H, o, d, surface, tmin, tmax, cells=zip(ii, jj))
+    return (np.inf, (-1, -1)) if t is None else (float(t), cell)
+
+
+def _first_hit_one(H, o, d, surface, tmin, tmax, h_max=None):
+    """(t, (i, j)) of one ray; ``h_max``: max |H| (computed when None)."""
     rows, cols = H.shape
     nx, ny = cols - 1, rows - 1
     # the closed range [t0, t1]: [tmin, tmax] clipped to the box [0, nx] x [0, ny]
@@ -116,7 +178,12 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         else:
             a, b = sorted(((0 - o[axis]) / d[axis], (top - o[axis]) / d[axis]))
             t0, t1 = max(t0, a), min(t1, b)
-    if not t0 <= t1 or t0 == np.inf:  # t0 = inf: it enters the box beyond float64
+    # t0 and t1 within a few ulps (a range that starts or ends on a box face or grid line
+    # at a parameter like 2/3, tmax its rounding): whether the range is empty, one point
+    # or a sliver is decided in rational arithmetic, below
+    exact_clip = (surface in LINEAR_SURFACES and np.isfinite(t0) and np.isfinite(t1)
+                  and bool(_near(t0, t1)))
+    if (not t0 <= t1 or t0 == np.inf) and not exact_clip:  # t0 = inf: beyond float64
         return np.inf, (-1, -1)
     xa, xb = _axis_intervals(o[0], d[0], nx)
     ya, yb = _axis_intervals(o[1], d[1], ny)
@@ -135,6 +202,11 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
     unsure = np.abs(finite_tb - finite_ta) <= 8 * np.finfo(np.float64).eps * scale
     unsure &= np.isfinite(ta) & np.isfinite(tb)
     visited = (margin > 0) & ~unsure
+    # every cell the ray may visit (a superset of the exactly visited ones): where the
+    # exact cold path below looks for the hit
+    candidates = visited | unsure
+    if exact_clip:
+        return _exact_hit(H, o, d, surface, tmin, tmax, min(t0, t1), candidates)
     for j, i in zip(*np.nonzero(unsure)):
         visited[j, i] = _exactly_visited(i, j, o, d, tmin, tmax)
     if not visited.any():
@@ -202,6 +274,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
 
     fa = gap(ta)
     best = np.where(fa <= 0, ta, np.inf)
+    gaps = [fa]
     if surface in ("flat", "plane3"):
         # linear along the ray inside a cell. These surfaces jump at cell borders, where a
         # point belongs to the cell the ray enters: a cell's interval is [ta, tb), closed
@@ -217,7 +290,8 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         w = d[0] - d[1]
         with np.errstate(divide="ignore", invalid="ignore"):
             ts = (ii - jj - (o[0] - o[1])) / w if w != 0 else np.full_like(ta, np.inf)
-        ts = np.where((ts > ta) & (ts < tb), ts, tb)
+        ts_raw, split = ts, (ts > ta) & (ts < tb)
+        ts = np.where(split, ts, tb)
         # each piece lies in one triangle: the one holding its midpoint; evaluate each
         # piece with its own plane, at both of its ends
         # (halved first: ta + ts passes the float range when both lie beyond 2**1023, a
@@ -236,6 +310,7 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
         best = np.where(first, np.minimum(best, np.clip(r1, ta, ts)), best)
         best = np.where(at_split, np.minimum(best, ts), best)
         best = np.where(second, np.minimum(best, np.clip(r2, ts, tb)), best)
+        gaps.extend([fs1, fs2])
     else:
         # bilinear: z - s is quadratic in t; A t^2 + B t + C in absolute t
         a, b, c = h10 - h00, h01 - h00, h00 - h10 - h01 + h11
@@ -274,6 +349,26 @@ def _first_hit_one(H, o, d, surface, tmin, tmax):
                 lo_t = np.where(below, lo_t, mid)
             best[sub] = hi_t
     k = int(np.argmin(best))
+    if surface in LINEAR_SURFACES and np.isfinite(t0) and np.isfinite(t1):
+        gaps.append(fb)
+        # the cells that can hold the first hit or tie with it: those entered by the end
+        # of the float hit's cell (all of them on a miss)
+        limit = tb[k] + 8 * _EPS * abs(tb[k]) if np.isfinite(best[k]) else np.inf
+        window, split_tol = _error_bounds(H, o, d, t0, t1, nx, ny, h_max)
+        unsure_sign = np.any([~(np.abs(g) > window) for g in gaps], axis=0)
+        if surface == "triangles":
+            # the diagonal crossing within its error of a cell border: a piece that may
+            # or may not exist, whose hit would lie at that border, so the gap there is
+            # near 0 when it matters (tested with a window 2**20 times wider). A direction
+            # nearly along the diagonal places the crossing poorly: every split is unsure
+            wide = 2.0 ** 20 * window
+            with np.errstate(invalid="ignore"):
+                unsure_sign |= (np.abs(ts_raw - ta) <= split_tol) & ~(np.abs(fa) > wide)
+                unsure_sign |= (np.abs(ts_raw - tb) <= split_tol) & ~(np.abs(fb) > wide)
+            if abs(w) < 2.0 ** -12 * (abs(d[0]) + abs(d[1])):
+                unsure_sign |= split
+        if np.any(unsure_sign & (ta <= limit)):
+            return _exact_hit(H, o, d, surface, tmin, tmax, t0, candidates)
     if not np.isfinite(best[k]):
         return np.inf, (-1, -1)
     # a point on a border reached at the same t by two cells (a touch where a triangles
@@ -371,7 +466,8 @@ def brute_force_hits(heights, origins, directions, surface="triangles", tmin=Non
     cell = np.empty((n, 2), np.int32)
     # a parameter beyond float64 (a subnormal direction component) overflows to +-inf,
     # which is what the clip and the cell intervals mean by it
+    h_max = float(np.max(np.abs(H)))
     with np.errstate(over="ignore"):
         for k in range(n):
-            t[k], cell[k] = _first_hit_one(H, o[k], d[k], surface, lo[k], hi[k])
+            t[k], cell[k] = _first_hit_one(H, o[k], d[k], surface, lo[k], hi[k], h_max)
     return t, cell
