@@ -311,6 +311,8 @@ static PyObject *intersect_with(PyObject *args, PyObject *o_cone, PyObject *o_co
         return NULL;
     b.hmin = a.hmin;
     b.hmax = a.hmax;
+    b.habs = fabs(a.hmin) > fabs(a.hmax) ? fabs(a.hmin) : fabs(a.hmax);
+    b.grid_span = (double)b.cols + (double)b.rows + 2;
     b.surface = a.surface;
     b.cull_cells = a.cull_cells;
     if (!read_hierarchies(&a, cells, &b) || !read_rays_and_options(&a, &b) || !read_outputs(&a, &b))

@@ -263,12 +263,12 @@ static hf_hit_walk walk_of(int kernel) {
 }
 
 /* ---- one ray of the batch, in three steps ------------------------------------------- */
-/* Zero a hit record with 16-byte stores (SSE2, the x86-64 baseline): a memset of its 304
+/* Zero a hit record with 16-byte stores (SSE2, the x86-64 baseline): a memset of its 328
  * bytes compiles to a `rep stos`, whose start-up costs more than the stores (and which
  * callgrind counts as a branch per 8 bytes). */
 static inline void zero_hit(hf_hit *h) {
 #if defined(__SSE2__)
-    /* 19 stores written out: a loop of them would be recognised as a memset again */
+    /* 21 stores written out: a loop of them would be recognised as a memset again */
     char *p = (char *)h;
     const __m128i z = _mm_setzero_si128();
 #define HF_ZERO_32(at)                          \
@@ -283,14 +283,15 @@ static inline void zero_hit(hf_hit *h) {
     HF_ZERO_32(192);
     HF_ZERO_32(224);
     HF_ZERO_32(256);
-    _mm_storeu_si128((__m128i *)(p + 288), z);
+    HF_ZERO_32(288);
+    _mm_storel_epi64((__m128i *)(p + 320), z);
 #undef HF_ZERO_32
 #else
     memset(h, 0, sizeof *h);
 #endif
 }
 /* (C99 has no static_assert: an array of negative size fails the build) */
-typedef char hf_hit_is_304_bytes[sizeof(hf_hit) == 304 ? 1 : -1];
+typedef char hf_hit_is_328_bytes[sizeof(hf_hit) == 328 ? 1 : -1];
 
 /* Its set-up: clip ray `ray` to the box and fill h (zeroed first); returns 1 when there
  * is a walk to do, 0 when the ray misses the box. */
@@ -312,6 +313,8 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     h->dz = d[2];
     h->t0 = t0;
     h->t1 = t1;
+    h->tmin = tmin;
+    h->tmax = tmax;
     h->entry_axis = entry_axis;
     hf_hit_prepare(h);
     *t0_out = t0;
@@ -469,9 +472,12 @@ HF_COLD const hf_hit *border_end(const hf_hit_batch *b, int64_t ray, const hf_hi
                                  hf_hit *decided) {
     const double t = h->t1, x = h->ox + t * h->dx, y = h->oy + t * h->dy;
     int32_t i, j;
-    /* on a grid line (beyond 2^31 the point is off the grid anyway) */
-    const int on_x = h->dx != 0 && fabs(x) < 0x1p31 && x == (double)(int64_t)x;
-    const int on_y = h->dy != 0 && fabs(y) < 0x1p31 && y == (double)(int64_t)y;
+    /* on a grid line, exactly (beyond 2^31 the point is off the grid anyway): x = 4 in
+     * float64 at t1 = 0.6666666666666666 from 2 + 3 t1, but the exact point is short of it */
+    const int on_x =
+        h->dx != 0 && fabs(x) < 0x1p31 && hf_exact_on_line(h->ox, h->dx, t, nearbyint(x));
+    const int on_y =
+        h->dy != 0 && fabs(y) < 0x1p31 && hf_exact_on_line(h->oy, h->dy, t, nearbyint(y));
     if (!(h->t0 < h->t1) || h->t1 != b->tmax[ray]) return h;
     if (!on_x && !on_y) return h; /* p(t1) inside the cell the walk ended in */
     i = on_x ? (int32_t)hf_index_of(x, h->dx > 0) : hf_cell_at(h->ox, h->dx, t, b->cols - 1);
@@ -482,6 +488,7 @@ HF_COLD const hf_hit *border_end(const hf_hit_batch *b, int64_t ray, const hf_hi
 
 HF_HOT const hf_hit *border_point(const hf_hit_batch *b, int64_t ray, const hf_hit *h,
                                   hf_hit *decided) {
+    if (h->found == 2) return h; /* decided exactly, the cell that holds it included */
     if (h->found) {
         /* one compare per axis first: almost every hit lies inside its cell */
         const double fx = (double)h->i + (h->dx > 0), fy = (double)h->j + (h->dy > 0);

@@ -157,6 +157,8 @@ HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray
     h->dz = dz;
     h->t0 = t0;
     h->t1 = t1;
+    h->tmin = b->tmin ? b->tmin[ray] : 0.0;
+    h->tmax = b->tmax ? b->tmax[ray] : (double)INFINITY;
     h->entry_axis = axis;
     /* hf_hit_prepare's fields that depend on dz */
     {

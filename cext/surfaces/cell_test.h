@@ -25,7 +25,6 @@
 
 enum hf_surface { HF_FLAT = 0, HF_PLANE3 = 1, HF_TRIANGLES = 2, HF_BILINEAR = 3 };
 
-
 typedef struct {
     /* the field: heights H[j * cols + i] and cell maxima M[j * (cols-1) + i] */
     const float *heights;
@@ -39,8 +38,8 @@ typedef struct {
      * 1 y, 2 z) or -1 when t0 is tmin */
     double ox, oy, oz, dx, dy, dz, inv_dx, inv_dy, t0, t1;
     /* the gaps z - s within +-window of 0 are decided exactly (hf_hit_window); habs: the
-     * largest |height| of the field */
-    double window, habs;
+     * largest |height| of the field; [tmin, tmax]: the caller's range (exact_cell.h) */
+    double window, habs, tmin, tmax, grid_span; /* grid_span: cols + rows + 2 */
     int entry_axis;
     /* The tight path (hf_hit_prepare): with cell culling on and no grid-line special
      * case, a cell (or a run) is first rejected by a bound computed from its index along
@@ -52,7 +51,7 @@ typedef struct {
     double bound_lo, bound_hi; /* clamp of that boundary's parameter to [t0, t1]       */
     double o_axis[2], inv_axis[2];
     /* the result */
-    int found;
+    int found; /* 1 a hit, 2 a hit decided in exact arithmetic (hf_surface_exact) */
     double t;
     int32_t i, j;
     int wall_axis; /* -1: the surface; 0/1: a vertical wall facing -x/-y travel */
@@ -147,7 +146,7 @@ HF_COLD int hf_surface_exact(hf_hit *h, int32_t i, int32_t j, double ta, double 
     hf_exact_answer r;
     double su = 0, sv = 0;
     c.ox = h->ox, c.oy = h->oy, c.oz = h->oz, c.dx = h->dx, c.dy = h->dy, c.dz = h->dz;
-    c.inv_dx = h->inv_dx, c.inv_dy = h->inv_dy, c.t0 = h->t0, c.t1 = h->t1;
+    c.t0 = h->t0, c.t1 = h->t1, c.tmin = h->tmin, c.tmax = h->tmax;
     c.cols = h->cols, c.rows = h->rows, c.surface = h->surface, c.i = i, c.j = j;
     c.ta = ta, c.tb = tb, c.t_split = t_split;
     if (h->surface == HF_BILINEAR) return -1;
@@ -166,19 +165,23 @@ HF_COLD int hf_surface_exact(hf_hit *h, int32_t i, int32_t j, double ta, double 
         hf_lower_triangle_slopes(c.h00, c.h10, c.h11, &su, &sv);
     if (h->surface == HF_TRIANGLES && r.piece == 2)
         hf_upper_triangle_slopes(c.h00, c.h01, c.h11, &su, &sv);
-    if (r.kind == 1) return hf_hit_at(h, ta, i, j, wall, su, sv);
-    return hf_hit_at(h, r.t, r.i, r.j, -1, su, sv);
+    if (r.kind == 1)
+        (void)hf_hit_at(h, ta, i, j, wall, su, sv);
+    else
+        (void)hf_hit_at(h, r.t, r.i, r.j, -1, su, sv);
+    h->found = 2; /* decided exactly: the cell that holds the point too (border_point) */
+    return 1;
 }
 
 /* Whether a gap f is within the ray's rounding window of 0 (then its sign is decided
  * exactly); a cold path tried first, whose -1 leaves the float64 decision. */
 #define HF_NEAR_ZERO(f) ((f) >= -h->window && (f) <= h->window)
-#define HF_TRY_EXACT(f, split)                                                                   \
-    do {                                                                                         \
-        if (HF_NEAR_ZERO(f)) {                                                                   \
-            const int exact_ = hf_surface_exact(h, i, j, ta, tb, wall, split);                  \
-            if (exact_ >= 0) return exact_;                                                      \
-        }                                                                                        \
+#define HF_TRY_EXACT(f, split)                                                 \
+    do {                                                                       \
+        if (HF_NEAR_ZERO(f)) {                                                 \
+            const int exact_ = hf_surface_exact(h, i, j, ta, tb, wall, split); \
+            if (exact_ >= 0) return exact_;                                    \
+        }                                                                      \
     } while (0)
 
 /* Test cell (i, j) on [ta, tb]; 1 on a hit. `wall`: the axis (0 x, 1 y) of the wall met at ta
@@ -306,7 +309,7 @@ static inline int hf_surface_test_float(hf_hit *h, int32_t i, int32_t j, double 
 HF_COLD int hf_sliver_hit(hf_hit *h, int32_t i, int32_t j, double ta, double tb) {
     hf_exact_cell c;
     c.ox = h->ox, c.oy = h->oy, c.oz = h->oz, c.dx = h->dx, c.dy = h->dy, c.dz = h->dz;
-    c.inv_dx = h->inv_dx, c.inv_dy = h->inv_dy, c.t0 = h->t0, c.t1 = h->t1;
+    c.t0 = h->t0, c.t1 = h->t1, c.tmin = h->tmin, c.tmax = h->tmax;
     c.cols = h->cols, c.rows = h->rows, c.surface = h->surface, c.i = i, c.j = j;
     c.ta = ta, c.tb = tb, c.t_split = tb;
     c.h00 = c.h10 = c.h01 = c.h11 = 0;
@@ -377,8 +380,7 @@ static inline int hf_tri_cell_test_float(hf_hit *h, const hf_tri_cell *c, int wa
     if (f_split <= h->window) {
         HF_TRY_EXACT(f_split, t_split);
         if (f_split <= 0)
-            return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), i, j, -1, c->su1,
-                             c->sv1);
+            return hf_hit_at(h, hf_linear_root(ta, t_split, fa, f_split), i, j, -1, c->su1, c->sv1);
     }
     if (t_split < tb) {
         const double f_split2 = zs - c->p2s, fb = zb - c->p2b;
@@ -497,7 +499,8 @@ static inline int hf_on_grid_line(const hf_hit *h) {
 /* The window of hf_hit's `window`: a gap z - s computed in float64 at a cell's event point
  * (surfaces/exact_cell.h) is within it of the exact gap at the exact event, so a gap
  * outside it has the exact sign. The rounding of the gap scales with M = |oz| + T |dz| +
- * Hm + 2 Hm X + X |dz| / (|dx| + |dy|), X = |ox| + |oy| + T (|dx| + |dy|) + cols + rows + 2,
+ * Hm + 2 Hm X + X |dz| / (|dx| + |dy|) (taken as X |dz| min(|1/dx|, |1/dy|), no smaller),
+ * X = |ox| + |oy| + T (|dx| + |dy|) + cols + rows + 2,
  * T = max |t| over [t0, t1], Hm the largest |height|: the ray's z, the surface's terms
  * (slopes up to 2 Hm times coordinates up to X), and the diagonal crossing's parameter,
  * whose error X u / |dx - dy| moves z by |dz| times as much. The window is 2^-36 M, at
@@ -507,15 +510,14 @@ static inline int hf_on_grid_line(const hf_hit *h) {
  * (float64 decides, as before). */
 static inline double hf_hit_window(const hf_hit *h) {
     const double t = fabs(h->t0) > fabs(h->t1) ? fabs(h->t0) : fabs(h->t1);
-    const double dh = fabs(h->dx) + fabs(h->dy);
-    const double x = fabs(h->ox) + fabs(h->oy) + t * dh + (double)h->cols + (double)h->rows + 2;
-    double m = fabs(h->oz) + t * fabs(h->dz) + h->habs + 2 * h->habs * x;
-    if (dh > 0) m += x * fabs(h->dz) / dh;
-    m *= 0x1p-36;
-    if (!(m < (double)INFINITY)) return 0;
-    if (h->surface == HF_TRIANGLES && h->dx != h->dy && fabs(h->dx - h->dy) < 0x1p-12 * dh)
-        return DBL_MAX;
-    return m;
+    const double adx = fabs(h->dx), ady = fabs(h->dy), adz = fabs(h->dz);
+    /* 1 / (|dx| + |dy|) <= min(|1 / dx|, |1 / dy|) = slope below */
+    const double inv = fabs(h->inv_dx) < fabs(h->inv_dy) ? fabs(h->inv_dx) : fabs(h->inv_dy);
+    const double x = fabs(h->ox) + fabs(h->oy) + t * (adx + ady) + h->grid_span;
+    const double m = (fabs(h->oz) + t * adz + h->habs + x * (2 * h->habs + adz * inv)) * 0x1p-36;
+    const double w = fabs(h->dx - h->dy);
+    if (h->surface == HF_TRIANGLES && w < 0x1p-12 * (adx + ady) && w != 0) return DBL_MAX;
+    return m < (double)INFINITY ? m : 0;
 }
 
 static inline void hf_hit_prepare(hf_hit *h) {
@@ -704,195 +706,6 @@ static inline int hf_hit_cell_uncounted(hf_hit *h, int32_t i, int32_t j) {
 static inline int hf_hit_cell(hf_hit *h, int32_t i, int32_t j) {
     h->cells_visited += 1;
     return hf_hit_cell_uncounted(h, i, j);
-}
-
-/* ---- runs ------------------------------------------------------------------------------
- * The parameter interval of a run: its minor strip and its span of major cells, within
- * [t0, t1]; entry_axis: the axis whose face sets ta (-1: t0). Empty when ta > tb. */
-typedef struct {
-    double ta, tb;
-    int entry_axis;
-} hf_span;
-
-static inline hf_span hf_run_span(const hf_hit *h, int major_is_x, int32_t minor, int32_t lo,
-                                  int32_t hi) {
-    const double o_min = major_is_x ? h->oy : h->ox, inv_min = major_is_x ? h->inv_dy : h->inv_dx;
-    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
-    const double d_min = major_is_x ? h->dy : h->dx;
-    hf_span s;
-    s.ta = h->t0;
-    s.tb = h->t1;
-    s.entry_axis = -1;
-    if (d_min != 0)
-        hf_slab_clip((minor - o_min) * inv_min, (minor + 1 - o_min) * inv_min, major_is_x ? 1 : 0,
-                     &s.ta, &s.tb, &s.entry_axis);
-    hf_slab_clip((lo - o_maj) * inv_maj, (hi + 1 - o_maj) * inv_maj, major_is_x ? 0 : 1, &s.ta,
-                 &s.tb, &s.entry_axis);
-    return s;
-}
-
-/* Cell k of a run whose first cell is `first`, on the run's span: the cell's interval
- * runs from the previous cell's exit (or the span's start) to its own exit, each clipped
- * to the span; then the exact cull and the surface test. Cells are not split where the
- * minor strip ends: the span's tb covers that. */
-static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t first, int32_t k,
-                              const hf_span *s) {
-    const double o_maj = major_is_x ? h->ox : h->oy, inv_maj = major_is_x ? h->inv_dx : h->inv_dy;
-    const double d_maj = major_is_x ? h->dx : h->dy;
-    const int32_t i = major_is_x ? k : minor, j = major_is_x ? minor : k;
-    double ta = s->ta, t_out = (double)(d_maj > 0 ? k + 1 : k);
-    int wall;
-    t_out = (t_out - o_maj) * inv_maj;
-    if (t_out > s->tb) t_out = s->tb;
-    if (k != first) {
-        /* the previous cell's exit (the latest); unclamped, so a walked cell the caller's
-         * ray reaches only after leaving the strip is empty, as in hf_cell_interval */
-        const double t_prev = ((double)(d_maj > 0 ? k : k + 1) - o_maj) * inv_maj;
-        ta = t_prev > ta ? t_prev : ta;
-    }
-    if (!(ta <= t_out)) return 0;
-    if (h->cull_cells) {
-        const double za = h->oz + ta * h->dz, zb = h->oz + t_out * h->dz;
-        if ((za < zb ? za : zb) > (double)hf_cellmax(h, i, j)) return 0;
-    }
-    /* walls: the box face at t0, else the grid line crossed at ta (for the surfaces that
-     * jump there) */
-    if (ta == h->t0)
-        wall = (h->entry_axis == 0 || h->entry_axis == 1) ? h->entry_axis : -1;
-    else if (!(h->surface == HF_FLAT || h->surface == HF_PLANE3))
-        wall = -1;
-    else
-        wall = k == first ? s->entry_axis : (major_is_x ? 0 : 1);
-    return hf_surface_test(h, i, j, ta, t_out, wall);
-}
-
-/* Below this many cells a run is culled cell by cell: the range-maximum query reads up to
- * four lines of three field-sized tables, which at r ~ 5 cost more than the cell bounds
- * they save (measured: reports/METHOD.md, "The tight first-hit path"). */
-#ifndef HF_RUN_RMQ_MIN
-#define HF_RUN_RMQ_MIN 16
-#endif
-
-/* One run (minor, first, last) of a run kernel, first and last in travel order: the
- * exact span, the run cull, every cell (hf_hit_run_tight is the fast path). */
-static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t first,
-                             int32_t last) {
-    const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
-    const int32_t step = last >= first ? 1 : -1;
-    const double d_maj = major_is_x ? h->dx : h->dy;
-    const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
-    hf_span s;
-    int32_t k;
-    h->runs_visited += 1;
-    if (d_maj == 0 || hf_on_grid_line(h)) {
-        /* vertical rays and rays on grid lines: the general per-cell path */
-        for (k = first;; k += step) {
-            if (major_is_x ? hf_hit_cell(h, k, minor) : hf_hit_cell(h, minor, k)) return 1;
-            if (k == last) break;
-        }
-        return 0;
-    }
-    s = hf_run_span(h, major_is_x, minor, lo, hi);
-    if (!(s.ta <= s.tb)) {
-        h->cells_visited += hi - lo + 1; /* the float ray misses the rounded walk's run */
-        return 0;
-    }
-    if (q != NULL) {
-        const double za = h->oz + s.ta * h->dz, zb = h->oz + s.tb * h->dz;
-        if ((za < zb ? za : zb) > (double)hf_rmq_query(q, minor, lo, hi)) {
-            h->runs_culled += 1;
-            h->cells_visited += hi - lo + 1;
-            return 0;
-        }
-    }
-    for (k = first;; k += step) {
-        h->cells_visited += 1;
-        if (hf_run_cell(h, major_is_x, minor, first, k, &s)) return 1;
-        if (k == last) break;
-    }
-    return 0;
-}
-
-/* The cold parts of the tight run path, out of line so that the hot loop inlines into
- * every run walk: the range-maximum cull of a long run (returns 1 when it rejects the run,
- * given the run's lowest z), and a cell that survived the bound (returns 1 on a
- * hit, -1 when the float ray misses the rounded walk's run, else 0). */
-
-HF_COLD int hf_run_rmq_cull(hf_hit *h, const hf_rmq *q, int32_t minor, int32_t lo, int32_t hi,
-                            double zlow) {
-    if (zlow > (double)hf_rmq_query(q, minor, lo, hi)) {
-        h->runs_culled += 1;
-        return 1;
-    }
-    return 0;
-}
-
-HF_COLD int hf_run_survivor(hf_hit *h, int major_is_x, int32_t minor, int32_t first, int32_t last,
-                            int32_t k, hf_span *s, int *ready) {
-    if (!*ready) {
-        const int32_t lo = first < last ? first : last, hi = first < last ? last : first;
-        *s = hf_run_span(h, major_is_x, minor, lo, hi);
-        if (!(s->ta <= s->tb)) return -1;
-        *ready = 1;
-    }
-    return hf_run_cell(h, major_is_x, minor, first, k, s);
-}
-
-/* The tight path for a run (descending rays, cull on; c bounds along the run's major
- * axis): the run is rejected whole when z at its exit face is above the maximum over its
- * cells (a range-maximum query, for runs long enough to pay), else each cell by its own
- * exit face; the run's exact span is computed only once a cell survives. The cells that
- * reach hf_run_cell, and their intervals, are those of hf_hit_run. */
-HF_HOT int hf_hit_run_tight(hf_hit *h, hf_cull *c, int major_is_x, int32_t minor, int32_t first,
-                            int32_t last) {
-    const int32_t step = last >= first ? 1 : -1;
-    const int am = major_is_x ? 0 : 1, an = 1 - am;
-    const hf_rmq *q = major_is_x ? h->row_max : h->col_max;
-    const float *row = major_is_x ? c->cellmax + (int64_t)minor * c->stride : c->cellmax + minor;
-    const int64_t k_stride = major_is_x ? 1 : c->stride;
-    double zrun, zk, dzk;
-    hf_span s;
-    int ready = 0;
-    int32_t k;
-    h->runs_visited += 1;
-    hf_cull_goto(c, h, an, minor);
-    hf_cull_goto(c, h, am, first);
-    zrun = c->z[an] > c->zfloor ? c->z[an] : c->zfloor;
-    zk = c->z[am];
-    dzk = c->step[am];
-    if (q != NULL && (last - first) * step + 1 >= HF_RUN_RMQ_MIN) {
-        /* z at the run's exit face: the last cell's bound, directly */
-        const double zexit = hf_cull_direct(h, c, am, last);
-        if (hf_run_rmq_cull(h, q, minor, first < last ? first : last, first < last ? last : first,
-                            zexit > zrun ? zexit : zrun)) {
-            c->visited += (int64_t)(last - first) * step + 1;
-            c->k[am] = last;
-            c->z[am] = zexit;
-            c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
-            return 0;
-        }
-    }
-    for (k = first;; k += step) {
-        c->visited += 1;
-        if ((zk > zrun ? zk : zrun) <= (double)row[k * k_stride]) {
-            const int r = hf_run_survivor(h, major_is_x, minor, first, last, k, &s, &ready);
-            if (r > 0) return 1;
-            if (r < 0) {
-                /* the float ray misses the rounded walk's run */
-                c->visited += (int64_t)(last - k) * step;
-                break;
-            }
-        }
-        if (k == last) break;
-        zk += dzk;
-    }
-    /* the carried bound ends on the last cell (k - first steps were summed: within the
-     * margin, as for any walk) */
-    c->k[am] = last;
-    c->z[am] = zk;
-    c->cell = (int64_t)c->k[1] * c->stride + c->k[0];
-    if (k != last) c->z[am] = hf_cull_direct(h, c, am, last);
-    return 0;
 }
 
 #endif

@@ -106,4 +106,15 @@ static inline int hf_ex_in_range(double a) {
     return a == 0 || (m >= 0x1p-250 && m <= 0x1p250);
 }
 
+/* Whether o + t d equals k exactly (in range: the caller's floats; else the float64 test). */
+static inline int hf_exact_on_line(double o, double d, double t, double k) {
+    hf_ex e;
+    const double p = t * d;
+    if (!(hf_ex_in_range(o) && hf_ex_in_range(d) && hf_ex_in_range(t) && hf_ex_in_range(k)))
+        return o + p == k;
+    hf_ex_set(&e, fma(t, d, -p));
+    (void)(hf_ex_grow(&e, p) && hf_ex_grow(&e, o) && hf_ex_grow(&e, -k));
+    return hf_ex_sign(&e) == 0;
+}
+
 #endif

@@ -3,23 +3,29 @@
  * z - s at one of the cell's event points lies within the ray's rounding window of 0.
  *
  * The event points of a cell's interval are exact rationals P / Q (Q > 0):
- * - its start: the entry face x = k, t = (k - ox) / dx, where the caller's float ta equals
- *   that face's float parameter (k - ox) * inv_dx (the expression every walk and the box
- *   clip use), the later of two faces at a vertex; else the float ta itself (the range's
- *   start tmin, or a z clip, whose gap is never near 0);
- * - its end: the exit face the same way (the earlier of two), else the float tb (the
- *   range's end);
+ * - its start: the latest of the caller's tmin (when finite) and the cell's entry faces
+ *   x = k, t = (k - ox) / dx, and y = k, for the components that are not 0;
+ * - its end: the earliest of tmax and the exit faces (a range end exactly on a face is
+ *   read as the face: the point belongs to the cell entered there);
  * - the triangles' diagonal crossing u = v, t = ((oy - j) - (ox - i)) / (dx - dy).
- * A float range end that equals a face's float parameter is read as that face.
+ * The walk's own floats ta and tb stand for them in the answer's t. Where the walk's
+ * interval starts later than the exact start (a z clip, a conservative start bound), the
+ * ray is above every surface there, so the exact start decides alike. A range of one
+ * point (a ray that only touches the box, or border_point's test of one point) is the
+ * cell's exact start. A float walk's cell whose exact interval is empty (the side cell it
+ * passes where the ray crosses a grid vertex at such a parameter) is not visited.
  *
  * On a linear piece s = A0 + Au u + Av v the gap is G0 + t G1 with G0 = oz - A0 - Au (ox - i)
  * - Av (oy - j) and G1 = dz - Au dx - Av dy, so Q (z - s) at P / Q is Q G0 + P G1: its sign
  * is exact. The decision then follows docs/CONVENTIONS.md as the rational reference does
- * (tests/first_hits/exact_hits.py): a gap <= 0 at the start is a hit there; a gap < 0 at a
+ * (algos/exact_hits.py): a gap <= 0 at the start is a hit there; a gap < 0 at a
  * piece's end puts the hit at the piece's root (-G0 / G1, rounded, kept within the piece);
  * a gap of exactly 0 at a piece's end is a hit there, except at an exit into the grid: there
  * flat and plane3 leave the point to the cell entered, and on triangles (continuous) the
- * cell entered holds the touch, which is reported in it. */
+ * cell entered holds the touch, which is reported in it. The root's t is the hot path's
+ * own float64 root wherever its gaps have the exact signs, so a cell both decide alike
+ * keeps its t bit for bit (tests/first_hits/test_hit_pin.py). Bilinear cells (quadratic)
+ * stay with float64. */
 #ifndef HFTRACE_EXACT_CELL_H
 #define HFTRACE_EXACT_CELL_H
 
@@ -29,9 +35,9 @@
 
 /* What the cold path reads: the ray, its range, the grid and the cell. */
 typedef struct {
-    double ox, oy, oz, dx, dy, dz, inv_dx, inv_dy, t0, t1;
+    double ox, oy, oz, dx, dy, dz, t0, t1, tmin, tmax;
     int32_t cols, rows; /* grid points */
-    int surface;        /* enum hf_surface */
+    int surface;        /* enum hf_surface: 0 flat, 1 plane3, 2 triangles */
     int32_t i, j;
     double h00, h10, h01, h11;
     double ta, tb, t_split; /* the caller's floats; t_split = tb when it found no split */
@@ -92,37 +98,41 @@ static inline int hf_event_compare(const hf_event *a, const hf_event *b) {
     return hf_ex_sign(&s);
 }
 
-/* The interval's start (last = 0) or end (last = 1): the faces whose float parameter is the
- * caller's t, the later (start) or earlier (end) of them; else the float itself. Sets *face
- * to the number of faces at that event (0: the float; 2: a vertex), and *axis to one. */
+/* The interval's start (last = 0) or end (last = 1): the latest (earliest) of the caller's
+ * tmin (tmax), when finite, and the cell's entry (exit) faces the ray crosses; the float t
+ * stands for it. *faces: how many faces are at that event (0: the range's end; 2: a
+ * vertex); *axis: one of them. */
 static inline void hf_event_bound(hf_event *e, const hf_exact_cell *c, double t, int last,
                                   int *faces, int *axis) {
-    int a, n = 0;
+    const double end = last ? c->tmax : c->tmin;
+    int a, n = 0, any = 0;
     *axis = -1;
+    if (end > -(double)INFINITY && end < (double)INFINITY) {
+        hf_event_float(e, end);
+        any = 1;
+    }
     for (a = 0; a < 2; ++a) {
-        const double o = a == 0 ? c->ox : c->oy, d = a == 0 ? c->dx : c->dy;
-        const double inv = a == 0 ? c->inv_dx : c->inv_dy;
+        const double d = a == 0 ? c->dx : c->dy;
         const int32_t cell = a == 0 ? c->i : c->j;
-        double k;
+        hf_event face;
+        int s;
         if (d == 0) continue;
-        k = (double)cell + ((d > 0) == (last != 0));
-        if ((k - o) * inv != t) continue;
-        if (n == 0) {
-            hf_event_face(e, c, a, k, t);
+        hf_event_face(&face, c, a, (double)cell + ((d > 0) == (last != 0)), t);
+        s = any ? hf_event_compare(&face, e) : (last ? -1 : 1);
+        if (s == 0 && n > 0) {
+            n = 2; /* a vertex */
+        } else if (s == 0) {
+            n = 1; /* the range's end on a face: read as the face */
+            *axis = a;
+        } else if ((s > 0) != (last != 0)) {
+            *e = face;
             *axis = a;
             n = 1;
-        } else {
-            hf_event other;
-            const int s = (hf_event_face(&other, c, a, k, t), hf_event_compare(&other, e));
-            if (s == 0) {
-                n = 2;
-            } else if ((s > 0) != (last != 0)) {
-                *e = other;
-                *axis = a;
-            }
         }
+        any = 1;
     }
-    if (n == 0) hf_event_float(e, t);
+    if (!any) hf_event_float(e, t);
+    e->t = t;
     *faces = n;
 }
 
@@ -216,8 +226,7 @@ static inline double hf_exact_float_gap(const hf_exact_cell *c, int piece, doubl
  * touch): the float64 root of the hot path where its gaps have the exact signs, else the
  * exact root -G0 / G1 rounded (or y itself for a touch), kept within [x, y]. */
 static inline double hf_exact_root(const hf_exact_cell *c, int piece, const hf_event *x,
-                                   const hf_event *y, const hf_ex *g0, const hf_ex *g1,
-                                   int touch) {
+                                   const hf_event *y, const hf_ex *g0, const hf_ex *g1, int touch) {
     const double fx = hf_exact_float_gap(c, piece, x->t), fy = hf_exact_float_gap(c, piece, y->t);
     double t;
     if (fx > 0 && (touch ? fy <= 0 : fy < 0)) return hf_linear_root(x->t, y->t, fx, fy);
@@ -253,7 +262,13 @@ static inline hf_exact_answer hf_exact_cell_decide(const hf_exact_cell *c) {
     if (!hf_exact_inputs_in_range(c, c->ta) || !hf_ex_in_range(c->tb)) return r;
     hf_event_bound(&a, c, c->ta, 0, &faces_a, &axis_a);
     hf_event_bound(&b, c, c->tb, 1, &faces_b, &axis_b);
-    if (c->t0 < c->t1 && hf_event_compare(&a, &b) >= 0) { /* not visited: a vertex's side */
+    if (!(c->t0 < c->t1)) {
+        /* a range of one point (a ray that only touches the box, or border_point's test of
+         * the point where a cell is entered): the cell's start */
+        b = a;
+        b.t = c->tb;
+        faces_b = faces_a;
+    } else if (hf_event_compare(&a, &b) >= 0) { /* not visited: a vertex's side */
         r.kind = 0;
         return r;
     }
@@ -269,8 +284,7 @@ static inline hf_exact_answer hf_exact_cell_decide(const hf_exact_cell *c) {
                 hf_ex_negate(&s.p);
                 hf_ex_negate(&s.q);
             }
-            s.t = c->t_split < c->tb ? c->t_split
-                                     : hf_ex_estimate(&s.p) / hf_ex_estimate(&s.q);
+            s.t = c->t_split < c->tb ? c->t_split : hf_ex_estimate(&s.p) / hf_ex_estimate(&s.q);
             if (hf_event_compare(&s, &a) > 0 && hf_event_compare(&s, &b) < 0) {
                 if (!(s.t >= c->ta)) s.t = c->ta;
                 if (s.t > c->tb) s.t = c->tb;

@@ -19,6 +19,7 @@ typedef struct {
     const float *heights, *cellmax;
     int32_t rows, cols;
     double hmin, hmax;
+    double habs, grid_span; /* max(|hmin|, |hmax|); cols + rows + 2 (cell_test.h, hf_hit_window) */
     int surface;
     /* culling and skipping */
     int cull_cells, cull_runs;
@@ -71,7 +72,8 @@ static inline void hf_hit_fill(hf_hit *h, const hf_hit_batch *b, const double *o
     h->col_max = b->cull_runs ? &b->col_max : NULL;
     h->surface = b->surface;
     h->cull_cells = b->cull_cells;
-    h->habs = fabs(b->hmin) > fabs(b->hmax) ? fabs(b->hmin) : fabs(b->hmax);
+    h->habs = b->habs;
+    h->grid_span = b->grid_span;
     h->ox = o[0];
     h->oy = o[1];
     h->dx = d[0];

@@ -8,6 +8,7 @@
 #include <math.h>
 #include "core/hftrace.h"
 #include "surfaces/cell_test.h"
+#include "surfaces/run_test.h"
 
 /* A private mode: first hits. The sink hands each cell or run to an hf_hit, which may
  * end the walk. */

@@ -145,13 +145,6 @@ def _tmax_on_vertices(shape, seed, n=500):
     return o, d, lo, back.copy()
 
 
-# {(surface, seed): rays} of test_tmax_on_a_vertex that every kernel misses and the brute
-# force (exactly) hits: a level ray (o = (-1, 5.25, 3.5), d = (3, -1.25, 0)) touching the
-# surface at its box entry t = 1/3 in cell (0, 4), where float64 cannot tell the sign of
-# z - s. To be removed when the C kernels decide these signs exactly
-FLOAT_TOUCHES = {("plane3", 2): [474], ("triangles", 2): [474]}
-
-
 @pytest.mark.parametrize("surface", ["flat", "plane3", "triangles"])
 def test_tmax_on_a_vertex(surface):
     """Every strict kernel's t equals the brute force's (hit or miss alike, 1e-12), and a
@@ -160,7 +153,7 @@ def test_tmax_on_a_vertex(surface):
     reference, for speed: since the brute force decides touches at non-float parameters
     exactly (test_exact_touches.py), the two agree on these rays. A direction of 3 cells
     per unit puts some box entries at parameters like 1/3, where float64 decides a level
-    touch either way: the kernels still do (FLOAT_TOUCHES). Before the fix, dda differed
+    touch either way: brute force and kernels now decide it exactly. Before the fix, dda differed
     on 9 of 4,500 rays (flat and plane3). (On bilinear every kernel differs from the
     brute force on two rays here, before and after alike: a level ray tangent to the
     surface, t to 5e-9, and that touch at a box entry at t = 1/3.)"""
@@ -180,7 +173,6 @@ def test_tmax_on_a_vertex(surface):
             # a vertex is a hit of the cell left: 1 ray of seed 3 on triangles)
             exact_end = at_end & (got.t == ref_t)
             bad = np.nonzero(bad_t | (exact_end & np.any(got.cell != ref_cell, axis=1)))[0]
-            bad = np.setdiff1d(bad, FLOAT_TOUCHES.get((surface, seed), []))
             assert not len(bad), (name, surface, seed, len(bad), o[bad[0]].tolist(),
                                   d[bad[0]].tolist(), lo[bad[0]], hi[bad[0]], ref_t[bad[0]],
                                   ref_cell[bad[0]], got.t[bad[0]], got.cell[bad[0]])

@@ -6,7 +6,7 @@ Each input is a byte string that :func:`decode` turns into one call of the publi
 ``zbuffer``, ``painter``, ``floating_horizon``, ``watkins``, ``warnock`` or the hidden
 lines, with arbitrary cameras and fields),
 with arbitrary doubles (NaN, +-inf, +-0, subnormals, huge values, values on and next to
-grid lines), grid shapes up to and just past the documented limits, tmin/tmax, every
+grid lines; a quarter of the first-hit cases rounded onto the integer lattice), grid shapes up to and just past the documented limits, tmin/tmax, every
 output mode and option. :func:`check` runs it and asserts the invariants:
 
 * the call returns, or raises ValueError/TypeError (errors come back as errors); any other
@@ -161,6 +161,14 @@ def decode(data: bytes) -> dict:
                                   if (r.byte() >> k) & 1) or ("t",))
         if r.byte() % 4 == 0:
             case["cull_cells"] = bool(r.byte() % 2)
+        if r.byte() % 4 == 1:
+            # on the lattice: integer heights and rays, which touch the surface at
+            # parameters that are not floats (1/3 ...): the cell tests' exact cold path
+            # (cext/surfaces/exact_cell.h) and the dropped side cells of the float walks
+            with np.errstate(invalid="ignore"):
+                case["heights"] = np.round(case["heights"] * 2)
+                case["origins"] = np.round(np.asarray(case["origins"], float)).tolist()
+                case["directions"] = np.round(np.asarray(case["directions"], float)).tolist()
     return case
 
 
