@@ -6,7 +6,8 @@ Each input is a byte string that :func:`decode` turns into one call of the publi
 ``zbuffer``, ``painter``, ``floating_horizon``, ``watkins``, ``warnock`` or the hidden
 lines, with arbitrary cameras and fields),
 with arbitrary doubles (NaN, +-inf, +-0, subnormals, huge values, values on and next to
-grid lines; a quarter of the first-hit cases rounded onto the integer lattice), grid shapes up to and just past the documented limits, tmin/tmax, every
+grid lines; a quarter of the first-hit cases rounded onto the integer lattice), grid
+shapes up to and just past the documented limits, tmin/tmax, every
 output mode and option. :func:`check` runs it and asserts the invariants:
 
 * the call returns, or raises ValueError/TypeError (errors come back as errors); any other
