@@ -204,7 +204,8 @@ static inline int hf_exact_triangle_after(const hf_exact_cell *c, const hf_event
 static inline int hf_exact_inputs_in_range(const hf_exact_cell *c, double t_float) {
     return hf_ex_in_range(c->ox) && hf_ex_in_range(c->oy) && hf_ex_in_range(c->oz) &&
            hf_ex_in_range(c->dx) && hf_ex_in_range(c->dy) && hf_ex_in_range(c->dz) &&
-           hf_ex_in_range(t_float);
+           hf_ex_in_range(t_float) && (isinf(c->tmin) || hf_ex_in_range(c->tmin)) &&
+           (isinf(c->tmax) || hf_ex_in_range(c->tmax));
 }
 
 /* The float64 gap at t on a piece, by the very expressions of the hot path (cell_test.h),
