@@ -50,11 +50,23 @@ def first_bad(mask: np.ndarray) -> tuple:
     return tuple(int(v) for v in index)
 
 
+def refuse_masked(value, name: str) -> None:
+    """Raise ValueError naming the first masked entry of a masked array ``value`` (rays and
+    ranges have no voids: a mask would otherwise be ignored silently)."""
+    if isinstance(value, np.ma.MaskedArray):
+        mask = np.ma.getmaskarray(value)
+        if mask.any():
+            where = ", ".join(str(i) for i in first_bad(mask))
+            raise ValueError(f"{name}: {name}[{where}] is masked; rays and ranges have no "
+                             f"voids, so fill the masked values or drop those rays")
+
+
 def check_rays(origins, directions, width: int):
     """Validated C-contiguous native float64 copies of (N, ``width``) ray arrays of a
     traversal: finite, ``|origins[:, :2]| <= 2**30`` and ``|directions| <= 2**1000``."""
     arrays = []
     for name, value in (("origins", origins), ("directions", directions)):
+        refuse_masked(value, name)
         array = as_float_array(value, name)
         if array.ndim != 2 or array.shape[1] != width:
             raise ValueError(f"{name}: expected shape (N, {width}), got {array.shape}")
@@ -97,6 +109,7 @@ def check_rays3(origins, directions):
     each direction's largest |component| in ``[2**-400, 2**400]``, ``|origins| <= 2**30``."""
     arrays = []
     for name, value in (("origins", origins), ("directions", directions)):
+        refuse_masked(value, name)
         array = as_float_array(value, name)
         if array.ndim != 2 or array.shape[1] != 3:
             raise ValueError(f"{name}: expected shape (N, 3), got {array.shape}")
@@ -131,6 +144,7 @@ def check_t(value, name: str, n: int):
     """None, or a float64 (n,) array from a scalar or an (n,) array without NaN."""
     if value is None:
         return None
+    refuse_masked(value, name)
     array = as_float_array(value, name)
     if array.ndim == 0:
         array = np.full(n, float(array))
@@ -197,7 +211,9 @@ def check_heights(heights, name: str = "heights", *, dtype=np.float32, finite=Tr
         raise ValueError(f"{name}: a height field needs at least 2 x 2 samples, got {h.shape}")
     if max(h.shape) > MAX_GRID_SIDE:
         raise ValueError(f"{name}: shape {h.shape} exceeds the limit of 2**24 samples per side")
-    h = np.require(h, dtype=dtype, requirements=["C", "A"])
+    source = h
+    with np.errstate(over="ignore"):  # a finite sample beyond float32 is named below
+        h = np.require(h, dtype=dtype, requirements=["C", "A"])
     if finite:
         step = max(1, band_samples // h.shape[1])
         for r0 in range(0, h.shape[0], step):
@@ -205,6 +221,10 @@ def check_heights(heights, name: str = "heights", *, dtype=np.float32, finite=Tr
             if bad.any():
                 row, col = first_bad(bad)
                 row += r0
+                if np.isfinite(source[row, col]):
+                    raise ValueError(f"{name}: sample (row {row}, col {col}) = "
+                                     f"{float(source[row, col]):g} is beyond the range of "
+                                     f"{np.dtype(dtype).name}, the type heights are kept in")
                 raise ValueError(f"{name}: sample (row {row}, col {col}) is {h[row, col]}; "
                                  "heights must be finite here (a HeightField carries a void "
                                  "mask for nodata, which the terrain products accept)")

@@ -1,6 +1,8 @@
 """Inputs a GIS or NumPy user passes in good faith: masked arrays, float64 heights beyond
 float32, directions of any magnitude, cameras given loosely. Each either works exactly
 (the brute force agrees) or is refused naming the argument and the value."""
+import warnings
+
 import numpy as np
 import pytest
 
@@ -198,3 +200,33 @@ def test_exact_walks_take_any_direction_magnitude(name):
         (ro,), (rd,) = algos.quantize(o, d)
         expected = [tuple(c) for c in algos.reference_cells(ro, rd, (8, 8))]
         assert [tuple(c) for c in algos.traverse(name, o, d, (8, 8))[0].tolist()] == expected
+
+
+# ---- masked rays and ranges: refused, not read through their mask --------------------------
+@pytest.mark.parametrize("where", ["origins", "directions", "tmin"])
+def test_a_masked_ray_entry_is_refused_naming_it(where):
+    """A masked ray array's mask was ignored: the masked value underneath was traced."""
+    o = np.ma.array([[0.5, 0.5, 3.0], [1.5, 1.5, 3.0]])
+    d = np.ma.array([[1.0, 1.0, -1.0], [1.0, 0.5, -1.0]])
+    lo = np.ma.array([0.0, 0.0])
+    {"origins": o, "directions": d, "tmin": lo}[where][1] = np.ma.masked
+    with pytest.raises(ValueError, match=rf"{where}: {where}\[1(, 0)?\] is masked"):
+        algos.intersect("dda", np.zeros((5, 5)), o, d, tmin=lo)
+    if where != "tmin":
+        with pytest.raises(ValueError, match=rf"{where}: {where}\[1, 0\] is masked"):
+            algos.traverse("dda", o[:, :2], d[:, :2], (4, 4))
+
+
+def test_a_masked_array_without_masked_entries_is_read():
+    o = np.ma.array([[0.5, 0.5, 3.0]], mask=False)
+    got = algos.intersect("dda", np.zeros((5, 5)), o, [[1.0, 1.0, -1.0]])
+    assert got.t[0] == 3.0
+
+
+def test_heights_beyond_float32_raise_without_a_numpy_warning():
+    H = np.zeros((5, 5))
+    H[2, 2] = 1e39
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"heights: sample \(row 2, col 2\) = 1e\+39"):
+            algos.intersect("dda", H, [[0.5, 0.5, 3.0]], [[1.0, 1.0, -1.0]])
