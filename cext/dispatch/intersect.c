@@ -263,7 +263,7 @@ static hf_hit_walk walk_of(int kernel) {
 }
 
 /* ---- one ray of the batch, in three steps ------------------------------------------- */
-/* Zero a hit record with 16-byte stores (SSE2, the x86-64 baseline): a memset of its 328
+/* Zero a hit record with 16-byte stores (SSE2, the x86-64 baseline): a memset of its 336
  * bytes compiles to a `rep stos`, whose start-up costs more than the stores (and which
  * callgrind counts as a branch per 8 bytes). */
 static inline void zero_hit(hf_hit *h) {
@@ -284,14 +284,14 @@ static inline void zero_hit(hf_hit *h) {
     HF_ZERO_32(224);
     HF_ZERO_32(256);
     HF_ZERO_32(288);
-    _mm_storel_epi64((__m128i *)(p + 320), z);
+    _mm_storeu_si128((__m128i *)(p + 320), z);
 #undef HF_ZERO_32
 #else
     memset(h, 0, sizeof *h);
 #endif
 }
 /* (C99 has no static_assert: an array of negative size fails the build) */
-typedef char hf_hit_is_328_bytes[sizeof(hf_hit) == 328 ? 1 : -1];
+typedef char hf_hit_is_336_bytes[sizeof(hf_hit) == 336 ? 1 : -1];
 
 /* Its set-up: clip ray `ray` to the box and fill h (zeroed first); returns 1 when there
  * is a walk to do, 0 when the ray misses the box. */

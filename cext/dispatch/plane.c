@@ -168,10 +168,10 @@ HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray
         h->bound_lo = descending ? -(double)INFINITY : t0;
         h->bound_hi = descending ? t1 : (double)INFINITY;
         h->fast_runs = h->fast && descending;
-        h->window = hf_hit_window(h);
+        hf_hit_window(h);
         r->descending = descending;
     }
-    r->oz = oz;
+    r->oz = h->oz_cull;
     r->dz = dz;
     r->t1 = t1;
     return 1;

@@ -171,7 +171,7 @@ HF_HOT int compact_walk(hf_hit *h, const hf_compact *c, int cull, const int quad
     const int gx = quadrant < 0 ? h->dx >= 0 : quadrant >> 1;
     const int gy = quadrant < 0 ? h->dy >= 0 : quadrant & 1;
     double fox, foy; /* the face parameters' origin (hf_mip_ray: -inf along an axis not moved on) */
-    const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz;
+    const double ox = h->ox, oy = h->oy, oz = h->oz_cull, dz = h->dz;
     const double inv_x = h->inv_dx, inv_y = h->inv_dy, t1 = h->t1;
     const double inf = (double)INFINITY;
     hf_mip_ray ray; /* the constants of the floor tiles' walks */

@@ -37,7 +37,7 @@ int hf_cone_hit(hf_hit *h, const float *cone) {
     const int fx = h->dx > 0, fy = h->dy > 0; /* exit face of index k: k + f */
     const int32_t sx = fx ? 1 : -1, sy = fy ? 1 : -1;
     const int has_x = h->dx != 0, has_y = h->dy != 0;
-    const double ox = h->ox, oy = h->oy, oz = h->oz, dz = h->dz, t1 = h->t1;
+    const double ox = h->ox, oy = h->oy, oz = h->oz_cull, dz = h->dz, t1 = h->t1;
     const double inv_x = h->inv_dx, inv_y = h->inv_dy, inf = (double)INFINITY;
     const double speed = fabs(h->dx) > fabs(h->dy) ? fabs(h->dx) : fabs(h->dy);
     const double position_scale = fabs(ox) + fabs(oy);

@@ -62,7 +62,7 @@ HF_HOT void hf_mip_ray_of(const hf_hit *h, hf_mip_ray *r) {
     r->gy = h->dy >= 0;
     r->ox = h->ox;
     r->oy = h->oy;
-    r->oz = h->oz;
+    r->oz = h->oz_cull; /* the culls' z (cell_test.h) */
     r->dx = h->dx;
     r->dy = h->dy;
     r->dz = h->dz;

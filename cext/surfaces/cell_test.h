@@ -40,6 +40,9 @@ typedef struct {
     /* the gaps z - s within +-window of 0 are decided exactly (hf_hit_window); habs: the
      * largest |height| of the field; [tmin, tmax]: the caller's range (exact_cell.h) */
     double window, habs, tmin, tmax, grid_span; /* grid_span: cols + rows + 2 */
+    /* oz lowered by the rounding bound (hf_hit_rounding): every cull's z, so that no cull
+     * rejects a cell the exact ray touches at its maximum (a peak vertex at t = 57/13) */
+    double oz_cull;
     int entry_axis;
     /* The tight path (hf_hit_prepare): with cell culling on and no grid-line special
      * case, a cell (or a run) is first rejected by a bound computed from its index along
@@ -508,16 +511,23 @@ static inline int hf_on_grid_line(const hf_hit *h) {
  * |dx - dy| >= 2^-12 (|dx| + |dy|). A triangles ray nearer the diagonal's direction gets an
  * unbounded window (every gap is decided exactly); a ray whose M is not finite gets none
  * (float64 decides, as before). */
-static inline double hf_hit_window(const hf_hit *h) {
+static inline double hf_hit_rounding(const hf_hit *h) {
     const double t = fabs(h->t0) > fabs(h->t1) ? fabs(h->t0) : fabs(h->t1);
     const double adx = fabs(h->dx), ady = fabs(h->dy), adz = fabs(h->dz);
     /* 1 / (|dx| + |dy|) <= min(|1 / dx|, |1 / dy|) = slope below */
     const double inv = fabs(h->inv_dx) < fabs(h->inv_dy) ? fabs(h->inv_dx) : fabs(h->inv_dy);
     const double x = fabs(h->ox) + fabs(h->oy) + t * (adx + ady) + h->grid_span;
     const double m = (fabs(h->oz) + t * adz + h->habs + x * (2 * h->habs + adz * inv)) * 0x1p-36;
-    const double w = fabs(h->dx - h->dy);
-    if (h->surface == HF_TRIANGLES && w < 0x1p-12 * (adx + ady) && w != 0) return DBL_MAX;
     return m < (double)INFINITY ? m : 0;
+}
+
+/* The window and the culls' z (hf_hit's window and oz_cull) from the rounding bound. */
+static inline void hf_hit_window(hf_hit *h) {
+    const double m = hf_hit_rounding(h), w = fabs(h->dx - h->dy);
+    h->window = m;
+    h->oz_cull = h->oz - m;
+    if (h->surface == HF_TRIANGLES && w < 0x1p-12 * (fabs(h->dx) + fabs(h->dy)) && w != 0)
+        h->window = DBL_MAX;
 }
 
 static inline void hf_hit_prepare(hf_hit *h) {
@@ -537,14 +547,14 @@ static inline void hf_hit_prepare(hf_hit *h) {
     h->fast = h->cull_cells && !hf_on_grid_line(h) && (h->dx != 0 || h->dy != 0);
     h->fast_runs = h->fast && descending;
     h->cell_axis = fabs(h->dx) >= fabs(h->dy) ? 0 : 1;
-    h->window = hf_hit_window(h);
+    hf_hit_window(h);
 }
 
 /* z at the low-end face of slab k along `axis`, unclamped; with the floor z(t1) or z(t0)
  * it bounds z over the cell: max(z(T), z(t_end)) is z(clamp(T)) for monotone z. */
 static inline double hf_axis_zlow_unclamped(const hf_hit *h, int axis, int32_t k) {
     const double t = ((double)(k + h->bound_off[axis]) - h->o_axis[axis]) * h->inv_axis[axis];
-    return h->oz + t * h->dz;
+    return h->oz_cull + t * h->dz;
 }
 
 /* The lowest z the exact test can see in a cell whose index along `axis` is k. */
@@ -552,7 +562,7 @@ static inline double hf_axis_zlow(const hf_hit *h, int axis, int32_t k) {
     double t = ((double)(k + h->bound_off[axis]) - h->o_axis[axis]) * h->inv_axis[axis];
     t = t > h->bound_lo ? t : h->bound_lo;
     t = t < h->bound_hi ? t : h->bound_hi;
-    return h->oz + t * h->dz;
+    return h->oz_cull + t * h->dz;
 }
 
 static inline float hf_cellmax(const hf_hit *h, int32_t i, int32_t j) {
@@ -615,7 +625,7 @@ static inline void hf_cull_init(hf_cull *c, const hf_hit *h, int32_t i, int32_t 
             c->z[a] = -(double)INFINITY;
         }
     }
-    c->zfloor = h->oz + (h->dz < 0 ? h->t1 : h->t0) * h->dz - c->margin;
+    c->zfloor = h->oz_cull + (h->dz < 0 ? h->t1 : h->t0) * h->dz - c->margin;
     if (!c->fast) {
         /* no bound: every cell goes on to the general path */
         c->z[0] = c->z[1] = c->zfloor = -(double)INFINITY;
@@ -680,7 +690,7 @@ static inline int hf_hit_cell_open(const hf_hit *h, int32_t i, int32_t j, int cu
         wall = (h->surface == HF_FLAT || h->surface == HF_PLANE3) ? axis : -1;
     if (h->cull_cells && !culled) {
         /* the ray's lowest z over the cell is above every corner: no hit */
-        const double za = h->oz + ta * h->dz, zb = h->oz + tb * h->dz;
+        const double za = h->oz_cull + ta * h->dz, zb = h->oz_cull + tb * h->dz;
         if ((za < zb ? za : zb) > (double)h->cellmax[(int64_t)j * (h->cols - 1) + i]) return 0;
     }
     *ta_out = ta;

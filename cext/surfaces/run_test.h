@@ -53,7 +53,7 @@ static inline int hf_run_cell(hf_hit *h, int major_is_x, int32_t minor, int32_t 
     }
     if (!(ta <= t_out)) return 0;
     if (h->cull_cells) {
-        const double za = h->oz + ta * h->dz, zb = h->oz + t_out * h->dz;
+        const double za = h->oz_cull + ta * h->dz, zb = h->oz_cull + t_out * h->dz;
         if ((za < zb ? za : zb) > (double)hf_cellmax(h, i, j)) return 0;
     }
     /* walls: the box face at t0, else the grid line crossed at ta (for the surfaces that
@@ -99,7 +99,7 @@ static inline int hf_hit_run(hf_hit *h, int major_is_x, int32_t minor, int32_t f
         return 0;
     }
     if (q != NULL) {
-        const double za = h->oz + s.ta * h->dz, zb = h->oz + s.tb * h->dz;
+        const double za = h->oz_cull + s.ta * h->dz, zb = h->oz_cull + s.tb * h->dz;
         if ((za < zb ? za : zb) > (double)hf_rmq_query(q, minor, lo, hi)) {
             h->runs_culled += 1;
             h->cells_visited += hi - lo + 1;

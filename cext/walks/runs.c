@@ -298,7 +298,7 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
                                                   : (t_exit_y < h->t1 ? t_exit_y : h->t1);
         const float tile_max = m->levels[level][(int64_t)tile_j * m->cols[level] + tile_i];
         int32_t cmax, rmax;
-        if (!(hf_tile_zlow(h->oz, h->dz, descending, t, t_exit) > (double)tile_max) &&
+        if (!(hf_tile_zlow(h->oz_cull, h->dz, descending, t, t_exit) > (double)tile_max) &&
             level > floor_level) {
             --level;
             continue;
@@ -317,7 +317,7 @@ int hf_runs_maxmip_hit(hf_batch *b, hf_sink *s, const hf_mipmap *m) {
                                        1 - f.base_minor
                                  : f.base_minor - lo_minor);
         }
-        if (hf_tile_zlow(h->oz, h->dz, descending, t, t_exit) > (double)tile_max) {
+        if (hf_tile_zlow(h->oz_cull, h->dz, descending, t, t_exit) > (double)tile_max) {
             int left;
             h->tiles_skipped += 1;
             /* a row starting here: its band cells left of it may lie outside the tile */
