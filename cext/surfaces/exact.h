@@ -16,8 +16,9 @@
 
 #include <math.h>
 
-/* Room for the longest expansion the surface tests build (156 components, counted in
- * cell_test.h at hf_exact_gap); an operation that would pass it fails instead. */
+/* Room for the longest expansion the surface tests build: at most 144 components (a gap's
+ * sign, hf_exact_gap_sign in exact_cell.h; an event comparison needs 16). An operation
+ * that would pass it fails instead, which these bounds never let happen. */
 #define HF_EX_CAP 192
 
 typedef struct {
