@@ -468,9 +468,13 @@ class HeightField:
                                 "in memory (the terrain products take it tiled)")
             if self.nodata_mask is not None:
                 row, col = (int(v) for v in np.argwhere(self.nodata_mask)[0])
-                raise ValueError(f"heights: sample (row {row}, col {col}) is "
-                                 f"{self.heights[row, col]} (nodata); first hits need every "
-                                 "sample: fill the voids first (HeightField.filled)")
+                value = self.heights[row, col]
+                # a masked or nodata-valued sample stores a finite value: say it is a void
+                what = (f"{value} (nodata)" if not np.isfinite(value)
+                        else f"a void (nodata; stored value {value})")
+                raise ValueError(f"heights: sample (row {row}, col {col}) is {what}; first "
+                                 "hits need every sample: fill the voids first "
+                                 "(HeightField.filled)")
             if self.height_unit == "cell" or (self.dx == 1.0 and self.dy == 1.0):
                 # no void mask means every sample was found finite on construction
                 h = check_heights(self.heights, finite=False)
