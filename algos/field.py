@@ -642,9 +642,10 @@ def _check_float32_range(source, stored, voids=None) -> None:
             row, col = (int(v) for v in np.argwhere(over)[0])
             row += r0
             raise ValueError(f"heights: sample (row {row}, col {col}) = {float(source[row, col])!r} "
-                             f"is beyond float32's range (|h| <= {FLOAT32_MAX:.6g}), the type "
-                             "heights are kept in; mark it as a void (NaN, nodata_mask, a "
-                             "masked array) or rescale the heights")
+                             "is beyond float32's range, the type heights are kept in "
+                             f"(it rounds to infinity; the largest float32 is {FLOAT32_MAX:.8g}); "
+                             "mark it as a void (NaN, nodata_mask, a masked array) or rescale "
+                             "the heights")
 
 
 def bound_kind(surface: str) -> str:
