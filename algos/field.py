@@ -468,9 +468,13 @@ class HeightField:
                                 "in memory (the terrain products take it tiled)")
             if self.nodata_mask is not None:
                 row, col = (int(v) for v in np.argwhere(self.nodata_mask)[0])
-                raise ValueError(f"heights: sample (row {row}, col {col}) is "
-                                 f"{self.heights[row, col]} (nodata); first hits need every "
-                                 "sample: fill the voids first (HeightField.filled)")
+                value = self.heights[row, col]
+                # a masked or nodata-valued sample stores a finite value: say it is a void
+                what = (f"{value} (nodata)" if not np.isfinite(value)
+                        else f"a void (nodata; stored value {value})")
+                raise ValueError(f"heights: sample (row {row}, col {col}) is {what}; first "
+                                 "hits need every sample: fill the voids first "
+                                 "(HeightField.filled)")
             if self.height_unit == "cell" or (self.dx == 1.0 and self.dy == 1.0):
                 # no void mask means every sample was found finite on construction
                 h = check_heights(self.heights, finite=False)
@@ -638,9 +642,10 @@ def _check_float32_range(source, stored, voids=None) -> None:
             row, col = (int(v) for v in np.argwhere(over)[0])
             row += r0
             raise ValueError(f"heights: sample (row {row}, col {col}) = {float(source[row, col])!r} "
-                             f"is beyond float32's range (|h| <= {FLOAT32_MAX:.6g}), the type "
-                             "heights are kept in; mark it as a void (NaN, nodata_mask, a "
-                             "masked array) or rescale the heights")
+                             "is beyond float32's range, the type heights are kept in "
+                             f"(it rounds to infinity; the largest float32 is {FLOAT32_MAX:.8g}); "
+                             "mark it as a void (NaN, nodata_mask, a masked array) or rescale "
+                             "the heights")
 
 
 def bound_kind(surface: str) -> str:

@@ -8,7 +8,7 @@
 from __future__ import annotations
 
 from .cache import cache_dir, cached_array
-from .fields import GENERATORS, generate
+from .fields import GENERATORS, first_sentence, generate
 from .loaders import HeightField, jacksboro, load_file, open_lazy, undeclared_nodata
 from .raster import create_product, read_raster, save_product, write_product, write_window
 from .rays import RaySet
@@ -30,7 +30,7 @@ def catalogue() -> list[dict]:
             for g in GENERATORS.values()]
     for name, (function, defaults) in EMBEDDED.items():
         rows.append(dict(name=name, kind="embedded",
-                         summary=(function.__doc__ or "").strip().split("\n")[0],
+                         summary=first_sentence(function.__doc__),
                          params=dict(size=None, **defaults), version=1))
     return rows
 

@@ -297,6 +297,17 @@ class Generator:
     version: int = 1  # bump when the output for given parameters changes
 
 
+def first_sentence(doc) -> str:
+    """The first sentence of a docstring's first paragraph, on one line (a summary that
+    stops at a line break would cut it mid-sentence)."""
+    import re
+
+    paragraph = " ".join((doc or "").strip().split("\n\n")[0].split())
+    # a sentence ends at a full stop followed by a capital letter or by the end ("I.i.d. heights")
+    match = re.match(r"(.+?\.)(?=\s+[A-Z]|$)", paragraph)
+    return match.group(1) if match else paragraph
+
+
 def _defaults(function):
     import inspect
 
@@ -313,7 +324,7 @@ def _banded(function) -> bool:
 
 
 GENERATORS: dict[str, Generator] = {
-    f.__name__: Generator(f.__name__, f, (f.__doc__ or "").strip().split("\n")[0], _defaults(f))
+    f.__name__: Generator(f.__name__, f, first_sentence(f.__doc__), _defaults(f))
     for f in (flat, tilted_plane, spike, ridges, fbm, ridged, diamond_square, terraces,
               uniform, canyon, sines16)
 }

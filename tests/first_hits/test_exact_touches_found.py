@@ -14,7 +14,8 @@ classes:
   where the exact range is empty. The brute force decides these exactly.
 - **the cell at tmin**: a finite ``tmin`` that rounds onto a grid line (``p(fl(1/3))`` is a
   hair past ``x = 1`` in exact arithmetic) is placed in the cell past the line in float64:
-  the hit at ``tmin`` is reported in the wrong cell, by every kernel and the brute force.
+  the hit at ``tmin`` is reported in the wrong cell, by every kernel and the brute force;
+  with a one-point range at ``fl(1/3)`` the kernels test the cell past the line and miss.
 - **the cell at the box entry**: a ray entering the box exactly through a grid vertex on its
   side at t = 20/49 is placed in the side cell it only touches there (every kernel).
 - **tmax an ulp past a crossing**: ``tmax = fl(5/24)`` lies an ulp past the crossing of
@@ -59,6 +60,12 @@ def _vertex_exit_heights():
     return H
 
 
+def _block_heights():
+    H = np.zeros((4, 6), np.float32)
+    H[1:3, 4:6] = 3
+    return H
+
+
 def _peak_heights():
     H = np.zeros((3, 3), np.float32)
     H[1, 1] = 6
@@ -77,6 +84,11 @@ CASES = [
     ("cell_at_tmin", np.full((2, 3), 3.0), (2.0, 0.5, 0.0), (-3.0, 0.0, 0.0), 1 / 3, math.inf,
      SURFACES, "fl(1/3)", (1, 0), "the hit at tmin in (0, 0): 2 - 3 fl(1/3) rounds to 1",
      STRICT, True),
+    # found by a new user's trial (trial9): the same rounding turns a hit into a miss
+    ("one_point_range_off_a_grid_line", _block_heights(), (4.0, 1.0, 3.0), (1.0, 3.0, -2.0),
+     1 / 3, 1 / 3, ("flat",), "fl(1/3)", (4, 1),
+     "a miss: 1 + 3 fl(1/3) rounds to 2, so cell (4, 2) (1.5 high) is tested, not (4, 1) (3)",
+     STRICT, False),
     ("near_diagonal_walk", [[4.0, 2.0, 3.0, 3.0, 4.0], [0.0, 2.0, 0.0, 2.0, 5.0]],
      (2.5, 0.5, 3.0), (-7.0, -6.999999999999998, 1.0), -10.0, 0.07142857142857145,
      ("flat",), "-281474976710656/3940649673949183", (3, 0), "a miss", FLOAT_WALKS, False),

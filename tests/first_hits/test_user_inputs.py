@@ -48,7 +48,8 @@ def test_masked_array_mask_is_the_void_mask():
 
 def test_first_hits_and_renders_refuse_a_masked_sample():
     o, d = np.array([[6.5, 4.5, 5.0]]), np.array([[0.0, 0.0, -1.0]])
-    with pytest.raises(ValueError, match=r"heights: sample \(row 4, col 6\) is -9999.0 \(nodata\)"):
+    with pytest.raises(ValueError, match=r"heights: sample \(row 4, col 6\) is a void "
+                                         r"\(nodata; stored value -9999.0\)"):
         algos.intersect("dda_maxmip", _masked_field(), o, d)
     with pytest.raises(ValueError, match=r"sample \(row 4, col 6\)"):
         algos.render(_masked_field(), "dda", width=4, height=2)

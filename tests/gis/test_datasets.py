@@ -328,6 +328,8 @@ def test_cli_datasets(tmp_path, capsys):
     listing = capsys.readouterr().out
     for name in list(fields.GENERATORS) + ["jacksboro"]:
         assert name in listing
+    for row in datasets_gen.catalogue():  # whole sentences, not the docstring's first line
+        assert row["summary"].endswith(".") and row["summary"] in listing, row["name"]
     png = tmp_path / "p.png"
     assert main(["datasets", "show", "terraces", "--size", "40", "--seed", "2", "--png",
                  str(png), "--cache-dir", str(tmp_path)]) == 0
