@@ -43,8 +43,10 @@
          * component keeps the origin: t0 may be -inf (vertical rays), -inf * 0 is NaN */    \
         x = dx != 0 ? ox + t0 * dx : ox;                                                     \
         y = dy != 0 ? oy + t0 * dy : oy;                                                     \
-        x = dx < 0 ? CEIL(x) - 1 : FLOOR(x);                                                 \
-        y = dy < 0 ? CEIL(y) - 1 : FLOOR(y);                                                 \
+        /* the side by the float64 sign: a tiny negative component that rounds to -0         \
+         * in float32 still reads the cell on its - side, as the cell tests do */            \
+        x = b->directions[2 * ray] < 0 ? CEIL(x) - 1 : FLOOR(x);                             \
+        y = b->directions[2 * ray + 1] < 0 ? CEIL(y) - 1 : FLOOR(y);                         \
         i = (int32_t)FMIN(FMAX(x, (REAL)0), nx - 1);                                         \
         j = (int32_t)FMIN(FMAX(y, (REAL)0), ny - 1);                                         \
         step_x = dx > 0 ? 1 : (dx < 0 ? -1 : 0);                                             \

@@ -231,3 +231,13 @@ def test_heights_beyond_float32_raise_without_a_numpy_warning():
         warnings.simplefilter("error")
         with pytest.raises(ValueError, match=r"heights: sample \(row 2, col 2\) = 1e\+39"):
             algos.intersect("dda", H, [[0.5, 0.5, 3.0]], [[1.0, 1.0, -1.0]])
+
+
+def test_dda_f32_reads_the_side_of_a_component_float32_rounds_to_minus_zero():
+    """dx = -1e-300 is -0.0 in float32: the walk started in column 2 while the float64
+    cell tests put the ray's points in column 1, and nothing was tested (a miss)."""
+    H = np.full((5, 5), 1.0)
+    want_t, want_cell = algos.brute_force_hits(H, [[2, 0, 3]], [[-1e-300, 1, -1]])
+    for name in ("dda", "dda_f32"):
+        got = algos.intersect(name, H, [[2, 0, 3]], [[-1e-300, 1, -1]])
+        assert got.t[0] == want_t[0] == 2.0 and tuple(got.cell[0]) == tuple(want_cell[0])
