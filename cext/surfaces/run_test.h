@@ -24,11 +24,17 @@ static inline hf_span hf_run_span(const hf_hit *h, int major_is_x, int32_t minor
     s.ta = h->t0;
     s.tb = h->t1;
     s.entry_axis = -1;
+    /* the x slab first, as hf_cell_interval: where both faces start the span (a vertex),
+     * the wall met there is the x face's, for every kernel */
+    if (major_is_x)
+        hf_slab_clip((lo - o_maj) * inv_maj, (hi + 1 - o_maj) * inv_maj, 0, &s.ta, &s.tb,
+                     &s.entry_axis);
     if (d_min != 0)
         hf_slab_clip((minor - o_min) * inv_min, (minor + 1 - o_min) * inv_min, major_is_x ? 1 : 0,
                      &s.ta, &s.tb, &s.entry_axis);
-    hf_slab_clip((lo - o_maj) * inv_maj, (hi + 1 - o_maj) * inv_maj, major_is_x ? 0 : 1, &s.ta,
-                 &s.tb, &s.entry_axis);
+    if (!major_is_x)
+        hf_slab_clip((lo - o_maj) * inv_maj, (hi + 1 - o_maj) * inv_maj, 1, &s.ta, &s.tb,
+                     &s.entry_axis);
     return s;
 }
 

@@ -241,3 +241,20 @@ def test_dda_f32_reads_the_side_of_a_component_float32_rounds_to_minus_zero():
     for name in ("dda", "dda_f32"):
         got = algos.intersect(name, H, [[2, 0, 3]], [[-1e-300, 1, -1]])
         assert got.t[0] == want_t[0] == 2.0 and tuple(got.cell[0]) == tuple(want_cell[0])
+
+
+def test_a_wall_entered_through_a_vertex_faces_along_x_for_every_kernel():
+    """At a vertex both faces start the cell; the run walks gave the y face's wall and the
+    cell walks the x face's (trial9). Every kernel now gives the x face's."""
+    H = np.zeros((5, 5))
+    H[2, 2] = 3
+    o = [[0, 0, 0.1], [4, 0, 0.1], [4.5, 4.5, 0.1], [0, 0, 0.1]]
+    d = [[1, 1, 0], [-1, 1, 0], [-1, -1, 0], [1, 2, 0]]
+    want = None
+    for name in STRICT:
+        got = algos.intersect(name, H, o, d, surface="flat", outputs=("t", "cell", "normal"))
+        assert got.normal[:3, 1].tolist() == [0.0, 0.0, 0.0], name
+        assert got.normal[:3, 0].tolist() == [-1.0, 1.0, 1.0], name
+        if want is None:
+            want = got.normal
+        assert np.array_equal(got.normal, want), name
