@@ -140,6 +140,17 @@ static inline int hf_end_closed(const hf_hit *h, int32_t i, int32_t j, double tb
     return tb >= h->t1 && !hf_exit_into_grid(h, i, j, tb, &ni, &nj);
 }
 
+/* What the cold path reads (exact_cell.h) of cell (i, j) on [ta, tb] of the ray in h. */
+static inline void hf_exact_cell_of(const hf_hit *h, int32_t i, int32_t j, double ta, double tb,
+                                    double t_split, hf_exact_cell *c) {
+    c->ox = h->ox, c->oy = h->oy, c->oz = h->oz, c->dx = h->dx, c->dy = h->dy, c->dz = h->dz;
+    c->t0 = h->t0, c->t1 = h->t1, c->tmin = h->tmin, c->tmax = h->tmax;
+    c->cols = h->cols, c->rows = h->rows, c->surface = h->surface, c->i = i, c->j = j;
+    c->ta = ta, c->tb = tb, c->t_split = t_split;
+    c->h00 = hf_height(h, i, j), c->h10 = hf_height(h, i + 1, j);
+    c->h01 = hf_height(h, i, j + 1), c->h11 = hf_height(h, i + 1, j + 1);
+}
+
 /* The cold path of the cell tests: the cell decided in exact arithmetic (exact_cell.h).
  * Returns 1 on a hit, 0 on none, -1 when it cannot decide (the caller's float64 does).
  * t_split: where the caller's first triangles piece ends (tb: one piece). */
@@ -148,13 +159,8 @@ HF_COLD int hf_surface_exact(hf_hit *h, int32_t i, int32_t j, double ta, double 
     hf_exact_cell c;
     hf_exact_answer r;
     double su = 0, sv = 0;
-    c.ox = h->ox, c.oy = h->oy, c.oz = h->oz, c.dx = h->dx, c.dy = h->dy, c.dz = h->dz;
-    c.t0 = h->t0, c.t1 = h->t1, c.tmin = h->tmin, c.tmax = h->tmax;
-    c.cols = h->cols, c.rows = h->rows, c.surface = h->surface, c.i = i, c.j = j;
-    c.ta = ta, c.tb = tb, c.t_split = t_split;
     if (h->surface == HF_BILINEAR) return -1;
-    c.h00 = hf_height(h, i, j), c.h10 = hf_height(h, i + 1, j);
-    c.h01 = hf_height(h, i, j + 1), c.h11 = hf_height(h, i + 1, j + 1);
+    hf_exact_cell_of(h, i, j, ta, tb, t_split, &c);
     r = hf_exact_cell_decide(&c);
     if (r.kind <= 0) return r.kind;
     if (r.piece == 3) { /* triangles: the cell entered, on the triangle it heads into */
@@ -311,11 +317,7 @@ static inline int hf_surface_test_float(hf_hit *h, int32_t i, int32_t j, double 
  * hits, once per ray. */
 HF_COLD int hf_sliver_hit(hf_hit *h, int32_t i, int32_t j, double ta, double tb) {
     hf_exact_cell c;
-    c.ox = h->ox, c.oy = h->oy, c.oz = h->oz, c.dx = h->dx, c.dy = h->dy, c.dz = h->dz;
-    c.t0 = h->t0, c.t1 = h->t1, c.tmin = h->tmin, c.tmax = h->tmax;
-    c.cols = h->cols, c.rows = h->rows, c.surface = h->surface, c.i = i, c.j = j;
-    c.ta = ta, c.tb = tb, c.t_split = tb;
-    c.h00 = c.h10 = c.h01 = c.h11 = 0;
+    hf_exact_cell_of(h, i, j, ta, tb, tb, &c);
     if (hf_exact_visits(&c) != 0) return 1;
     h->found = 0;
     return 0;
