@@ -102,11 +102,11 @@ def _grid(shape) -> tuple:
         sides = ()
     if isinstance(shape, (str, bytes)) or len(sides) != 2:
         raise ValueError(f"shape must be (nx, ny), got {shape!r}")
-    for axis, side in zip(("nx", "ny"), sides):
+    for k, side in enumerate(sides):
         if isinstance(side, bool) or not isinstance(side, numbers.Integral):
-            raise TypeError(f"shape: {axis} must be an integer, got {side!r}")
+            raise TypeError(f"shape[{k}] must be an integer, got {side!r}")
         if side < 1:
-            raise ValueError(f"shape must be positive, got {shape!r}")
+            raise ValueError(f"shape[{k}] must be positive, got {side!r}")
     return int(sides[0]), int(sides[1])
 
 

@@ -185,14 +185,14 @@ def check_shape(shape) -> tuple[int, int]:
     except (TypeError, ValueError):
         raise ValueError(f"shape: expected (nx, ny), got {shape!r}") from None
     sides = []
-    for axis, side in (("nx", nx), ("ny", ny)):
+    for k, side in enumerate((nx, ny)):
         if isinstance(side, bool) or not isinstance(side, numbers.Integral):
-            raise TypeError(f"shape: {axis} must be an integer, got {side!r}")
+            raise TypeError(f"shape: shape[{k}] must be an integer, got {side!r}")
         side = int(side)
         if side < 1:
-            raise ValueError(f"shape: {axis} = {side}; a grid needs at least one cell")
+            raise ValueError(f"shape: shape[{k}] = {side}; a grid needs at least one cell")
         if side > MAX_GRID_SIDE:
-            raise ValueError(f"shape: {axis} = {side} exceeds the limit 2**24 = {MAX_GRID_SIDE}")
+            raise ValueError(f"shape: shape[{k}] = {side} exceeds the limit 2**24 = {MAX_GRID_SIDE}")
         sides.append(side)
     return sides[0], sides[1]
 
@@ -259,19 +259,20 @@ def check_spacing(spacing, name: str = "spacing") -> tuple[float, float]:
     if isinstance(spacing, (bool, str, bytes)):
         raise TypeError(f"{name}: expected a length or (dx, dy), got {spacing!r}")
     if np.ndim(spacing) == 0:
-        pair = (spacing, spacing)
+        pair, labels = (spacing, spacing), (name, name)
     else:
         pair = tuple(np.asarray(spacing).ravel().tolist()) if np.ndim(spacing) == 1 else None
         if pair is None or len(pair) != 2:
             raise ValueError(f"{name}: expected one length or (dx, dy), got {spacing!r}")
+        labels = (f"{name}[0]", f"{name}[1]")
     out = []
-    for axis, v in zip(("dx", "dy"), pair):
+    for label, v in zip(labels, pair):
         try:
             v = float(v)
         except (TypeError, ValueError):
-            raise TypeError(f"{name}: {axis} must be a number, got {v!r}") from None
+            raise TypeError(f"{name}: {label} must be a number, got {v!r}") from None
         if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{name}: {axis} = {v!r}; a pixel size must be a positive finite length")
+            raise ValueError(f"{name}: {label} = {v!r}; a pixel size must be a positive finite length")
         out.append(v)
     return out[0], out[1]
 

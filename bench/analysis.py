@@ -644,8 +644,9 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
     """Speedup over dda against mean run length for one workload and surface, one line per
     algorithm (geometric mean over datasets), saved as a PNG at ``path``. By default the
     kernels of :data:`PLOT_KERNELS` and every plugin (``all_kernels`` for all); the 95 %
-    interval of every kernel shown is drawn as a light band and as error bars set
-    slightly apart along the run-length axis, so overlapping intervals stay apart."""
+    interval of every kernel shown is drawn as a light band and as error bars set slightly
+    apart along the run-length axis, so overlapping intervals stay apart; the legends stand
+    right of the axes, off the data."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -653,9 +654,9 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
 
     part = df[(df["workload"] == workload) & (df["surface"] == surface)]
     part = part[np.isfinite([_r_value(r) for r in part["run_length"]])]
-    fig, ax = plt.subplots(figsize=(9, 5.5), dpi=120)
+    fig, ax = plt.subplots(figsize=(10.5, 5.5), dpi=120, layout="constrained")
     if part.empty:
-        ax.text(0.5, 0.5, "no rows", ha="center")
+        ax.text(0.5, 0.5, "no rows", ha="center", transform=ax.transAxes)
     names = plot_kernels(dict.fromkeys(part["algorithm"]), all_kernels)
     for k, (colour, name) in enumerate(zip(_colours(len(names)), names)):
         rows = part[(part["algorithm"] == name) & np.isfinite(part["speedup"].astype(float))]
@@ -667,26 +668,33 @@ def plot_speedup(df, path, workload="first_hit", surface="triangles", all_kernel
         y = np.array([_geomean(g.get_group(v)["speedup"]) for v in r])
         lo = np.array([_geomean(g.get_group(v)["speedup_ci_low"]) for v in r])
         hi = np.array([_geomean(g.get_group(v)["speedup_ci_high"]) for v in r])
-        style = _style(name)
-        ax.plot(x, y, marker="o", ms=3, label=name, color=colour, ls=style, lw=1.6)
+        ax.plot(x, y, marker="o", ms=3, label=name, color=colour, ls=_style(name), lw=1.6)
         ax.fill_between(x, lo, hi, color=colour, alpha=0.10, linewidth=0)
         dodge = x * 1.025 ** (k - (len(names) - 1) / 2)  # apart on the log axis
         ax.errorbar(dodge, y, yerr=[np.maximum(y - lo, 0), np.maximum(hi - y, 0)], fmt="none",
                     ecolor=colour, elinewidth=1.2, capsize=2.5)
+    drawn = {line.get_linestyle() for line in ax.get_lines()}  # the kernels' styles
     px = [k for k in PAPER if k != "random"]
-    ax.plot(px, [PAPER[k] for k in px], "k*", ms=12, label="Henning & Stephenson 2004")
-    ax.axhline(PAPER["random"], color="k", ls=":", lw=1)
-    ax.text(1.02, PAPER["random"], " paper: 1.25x average", va="bottom", fontsize=8)
-    ax.axhline(1.0, color="grey", lw=0.8)
+    ax.plot(px, [PAPER[k] for k in px], "k*", ms=12, ls="none",
+            label="Henning & Stephenson 2004, by r")
+    ax.axhline(PAPER["random"], color="k", ls=(0, (1, 3)), lw=1,
+               label=f"Henning & Stephenson 2004,\nall orientations ({PAPER['random']:g}x)")
+    ax.axhline(1.0, color="grey", lw=0.8, label="dda, the baseline (1.0)")
     ax.set_xscale("log")
     ax.set_xlabel("mean run length r (log)")
     ax.set_ylabel(speedup_axis_label(df))  # the headline preset's were medians, labelled means
     where = workload if surface == "-" else f"{workload} on {surface}"
-    ax.set_title(f"{where}: run length vs speedup\n(solid exact, dashed float or not claimed "
-                 "exact, dotted marching; bars and bands: 95 % intervals)", fontsize=10)
-    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(f"{where}: run length vs speedup\n(bars and bands: 95 % intervals)", fontsize=10)
+    # the lines' legend right of the axes, off the data, and the key of their styles below it
+    fig.legend(loc="outside right upper", fontsize=8, ncol=1 if len(names) <= 12 else 2)
+    key = [matplotlib.lines.Line2D([], [], color="dimgrey", ls=style, lw=1.6, label=words)
+           for style, words in (("-", "exact"), ("--", "float, or not claimed exact"),
+                                (":", "approximate (marching)"), ("-.", "peer (Embree, float32)"))
+           if style in drawn]
+    if key:
+        fig.legend(handles=key, title="line style", loc="outside right lower", fontsize=8,
+                   title_fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 

@@ -369,8 +369,9 @@ def generate(name, size=256, seed=0, threads=None, **params) -> np.ndarray:
     if name not in GENERATORS:
         raise ValueError(f"name: unknown generator {name!r}; valid names are "
                          f"{', '.join(GENERATORS)}")
-    rows, cols = (size, size) if np.ndim(size) == 0 else tuple(size)
-    for label, side in (("rows", rows), ("cols", cols)):
+    scalar = np.ndim(size) == 0
+    rows, cols = (size, size) if scalar else tuple(size)
+    for label, side in zip(("size", "size") if scalar else ("size[0]", "size[1]"), (rows, cols)):
         if isinstance(side, bool) or not isinstance(side, (int, np.integer)):
             raise TypeError(f"size: {label} must be an integer, got {side!r}")
         if not MIN_SIDE <= side <= MAX_SIDE:

@@ -63,9 +63,9 @@ CALL_CELLS = 100000
 FLUSH = "warm"
 #: The fewest paired rounds of every kernel (``repeats``).
 MIN_ROUNDS = 10
-#: Seconds per group (used for the first line's estimate): the budget and the group's
-#: set-up (rays, reference, calibration, agreement).
-SECONDS_PER_GROUP = {name: budget + 0.6 for name, budget in GROUP_BUDGET.items()}
+#: Seconds of a group's set-up beside its budget (rays, reference, calibration, agreement),
+#: for the first line's estimate (:func:`estimate_seconds`).
+SECONDS_GROUP_SETUP = 0.6
 #: Seconds of the parallel rays part and of the instruction counts (two at a time).
 SECONDS_PARALLEL = {"headline": 0, "standard": 240, "full": 420}
 SECONDS_PER_COUNT = 5.0
@@ -134,11 +134,41 @@ def preset(full=False, name=None, kernels=None, precision=0.02, flush=FLUSH) -> 
 
 
 def estimate_seconds(cfg, name, counts=True) -> float:
-    """The run's expected wall time here (:data:`SECONDS_PER_GROUP` and friends)."""
-    n = len(groups(cfg))
-    kernels = {k for *_, names in groups(cfg) for k in names if k != "embree"}
+    """The run's wall time on a quiet 2-core machine here when every group spends its
+    whole budget, in seconds: an upper estimate. Each group of ``cfg`` (``bench.sweep.groups``)
+    takes ``cfg.group_budget`` and its set-up (:data:`SECONDS_GROUP_SETUP`), then come the
+    instruction counts of the kernels it measures (``counts``; two at a time, Embree not
+    counted) and the preset's parallel rays part (:data:`SECONDS_PARALLEL`; the full
+    preset's raster-vs-trace and packets studies are not included). A group stops
+    sooner when every ratio reaches ``cfg.precision``: with fewer kernels or a looser
+    precision the run takes less."""
+    todo = groups(cfg)
+    kernels = {k for *_, names in todo for k in names if k != "embree"}
     count_s = SECONDS_PER_COUNT * len(kernels) / 2 if counts else 0
-    return n * SECONDS_PER_GROUP[name] + SECONDS_PARALLEL[name] + count_s + 15
+    return len(todo) * (cfg.group_budget + SECONDS_GROUP_SETUP) + SECONDS_PARALLEL[name] + \
+        count_s + 15
+
+
+def _plural(n, word) -> str:
+    return f"{n} {word}{'s' if n != 1 else ''}"
+
+
+def start_line(cfg, name, counts, out_dir) -> str:
+    """The run's first line: the preset, its groups, datasets and kernels, at most how long
+    it takes (:func:`estimate_seconds`, rounded to minutes) and on what that depends, its
+    phases and where it writes."""
+    todo = groups(cfg)
+    kernels = {k for *_, names in todo for k in names}
+    minutes = max(1, round(estimate_seconds(cfg, name, counts) / 60))
+    until = "" if cfg.precision is None else f"every ratio is within ±{100 * cfg.precision:g} % or "
+    return (f"hftrace reproduce ({name} preset): {_plural(len(todo), 'group')} on "
+            f"{_plural(len(cfg.datasets), 'dataset')}, {_plural(len(kernels), 'kernel')}; at "
+            f"most about {minutes} min on a quiet 2-core machine (each group until {until}its "
+            f"{cfg.group_budget:g} s budget is spent; longer while other processes run) "
+            f"(phases: measure{', counts' if counts else ''}"
+            f"{', parallel rays' if name != 'headline' else ''}"
+            f"{', raster vs trace and packets (not in the estimate)' if name == 'full' else ''}"
+            f", reports) -> {out_dir}")
 
 
 def run(full=False, out_dir=None, resume=False, progress=True, echo=print, counts=True,
@@ -185,13 +215,7 @@ def run(full=False, out_dir=None, resume=False, progress=True, echo=print, count
                 echo(f"{base} holds an earlier run (kept); writing {out_dir} "
                      f"(`--resume` continues the latest run directory)")
     wall0 = time.perf_counter()
-    n_groups = len(groups(cfg))
-    minutes = estimate_seconds(cfg, name, counts) / 60
-    echo(f"hftrace reproduce ({name} preset): {n_groups} group{'s' if n_groups != 1 else ''} on {len(cfg.datasets)} "
-         f"datasets, expected about {minutes:.0f} min on a quiet 2-core machine (longer "
-         f"while other processes run) "
-         f"(phases: measure{', counts' if counts else ''}"
-         f"{', parallel rays' if name != 'headline' else ''}, reports) -> {out_dir}")
+    echo(start_line(cfg, name, counts, out_dir))
     affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     pin_to_one_cpu()
     measure0 = time.perf_counter()

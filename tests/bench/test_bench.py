@@ -120,6 +120,39 @@ def test_plot_keeps_the_title_of_the_run(tmp_path):
     assert analysis.report_title(None) == "hftrace results"
 
 
+def test_run_length_plot_legends_stand_off_the_data(monkeypatch):
+    """The legend of run_length_vs_speedup.png stood inside the axes, where it could cover
+    lines, the paper's 1.25x was a text over the data points, and dda's line and the line
+    styles had no entry (the title told the styles, without dash-dot). Drawn from the
+    committed headline results (nothing measured)."""
+    import matplotlib.figure
+
+    drawn = {}
+
+    def keep(fig, *args, **kwargs):
+        fig.canvas.draw()
+        drawn["fig"] = fig
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", keep)
+    df = analysis.load(os.path.join(ROOT, "reports", "reproduce-headline", "results.csv"), echo=None)
+    analysis.plot_speedup(df, "unused.png")
+    fig = drawn["fig"]
+    ax = fig.axes[0]
+    legends = fig.legends
+    lines, key = ([t.get_text() for t in legend.get_texts()] for legend in legends)
+    shown = analysis.plot_kernels(dict.fromkeys(df["algorithm"]))
+    assert lines == shown + ["Henning & Stephenson 2004, by r",
+                             "Henning & Stephenson 2004,\nall orientations (1.25x)",
+                             "dda, the baseline (1.0)"]
+    assert key == ["exact", "float, or not claimed exact", "peer (Embree, float32)"]
+    assert ax.get_legend() is None and not ax.texts and "dotted" not in ax.get_title()
+    # both legends right of the axes and inside the figure
+    box, page = ax.get_window_extent(), fig.bbox
+    for legend in legends:
+        extent = legend.get_window_extent()
+        assert extent.x0 > box.x1 and extent.x1 <= page.x1 and extent.y0 >= page.y0, extent
+
+
 @pytest.mark.parametrize("pairs,panels", [
     ([("first_hit", "bilinear")], [("first_hit", "bilinear")]),
     ([("runs", "-"), ("first_hit", "flat"), ("first_hit", "triangles")],

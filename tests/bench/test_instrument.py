@@ -229,26 +229,48 @@ def test_headline_table_has_at_most_eight_columns_and_the_papers_kernel():
 
 
 def test_one_real_aa_group_contains_one(monkeypatch):
-    """dda against itself under another name on the same rays (a real group)."""
+    """dda against itself under another name on the same rays (a real group), its load
+    read as the sweep reads every group's (``bench.load``: a snapshot before, the
+    contention over a window of at least ``MIN_WINDOW_S`` after). Measured on a quiet
+    machine, its 95 % interval must contain 1.0 (two quiet misses fail: 1 in 400 honest
+    runs). Measured while other processes used the CPUs, it is labelled contended, never
+    a finding, and is not held to coverage: the test checks that label, and skips naming
+    the load when no quiet attempt decided it."""
     import algos
+    from bench import load as machine_load
     from bench.sweep import _group_rays, _prepare
 
     field = algos.Field(__import__("datasets_gen").load("fbm", size=128, seed=1).heights)
     o, d, *_ = _group_rays(field, "first_hit", "triangles", 5, 2000, 1)
     attempts = []
-    for attempt in range(2):  # a 95 % interval misses 1 in 20 honest groups
+    for attempt in range(3):  # a 95 % interval misses 1 in 20 honest quiet groups
         jobs = {"dda": _prepare("dda", "first_hit", field, o, d, None, "triangles", "runs")[0],
                 "dda_again": _prepare("dda", "first_hit", field, o, d, None, "triangles",
                                       "runs")[0]}
+        before = machine_load.snapshot()
         got = T.paired_rounds(jobs, "dda", precision=0.02, budget_s=3.0, min_rounds=10,
                               seed=attempt)
-        assert got.stop["dda_again"] in T.STOPS and got.timed_s > 0.5 * got.wall_s * 0.5
+        load = machine_load.contention(before, machine_load.snapshot_after(before))
+        assert got.stop["dda_again"] in T.STOPS
         s, lo, hi = T.median_ratio_interval(got.log_ratios["dda_again"])
-        attempts.append((s, lo, hi, got.rounds["dda_again"], got.stop["dda_again"]))
+        label = analysis.finding(s, lo, hi, 0.02, load["contended"], got.stop["dda_again"])
+        attempts.append(dict(speedup=s, low=lo, high=hi, rounds=got.rounds["dda_again"],
+                             stop=got.stop["dda_again"], label=label, **load))
+        if load["contended"]:
+            # whatever its interval and its share of time in timed calls: no finding
+            assert label == "inconclusive: contended", attempts
+            continue
+        assert got.timed_s > 0.5 * got.wall_s * 0.5
         if lo <= 1.0 <= hi:
-            break
-    else:
-        pytest.fail(f"A/A intervals excluded 1.0 twice: {attempts}")
+            return
+        if sum(not a["contended"] for a in attempts) == 2:
+            pytest.fail(f"A/A intervals of two quiet attempts excluded 1.0: {attempts}")
+    busy = [a for a in attempts if a["contended"]]
+    pytest.skip(f"{len(busy)} of {len(attempts)} A/A attempts ran contended (other processes "
+                f"used {', '.join(str(a['other_cpu']) for a in busy)} cores; load average "
+                f"{', '.join(str(a['load_after']) for a in busy)}; bench.load marks a group "
+                f"contended above {machine_load.CONTENDED_CORES} cores or a load above the "
+                f"CPUs): labelled contended, not held to coverage: {attempts}")
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,

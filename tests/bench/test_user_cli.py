@@ -63,6 +63,31 @@ def test_reproduce_empty_out_is_refused(capsys):
     assert err.strip().splitlines()[-1] == "hftrace: error: --out: an empty path; give a directory"
 
 
+def test_reproduce_first_line_follows_the_preset_kernels_and_precision():
+    """The first line promised "about 3 min" whatever --kernels asked; it now says at most
+    how long the groups asked take, each spending the budget the run uses (nothing is
+    measured here)."""
+    from bench.studies import reproduce as R
+
+    head = R.preset()
+    line = R.start_line(head, "headline", True, "results/reproduce")
+    # 24 groups of 6 s and 0.6 s of set-up, the counts of the kernels shown but Embree
+    assert line.startswith(f"hftrace reproduce (headline preset): 24 groups on 4 datasets, "
+                           f"{len(head.algorithms)} kernels; at most about 3 min on a quiet "
+                           "2-core machine (each group until every ratio is within ±2 % or "
+                           "its 6 s budget is spent;"), line
+    assert line.endswith("(phases: measure, counts, reports) -> results/reproduce"), line
+    two = R.preset(name="standard", kernels=["dda", "runs"], precision=0.05)
+    line = R.start_line(two, "standard", False, "out")
+    # 144 groups of 3 s and 0.6 s of set-up, then the parallel rays part: 773 s
+    assert R.estimate_seconds(two, "standard", counts=False) == pytest.approx(144 * 3.6 + 240 + 15)
+    assert line.startswith("hftrace reproduce (standard preset): 144 groups on 4 datasets, "
+                           "2 kernels; at most about 13 min on a quiet 2-core machine (each "
+                           "group until every ratio is within ±5 % or its 3 s budget is "
+                           "spent;"), line
+    assert "(phases: measure, parallel rays, reports) -> out" in line
+
+
 def test_render_diff_names_its_own_option(tmp_path, capsys):
     """An unknown kernel on the --diff side was reported under --algorithm."""
     status, out, err = _run(capsys, "render", "fbm", "--size", "16", "--width", "4",

@@ -352,8 +352,10 @@ def test_old_spacing_calls_fail_loudly():
         algos.viewshed(np.zeros((3, 3)), (1, 1), curvature=True)
     with pytest.raises(ValueError, match="curvature: needs square pixels"):
         algos.viewshed(np.zeros((3, 3)), (1, 1), curvature=True, spacing=(1, 2))
-    with pytest.raises(ValueError, match="spacing: dx = -1"):
+    with pytest.raises(ValueError, match=r"spacing: spacing\[0\] = -1"):
         algos.horizon(np.zeros((3, 3)), [0], spacing=(-1, 2))
+    with pytest.raises(ValueError, match="spacing: spacing = -1.0; a pixel size must be"):
+        algos.horizon(np.zeros((3, 3)), [0], spacing=-1)
 
 
 # ---- one type everywhere -------------------------------------------------------------------

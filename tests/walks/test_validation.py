@@ -39,12 +39,19 @@ def test_wrong_ray_shapes(shape):
         algos.traverse("runs", o, d, (4, 4))
 
 
-@pytest.mark.parametrize("grid,error", [((0, 4), ValueError), ((4, -1), ValueError),
-                                        ((4,), ValueError), ((4, 2.5), TypeError),
-                                        ((2**24 + 1, 4), ValueError), ("44", TypeError)])
-def test_bad_grids(grid, error):
-    with pytest.raises(error, match="shape"):
+@pytest.mark.parametrize("grid,error,words", [
+    ((0, 4), ValueError, "shape: shape[0] = 0; a grid needs at least one cell"),
+    ((4, -1), ValueError, "shape: shape[1] = -1; a grid needs at least one cell"),
+    ((4,), ValueError, "shape: expected (nx, ny), got (4,)"),
+    ((4, 2.5), TypeError, "shape: shape[1] must be an integer, got 2.5"),
+    ((2**24 + 1, 4), ValueError, "shape: shape[0] = 16777217 exceeds the limit 2**24"),
+    ("44", TypeError, "shape: shape[0] must be an integer, got '4'")])
+def test_bad_grids(grid, error, words):
+    """Each entry of the grid is named as shape[k], as the entries of other tuple
+    arguments are (origin[0], spacing[1])."""
+    with pytest.raises(error) as info:
         algos.traverse("runs", ORIGINS, DIRECTIONS, grid)
+    assert words in str(info.value)
 
 
 def test_limits():
@@ -73,18 +80,18 @@ def test_bad_types_and_names():
 def test_reference_rejects_bad_input():
     with pytest.raises(ValueError, match="origin"):
         algos.reference_cells((math.nan, 0), (1, 0), (4, 4))
-    with pytest.raises(ValueError, match="shape"):
+    with pytest.raises(ValueError, match=r"shape\[0\] must be positive, got 0"):
         algos.reference_cells((0, 0), (1, 0), (0, 4))
     with pytest.raises(ValueError, match="tmax"):
         algos.reference_cells((0, 0), (1, 0), (4, 4), tmax=math.nan)
 
 
 @pytest.mark.parametrize("origin,direction,shape,error,words", [
-    ((0.5, 0.5), (1, 0), (4.5, 4), TypeError, "shape: nx must be an integer, got 4.5"),
+    ((0.5, 0.5), (1, 0), (4.5, 4), TypeError, "shape[0] must be an integer, got 4.5"),
     ((0.5, 0.5), (1, 0), "44", ValueError, "shape must be"),
     ((0.5, 0.5), (1, 0), (4, 4, 4), ValueError, "shape must be"),
     ((0.5, 0.5), (1, 0), 4, ValueError, "shape must be"),
-    ((0.5, 0.5), (1, 0), (True, 4), TypeError, "shape: nx"),
+    ((0.5, 0.5), (1, 0), (True, 4), TypeError, "shape[0] must be an integer, got True"),
     ((0.5, 0.5, 1.0), (1, 0), (4, 4), ValueError, "origin must be a pair"),
     (0.5, (1, 0), (4, 4), ValueError, "origin must be a pair"),
     ((0.5, 0.5), "10", (4, 4), TypeError, "direction must be a pair"),
