@@ -16,11 +16,22 @@ shows up as an XPASS. The classes:
   y face), whose wall the exact ray meets about 1e-15 later. The brute force is right.
   Not the open "float walks near the diagonal" case: the direction is far from the
   diagonal, the exact kernels (midpoint, runs, runs_maxmip) fail too, and t agrees.
+- **a side cell whose float interval collapses** (``sliver_side_cell_*``): the direction
+  ``(1, fl(2/3), -1)`` from (0, 0) crosses x = 3 at t = 3 and y = 2 at
+  t = 3 + 1/6004799503160661, which rounds to 3: float64 sees a vertex crossing, but the
+  exact ray visits the side cell (3, 1) for 1.7e-16, and meets its wall at t = 3. Every
+  strict kernel, the exact ones included, skips it: the hit goes to the diagonal cell
+  (3, 2) (normal (-1, 0, 0)), or, where that cell is low, the ray misses. The brute force
+  is right. (The fix of the last round drops a float walk's hit in a side cell the exact
+  ray does not visit; this is the converse: a side cell it does visit, dropped.) The same
+  direction from a level camera (``datasets_gen.rays.level_camera``) found it.
 - **the box entry a hair beside a vertex** (``box_entry_beside_vertex_*``): the ray enters
   the face x = 0 at y = 1 + 2.2e-16, which rounds onto y = 1; every strict kernel tests
   cell (0, 0) at the entry instead of (0, 1): the wall of (0, 1) is reported in (0, 0)
   (the brute force does the same there, on every linear surface), or missed and the hit
-  found later in (0, 0) (the brute force is right there). The open class "box entry
+  found later in (0, 0) (the brute force is right there). With ``d = (1, -fl(2/3), -1)``
+  from (-3, 3) the entry parameter is the float 3 itself and only ``y = 1 + 2**-53``
+  rounds (``box_entry_beside_vertex_level``): every strict kernel misses the wall. The open class "box entry
   exactly through a vertex" is a ray on the vertex; this one is off it.
 - **a ray a hair outside the box corner** (``passes_outside_box_corner``): the exact ray
   crosses x = 0 at y = -1.3e-16, below the corner (0, 0), and never enters the box; every
@@ -63,11 +74,21 @@ def _one_wall_heights():
     return H
 
 
+def _side_wall_heights(low_diagonal):
+    H = np.zeros((4, 5), np.float32)
+    H[1, 4] = H[2, 4] = 16  # cell (3, 1) stands 8 high on flat, (3, 2) 4
+    if low_diagonal:
+        H[3, 3] = H[3, 4] = -40  # (3, 2) -16: past (3, 1) the ray meets nothing
+    return H
+
+
 def _peak_heights():
     H = np.zeros((3, 3), np.float32)
     H[1, 1] = 2
     return H
 
+
+TWO_THIRDS = 0.6666666666666666  # fl(2/3) < 2/3
 
 # (id, heights, origin, direction, tmin, surfaces, want t (str or None), want cell, what the
 #  kernels give, whether the brute force disagrees too)
@@ -75,6 +96,16 @@ CASES = [
     ("vertex_hair_side_cell", _one_wall_heights(), (0.0, 4.0, 5.0), TOWARD_3_3, 0.0,
      ("flat",), "6755399441055744/1228254443828317", (3, 3),
      "t 5.5 in (3, 2), normal (0, 1, 0): the diagonal cell's y face", False),
+    ("sliver_side_cell_missed", _side_wall_heights(True), (0.0, 0.0, 6.0),
+     (1.0, TWO_THIRDS, -1.0), 0.0, ("flat",), "3", (3, 1),
+     "a miss: the side cell (3, 1), visited on [3, 3 + 1.7e-16), is skipped", False),
+    ("sliver_side_cell_wrong_cell", _side_wall_heights(False), (0.0, 0.0, 6.0),
+     (1.0, TWO_THIRDS, -1.0), 0.0, ("flat",), "3", (3, 1),
+     "t 3 in the diagonal cell (3, 2), normal (-1, 0, 0), not the side cell (3, 1)", False),
+    ("box_entry_beside_vertex_level", [[0, 0], [0, 0], [8, 8]], (-3.0, 3.0, 6.0),
+     (1.0, -TWO_THIRDS, -1.0), 0.0, ("flat",), "3", (0, 1),
+     "a miss: the entry at t = 3 lies at y = 1 + 2**-53, which rounds onto the vertex",
+     False),
     ("box_entry_beside_vertex_cell", [[0, 0], [4, 2], [5, 5]], (-2.0, 6.0, 7.0), TOWARD_0_1,
      0.0, SURFACES, "36028797018963968/4468822275815661", (0, 1),
      "the entry wall in (0, 0): y = 1 + 2.2e-16 at x = 0 rounds onto the vertex", True),
