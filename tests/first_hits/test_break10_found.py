@@ -25,6 +25,11 @@ shows up as an XPASS. The classes:
   is right. (The fix of the last round drops a float walk's hit in a side cell the exact
   ray does not visit; this is the converse: a side cell it does visit, dropped.) The same
   direction from a level camera (``datasets_gen.rays.level_camera``) found it.
+  Also on plane3 (``sliver_side_cell_plane3``: a hit 4 units late), and on triangles
+  where the sliver is a cell's corner at the box's side (``sliver_at_box_side_triangles``:
+  a miss). A fuzz of such rounded rational directions (``d = (a, fl(p/q) b, dz)`` from
+  integer origins, 10,800 rays over three surfaces) found 38 rays where all 13 strict
+  kernels disagree with the reference (0.35 %), in these classes and the box classes below.
 - **the box entry a hair beside a vertex** (``box_entry_beside_vertex_*``): the ray enters
   the face x = 0 at y = 1 + 2.2e-16, which rounds onto y = 1; every strict kernel tests
   cell (0, 0) at the entry instead of (0, 1): the wall of (0, 1) is reported in (0, 0)
@@ -36,6 +41,8 @@ shows up as an XPASS. The classes:
 - **a ray a hair outside the box corner** (``passes_outside_box_corner``): the exact ray
   crosses x = 0 at y = -1.3e-16, below the corner (0, 0), and never enters the box; every
   strict kernel reports a wall hit in (0, 0). The brute force misses, as the reference.
+  With ``d = (-1, -fl(2/3), -fl(2/3))`` the ray passes 2**-53 outside the corner
+  (``passes_outside_box_corner_two_thirds``).
 - **a touch a hair below the surface at the box exit** (``exit_below_surface``): the exact
   ray leaves through y = 0 at x = 1 + 9e-17 with z = -6e-17, below the surface (0): the
   reference hits at that closed end; every strict kernel misses (the float box exit comes
@@ -82,6 +89,18 @@ def _side_wall_heights(low_diagonal):
     return H
 
 
+def _plane3_peak_heights():
+    H = np.zeros((7, 7), np.float32)
+    H[2, 5] = 7
+    return H
+
+
+def _triangles_corner_heights():
+    H = np.zeros((5, 4), np.float32)
+    H[0, 0], H[0, 1] = 5, 3
+    return H
+
+
 def _peak_heights():
     H = np.zeros((3, 3), np.float32)
     H[1, 1] = 2
@@ -89,6 +108,7 @@ def _peak_heights():
 
 
 TWO_THIRDS = 0.6666666666666666  # fl(2/3) < 2/3
+ONE_THIRD = 0.3333333333333333  # fl(1/3) < 1/3
 
 # (id, heights, origin, direction, tmin, surfaces, want t (str or None), want cell, what the
 #  kernels give, whether the brute force disagrees too)
@@ -102,6 +122,21 @@ CASES = [
     ("sliver_side_cell_wrong_cell", _side_wall_heights(False), (0.0, 0.0, 6.0),
      (1.0, TWO_THIRDS, -1.0), 0.0, ("flat",), "3", (3, 1),
      "t 3 in the diagonal cell (3, 2), normal (-1, 0, 0), not the side cell (3, 1)", False),
+    # plane3: the side cell (4, 2) of vertex (5, 3) holds the peak H[2, 5] = 7 at its corner;
+    # every strict kernel skips it and hits at t = 7 in (0, 5)
+    ("sliver_side_cell_plane3", _plane3_peak_heights(), (8.0, 1.0, 7.0),
+     (-1.0, TWO_THIRDS, -1.0), 0.0, ("plane3",), "3", (4, 2),
+     "a hit at t = 7 in (0, 5): the side cell (4, 2), visited on [3, 3 + 1.7e-16), is skipped",
+     False),
+    # triangles: the sliver is the corner of (0, 0) at the box's side y = 0, left at
+    # t = 3 + 1.7e-16, where the exact ray lies a hair below the surface
+    ("sliver_at_box_side_triangles", _triangles_corner_heights(), (4.0, 1.0, 4.0),
+     (-1.0, -ONE_THIRD, -ONE_THIRD), 0.0, ("triangles",),
+     "45035996273704960/15011998757901653", (0, 0), "a miss", False),
+    # a flat zero field: the exact ray passes 2**-53 outside the corner (0, 2)
+    ("passes_outside_box_corner_two_thirds", np.zeros((3, 8)), (3.0, 4.0, 1.0),
+     (-1.0, -TWO_THIRDS, -TWO_THIRDS), 0.0, SURFACES, None, (-1, -1),
+     "a wall hit at t = 3 in (0, 1)", False),
     ("box_entry_beside_vertex_level", [[0, 0], [0, 0], [8, 8]], (-3.0, 3.0, 6.0),
      (1.0, -TWO_THIRDS, -1.0), 0.0, ("flat",), "3", (0, 1),
      "a miss: the entry at t = 3 lies at y = 1 + 2**-53, which rounds onto the vertex",
