@@ -1,7 +1,8 @@
 """Rays on which the strict kernels (and in one case the brute force) disagree with the
 rational reference ``exact_first_hit``: found by break10's fuzz of batch-coherent rays
 (pinhole cameras of ``datasets_gen.rays.pinhole`` with eyes on integer coordinates, fans of
-integer rays from one eye, planes of rays, image layouts, ring and packet batches).
+integer rays from one eye, planes of rays, image layouts, ring and packet batches, rays
+with rounded rational directions such as ``fl(2/3)``).
 
 Most come from one natural source: a pinhole camera with an odd image size aims its centre
 pixel exactly at ``look_at``; with ``look_at`` on a grid vertex (integer coordinates), the
@@ -36,8 +37,9 @@ shows up as an XPASS. The classes:
   (the brute force does the same there, on every linear surface), or missed and the hit
   found later in (0, 0) (the brute force is right there). With ``d = (1, -fl(2/3), -1)``
   from (-3, 3) the entry parameter is the float 3 itself and only ``y = 1 + 2**-53``
-  rounds (``box_entry_beside_vertex_level``): every strict kernel misses the wall. The open class "box entry
-  exactly through a vertex" is a ray on the vertex; this one is off it.
+  rounds (``box_entry_beside_vertex_level``): every strict kernel misses the wall. The
+  open class "box entry exactly through a vertex" is a ray on the vertex; this one is off
+  it.
 - **a ray a hair outside the box corner** (``passes_outside_box_corner``): the exact ray
   crosses x = 0 at y = -1.3e-16, below the corner (0, 0), and never enters the box; every
   strict kernel reports a wall hit in (0, 0). The brute force misses, as the reference.
