@@ -91,6 +91,7 @@ typedef struct {
     double face_a[2], face_b[2]; /* the parameters at the footprint's faces 0 and cols-1 (rows-1) */
     double zlo, zhi;             /* the box's z slab, widened (hf_box_z_margin) */
     hf_hit hit;                  /* the hit record: shared fields set, the rest per ray */
+    hf_line_bound line;          /* the line's terms of the rounding bound (hf_hit_window) */
     hf_mip_ray ray;              /* the walk's constants: shared fields set, the rest per ray */
 } plane_shared;
 
@@ -119,6 +120,7 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
      * hf_hit_prepare derives from dz (plane_begin) */
     hf_hit_fill(h, b, o, d, inv);
     hf_hit_prepare(h);
+    hf_line_bound_of(h, &s->line);
     /* the walk's constants (hf_mip_setup), but for oz, dz, descending and t1 */
     hf_mip_ray_of(h, &s->ray);
     s->ray.top = b->mip_levels - 1;
@@ -168,7 +170,7 @@ HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray
         h->bound_lo = descending ? -(double)INFINITY : t0;
         h->bound_hi = descending ? t1 : (double)INFINITY;
         h->fast_runs = h->fast && descending;
-        hf_hit_window(h);
+        hf_hit_window(h, &s->line);
         r->descending = descending;
     }
     r->oz = h->oz_cull;
