@@ -75,6 +75,18 @@ static inline double hf_height(const hf_hit *h, int32_t i, int32_t j) {
     return (double)h->heights[(int64_t)j * h->cols + i];
 }
 
+/* A record's result and statistics, empty: where each ray's set-up starts (ray_begin in
+ * dispatch/intersect.c, plane_begin in dispatch/plane.c), on a record whose other fields
+ * it rewrites (or, on a miss of the box, leaves unread). */
+static inline void hf_hit_clear(hf_hit *h) {
+    h->found = 0;
+    h->t = 0;
+    h->i = h->j = 0;
+    h->wall_axis = 0;
+    h->su = h->sv = 0;
+    h->cells_visited = h->cells_tested = h->runs_visited = h->runs_culled = h->tiles_skipped = 0;
+}
+
 /* Record a hit at t in cell (i, j). */
 static inline int hf_hit_at(hf_hit *h, double t, int32_t i, int32_t j, int wall_axis, double su,
                             double sv) {
