@@ -293,8 +293,18 @@ static inline void zero_hit(hf_hit *h) {
 /* (C99 has no static_assert: an array of negative size fails the build) */
 typedef char hf_hit_is_336_bytes[sizeof(hf_hit) == 336 ? 1 : -1];
 
-/* Its set-up: clip ray `ray` to the box and fill h (zeroed first); returns 1 when there
- * is a walk to do, 0 when the ray misses the box. */
+/* A record for the rays of batch b (the steps' `start`): zeroed, with the batch's fields
+ * (hf_hit_fill_batch). ray_begin then rewrites, per ray, only what depends on the ray. */
+static void hit_start(const hf_hit_batch *b, hf_hit *h) {
+    zero_hit(h);
+    hf_hit_fill_batch(h, b);
+}
+
+/* Its set-up: clip ray `ray` to the box and fill h, a record started for b (hit_start) or
+ * left by an earlier ray of b: its result and statistics are cleared and every other field
+ * a walk reads is rewritten (the box's miss leaves [t0, t1] = [0, 0] and the rest unread:
+ * ray_end reads nothing else). Returns 1 when there is a walk to do, 0 when the ray misses
+ * the box. */
 HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_out, double *t1_out,
                      int *entry_axis_out) {
     const double *o = b->origins + 3 * ray, *d = b->directions + 3 * ray;
@@ -304,11 +314,13 @@ HF_HOT int ray_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0_o
     const double inv[2] = {hf_inverse(d[0]), hf_inverse(d[1])};
     double t0, t1;
     int entry_axis;
-    zero_hit(h);
+    hf_hit_clear(h);
     if (!clip_to_box(o, d, inv, tmin, tmax, b->cols - 1, b->rows - 1, b->hmin, b->hmax, &t0, &t1,
-                     &entry_axis))
+                     &entry_axis)) {
+        h->t0 = h->t1 = 0;
         return 0;
-    hf_hit_fill(h, b, o, d, inv);
+    }
+    hf_hit_fill_line(h, o, d, inv);
     h->oz = o[2];
     h->dz = d[2];
     h->t0 = t0;
@@ -470,15 +482,18 @@ HF_COLD const hf_hit *border_exit(const hf_hit *h, hf_hit *decided) {
 /* (border_point for a miss whose range tmax ends) */
 HF_COLD const hf_hit *border_end(const hf_hit_batch *b, int64_t ray, const hf_hit *h,
                                  hf_hit *decided) {
-    const double t = h->t1, x = h->ox + t * h->dx, y = h->oy + t * h->dy;
+    const double t = h->t1;
+    double x, y;
+    int on_x, on_y;
     int32_t i, j;
+    /* (a ray that misses the box has the range [0, 0], and its other fields are not read) */
+    if (!(h->t0 < h->t1) || h->t1 != b->tmax[ray]) return h;
+    x = h->ox + t * h->dx;
+    y = h->oy + t * h->dy;
     /* on a grid line, exactly (beyond 2^31 the point is off the grid anyway): x = 4 in
      * float64 at t1 = 0.6666666666666666 from 2 + 3 t1, but the exact point is short of it */
-    const int on_x =
-        h->dx != 0 && fabs(x) < 0x1p31 && hf_exact_on_line(h->ox, h->dx, t, nearbyint(x));
-    const int on_y =
-        h->dy != 0 && fabs(y) < 0x1p31 && hf_exact_on_line(h->oy, h->dy, t, nearbyint(y));
-    if (!(h->t0 < h->t1) || h->t1 != b->tmax[ray]) return h;
+    on_x = h->dx != 0 && fabs(x) < 0x1p31 && hf_exact_on_line(h->ox, h->dx, t, nearbyint(x));
+    on_y = h->dy != 0 && fabs(y) < 0x1p31 && hf_exact_on_line(h->oy, h->dy, t, nearbyint(y));
     if (!on_x && !on_y) return h; /* p(t1) inside the cell the walk ended in */
     i = on_x ? (int32_t)hf_index_of(x, h->dx > 0) : hf_cell_at(h->ox, h->dx, t, b->cols - 1);
     j = on_y ? (int32_t)hf_index_of(y, h->dy > 0) : hf_cell_at(h->oy, h->dy, t, b->rows - 1);
@@ -545,14 +560,15 @@ static int packet_batch(hf_hit_batch *b) {
     hf_pattern pattern; /* (unused by the cell walk) */
     const int width = b->packet_width;
     int64_t first;
+    int k;
     if (width < 1 || width > HF_PACKET_MAX || b->mip_levels < 1) return HF_ERR_ARGUMENT;
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
     b->bad_ray = -1;
+    for (k = 0; k < width; ++k) hit_start(b, &hits[k]);
     for (first = 0; first < b->n_rays; first += width) {
         const int n = b->n_rays - first < width ? (int)(b->n_rays - first) : width;
         unsigned members = 0;
-        int k;
         for (k = 0; k < n; ++k) {
             double t0, t1;
             int entry_axis;
@@ -571,8 +587,12 @@ static int packet_batch(hf_hit_batch *b) {
     return HF_OK;
 }
 
-/* The three steps of one ray with dda_maxmip's walk, for plane_maxmip (plane.c) and
- * ring_maxmip (ring.c). */
+/* The steps of one ray with dda_maxmip's walk, for plane_maxmip (plane.c), ring_maxmip
+ * (ring.c) and pitched_maxmip (raster/pitched.c). */
+static void maxmip_start(const hf_hit_batch *b, hf_hit *h) {
+    hit_start(b, h);
+}
+
 static int maxmip_begin(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0, double *t1,
                         int *entry_axis) {
     return ray_begin(b, ray, h, t0, t1, entry_axis);
@@ -591,7 +611,7 @@ static void maxmip_end(hf_hit_batch *b, int64_t ray, const hf_hit *h) {
     ray_end(b, ray, h);
 }
 
-static const hf_ray_steps maxmip_steps = {maxmip_begin, maxmip_solve, maxmip_end};
+static const hf_ray_steps maxmip_steps = {maxmip_start, maxmip_begin, maxmip_solve, maxmip_end};
 
 const hf_ray_steps *hf_maxmip_steps(void) {
     return &maxmip_steps;
@@ -608,6 +628,7 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     const int cone = kernel == HF_HIT_CONE;
     const int relaxed = kernel == HF_HIT_CONE_RELAXED;
     hf_compact compact; /* dda_compact: the tree's geometry (compact.h) */
+    hf_hit h;
     int64_t ray;
     if (kernel == HF_HIT_PACKET_MAXMIP) return packet_batch(b);
     if (kernel == HF_HIT_PLANE_MAXMIP) return hf_plane_batch(b, &maxmip_steps);
@@ -637,8 +658,8 @@ int hf_intersect_batch(int kernel, hf_hit_batch *b) {
     pattern.p = pattern.q = pattern.position_step = 0;
     pattern.lengths = b->pattern;
     b->bad_ray = -1;
+    hit_start(b, &h); /* one record for every ray (ray_begin) */
     for (ray = 0; ray < b->n_rays; ++ray) {
-        hf_hit h;
         double t0, t1;
         int entry_axis;
         if (ray_begin(b, ray, &h, &t0, &t1, &entry_axis)) {

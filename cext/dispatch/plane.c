@@ -91,6 +91,7 @@ typedef struct {
     double face_a[2], face_b[2]; /* the parameters at the footprint's faces 0 and cols-1 (rows-1) */
     double zlo, zhi;             /* the box's z slab, widened (hf_box_z_margin) */
     hf_hit hit;                  /* the hit record: shared fields set, the rest per ray */
+    hf_line_bound line;          /* the line's terms of the rounding bound (hf_hit_window) */
     hf_mip_ray ray;              /* the walk's constants: shared fields set, the rest per ray */
 } plane_shared;
 
@@ -117,8 +118,10 @@ static int plane_shared_init(const hf_hit_batch *b, int64_t ray, plane_shared *s
     s->zhi = b->hmax + margin;
     /* the hit record as ray_begin fills it, but for oz, dz, the range and what
      * hf_hit_prepare derives from dz (plane_begin) */
-    hf_hit_fill(h, b, o, d, inv);
+    hf_hit_fill_batch(h, b);
+    hf_hit_fill_line(h, o, d, inv);
     hf_hit_prepare(h);
+    hf_line_bound_of(h, &s->line);
     /* the walk's constants (hf_mip_setup), but for oz, dz, descending and t1 */
     hf_mip_ray_of(h, &s->ray);
     s->ray.top = b->mip_levels - 1;
@@ -136,13 +139,7 @@ HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray
     const double oz = b->origins[3 * ray + 2], dz = b->directions[3 * ray + 2];
     double t0 = b->tmin ? b->tmin[ray] : 0.0, t1 = b->tmax ? b->tmax[ray] : (double)INFINITY;
     int axis = -1, k, inside = !s->outside;
-    /* the result and the statistics start empty, as after ray_begin's memset */
-    h->found = 0;
-    h->t = 0;
-    h->i = h->j = 0;
-    h->wall_axis = 0;
-    h->su = h->sv = 0;
-    h->cells_visited = h->cells_tested = h->runs_visited = h->runs_culled = h->tiles_skipped = 0;
+    hf_hit_clear(h); /* the result and the statistics start empty, as in ray_begin */
     for (k = 0; k < 2; ++k)
         if (s->moves[k]) hf_slab_clip(s->face_a[k], s->face_b[k], k, &t0, &t1, &axis);
     inside = inside && t0 <= t1 && hf_box_clip_z(oz, dz, s->zlo, s->zhi, &t0, &t1, &axis);
@@ -150,7 +147,7 @@ HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray
     *t1_out = t1;
     *entry_axis_out = axis;
     if (!inside) {
-        h->t0 = h->t1 = 0; /* a miss's range, as after ray_begin's memset */
+        h->t0 = h->t1 = 0; /* a miss's range, as in ray_begin */
         return 0;
     }
     h->oz = oz;
@@ -168,7 +165,7 @@ HF_HOT int plane_begin(const hf_hit_batch *b, const plane_shared *s, int64_t ray
         h->bound_lo = descending ? -(double)INFINITY : t0;
         h->bound_hi = descending ? t1 : (double)INFINITY;
         h->fast_runs = h->fast && descending;
-        hf_hit_window(h);
+        hf_hit_window(h, &s->line);
         r->descending = descending;
     }
     r->oz = h->oz_cull;
@@ -185,8 +182,9 @@ static void plane_check_begin(const hf_hit_batch *b, const hf_ray_steps *steps, 
     hf_mip_ray r;
     hf_mip_walk w;
     double t0, t1;
-    int axis;
-    const int walk = steps->begin(b, ray, &h, &t0, &t1, &axis);
+    int axis, walk;
+    steps->start(b, &h);
+    walk = steps->begin(b, ray, &h, &t0, &t1, &axis);
     HF_ASSERT(walk == inside, "ray=%lld begin=%d plane=%d", (long long)ray, walk, inside);
     if (!walk) {
         HF_ASSERT(!mine->found && mine->cells_visited == 0, "ray=%lld", (long long)ray);
@@ -263,24 +261,23 @@ static int plane_cell_test(hf_hit *h, int32_t i, int32_t j, int culled, void *ct
 }
 
 /* A ray that shares no plane, or whose plane lies on a grid line (flat, plane3): the three
- * steps of dda_maxmip. */
-static int plane_alone(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray) {
-    hf_hit h;
+ * steps of dda_maxmip, on h, the batch's record for such rays (the steps' `start`). */
+static int plane_alone(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray, hf_hit *h) {
     double t0, t1;
     int entry_axis;
-    if (!steps->begin(b, ray, &h, &t0, &t1, &entry_axis)) {
+    if (!steps->begin(b, ray, h, &t0, &t1, &entry_axis)) {
         /* misses the box */
-    } else if (t0 < t1 && !hf_on_grid_line(&h)) {
+    } else if (t0 < t1 && !hf_on_grid_line(h)) {
         /* dda_maxmip's walk (maxmip_tight), here: its call through `solve` costs more */
         hf_mip_ray r;
         hf_mip_walk w;
-        hf_mip_setup(&h, b, &r, &w);
-        (void)hf_mip_walk_alone(&h, b, &r, &w, 0);
+        hf_mip_setup(h, b, &r, &w);
+        (void)hf_mip_walk_alone(h, b, &r, &w, 0);
     } else {
-        const int status = steps->solve(b, ray, &h, t0, t1, entry_axis);
+        const int status = steps->solve(b, ray, h, t0, t1, entry_axis);
         if (status != HF_OK) return status;
     }
-    steps->end(b, ray, &h);
+    steps->end(b, ray, h);
     return HF_OK;
 }
 
@@ -389,15 +386,18 @@ static int plane_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_shared *s
 
 /* One plane being traced: its shared set-up and its chain. `head` is the ray it was set
  * up from; `s` is NULL when that ray shares no plane, or its plane lies on a grid line of
- * flat or plane3 (then every ray is traced alone, plane_alone). */
+ * flat or plane3 (then every ray is traced alone, plane_alone, on the batch's record
+ * `alone`). */
 typedef struct {
     plane_shared shared, *s;
     plane_chain chain;
     int64_t head;
+    hf_hit *alone;
 } plane_column;
 
-static void plane_column_init(const hf_hit_batch *b, int64_t head, plane_column *c) {
+static void plane_column_init(const hf_hit_batch *b, int64_t head, hf_hit *alone, plane_column *c) {
     c->head = head;
+    c->alone = alone;
     c->s = plane_eligible(b, head) && plane_shared_init(b, head, &c->shared) ? &c->shared : NULL;
     memset(&c->chain, 0, sizeof c->chain);
 }
@@ -412,7 +412,7 @@ static int plane_column_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_co
         (checked || ray == c->head || (plane_eligible(b, ray) && same_plane(b, ray, c->head)))) {
         status = plane_ray(b, steps, c->s, ray, &c->chain);
     } else {
-        status = plane_alone(b, steps, ray);
+        status = plane_alone(b, steps, ray, c->alone);
     }
     if (status != HF_OK) b->bad_ray = ray;
     return status;
@@ -420,11 +420,11 @@ static int plane_column_ray(hf_hit_batch *b, const hf_ray_steps *steps, plane_co
 
 /* The `count` rays of one plane, members[0 .. count), ordered bottom up: one chain. */
 static int plane_trace(hf_hit_batch *b, const hf_ray_steps *steps, const plane_member *members,
-                       int64_t count) {
+                       int64_t count, hf_hit *alone) {
     plane_column column;
     int64_t k;
     int status = HF_OK;
-    plane_column_init(b, members[0].ray, &column);
+    plane_column_init(b, members[0].ray, alone, &column);
     for (k = 0; k < count && status == HF_OK; ++k)
         status = plane_column_ray(b, steps, &column, members[k].ray, 1);
     return status;
@@ -446,6 +446,8 @@ static int plane_image(hf_hit_batch *b, const hf_ray_steps *steps, int64_t width
     const int64_t n = b->n_rays, step = top_down ? -width : width;
     int64_t first, row;
     int status = HF_OK;
+    hf_hit alone; /* the record of the rays traced alone */
+    steps->start(b, &alone);
     for (first = 0; first < width && status == HF_OK; first += PLANE_COLUMNS_SIDE_BY_SIDE) {
         const int64_t block =
             width - first < PLANE_COLUMNS_SIDE_BY_SIDE ? width - first : PLANE_COLUMNS_SIDE_BY_SIDE;
@@ -453,7 +455,7 @@ static int plane_image(hf_hit_batch *b, const hf_ray_steps *steps, int64_t width
         for (c = 0; c < block; ++c) {
             count[c] = (n - (first + c) + width - 1) / width; /* the rays of column c */
             next[c] = first + c + (top_down ? (count[c] - 1) * width : 0);
-            plane_column_init(b, next[c], &columns[c]);
+            plane_column_init(b, next[c], &alone, &columns[c]);
         }
         /* the rows every column of the block has, then the block's first columns'
          * last ray (they are the longer ones, by one) */
@@ -526,10 +528,12 @@ int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
     int64_t slots = 16, ray, *table = NULL, *next = NULL, *last = NULL, width;
     plane_member *members = NULL;
     int status = HF_OK, top_down = 0;
+    hf_hit alone; /* the record of the rays traced alone */
     if (b->mip_levels < 1) return HF_ERR_ARGUMENT;
     b->bad_ray = -1;
     width = n > 1 ? image_columns(b, &top_down) : 0;
     if (width > 0) return plane_image(b, steps, width, top_down); /* no grouping to do */
+    steps->start(b, &alone);
     /* an open-addressing table of the planes (at most half full), each plane a list of
      * its rays in batch order: next[] links them, last[] holds a list's tail at its head */
     while (slots < 2 * n) slots *= 2;
@@ -566,10 +570,10 @@ int hf_plane_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
             for (member = ray; member >= 0; member = next[member])
                 members[count++] = member_of(b, member);
             plane_order(members, count);
-            status = plane_trace(b, steps, members, count);
+            status = plane_trace(b, steps, members, count, &alone);
         } else if (last[ray] >= 0 || !plane_eligible(b, ray)) {
             /* a ray alone in its plane, or one that shares none: dda_maxmip's walk */
-            status = plane_alone(b, steps, ray);
+            status = plane_alone(b, steps, ray, &alone);
             if (status != HF_OK) b->bad_ray = ray;
         }
     }

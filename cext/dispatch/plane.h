@@ -5,11 +5,13 @@
 #include <stdint.h>
 #include "surfaces/hitbatch.h"
 
-/* The three steps of one ray as dda_maxmip takes them, given by the dispatcher
- * (intersect.c), so that this file calls nothing above it: `begin` clips ray `ray` and
- * fills h (0: it misses the box, nothing to walk); `solve` walks it on [t0, t1] with
- * dda_maxmip (HF_OK or an error status); `end` writes its outputs. */
+/* The steps of one ray as dda_maxmip takes them, given by the dispatcher (intersect.c),
+ * so that this file calls nothing above it: `start` sets up a hit record for the batch's
+ * rays, once (a record may then serve any number of rays in turn); `begin` clips ray `ray`
+ * and fills h, a started record (0: it misses the box, nothing to walk); `solve` walks it
+ * on [t0, t1] with dda_maxmip (HF_OK or an error status); `end` writes its outputs. */
 typedef struct {
+    void (*start)(const hf_hit_batch *b, hf_hit *h);
     int (*begin)(const hf_hit_batch *b, int64_t ray, hf_hit *h, double *t0, double *t1,
                  int *entry_axis);
     int (*solve)(hf_hit_batch *b, int64_t ray, hf_hit *h, double t0, double t1, int entry_axis);

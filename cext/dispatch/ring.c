@@ -151,6 +151,7 @@ int hf_ring_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
     b->bad_ray = -1;
     if (b->mip_levels < 1) return HF_ERR_ARGUMENT;
     cold_level = ring_cold_level(b);
+    for (k = 0; k < HF_RING_SLOTS; ++k) steps->start(b, &slots[k].h); /* each serves many rays */
     /* fill the ring */
     for (k = 0; k < HF_RING_SLOTS; ++k) {
         if (!ring_take(b, steps, &next, &slots[k], &status)) break;

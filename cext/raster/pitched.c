@@ -383,10 +383,10 @@ HF_HOT int coarse_bound(const coarse_image *img, const double d[3], double *boun
     return 1;
 }
 
-/* One ray: dda_maxmip's walk, from the cell holding its bound when the image gives one. */
+/* One ray: dda_maxmip's walk, from the cell holding its bound when the image gives one. h:
+ * the batch's hit record (the steps' `start`), which serves every ray in turn. */
 static int pitched_ray(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray,
-                       const coarse_image *img, const hf_hit *miss) {
-    hf_hit h;
+                       const coarse_image *img, const hf_hit *miss, hf_hit *h) {
     hf_mip_ray r;
     hf_mip_walk w;
     double t0, t1, bound = 0;
@@ -409,33 +409,33 @@ static int pitched_ray(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray,
             bounded = 1;
         }
     }
-    if (!steps->begin(b, ray, &h, &t0, &t1, &entry_axis)) {
-        steps->end(b, ray, &h);
+    if (!steps->begin(b, ray, h, &t0, &t1, &entry_axis)) {
+        steps->end(b, ray, h);
         return HF_OK;
     }
     if (b->bound) b->bound[ray] = t0;
-    if (!(t0 < t1) || hf_on_grid_line(&h)) {
+    if (!(t0 < t1) || hf_on_grid_line(h)) {
         /* a single parameter, or a ray on a grid line: dda_maxmip's own per-ray paths */
-        const int status = steps->solve(b, ray, &h, t0, t1, entry_axis);
+        const int status = steps->solve(b, ray, h, t0, t1, entry_axis);
         if (status != HF_OK) return status;
-        steps->end(b, ray, &h);
+        steps->end(b, ray, h);
         return HF_OK;
     }
-    hf_mip_setup(&h, b, &r, &w);
+    hf_mip_setup(h, b, &r, &w);
     if (img->depth && t0 >= 0) {
         if (!bounded && !coarse_bound(img, b->directions + 3 * ray, &bound)) {
             if (b->bound) b->bound[ray] = INFINITY;
-            steps->end(b, ray, &h); /* it meets no box: a miss */
+            steps->end(b, ray, h); /* it meets no box: a miss */
             return HF_OK;
         }
         if (bound > t0) {
             if (b->bound) b->bound[ray] = bound;
             /* start at the entry of the cell holding the bound, if the ray crosses it */
             const double start = bound < t1 ? bound : t1;
-            const int32_t i = hf_cell_at(h.ox, h.dx, start, r.nx);
-            const int32_t j = hf_cell_at(h.oy, h.dy, start, r.ny);
+            const int32_t i = hf_cell_at(h->ox, h->dx, start, r.nx);
+            const int32_t j = hf_cell_at(h->oy, h->dy, start, r.ny);
             double ta, tb;
-            (void)hf_cell_interval(&h, i, j, &ta, &tb);
+            (void)hf_cell_interval(h, i, j, &ta, &tb);
             if (ta < tb && ta <= start && start <= tb) {
                 w.i = i;
                 w.j = j;
@@ -443,14 +443,14 @@ static int pitched_ray(hf_hit_batch *b, const hf_ray_steps *steps, int64_t ray,
             }
         }
     }
-    (void)hf_mip_walk_alone(&h, b, &r, &w, 0);
-    steps->end(b, ray, &h);
+    (void)hf_mip_walk_alone(h, b, &r, &w, 0);
+    steps->end(b, ray, h);
     return HF_OK;
 }
 
 int hf_pitched_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
     coarse_image img;
-    hf_hit miss;
+    hf_hit miss, h;
     int64_t ray;
     int shared = 1, status = HF_OK;
     if (b->mip_levels < 1) return HF_ERR_ARGUMENT;
@@ -463,8 +463,9 @@ int hf_pitched_batch(hf_hit_batch *b, const hf_ray_steps *steps) {
         if (built < 0) return HF_ERR_MEMORY;
     }
     memset(&miss, 0, sizeof miss);
+    steps->start(b, &h);
     for (ray = 0; ray < b->n_rays && status == HF_OK; ++ray) {
-        status = pitched_ray(b, steps, ray, &img, &miss);
+        status = pitched_ray(b, steps, ray, &img, &miss, &h);
         if (status != HF_OK) b->bad_ray = ray;
     }
     free(img.depth);

@@ -57,13 +57,10 @@ typedef struct {
 
 int hf_intersect_batch(int kernel, hf_hit_batch *batch);
 
-/* The fields of a hit record that come from the batch and from the ray's 2D line (origin
- * o, direction d, each (x, y, z), and the inverse horizontal direction inv, hf_inverse):
- * the one fill of dda_maxmip's per-ray set-up
- * (dispatch/intersect.c) and of a plane's shared set-up (dispatch/plane.c). The caller
- * sets oz, dz, the range and entry axis, then calls hf_hit_prepare. */
-static inline void hf_hit_fill(hf_hit *h, const hf_hit_batch *b, const double *o, const double *d,
-                               const double inv[2]) {
+/* The fields of a hit record that come from the batch alone: set once per record (the
+ * dispatcher's `start`, dispatch/intersect.c; a plane's shared set-up, dispatch/plane.c),
+ * as no walk changes them (dda_compact lends cull_cells and gives it back). */
+static inline void hf_hit_fill_batch(hf_hit *h, const hf_hit_batch *b) {
     h->heights = b->heights;
     h->cellmax = b->cellmax;
     h->rows = b->rows;
@@ -74,6 +71,14 @@ static inline void hf_hit_fill(hf_hit *h, const hf_hit_batch *b, const double *o
     h->cull_cells = b->cull_cells;
     h->habs = b->habs;
     h->grid_span = b->grid_span;
+}
+
+/* The fields that come from the ray's 2D line (origin o, direction d, each (x, y, z), and
+ * the inverse horizontal direction inv, hf_inverse): the one fill of dda_maxmip's per-ray
+ * set-up (dispatch/intersect.c) and of a plane's shared set-up (dispatch/plane.c). The
+ * caller sets oz, dz, the range and entry axis, then calls hf_hit_prepare. */
+static inline void hf_hit_fill_line(hf_hit *h, const double *o, const double *d,
+                                    const double inv[2]) {
     h->ox = o[0];
     h->oy = o[1];
     h->dx = d[0];
