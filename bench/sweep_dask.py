@@ -50,8 +50,12 @@ def dask_client(address: str, memory_limit=None):
             n = 0
         if n < 1:
             raise ValueError(f"--dask: expected local:N with N >= 1, got {address!r}")
+        # no dashboard, and the scheduler's remaining HTTP routes on a free port: by default
+        # they bind 8787, and where that is taken (another cluster, a notebook) Dask warns
+        # on stderr, which the CLI's output would carry
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=None,
+                               scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"},
                                **({"memory_limit": memory_limit} if memory_limit else {}))
         client = Client(cluster)
         # a task's exception reaches the driver, which reports it in one line: the local
