@@ -1,4 +1,5 @@
 # hftrace: every target sets itself up in a local virtual environment.
+#   make install    install into .venv only (the C kernels built, nothing run)
 #   make test       install into .venv and run the test suite
 #   make reproduce  install into .venv and run the main study (`hftrace reproduce`)
 #   make sanitize   build with AddressSanitizer + UBSan in build/asan and run the tests

@@ -2,6 +2,8 @@
 of terrain products (PNG, via matplotlib: colour bar with units, title with parameters)."""
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 __all__ = ["hillshade", "write_png", "product_png"]
@@ -117,6 +119,8 @@ def product_png(path, array, field=None, *, product, units, params=None, observe
     unit = f" {field.unit}" if field is not None and field.unit != "cell" else ""
     text = ", ".join(f"{k}={_short(v)}{unit if k in lengths and v is not None else ''}"
                      for k, v in (params or {}).items())
+    # wrapped: on one line a product's parameters ran past both edges of the figure
+    text = textwrap.fill(text, width=80, break_long_words=False, break_on_hyphens=False)
     name = field.name if field is not None else ""
     ax.set_title(f"{product}{' of ' + name if name else ''}" + (f"\n{text}" if text else ""),
                  fontsize=10)

@@ -117,9 +117,9 @@ def _azimuth_list(azimuths):
         try:
             a = float(a)
         except (TypeError, ValueError):
-            raise TypeError(f"azimuths[{k}]: azimuth: expected a number, got {a!r}") from None
+            raise TypeError(f"azimuths[{k}]: expected a number of degrees, got {a!r}") from None
         if not math.isfinite(a):
-            raise ValueError(f"azimuths[{k}]: azimuth: expected a finite number of degrees, "
+            raise ValueError(f"azimuths[{k}]: expected a finite number of degrees, "
                              f"got {a!r}")
         out.append(a)
     return out

@@ -62,6 +62,15 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
         raise ValueError(f"elevation: expected degrees in [-90, 90], got {elevation!r}")
     if np.ndim(azimuth) != 0:
         raise ValueError("azimuth: expected one number (the sun's azimuth)")
+    # checked here so that the error names this argument, not horizon's azimuths[0]
+    if isinstance(azimuth, (bool, np.bool_)):
+        raise TypeError(f"azimuth: expected a number of degrees, got {azimuth!r}")
+    try:
+        az = float(azimuth)
+    except (TypeError, ValueError):
+        raise TypeError(f"azimuth: expected a number of degrees, got {azimuth!r}") from None
+    if not math.isfinite(az):
+        raise ValueError(f"azimuth: expected a finite number of degrees, got {azimuth!r}")
     check_return_stats(return_stats, heights)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     snap, used = None, azimuth

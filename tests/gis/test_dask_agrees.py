@@ -119,7 +119,7 @@ BAD = [
     ("horizon", ["--max-distance", "nan"], "max_distance: expected a non-negative length, got nan"),
     ("horizon", ["--max-distance", "-5"], "max_distance: expected a non-negative length, got -5.0"),
     ("horizon", ["--max-distance", "5", "--azimuths", "inf"],
-     "azimuths[0]: azimuth: expected a finite number of degrees, got inf"),
+     "azimuths[0]: expected a finite number of degrees, got inf"),
     ("shadows", ["--max-distance", "5", "--elevation", "100"],
      "elevation: expected degrees in [-90, 90], got 100.0"),
     ("viewshed", ["--max-distance", "5", "--observer-pixel", "20,10"],

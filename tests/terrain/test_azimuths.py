@@ -2,6 +2,7 @@
 exact reference and the other exact methods, the paths each azimuth takes, and explicit
 snapping to rational directions."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -262,3 +263,15 @@ def test_snap_denominator_errors_name_it():
         T.horizon(np.zeros((4, 4)), [22.5], snap_denominator=0)
     with pytest.raises(ValueError, match=r"max_denominator: expected an int"):
         T.snap_azimuths([22.5], 200)
+
+
+@pytest.mark.parametrize("azimuth, error, message", [
+    (float("inf"), ValueError, "azimuth: expected a finite number of degrees, got inf"),
+    (float("nan"), ValueError, "azimuth: expected a finite number of degrees, got nan"),
+    ("north", TypeError, "azimuth: expected a number of degrees, got 'north'"),
+    (True, TypeError, "azimuth: expected a number of degrees, got True"),
+])
+def test_shadows_errors_name_its_azimuth(azimuth, error, message):
+    # shadows takes one azimuth: its errors name that argument, not horizon's azimuths[0]
+    with pytest.raises(error, match="^" + re.escape(message) + "$"):
+        T.shadows(np.zeros((4, 4)), azimuth, 10.0)
