@@ -527,7 +527,8 @@ def table(record, env, cfg, counts=True) -> str:
              f"the ratio afresh (median pair, distribution-free interval; until ±"
              f"{100 * cfg.get('precision', 0.02):g} % or {cfg.get('confirm_budget_s', 10):g} s); line 1 in "
              f"{_processes(record['processes'])} (min-median-max of the ratio). Ratio = "
-             f"Embree's time / ours (> 1: we are faster); [95 % interval]. Machine {env.get('cpu')}, commit "
+             f"Embree's time / ours (> 1: we are faster); [95 % interval]. A name with (k/n) "
+             f"was the selection in k of the n processes. Machine {env.get('cpu')}, commit "
              f"{env.get('git_commit')}; load averages (1, 5, 15 min) {env.get('load_before')} "
              f"before, {env.get('load_after', 'unfinished')} after. The targets' wording is "
              "the round's; a status is met only in both regimes and against every peer "
@@ -572,6 +573,9 @@ def table(record, env, cfg, counts=True) -> str:
                          f"{_pairs_text(rec, regime, peer)} | "
                          f"{_target_text(s.get('target'), key)} | {s['status']} | {instr} | "
                          f"{misses} |")
+        if c.get("ours", {}).get("contender"):
+            notes.append(f"- {rec['setting']}: the counts of ours are "
+                         f"`{c['ours']['contender']}`'s, in both regimes")
         for who, entry in c.items():
             if who == "note":
                 notes.append(f"- {rec['setting']}: {entry}")
