@@ -65,8 +65,9 @@ def register(sub):
     add_plugin(p)
     p.set_defaults(func=list_algorithms)
 
-    p = sub.add_parser("datasets", help="the catalogue of height fields")
-    dsub = p.add_subparsers(dest="datasets_command", required=True)
+    p = sub.add_parser("datasets", help="the catalogue of height fields (alone: `datasets list`)")
+    p.set_defaults(func=list_datasets)  # `hftrace datasets` alone lists them, as `list` does
+    dsub = p.add_subparsers(dest="datasets_command")
     q = dsub.add_parser("list", help="every generator and embedded field with its parameters")
     q.set_defaults(func=list_datasets)
     q = dsub.add_parser("show", help="shape, range, spacing and checksum of one field")

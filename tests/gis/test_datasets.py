@@ -330,6 +330,8 @@ def test_cli_datasets(tmp_path, capsys):
         assert name in listing
     for row in datasets_gen.catalogue():  # whole sentences, not the docstring's first line
         assert row["summary"].endswith(".") and row["summary"] in listing, row["name"]
+    assert main(["datasets"]) == 0  # alone, it lists them as `datasets list` does
+    assert capsys.readouterr().out == listing
     png = tmp_path / "p.png"
     assert main(["datasets", "show", "terraces", "--size", "40", "--seed", "2", "--png",
                  str(png), "--cache-dir", str(tmp_path)]) == 0
