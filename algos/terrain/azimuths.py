@@ -110,19 +110,21 @@ def _azimuth_list(azimuths):
     az = np.atleast_1d(np.asarray(azimuths, dtype=object if scalar else None))
     if az.ndim != 1 or len(az) == 0:
         raise ValueError(f"azimuths: expected a number or a non-empty 1D sequence, got shape {az.shape}")
-    out = []
-    for k, a in enumerate(az):
-        if isinstance(a, (bool, np.bool_)):
-            raise TypeError(f"azimuths[{k}]: expected a number of degrees, got {a!r}")
-        try:
-            a = float(a)
-        except (TypeError, ValueError):
-            raise TypeError(f"azimuths[{k}]: expected a number of degrees, got {a!r}") from None
-        if not math.isfinite(a):
-            raise ValueError(f"azimuths[{k}]: expected a finite number of degrees, "
-                             f"got {a!r}")
-        out.append(a)
-    return out
+    return [finite_degrees(a, f"azimuths[{k}]") for k, a in enumerate(az)]
+
+
+def finite_degrees(value, name: str) -> float:
+    """``value`` as a float number of degrees; a bool, a non-number or a non-finite value
+    raises, naming ``name`` (an argument, or an entry such as ``azimuths[2]``)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected a number of degrees, got {value!r}")
+    try:
+        degrees = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: expected a number of degrees, got {value!r}") from None
+    if not math.isfinite(degrees):
+        raise ValueError(f"{name}: expected a finite number of degrees, got {degrees!r}")
+    return degrees
 
 
 def _rational_map_azimuths(heights, spacing, n):

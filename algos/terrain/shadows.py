@@ -7,7 +7,7 @@ import numpy as np
 
 from ..field import is_dask, is_dataarray
 from ..georef import WGS84_SEMI_MAJOR_AXIS_M
-from .azimuths import snap_azimuths
+from .azimuths import finite_degrees, snap_azimuths
 from .curvature import DEFAULT_REFRACTION, _curvature_attrs
 from .dataarray import _attr, _to_dataarray, _with_path_attrs
 from .grid import _field_spacing
@@ -63,14 +63,7 @@ def shadows(heights, azimuth, elevation, *, max_distance=None, algorithm=None,
     if np.ndim(azimuth) != 0:
         raise ValueError("azimuth: expected one number (the sun's azimuth)")
     # checked here so that the error names this argument, not horizon's azimuths[0]
-    if isinstance(azimuth, (bool, np.bool_)):
-        raise TypeError(f"azimuth: expected a number of degrees, got {azimuth!r}")
-    try:
-        az = float(azimuth)
-    except (TypeError, ValueError):
-        raise TypeError(f"azimuth: expected a number of degrees, got {azimuth!r}") from None
-    if not math.isfinite(az):
-        raise ValueError(f"azimuth: expected a finite number of degrees, got {azimuth!r}")
+    finite_degrees(azimuth, "azimuth")
     check_return_stats(return_stats, heights)
     curve = dict(curvature=curvature, refraction=refraction, earth_radius=earth_radius)
     snap, used = None, azimuth
