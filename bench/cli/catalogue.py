@@ -11,13 +11,23 @@ from .args import add_plugin, load_plugins, param, positive_int
 def list_algorithms(args):
     """Print every traversal and intersector of the registry with its properties."""
     load_plugins(args)
+    traversals = list(algos.TRAVERSAL_REGISTRY.values())
+    intersectors = list(algos.INTERSECTOR_REGISTRY.values())
+    exact = {t.name: "exact" if t.exact else (f"exact when {t.exact_when}" if t.exact_when
+                                              else t.precision) for t in traversals}
+    # columns as wide as their longest entry, so a long name or condition never shifts a row
+    name_w = max(len(r.name) for r in traversals + intersectors)
+    family_w = max(len(t.family) for t in traversals)
+    exact_w = max(map(len, exact.values()))
+    kind_w = max(len(a.kind) for a in intersectors)
+    accuracy_w = max(len(a.accuracy) for a in intersectors)
     print("traversals (algos.traverse):")
-    for t in algos.TRAVERSAL_REGISTRY.values():
-        exact = "exact" if t.exact else (f"exact when {t.exact_when}" if t.exact_when else t.precision)
-        print(f"  {t.name:14s} {t.family:4s} {exact:50s} {t.summary} ({t.citation})")
+    for t in traversals:
+        print(f"  {t.name:{name_w}s} {t.family:{family_w}s} {exact[t.name]:{exact_w}s} {t.summary} "
+              f"({t.citation})")
     print("intersectors (algos.intersect):")
-    for a in algos.INTERSECTOR_REGISTRY.values():
-        print(f"  {a.name:14s} {a.kind:9s} {a.accuracy:13s} {a.summary}")
+    for a in intersectors:
+        print(f"  {a.name:{name_w}s} {a.kind:{kind_w}s} {a.accuracy:{accuracy_w}s} {a.summary}")
     from algos.plugins import plugin_names
 
     if plugin_names():

@@ -11,6 +11,7 @@ import time
 import numpy as np
 import pytest
 
+import algos
 from bench import analysis, sweep
 from bench.cli import main
 from bench.regress import time_gate as regress
@@ -370,6 +371,17 @@ def test_render_writes_exr_png_and_diff(tmp_path):
         assert np.nanmax(np.abs(dz)) < 1e-3  # two exact kernels: the same depths
     for key in ("png", "diff_png"):
         assert os.path.getsize(paths[key]) > 200
+
+
+def test_list_columns_align(capsys):
+    """Every row's summary starts at one column per section, the long "exact when ..." of
+    runs_periodic included (it pushed its summary right: trial10)."""
+    assert main(["list"]) == 0
+    sections = capsys.readouterr().out.split("intersectors (algos.intersect):")
+    for section, registry in zip(sections, (algos.TRAVERSAL_REGISTRY, algos.INTERSECTOR_REGISTRY)):
+        starts = {line.index(entry.summary) for line in section.splitlines()
+                  for name, entry in registry.items() if line.startswith(f"  {name} ")}
+        assert len(starts) == 1, starts
 
 
 def test_cli_smoke(tmp_path, capsys):
