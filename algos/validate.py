@@ -136,7 +136,9 @@ def check_rays3(origins, directions):
     far = np.abs(o) > MAX_ORIGIN
     if far.any():
         k, c = first_bad(far)
-        raise ValueError(f"origins: ray {k} has |origins[{k}, {c}]| = {abs(o[k, c])} > 2**30")
+        raise ValueError(f"origins: ray {k} has |origins[{k}, {c}]| = {abs(o[k, c])} > 2**30, the "
+                         "documented limit (start the ray nearer the grid, at o + s d, and add s "
+                         "to its t)")
     return o, d
 
 

@@ -111,6 +111,22 @@ def test_directions_beyond_the_documented_magnitudes_are_refused(scale):
         algos.intersect("dda", np.zeros((33, 33)), o, d)
 
 
+def test_an_origin_beyond_the_limit_is_refused_with_the_way_round_it():
+    """|origins| > 2**30 is refused naming the ray, the component and the remedy (as
+    traverse's message does); the remedy, taken, gives the hit at t - s."""
+    d = np.array([[1.0, 0.0, -1.0]])
+    s = 2.0 ** 31
+    far = np.array([[0.5 - s, 16.5, 10.0 + s]])
+    with pytest.raises(ValueError, match=r"origins: ray 0 has \|origins\[0, 0\]\| = .* > 2\*\*30, "
+                                         r"the documented limit \(start the ray nearer the grid, "
+                                         r"at o \+ s d, and add s to its t\)"):
+        algos.intersect("dda", np.zeros((33, 33)), far, d)
+    near = far + s * d
+    assert near.tolist() == [[0.5, 16.5, 10.0]]  # exact in float64
+    hit = algos.intersect("dda", np.zeros((33, 33)), near, d)
+    assert hit.t[0] == 10.0 and hit.cell[0].tolist() == [10, 16]  # the far ray's t is 10 + s
+
+
 # ---- other arguments ----------------------------------------------------------------------
 def test_outputs_none_is_named():
     with pytest.raises(TypeError, match="outputs: expected"):
