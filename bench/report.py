@@ -1,11 +1,16 @@
-"""Shared pieces of the benchmark reports: the speedup table, the row writer and the
-reader that finds the rows a kill cut short."""
+"""Shared pieces of the benchmark reports: the speedup table, the row writer, the
+reader that finds the rows a kill cut short, and what the tables (:mod:`bench.analysis`)
+and the plots (:mod:`bench.plots`) both read (the paper's figures, the kernels plotted,
+the run-length order, the geometric mean, the rows' design)."""
 from __future__ import annotations
 
 import csv
 import io
 import math
 import os
+
+import numpy as np
+import pandas as pd
 
 from .findings import DEFAULT_PRECISION, ratio_text
 
@@ -249,3 +254,36 @@ def speedup_table(rows, column_key="run_length", column_label="r", footer=None) 
     if any(name.startswith("embree") for name in names):
         lines += ["", EMBREE_NOTE + "."]
     return "\n".join(lines)
+
+
+#: Henning & Stephenson 2004 as summarised in the seeds: speedup of the run walk over the
+#: cell walk by mean run length, and over all orientations.
+PAPER = {1.0: 1.0, 2.0: 1.1, 25.0: 1.8, "random": 1.25}
+PRIMARY = ("first_hit", "triangles")
+
+#: The kernels the plots show by default (plugins always join them; ``all_kernels``
+#: shows every one).
+PLOT_KERNELS = ("dda_f32", "midpoint", "runs", "runs_maxmip", "dda_maxmip", "embree")
+
+
+def _r_value(r):
+    try:
+        return float(r)
+    except (TypeError, ValueError):
+        return np.inf  # "random" sorts last
+
+
+def _geomean(values):
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values) & (values > 0)]
+    return float(np.exp(np.mean(np.log(values)))) if len(values) else np.nan
+
+
+def paired_design(df) -> bool:
+    """Whether the rows were measured in adjacent pairs with a precision (docs/METHOD.md,
+    "Paired rounds"), whose speedup is the median pair's ratio; else the fixed-repeats
+    design, whose speedup is the geometric mean of the paired per-round ratios."""
+    return bool("regime" in df and df["regime"].isin(["warm", "flushed-per-call",
+                                                       "flushed-per-round", "unflushed"]).any()
+                and "precision" in df
+                and pd.to_numeric(df["precision"], errors="coerce").notna().any())

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import algos
-from bench import analysis, sweep
+from bench import analysis, plots, sweep
 from bench.cli import main
 from bench.regress import time_gate as regress
 
@@ -136,12 +136,12 @@ def test_run_length_plot_legends_stand_off_the_data(monkeypatch):
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", keep)
     df = analysis.load(os.path.join(ROOT, "reports", "reproduce-headline", "results.csv"), echo=None)
-    analysis.plot_speedup(df, "unused.png")
+    plots.plot_speedup(df, "unused.png")
     fig = drawn["fig"]
     ax = fig.axes[0]
     legends = fig.legends
     lines, key = ([t.get_text() for t in legend.get_texts()] for legend in legends)
-    shown = analysis.plot_kernels(dict.fromkeys(df["algorithm"]))
+    shown = plots.plot_kernels(dict.fromkeys(df["algorithm"]))
     assert lines == shown + ["Henning & Stephenson 2004, by r",
                              "Henning & Stephenson 2004,\nall orientations (1.25x)",
                              "dda, the baseline (1.0)"]
@@ -171,7 +171,7 @@ def test_cost_plot_draws_the_workloads_measured(tmp_path, pairs, panels):
     rows = [{"workload": w, "surface": s, "algorithm": a, "cells_per_ray": 10.0 + k,
              "ns_per_ray": 100.0 + k} for k, (w, s) in enumerate(pairs) for a in ("dda", "runs")]
     path = tmp_path / "cost.png"
-    assert analysis.plot_cost(pd.DataFrame(rows), str(path)) == panels
+    assert plots.plot_cost(pd.DataFrame(rows), str(path)) == panels
     assert os.path.getsize(path) > 10_000
 
 
@@ -249,11 +249,11 @@ def test_run_length_plot_says_which_speedup_it_draws():
 
     paired = pd.DataFrame({"regime": ["warm"], "precision": ["0.02"]})
     fixed = pd.DataFrame({"regime": ["flushed"], "precision": [""]})
-    assert analysis.speedup_axis_label(paired) == "speedup over dda (median of adjacent pairs' ratios)"
-    assert analysis.speedup_axis_label(fixed) == "speedup over dda (geometric mean of paired ratios)"
+    assert plots.speedup_axis_label(paired) == "speedup over dda (median of adjacent pairs' ratios)"
+    assert plots.speedup_axis_label(fixed) == "speedup over dda (geometric mean of paired ratios)"
     headline = analysis.load(os.path.join(ROOT, "reports", "reproduce-headline", "results.csv"),
                              echo=None)
-    assert "median" in analysis.speedup_axis_label(headline)
+    assert "median" in plots.speedup_axis_label(headline)
 
 
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):

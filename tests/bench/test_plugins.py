@@ -13,7 +13,7 @@ import pytest
 
 import algos
 from algos import plugins
-from bench import analysis, load, sweep
+from bench import analysis, load, plots, sweep
 from bench.cli import main
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -824,10 +824,10 @@ def test_plot_line_style_follows_the_exactness_claim(registered):
     algos.register_traversal("approx", numpy_dda(), exact=False)
     algos.register_intersector("claims", lambda h, o, d: np.full(len(o), np.inf), exact=True)
     registered += ["approx", "claims"]
-    assert analysis._style("approx") == "--"
-    assert analysis._style("claims") == "-"
-    assert analysis._style("not_loaded_here") == "--"
-    assert analysis._style("runs") == "-" and analysis._style("dda_f32") == "--"
+    assert plots._style("approx") == "--"
+    assert plots._style("claims") == "-"
+    assert plots._style("not_loaded_here") == "--"
+    assert plots._style("runs") == "-" and plots._style("dda_f32") == "--"
 
 
 def test_plot_draws_an_inexact_plugin_dashed(tmp_path, registered, monkeypatch):
@@ -852,7 +852,7 @@ def test_plot_draws_an_inexact_plugin_dashed(tmp_path, registered, monkeypatch):
         styles.update((line.get_label(), line.get_linestyle()) for line in fig.axes[0].get_lines())
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", keep_styles)
-    analysis.plot_speedup(analysis.load(str(tmp_path / "r.csv"), echo=None), str(tmp_path / "p.png"))
+    plots.plot_speedup(analysis.load(str(tmp_path / "r.csv"), echo=None), str(tmp_path / "p.png"))
     assert styles["rough"] == "--" and styles["sharp"] == "-" and styles["runs"] == "-"
 
 
