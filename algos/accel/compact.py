@@ -11,14 +11,15 @@ cells and has 4 x 4 children, the level ``L - 1`` tiles (the cells themselves at
   parent's input), ``used`` (bit ``k`` set when child slot ``k`` lies inside the grid),
   ``q`` (16 uint16): the children's maxima as codes relative to the node's range
   ``[base, max]``, rounded *up*, so every bound is at or above the child's float32 maximum
-  and culling stays conservative (the step is ``(max - base) / 65535``), and ``low`` (16
-  uint8, level 2 only): the low end of each child tile's cell codes,
-  ``base + (low[k] * 256) * scale``, at or below the tile's lowest cell maximum.
+  and culling stays conservative (the step is ``(max - base) / 65535``; ``base`` is the
+  lowest child maximum, at level 2 the lowest cell maximum), and ``low`` (16 uint8, level
+  2 only): the low end of each child tile's cell codes, ``base + (low[k] * 256) * scale``,
+  at or below the tile's lowest cell maximum.
 * A **leaf** (level 1) holds the cells of 2 x 2 level-1 tiles (8 x 8 cells) as uint8
   codes: 16 bytes per tile, tile ``2 (tj % 2) + ti % 2``, cell slot
   ``k = 4 (j % 4) + i % 4``. A cell's bound is ``lo + code * step`` in float64, over the
   range the level-2 parent gives its tile: ``hi`` = the tile's bound (``base + q * scale``),
-  ``lo`` = its ``low`` value, ``step`` = the power of two at or below ``(hi - lo) / 127``
+  ``lo`` = its ``low`` value, ``step`` = ``(hi - lo) / 254`` cut to 21 significant bits
   (:func:`leaf_step`; ``code * step`` is exact). Each code is the smallest whose bound is at
   or above the cell's float32 maximum (0 for a cell below ``lo``): a coarser bound than the
   maximum, by less than one step.
@@ -135,10 +136,11 @@ def compact_nodes(tree: np.ndarray, ny: int, nx: int, level: int) -> np.ndarray:
 
 def leaf_step(hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
     """The step of a leaf tile's cell codes over ``[lo, hi]`` (float64), as
-    ``hf_compact_leaf_step`` computes it: the power of two at or below ``(hi - lo) / 127``
-    (its exponent bits), 0 when ``hi == lo``."""
-    z = (np.asarray(hi, np.float64) - np.asarray(lo, np.float64)) * (1.0 / 127.0)
-    return (z.view(np.uint64) & np.uint64(0x7FF0000000000000)).view(np.float64)
+    ``hf_compact_leaf_step`` computes it: ``(hi - lo) / 254`` with the low 32 bits of the
+    float64 cleared (21 significant bits, so ``code * step`` is exact), 0 when
+    ``hi == lo``."""
+    z = (np.asarray(hi, np.float64) - np.asarray(lo, np.float64)) * (1.0 / 254.0)
+    return (z.view(np.uint64) & np.uint64(0xFFFFFFFF00000000)).view(np.float64)
 
 
 def compact_bounds(tree: np.ndarray, ny: int, nx: int, level: int) -> np.ndarray:

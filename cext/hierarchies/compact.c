@@ -37,9 +37,12 @@ int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {
 
 /* ---- build ------------------------------------------------------------------------------- */
 /* Quantise one node's child maxima (`valid` of the 16 slots, bit k for slot k) to codes
- * whose bound is at or above each maximum in the walk's own arithmetic. */
-static void quantize_node(hf_compact_node *node, const float value[16], uint32_t valid) {
-    float lo = INFINITY, hi = -INFINITY;
+ * whose bound is at or above each maximum in the walk's own arithmetic. The codes start
+ * at the lowest child maximum, or at `floor` if that is lower (a level-2 node: its lowest
+ * cell maximum, so that every tile's low end can reach its cells; quantize_low). */
+static void quantize_node(hf_compact_node *node, const float value[16], uint32_t valid,
+                          float floor) {
+    float lo = floor, hi = -INFINITY;
     int k;
     for (k = 0; k < 16; ++k) {
         if (!(valid >> k & 1u)) continue;
@@ -81,9 +84,9 @@ static void quantize_node(hf_compact_node *node, const float value[16], uint32_t
 
 /* The low ends of a level-2 node's leaf ranges: for each child tile, the largest code
  * low[k] whose hf_compact_leaf_low is at or below the tile's lowest cell maximum
- * (`lowest`), so the tile's 255 cell codes span only its own cells' range. Any value at
- * or below the tile's bound would be correct (a cell below it gets code 0); this one
- * makes the codes tightest. */
+ * (`lowest`; the node's base is at or below it), so the tile's 255 cell codes span only
+ * its own cells' range. Any value at or below the tile's bound would be correct (a cell
+ * below it gets code 0, and lo as its bound); this one makes the codes tightest. */
 static void quantize_low(hf_compact_node *node, const float lowest[16]) {
     int k;
     for (k = 0; k < 16; ++k) {
@@ -102,10 +105,10 @@ static void quantize_low(hf_compact_node *node, const float lowest[16]) {
 }
 
 /* The smallest cell code whose bound over [lo, lo + 255 step] is at or above the cell
- * maximum m (0 for a cell below lo). Code 255 always is: 255 step >= (hi - lo) 255 / 254
+ * maximum m (0 for a cell below lo). Code 255 always is: 255 step >= (hi - lo) (1 + 2^-9)
  * (hf_compact_leaf_step), so lo + 255 step rounds to at least lo + (hi - lo), which is hi
- * when hi - lo is exact (Sterbenz) and otherwise falls short of hi by a rounding of
- * |hi - lo| 2^-53 at most, far inside the margin (hi - lo) / 254; and m <= hi. */
+ * when hi - lo is exact (Sterbenz) and otherwise (|hi|, |lo| <= 2 (hi - lo)) falls short of
+ * hi by roundings of 2^-52 (hi - lo) at most, far inside the margin; and m <= hi. */
 static uint8_t leaf_code(double lo, double step, float m) {
     double guess = 0.0;
     unsigned code;
@@ -192,8 +195,16 @@ void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *record
                         }
                     }
                 }
-                quantize_node(node, value, valid);
-                if (level == 2) quantize_low(node, lowest);
+                if (level == 2) {
+                    float floor = INFINITY;
+                    int k;
+                    for (k = 0; k < 16; ++k)
+                        if (valid >> k & 1u) floor = lowest[k] < floor ? lowest[k] : floor;
+                    quantize_node(node, value, valid, floor);
+                    quantize_low(node, lowest);
+                } else {
+                    quantize_node(node, value, valid, INFINITY);
+                }
             }
         }
     }

@@ -8,7 +8,8 @@
  * level 1, in one buffer aligned to 64 bytes.
  *
  * - Levels >= 2 (hf_compact_node, one per tile): the 16 children's maxima as uint16 codes
- *   relative to the node's own range, rounded up: child k is never above
+ *   relative to the node's own range (from its lowest child maximum, at level 2 from its
+ *   lowest cell maximum, to its maximum), rounded up: child k is never above
  *   hf_compact_bound(node, k) = base + q[k] scale, evaluated in double. q[k] (0..65535) is
  *   chosen by the build (compact.c) so that this holds for the child's float32 maximum in
  *   the very arithmetic the walk uses; q[k] * scale is exact in double (16 x 24 significant
@@ -20,12 +21,12 @@
  *   tile's 16 cell maxima as uint8 codes relative to the range [lo, hi] its parent node
  *   gives it: hi = the tile's bound hf_compact_bound(parent, slot), which the walk has just
  *   tested, and lo = hf_compact_leaf_low(parent, slot). A cell's bound is lo + code step
- *   (hf_compact_cell_bound), with step a power of two from hi and lo
+ *   (hf_compact_cell_bound), with step about (hi - lo) / 254 in 21 significant bits
  *   (hf_compact_leaf_step), so code * step is exact and a fused multiply-add rounds the
  *   same way; the build rounds each code up until that bound, in the walk's arithmetic, is
  *   at or above the cell's float32 maximum (a cell below lo gets code 0: lo is above it).
- *   The bound is coarser than the float maximum (a step is (hi - lo) / 254 to / 127), so
- *   the floor cull keeps more cells, and the exact cell test decides them.
+ *   The bound is coarser than the float maximum (by less than a step), so the floor cull
+ *   keeps more cells, and the exact cell test decides them.
  * Children outside the grid hold 0 and are never read.
  *
  * The walk (dda_compact, compact.c) is dda_maxmip's (dispatch/intersect.c) on this tree: the tile
@@ -53,7 +54,7 @@ typedef struct {
 
 /* A node of level >= 2: 64 bytes, one cache line when the buffer is aligned. */
 typedef struct {
-    float base;    /* the lowest child maximum: code 0                              */
+    float base;    /* code 0: the lowest child maximum (level 2: lowest cell maximum) */
     float scale;   /* code step, >= 0                                               */
     float max;     /* the node's own maximum (float32, exact): its parent's input  */
     uint32_t used; /* bit k: child slot k lies inside the grid                      */
@@ -90,18 +91,18 @@ static inline double hf_compact_leaf_low(const hf_compact_node *node, int slot) 
 }
 
 /* The step of a leaf's cell codes over [lo, hi] (hi >= lo, both from the parent node):
- * the power of two at or below (hi - lo) / 127, so 255 steps reach at least hi - lo (by
- * 255 / 254 of it, far beyond the two roundings; code 255 bounds every cell of the tile)
- * and code * step is exact. The exponent is taken from the bits (no frexp, no libm):
- * (hi - lo) / 127 is 0 or at least 2^-156 (float32 maxima), a normal double, whose
- * exponent field alone is the power of two. The build and the walk share this one
- * expression, so they compute the same double. */
+ * (hi - lo) / 254 cut to 20 bits after the leading one (the low 32 bits of the double
+ * cleared, no libm), so 255 steps reach at least hi - lo (by 255 / 254 of it, far beyond
+ * the roundings; code 255 bounds every cell of the tile) and code * step (8 x 21
+ * significant bits) is exact. (hi - lo) / 254 is 0 or at least 2^-157 (float32 maxima), a
+ * normal double. The build and the walk share this one expression, so they compute the
+ * same double. */
 static inline double hf_compact_leaf_step(double hi, double lo) {
-    const double z = (hi - lo) * (1.0 / 127.0);
+    const double z = (hi - lo) * (1.0 / 254.0);
     uint64_t bits;
     double step;
     memcpy(&bits, &z, sizeof bits);
-    bits &= UINT64_C(0x7ff0000000000000);
+    bits &= UINT64_C(0xffffffff00000000);
     memcpy(&step, &bits, sizeof step);
     return step;
 }

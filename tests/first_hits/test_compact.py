@@ -56,7 +56,7 @@ def test_layout_counts_nodes_and_aligns_them(shape):
 def _check_cell_bounds(tree, cellmax, what):
     """The cells' decoded bounds: at or above the float32 maximum, each code the smallest
     that is (code 0, or the next code down falls below the maximum), so within one leaf
-    step of the maximum or of the tile's low end."""
+    step of the maximum."""
     ny, nx = cellmax.shape
     true = cellmax.astype(np.float64)
     bound = compact_bounds(tree, ny, nx, 0)
@@ -74,11 +74,11 @@ def _check_cell_bounds(tree, cellmax, what):
     code = compact_leaves(tree, ny, nx)[tj, ti, 4 * (j % 4) + i % 4].astype(np.float64)
     assert np.all(lo <= hi) and np.all(step * LEAF_CODE_MAX >= hi - lo), what
     assert np.all((code == 0) | (lo + (code - 1) * step < true)), what
-    # the low end is at or below the tile's lowest cell maximum, or the node's base (the
-    # lowest code) above it
+    # the low end is at or below the tile's lowest cell maximum (the node's base, at or
+    # below every cell of the node, is code 0)
     tile_min = np.full((tj.max() + 1, ti.max() + 1), np.inf)
     np.minimum.at(tile_min, (tj, ti), true)
-    assert np.all(lo <= np.maximum(tile_min[tj, ti], base)), what
+    assert np.all(lo <= tile_min[tj, ti]) and np.all(base <= true), what
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -114,9 +114,10 @@ def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
 
 
 def test_leaves_code_the_cells_and_codes_are_relative_to_the_node():
-    """A leaf holds 2 x 2 tiles' cell codes (0 outside the grid), the top code at the
-    tile's maximum; a node's lowest child decodes to its base, its highest to at least its
-    max, and the used bits mark the children inside the grid."""
+    """A leaf holds 2 x 2 tiles' cell codes (0 outside the grid), from the tile's low end
+    up to its maximum; a level-2 node's codes start at its lowest cell maximum, its highest
+    child decodes to at least its max, and the used bits mark the children inside the
+    grid."""
     cellmax = np.arange(21 * 6, dtype=np.float32).reshape(6, 21)  # 2 x 6 tiles, 1 x 3 leaves
     tree = build_compact(cellmax)
     layout = compact_layout(6, 21)
@@ -124,25 +125,27 @@ def test_leaves_code_the_cells_and_codes_are_relative_to_the_node():
     leaves = compact_leaves(tree, 6, 21)
     assert leaves.shape == (2, 6, 16)
     bounds = compact_bounds(tree, 6, 21, 0)
-    # at or above the maximum; a node's base (its lowest tile maximum: 66 and 82) bounds
-    # the cells below it, and every bound is within a step ((hi - lo) / 127) of the larger
-    assert np.all(bounds >= cellmax) and bounds[0, 0] == 66.0 and bounds[0, 16] == 82.0
-    floor = np.maximum(cellmax, np.where(np.arange(21) < 16, 66.0, 82.0))
-    assert np.all(bounds - floor < 125.0 / 127)
-    # tile (0, 0) is all below its node's base: code 0; in tile (1, 1) (rows 4 and 5) the
-    # codes grow with the cell maxima, the tile's maximum coded highest
-    assert not leaves[0, 0].any()
-    assert np.all(np.diff(leaves[1, 1].astype(int)[:8]) > 0) and leaves[1, 1].argmax() == 7
+    # at or above the maximum, within a step ((hi - lo) / 254, hi - lo below 67 here)
+    assert np.all(bounds >= cellmax) and np.all(bounds - cellmax < 67.0 / 254)
+    assert bounds[0, 0] == 0.0  # the node's lowest cell: code 0 at the node's base
+    # the codes grow with the cell maxima, each tile's maximum coded highest
+    for tile in (leaves[0, 0], leaves[1, 1][:8]):
+        assert np.all(np.diff(tile.astype(int)) > 0) and tile.argmax() == len(tile) - 1
     # cells outside the grid: code 0 (in the raw records: rows 6 and 7 of every leaf)
     assert not leaves[1, 5].reshape(4, 4)[2:].any() and not leaves[1, 5].reshape(4, 4)[:, 1:].any()
     assert not tree[:3 * NODE_BYTES].reshape(3, 4, 16)[:, 2:, 8:].any()
     node = compact_nodes(tree, 6, 21, 2)[0, 0]  # tiles 0..3 x 0..1
-    assert node["base"] == cellmax[:4, :4].max() and node["max"] == cellmax[:, :16].max()
-    assert node["q"][0] == 0 and node["q"][4 + 3] == 65535
+    assert node["base"] == 0.0 and node["max"] == cellmax[:, :16].max()
+    assert node["q"][4 + 3] == 65535 and np.all(node["q"][:8] > 0)
     assert node["used"] == 0xFF
-    assert node["low"][0] == 0 and node["low"][4 + 3] > 0 and not node["low"][8:].any()
+    # each tile's low end: at or below its lowest cell (tile (3, 1): 96), within 1/256 of
+    # the node's range
+    assert node["low"][0] == 0 and node["low"][4 + 3] == int(96 / 120 * 65535 / 256)
+    assert not node["low"][8:].any()
+    assert compact_nodes(tree, 6, 21, 2)[0, 1]["base"] == 16.0
     top = compact_nodes(tree, 6, 21, 3)
     assert top.shape == (1, 1) and top[0, 0]["max"] == cellmax.max()
+    assert top[0, 0]["base"] == cellmax[:, :16].max()  # its lowest child maximum
     assert top[0, 0]["used"] == 0b11 and not top[0, 0]["low"].any()
 
 
