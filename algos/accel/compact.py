@@ -12,17 +12,15 @@ cells and has 4 x 4 children, the level ``L - 1`` tiles (the cells themselves at
   ``q`` (16 uint16): the children's maxima as codes relative to the node's range
   ``[base, max]``, rounded *up*, so every bound is at or above the child's float32 maximum
   and culling stays conservative (the step is ``(max - base) / 65535``; ``base`` is the
-  lowest child maximum, at level 2 the lowest cell maximum), and ``low`` (16 uint8, level
-  2 only): the low end of each child tile's cell codes, ``base + (low[k] * 256) * scale``,
-  at or below the tile's lowest cell maximum.
+  lowest child maximum, at level 2 the lowest cell maximum), and 16 spare bytes.
 * A **leaf** (level 1) holds the cells of 2 x 2 level-1 tiles (8 x 8 cells) as uint8
   codes: 16 bytes per tile, tile ``2 (tj % 2) + ti % 2``, cell slot
   ``k = 4 (j % 4) + i % 4``. A cell's bound is ``lo + code * step`` in float64, over the
   range the level-2 parent gives its tile: ``hi`` = the tile's bound (``base + q * scale``),
-  ``lo`` = its ``low`` value, ``step`` = ``(hi - lo) / 254`` cut to 21 significant bits
+  ``lo`` = the parent's ``base``, ``step`` = ``(hi - lo) / 254`` cut to 21 significant bits
   (:func:`leaf_step`; ``code * step`` is exact). Each code is the smallest whose bound is at
-  or above the cell's float32 maximum (0 for a cell below ``lo``): a coarser bound than the
-  maximum, by less than one step.
+  or above the cell's float32 maximum: a coarser bound than the maximum, by less than one
+  step.
 
 Memory: ``64`` bytes per leaf (``ceil(ceil(nx / 4) / 2) ceil(ceil(ny / 4) / 2)`` of them)
 plus ``64 * sum_{L >= 2} ceil(nx / 4^L) ceil(ny / 4^L)``: about 1.27 bytes per cell (1 for
@@ -53,7 +51,7 @@ NODE_BYTES = 64
 
 #: one node of level >= 2 as NumPy sees it (cext/hierarchies/compact.h, hf_compact_node)
 NODE_DTYPE = np.dtype([("base", "<f4"), ("scale", "<f4"), ("max", "<f4"), ("used", "<u4"),
-                       ("q", "<u2", (16,)), ("low", "u1", (16,))])
+                       ("q", "<u2", (16,)), ("spare", "u1", (16,))])
 assert NODE_DTYPE.itemsize == NODE_BYTES
 
 #: the largest cell code of a leaf
@@ -161,11 +159,9 @@ def compact_bounds(tree: np.ndarray, ny: int, nx: int, level: int) -> np.ndarray
         ti, tj = i // 4, j // 4
         parent = compact_nodes(tree, ny, nx, 2)[tj // 4, ti // 4]
         slot = 4 * (tj % 4) + ti % 4
-        base, scale = parent["base"].astype(np.float64), parent["scale"].astype(np.float64)
+        lo, scale = parent["base"].astype(np.float64), parent["scale"].astype(np.float64)
         q = np.take_along_axis(parent["q"], slot[..., None], axis=-1)[..., 0]
-        low = np.take_along_axis(parent["low"], slot[..., None], axis=-1)[..., 0]
-        hi = base + q.astype(np.float64) * scale
-        lo = base + (low.astype(np.float64) * 256.0) * scale
+        hi = lo + q.astype(np.float64) * scale
         code = compact_leaves(tree, ny, nx)[tj, ti, 4 * (j % 4) + i % 4]
         return lo + code.astype(np.float64) * leaf_step(hi, lo)
     ty, tx = layout[level - 1][1:]

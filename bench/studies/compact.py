@@ -158,9 +158,11 @@ def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | Non
     return result
 
 
-#: the structure a source line of the kernels reads, by what the line indexes
-SOURCES = (("heights[", "heights"), ("leaf[", "tree leaves"), ("node->", "tree nodes"),
-           ("mip[", "mipmap"), ("cellmax[", "cell maxima"))
+#: the structure a source line of the kernels reads, by what the line indexes (the floor
+#: walk, cext/hierarchies/maxmip.h, reads the leaf's codes and the row-major cell maxima
+#: on lines of their own)
+SOURCES = (("heights[", "heights"), ("leaf->code[", "tree leaves"), ("node->", "tree nodes"),
+           ("mip[", "mipmap"), ("cellmax[", "cell maxima"), ("maxima[", "cell maxima"))
 
 
 def _classify(path: str, line: int, cache: dict) -> str:

@@ -39,7 +39,7 @@ int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {
 /* Quantise one node's child maxima (`valid` of the 16 slots, bit k for slot k) to codes
  * whose bound is at or above each maximum in the walk's own arithmetic. The codes start
  * at the lowest child maximum, or at `floor` if that is lower (a level-2 node: its lowest
- * cell maximum, so that every tile's low end can reach its cells; quantize_low). */
+ * cell maximum, the low end of its leaves' cell codes, so that no cell lies below it). */
 static void quantize_node(hf_compact_node *node, const float value[16], uint32_t valid,
                           float floor) {
     float lo = floor, hi = -INFINITY;
@@ -82,30 +82,8 @@ static void quantize_node(hf_compact_node *node, const float value[16], uint32_t
     }
 }
 
-/* The low ends of a level-2 node's leaf ranges: for each child tile, the largest code
- * low[k] whose hf_compact_leaf_low is at or below the tile's lowest cell maximum
- * (`lowest`; the node's base is at or below it), so the tile's 255 cell codes span only
- * its own cells' range. Any value at or below the tile's bound would be correct (a cell
- * below it gets code 0, and lo as its bound); this one makes the codes tightest. */
-static void quantize_low(hf_compact_node *node, const float lowest[16]) {
-    int k;
-    for (k = 0; k < 16; ++k) {
-        double code = 0.0;
-        node->low[k] = 0;
-        if (!(node->used >> k & 1u) || !(node->scale > 0)) continue;
-        code = floor(((double)lowest[k] - (double)node->base) / (double)node->scale / 256.0);
-        node->low[k] = (uint8_t)(code < 0 ? 0 : (code > 255 ? 255 : code));
-        /* rounding in the division: lower the code until its value is at or below */
-        while (node->low[k] > 0 && hf_compact_leaf_low(node, k) > (double)lowest[k])
-            node->low[k] -= 1;
-        HF_ASSERT(hf_compact_leaf_low(node, k) <= hf_compact_bound(node, k),
-                  "compact: the low end %.17g of slot %d is above its bound %.17g",
-                  hf_compact_leaf_low(node, k), k, hf_compact_bound(node, k));
-    }
-}
-
 /* The smallest cell code whose bound over [lo, lo + 255 step] is at or above the cell
- * maximum m (0 for a cell below lo). Code 255 always is: 255 step >= (hi - lo) (1 + 2^-9)
+ * maximum m (lo <= m <= hi). Code 255 always is: 255 step >= (hi - lo) (1 + 2^-9)
  * (hf_compact_leaf_step), so lo + 255 step rounds to at least lo + (hi - lo), which is hi
  * when hi - lo is exact (Sterbenz) and otherwise (|hi|, |lo| <= 2 (hi - lo)) falls short of
  * hi by roundings of 2^-52 (hi - lo) at most, far inside the margin; and m <= hi. */
@@ -124,7 +102,7 @@ static uint8_t leaf_code(double lo, double step, float m) {
 }
 
 /* The leaves: each level-1 tile's cell codes relative to the range its level-2 parent
- * gives it (hi: the tile's bound; lo: hf_compact_leaf_low), as the walk decodes them. */
+ * gives it (hi: the tile's bound; lo: the parent's base), as the walk decodes them. */
 static void build_leaves(const float *cellmax, const hf_compact *c, void *records) {
     hf_compact_leaf *leaves = (hf_compact_leaf *)records + c->offset[1];
     const hf_compact_node *nodes = (const hf_compact_node *)records;
@@ -138,7 +116,7 @@ static void build_leaves(const float *cellmax, const hf_compact *c, void *record
                 nodes + c->offset[2] + (tj >> 2) * c->nodes_x[2] + (ti >> 2);
             const int slot = hf_compact_slot(ti, tj);
             const double hi = hf_compact_bound(parent, slot);
-            const double lo = hf_compact_leaf_low(parent, slot);
+            const double lo = (double)parent->base;
             const double step = hf_compact_leaf_step(hi, lo);
             uint8_t *code =
                 leaves[(tj >> 1) * c->leaves_x + (ti >> 1)].code[((tj & 1) << 1) | (ti & 1)];
@@ -201,7 +179,6 @@ void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *record
                     for (k = 0; k < 16; ++k)
                         if (valid >> k & 1u) floor = lowest[k] < floor ? lowest[k] : floor;
                     quantize_node(node, value, valid, floor);
-                    quantize_low(node, lowest);
                 } else {
                     quantize_node(node, value, valid, INFINITY);
                 }
@@ -288,7 +265,7 @@ HF_HOT int compact_walk(hf_hit *h, const hf_compact *c, int cull, const int quad
         } else {
             /* walk the 4 x 4 floor tile cell by cell (maxmip.h), each cell culled by its
              * bound decoded from the tile's codes in its leaf (one line), over the range
-             * [lo, bound] of the parent node (level 2: bound is the tile's, just tested) */
+             * [base, bound] of the parent node (level 2: bound is the tile's, just tested) */
             const hf_compact_node *parent = hf_compact_node_at(c, 2, tile_i >> 2, tile_j >> 2);
             const int32_t ilo = (int32_t)tile_i << 2, jlo = (int32_t)tile_j << 2;
             const uint32_t iw = (uint32_t)(ilo + 4 < nx ? 4 : nx - ilo) - 1;
@@ -298,7 +275,7 @@ HF_HOT int compact_walk(hf_hit *h, const hf_compact *c, int cull, const int quad
             int status;
             HF_ASSERT(top >= 2, "dda_compact: a floor tile without a parent node (%d levels)", top);
             leaf.code = hf_compact_leaf_codes(c, tile_i, tile_j);
-            leaf.lo = hf_compact_leaf_low(parent, hf_compact_slot(tile_i, tile_j));
+            leaf.lo = (double)parent->base;
             leaf.step = hf_compact_leaf_step(bound, leaf.lo);
             status =
                 hf_floor_walk(h, &ray, ilo, jlo, iw, jw, NULL, &leaf, &i, &j, t, &t_in, NULL, NULL);
