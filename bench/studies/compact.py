@@ -160,9 +160,11 @@ def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | Non
 
 #: the structure a source line of the kernels reads, by what the line indexes (the floor
 #: walk, cext/hierarchies/maxmip.h, reads the leaf's codes and the row-major cell maxima
-#: on lines of their own)
-SOURCES = (("heights[", "heights"), ("leaf->code[", "tree leaves"), ("node->", "tree nodes"),
-           ("mip[", "mipmap"), ("cellmax[", "cell maxima"), ("maxima[", "cell maxima"))
+#: on lines of their own; the compiler charges a code's load to the decode's line,
+#: hf_leaf_bound in cext/hierarchies/maxmip.h)
+SOURCES = (("heights[", "heights"), ("leaf->code[", "tree leaves"),
+           ("(double)code * step", "tree leaves"), ("node->", "tree nodes"), ("mip[", "mipmap"),
+           ("cellmax[", "cell maxima"), ("maxima[", "cell maxima"))
 
 
 def _classify(path: str, line: int, cache: dict) -> str:

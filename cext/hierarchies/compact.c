@@ -93,11 +93,11 @@ static uint8_t leaf_code(double lo, double step, float m) {
     if (step > 0 && (double)m > lo) guess = ceil(((double)m - lo) / step);
     code = guess > HF_COMPACT_LEAF_MAX ? HF_COMPACT_LEAF_MAX : (unsigned)guess;
     /* rounding in the division: the smallest code that covers m, in the walk's arithmetic */
-    while (code < HF_COMPACT_LEAF_MAX && hf_compact_cell_bound(lo, step, code) < (double)m) ++code;
-    while (code > 0 && hf_compact_cell_bound(lo, step, code - 1) >= (double)m) --code;
-    HF_ASSERT(hf_compact_cell_bound(lo, step, code) >= (double)m,
+    while (code < HF_COMPACT_LEAF_MAX && hf_leaf_bound(lo, step, code) < (double)m) ++code;
+    while (code > 0 && hf_leaf_bound(lo, step, code - 1) >= (double)m) --code;
+    HF_ASSERT(hf_leaf_bound(lo, step, code) >= (double)m,
               "compact: cell code %u bounds %.17g below %.17g (lo %.17g, step %.17g)", code,
-              hf_compact_cell_bound(lo, step, code), (double)m, lo, step);
+              hf_leaf_bound(lo, step, code), (double)m, lo, step);
     return (uint8_t)code;
 }
 

@@ -21,7 +21,7 @@
  *   tested, and lo = the parent's base, at or below every cell of the parent (a per-tile
  *   low end in the node's spare bytes was measured: 1.2 % fewer exact tests on fBm, for
  *   more instructions than those tests cost). A cell's bound is lo + code step
- *   (hf_compact_cell_bound), with step about (hi - lo) / 254 in 21 significant bits
+ *   (hf_leaf_bound, maxmip.h), with step about (hi - lo) / 254 in 21 significant bits
  *   (hf_compact_leaf_step), so code * step is exact and a fused multiply-add rounds the
  *   same way; the build rounds each code up until that bound, in the walk's arithmetic, is
  *   at or above the cell's float32 maximum.
@@ -107,11 +107,6 @@ static inline double hf_compact_leaf_step(double hi, double lo) {
     memcpy(&step, &bits, sizeof step);
     return step;
 #endif
-}
-
-/* A cell's bound from its code: at or above its maximum (compact.c, build_leaves). */
-static inline double hf_compact_cell_bound(double lo, double step, unsigned code) {
-    return lo + (double)code * step;
 }
 
 /* The slot of child tile (ti, tj) (indices at the child's level) in its parent. */

@@ -16,7 +16,6 @@
 #include <stdint.h>
 #include "surfaces/hitbatch.h"
 #include "core/mipmap.h"
-#include "hierarchies/compact.h"
 
 /* The constants of one ray's walk (from its clipped hf_hit and the batch). */
 typedef struct {
@@ -136,12 +135,19 @@ static inline double hf_mip_tile_max(const hf_hit_batch *b, int level, int32_t t
 typedef int (*hf_cell_test)(hf_hit *h, int32_t i, int32_t j, int culled, void *ctx);
 
 /* A floor tile's cell bounds as the compact tree's leaf codes (compact.h): the bound of
- * the cell in slot k = 4 (j & 3) + (i & 3) is hf_compact_cell_bound(lo, step, code[k]),
- * at or above its float32 maximum. */
+ * the cell in slot k = 4 (j & 3) + (i & 3) is hf_leaf_bound(lo, step, code[k]), at or
+ * above its float32 maximum. */
 typedef struct {
     const uint8_t *code;
     double lo, step;
 } hf_leaf_codes;
+
+/* A leaf code's bound, in the one expression the tree's build (compact.c) and the floor
+ * walk share: code * step is exact (compact.h, hf_compact_leaf_step), so a fused
+ * multiply-add rounds it the same way. */
+static inline double hf_leaf_bound(double lo, double step, unsigned code) {
+    return lo + (double)code * step;
+}
 
 /* The floor-tile walk, the one home of the cell walk inside a tile that a hierarchy could
  * not skip (dda_maxmip, packet_maxmip and dda_compact): from cell (*ci, *cj), entered at
@@ -176,10 +182,10 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
     for (;;) {
         const double tb = mx < my ? (mx < t1 ? mx : t1) : (my < t1 ? my : t1);
         h->cells_visited += 1;
-        if (!cull || !(oz + (descending ? tb : t_in) * dz >
-                       (leaf ? hf_compact_cell_bound(leaf->lo, leaf->step,
-                                                     leaf->code[((j & 3) << 2) | (i & 3)])
-                             : (double)maxima[(int64_t)j * nx + i]))) {
+        if (!cull ||
+            !(oz + (descending ? tb : t_in) * dz >
+              (leaf ? hf_leaf_bound(leaf->lo, leaf->step, leaf->code[((j & 3) << 2) | (i & 3)])
+                    : (double)maxima[(int64_t)j * nx + i]))) {
             if (test ? test(h, i, j, culled, ctx) : hf_hit_cell_exact_culled(h, i, j, culled)) {
                 /* the hit cell and the parameter the walk entered it at: where
                  * plane_maxmip resumes the ray above (dispatch/plane.c) */
