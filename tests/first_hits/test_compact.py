@@ -314,3 +314,21 @@ def test_callgrind_cache_counts_are_per_ray_and_exact():
             assert abs(a[k][key] - b[k][key]) <= 0.05 * a[k][key], (k, key, a[k], b[k])
         assert 0 < a[k]["ll_misses"] <= a[k]["d1_misses"] <= a[k]["data_accesses"]
         assert a[k]["instructions"] > a[k]["data_accesses"]
+
+
+@pytest.mark.skipif(__import__("shutil").which("valgrind") is None
+                    or "libasan" in __import__("os").environ.get("LD_PRELOAD", ""),
+                    reason="needs valgrind (and no preloaded sanitizer runtime)")
+def test_callgrind_regimes_count_the_same_rays_cold_and_warm():
+    """The flushed, warm and other-warmed regimes count the same rays (the same
+    instructions and data accesses), and warming never adds LL misses."""
+    from bench.studies.compact import REGIMES, callgrind_cache_counts
+
+    got = callgrind_cache_counts(64, 20, kernels=("dda_compact",), regimes=True)
+    counts = got["dda_compact"]
+    assert set(counts) == set(REGIMES)
+    for key in ("instructions", "data_accesses"):
+        assert len({c[key] for c in counts.values()}) == 1, (key, counts)
+    assert counts["warm"]["ll_misses"] <= counts["other_warmed"]["ll_misses"] \
+        <= counts["flushed"]["ll_misses"], counts
+    assert counts["flushed"]["ll_misses"] > 0
