@@ -79,13 +79,13 @@ import json, sys
 import numpy as np
 from bench.studies.compact import _prepared
 spec = json.loads(sys.argv[1])
-runs, others = _prepared(spec), _prepared(dict(spec, other=True))
+runs = _prepared(dict(spec, other=True))
 for kernel in spec["kernels"]:
-    for calls in ((runs, runs), (others, runs)):
+    for calls in ((kernel, kernel), (kernel + "/other", kernel)):
         scratch = np.ones(64 << 17)   # 64 MiB written: the simulated caches start cold
         scratch += 1.0
-        for batch in calls:
-            batch[kernel]()
+        for name in calls:
+            runs[name]()
 """
 #: the dumps of one kernel under _CHILD_REGIMES, and which of them each regime counts
 REGIME_DUMPS, REGIMES = 4, {"flushed": 0, "warm": 1, "other_warmed": 3}
@@ -119,8 +119,9 @@ def _save_case(size, rays, seed, directory, other=False) -> None:
 
 def _prepared(spec: dict) -> dict:
     """kernel -> a prepared batch (calling it runs the C loop once) on the rays saved by
-    :func:`_save_case` in ``spec["directory"]`` (its other rays with ``spec["other"]``),
-    every structure memory-mapped."""
+    :func:`_save_case` in ``spec["directory"]``, every structure memory-mapped; with
+    ``spec["other"]`` also kernel + "/other" -> the batch of its other rays, on the same
+    mappings (a second mapping of a file would be other addresses to the caches)."""
     from algos.intersect import prepare_timed_intersect
 
     directory = spec["directory"]
@@ -136,10 +137,12 @@ def _prepared(spec: dict) -> dict:
     field.store("mip", [cellmax] + [load(f"mip{k}") for k in range(1, levels)],
                 {"seconds": 0.0, "bytes": 0})
     field.store("compact", load("compact"), {"seconds": 0.0, "bytes": 0})
-    tail = "_other" if spec.get("other") else ""
-    o, d = np.array(load("origins" + tail)), np.array(load("directions" + tail))
-    return {k: prepare_timed_intersect(k, field, o, d, surface=spec["surface"])[0]
-            for k in spec["kernels"]}
+    rays = {"": (load("origins"), load("directions"))}
+    if spec.get("other"):
+        rays["/other"] = (load("origins_other"), load("directions_other"))
+    return {k + tail: prepare_timed_intersect(k, field, np.array(o), np.array(d),
+                                              surface=spec["surface"])[0]
+            for tail, (o, d) in rays.items() for k in spec["kernels"]}
 
 
 def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS,

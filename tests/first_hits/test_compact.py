@@ -321,7 +321,8 @@ def test_callgrind_cache_counts_are_per_ray_and_exact():
                     reason="needs valgrind (and no preloaded sanitizer runtime)")
 def test_callgrind_regimes_count_the_same_rays_cold_and_warm():
     """The flushed, warm and other-warmed regimes count the same rays (the same
-    instructions and data accesses), and warming never adds LL misses."""
+    instructions and data accesses), and each warming removes LL misses (the other rays
+    warm the very mappings the counted rays read)."""
     from bench.studies.compact import REGIMES, callgrind_cache_counts
 
     got = callgrind_cache_counts(64, 20, kernels=("dda_compact",), regimes=True)
@@ -330,5 +331,5 @@ def test_callgrind_regimes_count_the_same_rays_cold_and_warm():
     for key in ("instructions", "data_accesses"):
         assert len({c[key] for c in counts.values()}) == 1, (key, counts)
     assert counts["warm"]["ll_misses"] <= counts["other_warmed"]["ll_misses"] \
-        <= counts["flushed"]["ll_misses"], counts
+        < counts["flushed"]["ll_misses"], counts
     assert counts["flushed"]["ll_misses"] > 0
