@@ -38,11 +38,12 @@ int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {
 /* ---- build ------------------------------------------------------------------------------- */
 /* Quantise one node's child maxima (`valid` of the 16 slots, bit k for slot k) to codes
  * whose bound is at or above each maximum in the walk's own arithmetic. The codes start
- * at the lowest child maximum, or at `floor` if that is lower (a level-2 node: its lowest
- * cell maximum, the low end of its leaves' cell codes, so that no cell lies below it). */
+ * at the lowest child maximum, or at `lowest_cell` if that is lower (a level-2 node: its
+ * lowest cell maximum, the low end of its leaves' cell codes, so that no cell lies below
+ * it). */
 static void quantize_node(hf_compact_node *node, const float value[16], uint32_t valid,
-                          float floor) {
-    float lo = floor, hi = -INFINITY;
+                          float lowest_cell) {
+    float lo = lowest_cell, hi = -INFINITY;
     int k;
     for (k = 0; k < 16; ++k) {
         if (!(valid >> k & 1u)) continue;
@@ -174,11 +175,12 @@ void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *record
                     }
                 }
                 if (level == 2) {
-                    float floor = INFINITY;
+                    float lowest_cell = INFINITY;
                     int k;
                     for (k = 0; k < 16; ++k)
-                        if (valid >> k & 1u) floor = lowest[k] < floor ? lowest[k] : floor;
-                    quantize_node(node, value, valid, floor);
+                        if (valid >> k & 1u)
+                            lowest_cell = lowest[k] < lowest_cell ? lowest[k] : lowest_cell;
+                    quantize_node(node, value, valid, lowest_cell);
                 } else {
                     quantize_node(node, value, valid, INFINITY);
                 }
@@ -306,8 +308,9 @@ HF_HOT int compact_walk(hf_hit *h, const hf_compact *c, int cull, const int quad
 __attribute__((flatten))
 #endif
 int hf_compact_hit(hf_hit *h, const hf_compact *c) {
-    /* the floor cull is the exact test's own cull, on the leaf's copy of the maximum: the
-     * exact test runs without it, and never reads the row-major cell maxima */
+    /* the floor cull (the exact test's own cull, on the leaf's decoded bound, at or above
+     * the maximum) replaces the exact test's: that one runs without it, and never reads
+     * the row-major cell maxima */
     const int cull = h->cull_cells;
     int found;
     h->cull_cells = 0;
