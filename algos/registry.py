@@ -233,7 +233,8 @@ INTERSECTOR_REGISTRY.update({
         "dda_compact", _C_ID["dda_compact"], "compact", "float64", "dda", ("cellmax", "compact"),
         dict(cull_cells=True),
         summary="maximum-tree tile skipping on a cache-compact 4 x 4-ary tree (one 64-byte "
-                "node per line, uint16 maxima rounded up), a tight cell walk in 4 x 4 tiles",
+                "node per line, uint16 maxima rounded up; uint8 cell codes, 8 x 8 cells a "
+                "line), a tight cell walk in 4 x 4 tiles",
         citation="Tevs, Ihrke & Seidel 2008"),
     "cone_relaxed": Intersector(
         "cone_relaxed", _C_ID["cone_relaxed"], "march", "approximate", None, ("cellmax", "cone_relaxed"),

@@ -72,15 +72,34 @@ for kernel in spec["kernels"]:
     runs[kernel]()
 """
 
+#: callgrind_cache_counts(regimes=True): per kernel, a flush, the rays twice (flushed,
+#: warm), then a flush, the other rays (not counted) and the rays again (other-warmed)
+_CHILD_REGIMES = r"""
+import json, sys
+import numpy as np
+from bench.studies.compact import _prepared
+spec = json.loads(sys.argv[1])
+runs = _prepared(dict(spec, other=True))
+for kernel in spec["kernels"]:
+    for calls in ((kernel, kernel), (kernel + "/other", kernel)):
+        scratch = np.ones(64 << 17)   # 64 MiB written: the simulated caches start cold
+        scratch += 1.0
+        for name in calls:
+            runs[name]()
+"""
+#: the dumps of one kernel under _CHILD_REGIMES, and which of them each regime counts
+REGIME_DUMPS, REGIMES = 4, {"flushed": 0, "warm": 1, "other_warmed": 3}
+
 
 def _field(size):
     return algos.Field(datasets_gen.load(DATASET, size=size, seed=1).heights)
 
 
-def _save_case(size, rays, seed, directory) -> None:
+def _save_case(size, rays, seed, directory, other=False) -> None:
     """Build the field's structures and the rays natively and save them as .npy files in
     ``directory``: the child under valgrind maps them instead of building them (which
-    would take it most of an hour at 8192^2)."""
+    would take it most of an hour at 8192^2). ``other``: as many other rays too (seed + 1),
+    which warm the caches before the counted rays in the other-warmed regime."""
     from datasets_gen.rays import first_hit_rays
 
     field = _field(size)
@@ -89,6 +108,9 @@ def _save_case(size, rays, seed, directory) -> None:
     arrays = dict(heights=field.cell_heights, cellmax=field.cellmax_for(), compact=
                   algos.accel.compact.compact_for(field), origins=o, directions=d,
                   **{f"mip{k}": level for k, level in enumerate(mip) if k > 0})
+    if other:
+        arrays["origins_other"], arrays["directions_other"] = first_hit_rays(
+            field, RUN_LENGTH, rays, seed + 1)
     for name, a in arrays.items():
         np.save(os.path.join(directory, f"{name}.npy"), a)
     with open(os.path.join(directory, "case.json"), "w") as f:
@@ -97,7 +119,9 @@ def _save_case(size, rays, seed, directory) -> None:
 
 def _prepared(spec: dict) -> dict:
     """kernel -> a prepared batch (calling it runs the C loop once) on the rays saved by
-    :func:`_save_case` in ``spec["directory"]``, every structure memory-mapped."""
+    :func:`_save_case` in ``spec["directory"]``, every structure memory-mapped; with
+    ``spec["other"]`` also kernel + "/other" -> the batch of its other rays, on the same
+    mappings (a second mapping of a file would be other addresses to the caches)."""
     from algos.intersect import prepare_timed_intersect
 
     directory = spec["directory"]
@@ -113,15 +137,22 @@ def _prepared(spec: dict) -> dict:
     field.store("mip", [cellmax] + [load(f"mip{k}") for k in range(1, levels)],
                 {"seconds": 0.0, "bytes": 0})
     field.store("compact", load("compact"), {"seconds": 0.0, "bytes": 0})
-    o, d = np.array(load("origins")), np.array(load("directions"))
-    return {k: prepare_timed_intersect(k, field, o, d, surface=spec["surface"])[0]
-            for k in spec["kernels"]}
+    rays = {"": (load("origins"), load("directions"))}
+    if spec.get("other"):
+        rays["/other"] = (load("origins_other"), load("directions_other"))
+    return {k + tail: prepare_timed_intersect(k, field, np.array(o), np.array(d),
+                                              surface=spec["surface"])[0]
+            for tail, (o, d) in rays.items() for k in spec["kernels"]}
 
 
-def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | None:
+def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS,
+                           regimes=False) -> dict | None:
     """kernel -> per-ray callgrind counts (``instructions``, ``data_accesses``,
     ``d1_misses``, ``ll_misses``) on ``rays`` first-hit rays of fBm ``size``^2, or None
-    without valgrind. One child process; each kernel's batch is one dump."""
+    without valgrind. One child process; each kernel's batch is one dump, after a flush.
+    ``regimes``: kernel -> regime -> those counts, for the regimes of :data:`REGIMES`:
+    ``flushed`` (after a flush), ``warm`` (the same rays again, right after) and
+    ``other_warmed`` (after a flush and a batch of as many other rays)."""
     from ..profile import _parse, callgrind_available
 
     if not callgrind_available():
@@ -129,12 +160,13 @@ def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | Non
     entry = "hf_intersect_batch"
     cache = [f"--{name}={','.join(str(v) for v in CACHE[name])}" for name in ("I1", "D1", "LL")]
     with tempfile.TemporaryDirectory() as tmp:
-        _save_case(size, rays, seed, tmp)
+        _save_case(size, rays, seed, tmp, other=regimes)
         spec = dict(directory=tmp, surface=SURFACE, kernels=list(kernels))
         out = os.path.join(tmp, "callgrind.out")
         cmd = ["valgrind", "--tool=callgrind", "--cache-sim=yes", *cache,
                f"--callgrind-out-file={out}", f"--toggle-collect={entry}",
-               f"--dump-after={entry}", sys.executable, "-c", _CHILD, json.dumps(spec)]
+               f"--dump-after={entry}", sys.executable, "-c",
+               _CHILD_REGIMES if regimes else _CHILD, json.dumps(spec)]
         root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
                    PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -145,22 +177,33 @@ def callgrind_cache_counts(size, rays, seed=SEED, kernels=KERNELS) -> dict | Non
                                f"{proc.stderr[-2000:]}")
         dumps = sorted((f for f in os.listdir(tmp) if f.startswith("callgrind.out.")
                         and f.rsplit(".", 1)[1].isdigit()), key=lambda f: int(f.rsplit(".", 1)[1]))
-        if len(dumps) < len(kernels):
-            raise RuntimeError(f"compact: expected {len(kernels)} dumps, got {len(dumps)}")
-        result = {}
-        for kernel, name in zip(kernels, dumps):
+        per_kernel = REGIME_DUMPS if regimes else 1
+        if len(dumps) < per_kernel * len(kernels):
+            raise RuntimeError(f"compact: expected {per_kernel * len(kernels)} dumps, "
+                               f"got {len(dumps)}")
+
+        def counts(name):
             t = _parse(os.path.join(tmp, name))["totals"]
-            result[kernel] = {
-                "instructions": t.get("Ir", 0) / rays,
-                "data_accesses": (t.get("Dr", 0) + t.get("Dw", 0)) / rays,
-                "d1_misses": (t.get("D1mr", 0) + t.get("D1mw", 0)) / rays,
-                "ll_misses": (t.get("DLmr", 0) + t.get("DLmw", 0)) / rays}
+            return {"instructions": t.get("Ir", 0) / rays,
+                    "data_accesses": (t.get("Dr", 0) + t.get("Dw", 0)) / rays,
+                    "d1_misses": (t.get("D1mr", 0) + t.get("D1mw", 0)) / rays,
+                    "ll_misses": (t.get("DLmr", 0) + t.get("DLmw", 0)) / rays}
+
+        result = {}
+        for k, kernel in enumerate(kernels):
+            mine = dumps[k * per_kernel:(k + 1) * per_kernel]
+            result[kernel] = ({regime: counts(mine[n]) for regime, n in REGIMES.items()}
+                              if regimes else counts(mine[0]))
     return result
 
 
-#: the structure a source line of the kernels reads, by what the line indexes
-SOURCES = (("heights[", "heights"), ("leaf[", "tree leaves"), ("node->", "tree nodes"),
-           ("mip[", "mipmap"), ("cellmax[", "cell maxima"))
+#: the structure a source line of the kernels reads, by what the line indexes (the floor
+#: walk, cext/hierarchies/maxmip.h, reads the leaf's codes and the row-major cell maxima
+#: on lines of their own; the compiler charges a code's load to the decode's line,
+#: hf_leaf_bound in cext/hierarchies/maxmip.h)
+SOURCES = (("heights[", "heights"), ("leaf->code[", "tree leaves"),
+           ("(double)code * step", "tree leaves"), ("node->", "tree nodes"), ("mip[", "mipmap"),
+           ("cellmax[", "cell maxima"), ("maxima[", "cell maxima"))
 
 
 def _classify(path: str, line: int, cache: dict) -> str:

@@ -18,7 +18,8 @@ int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {
     c->offset[0] = 0;
     c->nodes_x[0] = nx;
     c->nodes_y[0] = ny;
-    /* one level more until a single node covers the grid (at least level 1) */
+    /* one level more until a single node covers the grid, and at least a level-2 node: a
+     * leaf's codes are relative to the bounds of its parent node */
     do {
         ++level;
         wx = (wx + 3) >> 2;
@@ -26,17 +27,23 @@ int64_t hf_compact_layout(int32_t nx, int32_t ny, hf_compact *c) {
         c->offset[level] = total;
         c->nodes_x[level] = (int32_t)wx;
         c->nodes_y[level] = (int32_t)wy;
-        total += wx * wy;
-    } while ((wx > 1 || wy > 1) && level < HF_COMPACT_MAX_LEVELS);
+        /* level 1: one leaf per 2 x 2 tiles */
+        total += level == 1 ? ((wx + 1) >> 1) * ((wy + 1) >> 1) : wx * wy;
+    } while ((wx > 1 || wy > 1 || level < 2) && level < HF_COMPACT_MAX_LEVELS);
+    c->leaves_x = (int32_t)((c->nodes_x[1] + 1) >> 1);
     c->n_levels = level;
     return total;
 }
 
 /* ---- build ------------------------------------------------------------------------------- */
 /* Quantise one node's child maxima (`valid` of the 16 slots, bit k for slot k) to codes
- * whose bound is at or above each maximum in the walk's own arithmetic. */
-static void quantize_node(hf_compact_node *node, const float value[16], uint32_t valid) {
-    float lo = INFINITY, hi = -INFINITY;
+ * whose bound is at or above each maximum in the walk's own arithmetic. The codes start
+ * at the lowest child maximum, or at `lowest_cell` if that is lower (a level-2 node: its
+ * lowest cell maximum, the low end of its leaves' cell codes, so that no cell lies below
+ * it). */
+static void quantize_node(hf_compact_node *node, const float value[16], uint32_t valid,
+                          float lowest_cell) {
+    float lo = lowest_cell, hi = -INFINITY;
     int k;
     for (k = 0; k < 16; ++k) {
         if (!(valid >> k & 1u)) continue;
@@ -76,35 +83,69 @@ static void quantize_node(hf_compact_node *node, const float value[16], uint32_t
     }
 }
 
-void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *records) {
-    hf_compact c;
-    int level;
-    hf_compact_leaf *leaves;
-    hf_compact_node *nodes = (hf_compact_node *)records;
-    int32_t ni, nj;
-    hf_compact_layout(nx, ny, &c);
-    leaves = (hf_compact_leaf *)records + c.offset[1];
-    /* the leaves: cell maxima in 4 x 4 tiles */
-    for (nj = 0; nj < c.nodes_y[1]; ++nj) {
-        for (ni = 0; ni < c.nodes_x[1]; ++ni) {
-            hf_compact_leaf *leaf = leaves + (int64_t)nj * c.nodes_x[1] + ni;
+/* The smallest cell code whose bound over [lo, lo + 255 step] is at or above the cell
+ * maximum m (lo <= m <= hi). Code 255 always is: 255 step >= (hi - lo) (1 + 2^-9)
+ * (hf_compact_leaf_step), so lo + 255 step rounds to at least lo + (hi - lo), which is hi
+ * when hi - lo is exact (Sterbenz) and otherwise (|hi|, |lo| <= 2 (hi - lo)) falls short of
+ * hi by roundings of 2^-52 (hi - lo) at most, far inside the margin; and m <= hi. */
+static uint8_t leaf_code(double lo, double step, float m) {
+    double guess = 0.0;
+    unsigned code;
+    if (step > 0 && (double)m > lo) guess = ceil(((double)m - lo) / step);
+    code = guess > HF_COMPACT_LEAF_MAX ? HF_COMPACT_LEAF_MAX : (unsigned)guess;
+    /* rounding in the division: the smallest code that covers m, in the walk's arithmetic */
+    while (code < HF_COMPACT_LEAF_MAX && hf_leaf_bound(lo, step, code) < (double)m) ++code;
+    while (code > 0 && hf_leaf_bound(lo, step, code - 1) >= (double)m) --code;
+    HF_ASSERT(hf_leaf_bound(lo, step, code) >= (double)m,
+              "compact: cell code %u bounds %.17g below %.17g (lo %.17g, step %.17g)", code,
+              hf_leaf_bound(lo, step, code), (double)m, lo, step);
+    return (uint8_t)code;
+}
+
+/* The leaves: each level-1 tile's cell codes relative to the range its level-2 parent
+ * gives it (hi: the tile's bound; lo: the parent's base), as the walk decodes them. */
+static void build_leaves(const float *cellmax, const hf_compact *c, void *records) {
+    hf_compact_leaf *leaves = (hf_compact_leaf *)records + c->offset[1];
+    const hf_compact_node *nodes = (const hf_compact_node *)records;
+    const int64_t nx = c->nx, ny = c->ny;
+    const int64_t n_leaves = (int64_t)c->leaves_x * ((c->nodes_y[1] + 1) >> 1);
+    int64_t ti, tj;
+    memset(leaves, 0, (size_t)n_leaves * sizeof *leaves);
+    for (tj = 0; tj < c->nodes_y[1]; ++tj) {
+        for (ti = 0; ti < c->nodes_x[1]; ++ti) {
+            const hf_compact_node *parent =
+                nodes + c->offset[2] + (tj >> 2) * c->nodes_x[2] + (ti >> 2);
+            const int slot = hf_compact_slot(ti, tj);
+            const double hi = hf_compact_bound(parent, slot);
+            const double lo = (double)parent->base;
+            const double step = hf_compact_leaf_step(hi, lo);
+            uint8_t *code =
+                leaves[(tj >> 1) * c->leaves_x + (ti >> 1)].code[((tj & 1) << 1) | (ti & 1)];
             int a, b;
-            memset(leaf, 0, sizeof *leaf);
             for (b = 0; b < 4; ++b) {
                 for (a = 0; a < 4; ++a) {
-                    const int64_t ci = 4 * (int64_t)ni + a, cj = 4 * (int64_t)nj + b;
-                    if (ci < nx && cj < ny) leaf->max[4 * b + a] = cellmax[cj * nx + ci];
+                    const int64_t ci = 4 * ti + a, cj = 4 * tj + b;
+                    if (ci < nx && cj < ny)
+                        code[4 * b + a] = leaf_code(lo, step, cellmax[cj * nx + ci]);
                 }
             }
         }
     }
+}
+
+void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *records) {
+    hf_compact c;
+    int level;
+    hf_compact_node *nodes = (hf_compact_node *)records;
+    int32_t ni, nj;
+    hf_compact_layout(nx, ny, &c);
     for (level = 2; level <= c.n_levels; ++level) {
         const int32_t child_x = c.nodes_x[level - 1], child_y = c.nodes_y[level - 1];
         for (nj = 0; nj < c.nodes_y[level]; ++nj) {
             for (ni = 0; ni < c.nodes_x[level]; ++ni) {
                 hf_compact_node *node =
                     nodes + c.offset[level] + (int64_t)nj * c.nodes_x[level] + ni;
-                float value[16];
+                float value[16], lowest[16];
                 uint32_t valid = 0;
                 int a, b;
                 memset(node, 0, sizeof *node);
@@ -112,27 +153,41 @@ void hf_compact_build(const float *cellmax, int32_t ny, int32_t nx, void *record
                     for (a = 0; a < 4; ++a) {
                         const int64_t ci = 4 * (int64_t)ni + a, cj = 4 * (int64_t)nj + b;
                         const int slot = 4 * b + a;
-                        value[slot] = 0.0f;
+                        value[slot] = lowest[slot] = 0.0f;
                         if (ci >= child_x || cj >= child_y) continue;
                         valid |= 1u << slot;
                         if (level == 2) {
-                            /* a leaf's maximum: over its cells inside the grid */
-                            const hf_compact_leaf *leaf = leaves + cj * child_x + ci;
-                            float m = -INFINITY;
+                            /* a level-1 tile's highest and lowest cell maxima, over its
+                             * cells inside the grid */
+                            float m = -INFINITY, l = INFINITY;
                             int k;
-                            for (k = 0; k < 16; ++k)
-                                if (4 * ci + (k & 3) < nx && 4 * cj + (k >> 2) < ny)
-                                    m = leaf->max[k] > m ? leaf->max[k] : m;
+                            for (k = 0; k < 16; ++k) {
+                                const int64_t i = 4 * ci + (k & 3), j = 4 * cj + (k >> 2);
+                                if (i >= nx || j >= ny) continue;
+                                m = cellmax[j * nx + i] > m ? cellmax[j * nx + i] : m;
+                                l = cellmax[j * nx + i] < l ? cellmax[j * nx + i] : l;
+                            }
                             value[slot] = m;
+                            lowest[slot] = l;
                         } else {
                             value[slot] = nodes[c.offset[level - 1] + cj * child_x + ci].max;
                         }
                     }
                 }
-                quantize_node(node, value, valid);
+                if (level == 2) {
+                    float lowest_cell = INFINITY;
+                    int k;
+                    for (k = 0; k < 16; ++k)
+                        if (valid >> k & 1u)
+                            lowest_cell = lowest[k] < lowest_cell ? lowest[k] : lowest_cell;
+                    quantize_node(node, value, valid, lowest_cell);
+                } else {
+                    quantize_node(node, value, valid, INFINITY);
+                }
             }
         }
     }
+    build_leaves(cellmax, &c, records);
 }
 
 /* ---- the walk ---------------------------------------------------------------------------- */
@@ -211,14 +266,21 @@ HF_HOT int compact_walk(hf_hit *h, const hf_compact *c, int cull, const int quad
             continue;
         } else {
             /* walk the 4 x 4 floor tile cell by cell (maxmip.h), each cell culled by its
-             * maximum in the tile's leaf (one line) */
-            const float *leaf = hf_compact_leaf_at(c, tile_i, tile_j)->max;
+             * bound decoded from the tile's codes in its leaf (one line), over the range
+             * [base, bound] of the parent node (level 2: bound is the tile's, just tested) */
+            const hf_compact_node *parent = hf_compact_node_at(c, 2, tile_i >> 2, tile_j >> 2);
             const int32_t ilo = (int32_t)tile_i << 2, jlo = (int32_t)tile_j << 2;
             const uint32_t iw = (uint32_t)(ilo + 4 < nx ? 4 : nx - ilo) - 1;
             const uint32_t jw = (uint32_t)(jlo + 4 < ny ? 4 : ny - jlo) - 1;
+            hf_leaf_codes leaf;
             double t_in;
-            const int status =
-                hf_floor_walk(h, &ray, ilo, jlo, iw, jw, leaf, 1, &i, &j, t, &t_in, NULL, NULL);
+            int status;
+            HF_ASSERT(top >= 2, "dda_compact: a floor tile without a parent node (%d levels)", top);
+            leaf.code = hf_compact_leaf_codes(c, tile_i, tile_j);
+            leaf.lo = (double)parent->base;
+            leaf.step = hf_compact_leaf_step(bound, leaf.lo);
+            status =
+                hf_floor_walk(h, &ray, ilo, jlo, iw, jw, NULL, &leaf, &i, &j, t, &t_in, NULL, NULL);
             if (status >= 0) return status;
             t = t_in > t ? t_in : t;
             level = compact_climb(1, climb, ilo, jlo, i, j);
@@ -246,8 +308,9 @@ HF_HOT int compact_walk(hf_hit *h, const hf_compact *c, int cull, const int quad
 __attribute__((flatten))
 #endif
 int hf_compact_hit(hf_hit *h, const hf_compact *c) {
-    /* the floor cull is the exact test's own cull, on the leaf's copy of the maximum: the
-     * exact test runs without it, and never reads the row-major cell maxima */
+    /* the floor cull (the exact test's own cull, on the leaf's decoded bound, at or above
+     * the maximum) replaces the exact test's: that one runs without it, and never reads
+     * the row-major cell maxima */
     const int cull = h->cull_cells;
     int found;
     h->cull_cells = 0;

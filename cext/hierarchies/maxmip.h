@@ -134,28 +134,46 @@ static inline double hf_mip_tile_max(const hf_hit_batch *b, int level, int32_t t
  * and the walk is always inlined, so it folds away. */
 typedef int (*hf_cell_test)(hf_hit *h, int32_t i, int32_t j, int culled, void *ctx);
 
+/* A floor tile's cell bounds as the compact tree's leaf codes (compact.h): the bound of
+ * the cell in slot k = 4 (j & 3) + (i & 3) is hf_leaf_bound(lo, step, code[k]), at or
+ * above its float32 maximum. */
+typedef struct {
+    const uint8_t *code;
+    double lo, step;
+} hf_leaf_codes;
+
+/* A leaf code's bound, in the one expression the tree's build (compact.c) and the floor
+ * walk share: code * step is exact (compact.h, hf_compact_leaf_step), so a fused
+ * multiply-add rounds it the same way. */
+static inline double hf_leaf_bound(double lo, double step, unsigned code) {
+    return lo + (double)code * step;
+}
+
 /* The floor-tile walk, the one home of the cell walk inside a tile that a hierarchy could
  * not skip (dda_maxmip, packet_maxmip and dda_compact): from cell (*ci, *cj), entered at
  * t_start, cell by cell through the tile of cells [ilo, ilo + iw] x [jlo, jlo + jw]; mx, my:
  * the exit faces of the current cell, recomputed only on the axis that stepped. A cell is
- * culled by z at its exit face (descending) or at its entry (else) against its maximum:
- * for a descending ray that is exactly the exact test's cull, so only the cells it passes
- * pay for the interval and the surface test. `maxima` holds the cell maxima: the
- * row-major grid (leaf = 0) or, for the compact tree, the tile's leaf of 4 x 4 maxima in
- * one line (leaf = 1; a constant at every call site, so the choice folds away). Returns 1
- * on a hit (then (*ci, *cj) is the hit cell and *t_entered the parameter the walk
- * entered it at), 0 when the ray ends or leaves the grid, -1 when it leaves the tile: then
- * (*ci, *cj) is the cell it entered and *t_entered the parameter where it did. */
+ * culled by z at its exit face (descending) or at its entry (else) against its bound:
+ * with the row-major grid's cell maxima `maxima` (`leaf` NULL) for a descending ray that
+ * is exactly the exact test's cull, so only the cells it passes pay for the interval and
+ * the surface test; for the compact tree, the tile's leaf codes (`leaf`, 16 bytes of one
+ * line) decode to a bound at or above the maximum, a coarser cull whose extra cells the
+ * exact test rejects. `leaf` is a constant (NULL or not) at every call site, so the
+ * choice folds away. Returns 1 on a hit (then (*ci, *cj) is the hit cell and *t_entered
+ * the parameter the walk entered it at), 0 when the ray ends or leaves the grid, -1 when
+ * it leaves the tile: then (*ci, *cj) is the cell it entered and *t_entered the parameter
+ * where it did. */
 HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jlo, uint32_t iw,
-                         uint32_t jw, const float *maxima, const int leaf, int32_t *ci, int32_t *cj,
-                         double t_start, double *t_entered, hf_cell_test test, void *ctx) {
+                         uint32_t jw, const float *maxima, const hf_leaf_codes *leaf, int32_t *ci,
+                         int32_t *cj, double t_start, double *t_entered, hf_cell_test test,
+                         void *ctx) {
     const int32_t nx = r->nx, ny = r->ny, sx = r->sx, sy = r->sy, fx = r->fx, fy = r->fy;
     const double ox = r->ox, oy = r->oy, oz = r->oz, dz = r->dz, inv_x = r->inv_x;
     const double inv_y = r->inv_y, t1 = r->t1;
     const int descending = r->descending, cull = r->cull;
     /* the exact test's own cull is this one when the ray descends (z at the cell's exit,
      * tb: min(mx, my, t1) is the exact interval's tb, the same expressions) against the
-     * grid's cell maximum (leaf 0; the compact tree's leaf keeps its own) */
+     * grid's cell maximum (no leaf; the compact tree's leaf bound is coarser) */
     const int culled = !leaf && cull && descending;
     int32_t i = *ci, j = *cj;
     double t_in = t_start;
@@ -166,7 +184,8 @@ HF_HOT int hf_floor_walk(hf_hit *h, const hf_mip_ray *r, int32_t ilo, int32_t jl
         h->cells_visited += 1;
         if (!cull ||
             !(oz + (descending ? tb : t_in) * dz >
-              (double)(leaf ? maxima[((j & 3) << 2) | (i & 3)] : maxima[(int64_t)j * nx + i]))) {
+              (leaf ? hf_leaf_bound(leaf->lo, leaf->step, leaf->code[((j & 3) << 2) | (i & 3)])
+                    : (double)maxima[(int64_t)j * nx + i]))) {
             if (test ? test(h, i, j, culled, ctx) : hf_hit_cell_exact_culled(h, i, j, culled)) {
                 /* the hit cell and the parameter the walk entered it at: where
                  * plane_maxmip resumes the ray above (dispatch/plane.c) */
@@ -215,8 +234,8 @@ static inline int hf_mip_floor_walk_by(hf_hit *h, const hf_mip_ray *r, hf_mip_wa
     const uint32_t jw =
         (uint32_t)((((int64_t)tile_j + 1) << floor_level) < ny ? (1 << floor_level) : ny - jlo) - 1;
     double t_in;
-    const int status =
-        hf_floor_walk(h, r, ilo, jlo, iw, jw, h->cellmax, 0, &w->i, &w->j, w->t, &t_in, test, ctx);
+    const int status = hf_floor_walk(h, r, ilo, jlo, iw, jw, h->cellmax, NULL, &w->i, &w->j, w->t,
+                                     &t_in, test, ctx);
     if (status == 0) return 0;
     w->t = t_in > w->t ? t_in : w->t; /* on a hit too: the state plane_maxmip resumes from */
     if (status > 0) return 1;

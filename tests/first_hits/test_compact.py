@@ -10,7 +10,16 @@ import pytest
 
 import algos
 from algos import _kernels
-from algos.accel.compact import NODE_BYTES, build_compact, compact_bounds, compact_layout, compact_leaves, compact_nodes
+from algos.accel.compact import (
+    LEAF_CODE_MAX,
+    NODE_BYTES,
+    build_compact,
+    compact_bounds,
+    compact_layout,
+    compact_leaves,
+    compact_nodes,
+    leaf_step,
+)
 from datasets_gen import fields
 from datasets_gen.rays import first_hit_rays
 
@@ -29,24 +38,52 @@ def _tile_max(cellmax, level):
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (4, 4), (5, 17), (64, 64), (65, 130),
                                    (300, 257)])
 def test_layout_counts_nodes_and_aligns_them(shape):
-    """Level L has ceil(n / 4^L) nodes per side, the top one node; the buffer is 64 bytes
-    per node, aligned to 64."""
+    """Level L has ceil(n / 4^L) tiles per side, the top (at least level 2) one node; level
+    1 is stored as one leaf per 2 x 2 tiles; the buffer is 64 bytes per record, aligned to
+    64."""
     layout = compact_layout(*shape)
     ny, nx = shape
     for level, (offset, py, px) in enumerate(layout, start=1):
         assert (py, px) == (-(-ny // 4 ** level), -(-nx // 4 ** level))
     assert layout[-1][1:] == (1, 1)
-    assert len(layout) == 1 or layout[-2][1:] != (1, 1)
+    assert len(layout) == 2 or layout[-2][1:] != (1, 1)
+    assert layout[1][0] == -(-layout[0][1] // 2) * -(-layout[0][2] // 2)  # the leaves
     tree = build_compact(np.zeros(shape, np.float32))
     assert tree.dtype == np.uint8 and tree.nbytes == (layout[-1][0] + 1) * NODE_BYTES
     assert tree.ctypes.data % NODE_BYTES == 0
 
 
+def _check_cell_bounds(tree, cellmax, what):
+    """The cells' decoded bounds: at or above the float32 maximum, each code the smallest
+    that is (code 0, or the next code down falls below the maximum), so within one leaf
+    step of the maximum."""
+    ny, nx = cellmax.shape
+    true = cellmax.astype(np.float64)
+    bound = compact_bounds(tree, ny, nx, 0)
+    worst = np.unravel_index(np.argmax(true - bound), true.shape)
+    assert np.all(bound >= true), (
+        f"{what}: cell {worst} max {true[worst]!r} above its bound {bound[worst]!r}")
+    j, i = np.mgrid[0:ny, 0:nx]
+    tj, ti = j // 4, i // 4
+    parent = compact_nodes(tree, ny, nx, 2)[tj // 4, ti // 4]
+    slot = (4 * (tj % 4) + ti % 4)[..., None]
+    lo, scale = parent["base"].astype(np.float64), parent["scale"].astype(np.float64)
+    hi = lo + np.take_along_axis(parent["q"], slot, -1)[..., 0] * scale
+    step = leaf_step(hi, lo)
+    code = compact_leaves(tree, ny, nx)[tj, ti, 4 * (j % 4) + i % 4].astype(np.float64)
+    assert np.all(lo <= hi) and np.all(step * LEAF_CODE_MAX >= hi - lo), what
+    assert np.all((code == 0) | (lo + (code - 1) * step < true)), what
+    # the low end, the node's base, is its lowest cell maximum
+    node_min = np.full((tj.max() // 4 + 1, ti.max() // 4 + 1), np.inf)
+    np.minimum.at(node_min, (tj // 4, ti // 4), true)
+    assert np.array_equal(lo, node_min[tj // 4, ti // 4]), what
+
+
 @pytest.mark.parametrize("seed", range(8))
 def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
-    """The leaves hold the cell maxima exactly; at every level above: bound >= the float32
-    tile maximum, in the kernel's float64 arithmetic, and above it by at most one code step
-    of the parent node; each node's `max` is its tile's maximum exactly."""
+    """At every level: bound >= the float32 maximum, in the kernel's float64 arithmetic,
+    and above it by at most one code step (the cells: _check_cell_bounds); each node's
+    `max` is its tile's maximum exactly."""
     rng = np.random.Generator(np.random.PCG64(seed))
     shape = (int(rng.integers(1, 90)), int(rng.integers(1, 90)))
     scale = 10.0 ** rng.uniform(-30, 30)
@@ -56,7 +93,7 @@ def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
         cellmax[:] = np.float32(3.25)  # a flat field: every range empty
     tree = build_compact(cellmax)
     layout = compact_layout(*shape)
-    assert np.array_equal(compact_bounds(tree, *shape, 0), cellmax.astype(np.float64))
+    _check_cell_bounds(tree, cellmax, f"seed={seed} shape={shape}")
     for level in range(1, len(layout)):
         true = _tile_max(cellmax, level).astype(np.float64)
         bound = compact_bounds(tree, *shape, level)
@@ -74,23 +111,35 @@ def test_bounds_are_never_below_the_true_maximum_and_tight(seed):
         assert np.array_equal(parents["max"], _tile_max(cellmax, level + 1))
 
 
-def test_leaves_tile_the_cell_maxima_and_codes_are_relative_to_the_node():
-    """A leaf holds its 4 x 4 cells' maxima (0 outside the grid); a node's lowest child
-    decodes to its base, its highest to at least its max, and the used bits mark the
-    children inside the grid."""
-    cellmax = np.arange(21 * 6, dtype=np.float32).reshape(6, 21)  # 2 x 6 leaves
+def test_leaves_code_the_cells_and_codes_are_relative_to_the_node():
+    """A leaf holds 2 x 2 tiles' cell codes (0 outside the grid), from the parent's base
+    up to the tile's bound; a level-2 node's codes start at its lowest cell maximum, its
+    highest child decodes to at least its max, and the used bits mark the children inside
+    the grid."""
+    cellmax = np.arange(21 * 6, dtype=np.float32).reshape(6, 21)  # 2 x 6 tiles, 1 x 3 leaves
     tree = build_compact(cellmax)
+    layout = compact_layout(6, 21)
+    assert layout[1][0] == 3  # the leaves: one line per 8 x 8 cells
     leaves = compact_leaves(tree, 6, 21)
     assert leaves.shape == (2, 6, 16)
-    assert np.array_equal(leaves[0, 0].reshape(4, 4), cellmax[:4, :4])
-    assert np.array_equal(leaves[1, 5].reshape(4, 4)[:2, :1], cellmax[4:, 20:])
-    assert not leaves[1, 5].reshape(4, 4)[2:].any()
-    node = compact_nodes(tree, 6, 21, 2)[0, 0]  # leaves 0..3 x 0..1
-    assert node["base"] == cellmax[:4, :4].max() and node["max"] == cellmax[:, :16].max()
-    assert node["q"][0] == 0 and node["q"][4 + 3] == 65535
+    bounds = compact_bounds(tree, 6, 21, 0)
+    # at or above the maximum, within a step ((hi - lo) / 254, hi - lo at most 120 here)
+    assert np.all(bounds >= cellmax) and np.all(bounds - cellmax < 120.0 / 254)
+    assert bounds[0, 0] == 0.0  # the node's lowest cell: code 0 at the node's base
+    # the codes grow with the cell maxima, each tile's maximum coded highest
+    for tile in (leaves[0, 0], leaves[1, 1][:8]):
+        assert np.all(np.diff(tile.astype(int)) > 0) and tile.argmax() == len(tile) - 1
+    # cells outside the grid: code 0 (in the raw records: rows 6 and 7 of every leaf)
+    assert not leaves[1, 5].reshape(4, 4)[2:].any() and not leaves[1, 5].reshape(4, 4)[:, 1:].any()
+    assert not tree[:3 * NODE_BYTES].reshape(3, 4, 16)[:, 2:, 8:].any()
+    node = compact_nodes(tree, 6, 21, 2)[0, 0]  # tiles 0..3 x 0..1
+    assert node["base"] == 0.0 and node["max"] == cellmax[:, :16].max()
+    assert node["q"][4 + 3] == 65535 and np.all(node["q"][:8] > 0)
     assert node["used"] == 0xFF
+    assert compact_nodes(tree, 6, 21, 2)[0, 1]["base"] == 16.0
     top = compact_nodes(tree, 6, 21, 3)
     assert top.shape == (1, 1) and top[0, 0]["max"] == cellmax.max()
+    assert top[0, 0]["base"] == cellmax[:, :16].max()  # its lowest child maximum
     assert top[0, 0]["used"] == 0b11
 
 
@@ -190,7 +239,7 @@ def test_build_stats_record_the_tree():
     ny, nx = fld.rows - 1, fld.cols - 1
     assert stats["bytes"] == (compact_layout(ny, nx)[-1][0] + 1) * NODE_BYTES
     assert stats["seconds"] >= 0
-    assert 4.0 <= stats["bytes"] / (ny * nx) <= 4.6  # about 4.27 bytes per cell
+    assert 1.0 <= stats["bytes"] / (ny * nx) <= 1.6  # about 1.27 bytes per cell
 
 
 def test_bad_input_names_the_argument():
@@ -241,7 +290,7 @@ def test_study_quick_tier_writes_table_and_plot(tmp_path):
     rows = list(csv.DictReader(open(paths["csv"])))
     assert {(r["kernel"], r["size"]) for r in rows} == {
         (k, str(s)) for k in study.KERNELS for s in (64, 128)}
-    assert all(float(r["bytes_per_sample"]) > 4 for r in rows)
+    assert all(float(r["bytes_per_sample"]) > 1 for r in rows)
     table = open(paths["md"]).read()
     assert "`dda_compact`" in table and "uptime" in table
 
@@ -265,3 +314,22 @@ def test_callgrind_cache_counts_are_per_ray_and_exact():
             assert abs(a[k][key] - b[k][key]) <= 0.05 * a[k][key], (k, key, a[k], b[k])
         assert 0 < a[k]["ll_misses"] <= a[k]["d1_misses"] <= a[k]["data_accesses"]
         assert a[k]["instructions"] > a[k]["data_accesses"]
+
+
+@pytest.mark.skipif(__import__("shutil").which("valgrind") is None
+                    or "libasan" in __import__("os").environ.get("LD_PRELOAD", ""),
+                    reason="needs valgrind (and no preloaded sanitizer runtime)")
+def test_callgrind_regimes_count_the_same_rays_cold_and_warm():
+    """The flushed, warm and other-warmed regimes count the same rays (the same
+    instructions and data accesses), and each warming removes LL misses (the other rays
+    warm the very mappings the counted rays read)."""
+    from bench.studies.compact import REGIMES, callgrind_cache_counts
+
+    got = callgrind_cache_counts(64, 20, kernels=("dda_compact",), regimes=True)
+    counts = got["dda_compact"]
+    assert set(counts) == set(REGIMES)
+    for key in ("instructions", "data_accesses"):
+        assert len({c[key] for c in counts.values()}) == 1, (key, counts)
+    assert counts["warm"]["ll_misses"] <= counts["other_warmed"]["ll_misses"] \
+        < counts["flushed"]["ll_misses"], counts
+    assert counts["flushed"]["ll_misses"] > 0
